@@ -86,7 +86,7 @@ impl GridSpec {
 
     /// Columns W of a level.
     pub fn width(self, level: LevelId) -> u64 {
-        2 * u64::from(self.tile_size) << (level.level - level.aniso)
+        (2 * u64::from(self.tile_size)) << (level.level - level.aniso)
     }
 
     /// Rows H of a level.
@@ -166,7 +166,11 @@ impl GridSpec {
         let h = self.height(level) as i64;
         // Fold j into [0, 2H) first: crossing both poles is a full meridian circle.
         let jj = j.rem_euclid(2 * h);
-        let (row, flip) = if jj < h { (jj, false) } else { (2 * h - 1 - jj, true) };
+        let (row, flip) = if jj < h {
+            (jj, false)
+        } else {
+            (2 * h - 1 - jj, true)
+        };
         let col = if flip { i + w / 2 } else { i };
         (col.rem_euclid(w) as u64, row as u64)
     }

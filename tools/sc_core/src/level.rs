@@ -21,7 +21,9 @@ pub const LEVEL_MAX: u32 = 20;
 pub const ANISO_MAX: u32 = 8;
 
 /// One level of the pyramid: isotropic level `level`, `aniso` times halved in longitude.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
+)]
 pub struct LevelId {
     /// Isotropic level ℓ: `H = T·2^ℓ` rows.
     pub level: u32,

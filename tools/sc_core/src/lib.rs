@@ -26,7 +26,9 @@ pub enum GridError {
     #[error("tile size {0} is not supported (expected a power of two between 16 and 4096)")]
     TileSize(u32),
     /// A level beyond [`LEVEL_MAX`] or an anisotropy beyond what the level allows.
-    #[error("level {level} with anisotropy {aniso} does not exist (levels 0..={LEVEL_MAX}, anisotropy 0..=min(level, {ANISO_MAX}))")]
+    #[error(
+        "level {level} with anisotropy {aniso} does not exist (levels 0..={LEVEL_MAX}, anisotropy 0..=min(level, {ANISO_MAX}))"
+    )]
     Level {
         /// The requested level.
         level: u32,

@@ -43,7 +43,11 @@ impl TileId {
         let tx = grid.tiles_x(self.level) as i64;
         let ty = grid.tiles_y(self.level) as i64;
         let j = (self.y as i64 + dy).rem_euclid(2 * ty);
-        let (row, flip) = if j < ty { (j, false) } else { (2 * ty - 1 - j, true) };
+        let (row, flip) = if j < ty {
+            (j, false)
+        } else {
+            (2 * ty - 1 - j, true)
+        };
         let col = self.x as i64 + dx + if flip { tx / 2 } else { 0 };
         TileId {
             level: self.level,

@@ -4,7 +4,8 @@ use proptest::prelude::*;
 use sc_core::{GridSpec, LevelId, LonLat, ShardId, TexelPos, TileId};
 
 fn level() -> impl Strategy<Value = LevelId> {
-    (0u32..=12).prop_flat_map(|l| (Just(l), 0..=l.min(sc_core::ANISO_MAX)))
+    (0u32..=12)
+        .prop_flat_map(|l| (Just(l), 0..=l.min(sc_core::ANISO_MAX)))
         .prop_map(|(l, a)| LevelId::new(l, a).expect("valid level"))
 }
 
@@ -131,19 +132,27 @@ fn level_shapes_and_geotransform() {
     assert_eq!((g.width(l4), g.height(l4)), (8192, 4096));
     let l4a2 = LevelId::new(4, 2).expect("valid");
     assert_eq!((g.width(l4a2), g.height(l4a2)), (2048, 4096));
-    assert_eq!(g.geotransform(l4), [-180.0, 360.0 / 8192.0, 0.0, 90.0, 0.0, -180.0 / 4096.0]);
+    assert_eq!(
+        g.geotransform(l4),
+        [-180.0, 360.0 / 8192.0, 0.0, 90.0, 0.0, -180.0 / 4096.0]
+    );
     // texel (0,0) centre
     let c = g.texel_centre(l4, 0, 0);
     assert!((c.lon_deg - (-180.0 + 0.5 * 360.0 / 8192.0)).abs() < 1e-12);
     assert!((c.lat_deg - (90.0 - 0.5 * 180.0 / 4096.0)).abs() < 1e-12);
     // lon exactly 180 wraps to column 0
-    let t = g.texel_from_lonlat(l4, LonLat::new(180.0, 0.0)).expect("on sphere");
+    let t = g
+        .texel_from_lonlat(l4, LonLat::new(180.0, 0.0))
+        .expect("on sphere");
     assert_eq!(t, TexelPos { x: 0.0, y: 2048.0 });
     assert!(g.texel_from_lonlat(l4, LonLat::new(0.0, 90.5)).is_err());
     assert!(g.texel_from_lonlat(l4, LonLat::new(f64::NAN, 0.0)).is_err());
     // spacing choice: 1/12° (ETOPO5) → level 4 (180/4096 = 0.0439°) is the coarsest not coarser
     assert_eq!(g.level_for_spacing_deg(1.0 / 12.0), l4);
-    assert_eq!(g.level_for_spacing_deg(0.09), LevelId::iso(3).expect("valid"));
+    assert_eq!(
+        g.level_for_spacing_deg(0.09),
+        LevelId::iso(3).expect("valid")
+    );
     assert_eq!(g.level_for_spacing_deg(180.0 / 4096.0), l4);
     assert!(g.iso_spacing_m(l4, sc_core::EARTH_RADIUS_M) > 4886.0);
 }

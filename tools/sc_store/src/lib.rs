@@ -1,1 +1,87 @@
-//! tmp
+//! The sphereclip tiled store: a Zarr v3 group with one sharded array per layer and level.
+//!
+//! Layout (see ARCHITECTURE.md): `STORE/zarr.json` is the group, its attribute `sphereclip` holds
+//! [`StoreMeta`]; `STORE/<layer>/<level key>` is one array per level, shard = `S×S` tiles, inner
+//! chunk = one `T×T` tile, each inner chunk and shard index carrying a crc32c.
+//!
+//! Invariants:
+//! - one process writes a store at a time (an OS lock on `STORE/.lock`);
+//! - one [`ShardWriter`] owns a shard: shards are written whole, atomically (temp file, fsync, rename);
+//! - `meta.complete` turns true only in [`StoreWriter::commit`], after every shard is durable.
+
+mod durable;
+mod meta;
+mod reader;
+mod sample;
+mod shard_index;
+mod verify;
+mod writer;
+
+use std::path::PathBuf;
+
+pub use meta::{
+    BuildRecord, FORMAT_MAJOR, FORMAT_MINOR, InputRecord, LayerMeta, LevelMeta, StoreMeta,
+};
+pub use reader::{StoreReader, TileRead};
+pub use sample::{LayerKind, TileSample};
+pub use verify::{LevelStats, Problem, VerifyReport};
+pub use writer::{HeightCodec, ShardWriter, StoreConfig, StoreWriter};
+
+/// Errors of the store. Messages are one line, lowercase, with the path last.
+#[derive(Debug, thiserror::Error)]
+pub enum StoreError {
+    /// The path is not a sphereclip store, or its metadata is malformed.
+    #[error("{what} in {}", path.display())]
+    Format {
+        /// What is wrong.
+        what: String,
+        /// The store or file.
+        path: PathBuf,
+    },
+    /// The store was written by a newer, incompatible sphereclip.
+    #[error("store format {found} is newer than this sphereclip reads ({FORMAT_MAJOR}.x); upgrade sphereclip to read {}", path.display())]
+    UnsupportedVersion {
+        /// The version found in the store.
+        found: String,
+        /// The store.
+        path: PathBuf,
+    },
+    /// Bytes on disk do not match their checksum, or a shard is truncated.
+    #[error("corrupt {what}: {detail} in {}", path.display())]
+    Corrupt {
+        /// The shard or tile.
+        what: String,
+        /// What the decoder said.
+        detail: String,
+        /// The shard file.
+        path: PathBuf,
+    },
+    /// Another process holds the store's write lock.
+    #[error("store is being written by another process (lock held on {})", path.display())]
+    Locked {
+        /// The lock file.
+        path: PathBuf,
+    },
+    /// A caller asked for something the store does not hold or cannot do.
+    #[error("{0}")]
+    Usage(String),
+    /// A size beyond the store's explicit limits.
+    #[error("{0}")]
+    LimitsExceeded(String),
+    /// The file system failed.
+    #[error("{source} ({})", path.display())]
+    Io {
+        /// The OS error.
+        source: std::io::Error,
+        /// The file or folder.
+        path: PathBuf,
+    },
+}
+
+/// Result of the store crate.
+pub type Result<T, E = StoreError> = std::result::Result<T, E>;
+
+pub(crate) fn io_err(path: impl Into<PathBuf>) -> impl FnOnce(std::io::Error) -> StoreError {
+    let path = path.into();
+    move |source| StoreError::Io { source, path }
+}

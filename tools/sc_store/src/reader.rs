@@ -1,0 +1,269 @@
+//! Reading tiles: thread-safe, cheap to clone, missing tiles reported as missing.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, PoisonError, RwLock};
+
+use sc_core::{LevelId, ShardId, TileId};
+use zarrs::array::{Array, ArrayShardedReadableExt, ArrayShardedReadableExtCache};
+use zarrs::filesystem::FilesystemStore;
+use zarrs::group::Group;
+
+use crate::meta::StoreMeta;
+use crate::shard_index::ShardIndex;
+use crate::{LayerKind, Result, StoreError, TileSample};
+
+/// What [`StoreReader::read_tile`] found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TileRead {
+    /// The tile was decoded into the buffer.
+    Present,
+    /// The store holds no such tile (never written, or all nodata); the buffer is untouched.
+    Missing,
+}
+
+/// A reader of one store. Clone it for each worker thread: clones share the shard-index cache.
+#[derive(Debug, Clone)]
+pub struct StoreReader {
+    inner: Arc<Inner>,
+}
+
+/// Shard indexes read so far; `None` = the shard has no file.
+type IndexCache = HashMap<(LayerKind, ShardId), Arc<Option<ShardIndex>>>;
+
+#[derive(Debug)]
+struct Inner {
+    root: PathBuf,
+    meta: StoreMeta,
+    levels: HashMap<(LayerKind, LevelId), LevelReader>,
+    indexes: RwLock<IndexCache>,
+}
+
+pub(crate) struct LevelReader {
+    pub(crate) array: Array<FilesystemStore>,
+    pub(crate) cache: ArrayShardedReadableExtCache,
+}
+
+impl std::fmt::Debug for LevelReader {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("LevelReader")
+            .field("path", &self.array.path())
+            .finish()
+    }
+}
+
+/// Row-major number of a tile within its shard (the order of the shard index).
+pub(crate) fn local_tile_number(tile: TileId, shard_tiles: u64) -> usize {
+    ((tile.y % shard_tiles) * shard_tiles + tile.x % shard_tiles) as usize
+}
+
+pub(crate) fn level_array_path(kind: LayerKind, level: LevelId) -> String {
+    format!("/{}/{}", kind.name(), level.key())
+}
+
+pub(crate) fn open_fs(root: &Path) -> Result<Arc<FilesystemStore>> {
+    FilesystemStore::new(root)
+        .map(Arc::new)
+        .map_err(|e| StoreError::Format {
+            what: format!("cannot open store folder: {e}"),
+            path: root.to_path_buf(),
+        })
+}
+
+/// Reads and checks the store metadata at `root`.
+pub(crate) fn read_meta(root: &Path) -> Result<(Arc<FilesystemStore>, StoreMeta)> {
+    if !root.is_dir() {
+        let what = if root.exists() {
+            "not a sphereclip store: not a folder"
+        } else {
+            "no store: path does not exist"
+        };
+        return Err(StoreError::Format {
+            what: what.into(),
+            path: root.to_path_buf(),
+        });
+    }
+    if !root.join("zarr.json").is_file() {
+        return Err(StoreError::Format {
+            what: "not a sphereclip store: no zarr.json".into(),
+            path: root.to_path_buf(),
+        });
+    }
+    let fs = open_fs(root)?;
+    let group = Group::open(fs.clone(), "/").map_err(|e| StoreError::Format {
+        what: format!("not a sphereclip store: {e}"),
+        path: root.join("zarr.json"),
+    })?;
+    let meta = StoreMeta::from_attributes(group.attributes(), &root.join("zarr.json"))?;
+    Ok((fs, meta))
+}
+
+impl StoreReader {
+    /// Opens a store for reading. Refuses non-stores and newer major versions.
+    pub fn open(root: &Path) -> Result<Self> {
+        let (fs, meta) = read_meta(root)?;
+        let mut levels = HashMap::new();
+        for (&kind, layer) in &meta.layers {
+            for lm in layer.levels.values() {
+                let path = level_array_path(kind, lm.level);
+                let array = Array::open(fs.clone(), &path).map_err(|e| StoreError::Format {
+                    what: format!("cannot open {kind} level {}: {e}", lm.level),
+                    path: root.join(path.trim_start_matches('/')),
+                })?;
+                let cache = ArrayShardedReadableExtCache::new(&array);
+                levels.insert((kind, lm.level), LevelReader { array, cache });
+            }
+        }
+        Ok(Self {
+            inner: Arc::new(Inner {
+                root: root.to_path_buf(),
+                meta,
+                levels,
+                indexes: RwLock::new(HashMap::new()),
+            }),
+        })
+    }
+
+    /// The store's metadata.
+    pub fn meta(&self) -> &StoreMeta {
+        &self.inner.meta
+    }
+
+    /// The store folder.
+    pub fn root(&self) -> &Path {
+        &self.inner.root
+    }
+
+    pub(crate) fn level(&self, kind: LayerKind, level: LevelId) -> Result<&LevelReader> {
+        self.inner.levels.get(&(kind, level)).ok_or_else(|| {
+            StoreError::Usage(format!(
+                "the store has no {kind} level {level} in {}",
+                self.inner.root.display()
+            ))
+        })
+    }
+
+    /// The file a shard lives in (which may not exist).
+    pub fn shard_path(&self, kind: LayerKind, tile: TileId) -> Result<PathBuf> {
+        let lr = self.level(kind, tile.level)?;
+        let shard = tile.shard(self.inner.meta.shard_tiles);
+        let mut idx = vec![shard.y, shard.x];
+        if kind.channels() > 1 {
+            idx.push(0);
+        }
+        Ok(self.inner.root.join(lr.array.chunk_key(&idx).as_str()))
+    }
+
+    pub(crate) fn tile_indices(kind: LayerKind, tile: TileId) -> Vec<u64> {
+        let mut v = vec![tile.y, tile.x];
+        if kind.channels() > 1 {
+            v.push(0);
+        }
+        v
+    }
+
+    /// Whether the store holds `tile` (reads the shard index once per shard, then cached).
+    pub fn has_tile(&self, kind: LayerKind, tile: TileId) -> Result<bool> {
+        let s = self.inner.meta.shard_tiles;
+        Ok(self
+            .shard_index(kind, tile)?
+            .as_ref()
+            .as_ref()
+            .is_some_and(|ix| ix.has(local_tile_number(tile, s))))
+    }
+
+    fn shard_index(&self, kind: LayerKind, tile: TileId) -> Result<Arc<Option<ShardIndex>>> {
+        self.level(kind, tile.level)?;
+        self.check_tile(tile)?;
+        let s = self.inner.meta.shard_tiles;
+        let shard = tile.shard(s);
+        let cached = self
+            .inner
+            .indexes
+            .read()
+            .unwrap_or_else(PoisonError::into_inner)
+            .get(&(kind, shard))
+            .cloned();
+        if let Some(i) = cached {
+            return Ok(i);
+        }
+        let i = Arc::new(
+            ShardIndex::read(&self.shard_path(kind, tile)?, (s * s) as usize)
+                .map_err(|detail| self.corrupt(kind, tile, None, &detail))?,
+        );
+        self.inner
+            .indexes
+            .write()
+            .unwrap_or_else(PoisonError::into_inner)
+            .insert((kind, shard), i.clone());
+        Ok(i)
+    }
+
+    fn check_tile(&self, tile: TileId) -> Result<()> {
+        TileId::new(self.inner.meta.grid, tile.level, tile.x, tile.y)
+            .map(|_| ())
+            .map_err(|e| StoreError::Usage(e.to_string()))
+    }
+
+    pub(crate) fn corrupt(
+        &self,
+        kind: LayerKind,
+        tile: TileId,
+        what: Option<String>,
+        detail: &str,
+    ) -> StoreError {
+        StoreError::Corrupt {
+            what: what
+                .unwrap_or_else(|| format!("{kind} {}", tile.shard(self.inner.meta.shard_tiles))),
+            detail: detail.to_string(),
+            path: self.shard_path(kind, tile).unwrap_or_default(),
+        }
+    }
+
+    /// Decodes one tile into `out` (`T×T×channels` samples, row-major from the north-west).
+    /// A tile the store does not hold is [`TileRead::Missing`], not an error; a tile whose
+    /// checksum fails is [`StoreError::Corrupt`] naming the shard file and the tile.
+    pub fn read_tile<T: TileSample>(&self, tile: TileId, out: &mut [T]) -> Result<TileRead> {
+        let kind = T::KIND;
+        let t = self.inner.meta.grid.tile_size() as usize;
+        let n = t * t * kind.channels();
+        if out.len() != n {
+            return Err(StoreError::Usage(format!(
+                "expected a buffer of {n} samples for a {kind} tile, found {}",
+                out.len()
+            )));
+        }
+        let s = self.inner.meta.shard_tiles;
+        let index = self.shard_index(kind, tile)?;
+        let Some(index) = index
+            .as_ref()
+            .as_ref()
+            .filter(|ix| ix.has(local_tile_number(tile, s)))
+        else {
+            return Ok(TileRead::Missing);
+        };
+        let what = || Some(format!("{kind} {tile}"));
+        index
+            .check_tile(&self.shard_path(kind, tile)?, local_tile_number(tile, s))
+            .map_err(|d| self.corrupt(kind, tile, what(), &d))?;
+        let lr = self.level(kind, tile.level)?;
+        let v: Vec<T> = lr
+            .array
+            .retrieve_subchunk_opt(
+                &lr.cache,
+                &Self::tile_indices(kind, tile),
+                &Default::default(),
+            )
+            .map_err(|e| self.corrupt(kind, tile, what(), &e.to_string()))?;
+        if v.len() != n {
+            return Err(self.corrupt(
+                kind,
+                tile,
+                None,
+                &format!("decoded {} samples, expected {n}", v.len()),
+            ));
+        }
+        out.copy_from_slice(&v);
+        Ok(TileRead::Present)
+    }
+}

@@ -1,0 +1,109 @@
+//! Layer kinds and the sample types their tiles hold.
+
+use zarrs::array::{DataType, ElementOwned, FillValue, data_type};
+
+/// The layers a store can hold. Each has one sample type, a fixed channel count and a nodata rule.
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
+)]
+#[serde(rename_all = "lowercase")]
+pub enum LayerKind {
+    /// Heights above the sphere in metres, f32, nodata = NaN.
+    Height,
+    /// sRGB colour with alpha, u8 ×4, nodata = alpha 0.
+    Color,
+}
+
+impl LayerKind {
+    /// Every kind, in store order.
+    pub const ALL: [LayerKind; 2] = [LayerKind::Height, LayerKind::Color];
+
+    /// The layer's group name in the store (`height`, `color`).
+    pub fn name(self) -> &'static str {
+        match self {
+            LayerKind::Height => "height",
+            LayerKind::Color => "color",
+        }
+    }
+
+    /// Parses [`LayerKind::name`].
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|k| k.name() == name)
+    }
+
+    /// Samples per texel.
+    pub fn channels(self) -> usize {
+        match self {
+            LayerKind::Height => 1,
+            LayerKind::Color => 4,
+        }
+    }
+
+    /// Units of the samples, for metadata.
+    pub fn units(self) -> &'static str {
+        match self {
+            LayerKind::Height => "m",
+            LayerKind::Color => "sRGB8+alpha",
+        }
+    }
+
+    /// Nodata rule, for metadata and humans.
+    pub fn nodata(self) -> &'static str {
+        match self {
+            LayerKind::Height => "NaN",
+            LayerKind::Color => "alpha = 0",
+        }
+    }
+
+    pub(crate) fn data_type(self) -> DataType {
+        match self {
+            LayerKind::Height => data_type::float32(),
+            LayerKind::Color => data_type::uint8(),
+        }
+    }
+
+    pub(crate) fn fill_value(self) -> FillValue {
+        match self {
+            LayerKind::Height => FillValue::from(f32::NAN),
+            LayerKind::Color => FillValue::from(0u8),
+        }
+    }
+}
+
+impl std::fmt::Display for LayerKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A sample type of a layer: `f32` for heights, `u8` for colour.
+pub trait TileSample: ElementOwned + Copy + Send + Sync + 'static {
+    /// The layer this sample type belongs to.
+    const KIND: LayerKind;
+    /// The nodata / fill sample.
+    const FILL: Self;
+    /// Value range of the valid samples of a tile, if it has any and the layer tracks ranges.
+    fn value_range(samples: &[Self]) -> Option<(f64, f64)>;
+}
+
+impl TileSample for f32 {
+    const KIND: LayerKind = LayerKind::Height;
+    const FILL: Self = f32::NAN;
+    fn value_range(samples: &[Self]) -> Option<(f64, f64)> {
+        samples
+            .iter()
+            .filter(|v| !v.is_nan())
+            .fold(None, |acc, &v| {
+                let v = f64::from(v);
+                Some(acc.map_or((v, v), |(lo, hi): (f64, f64)| (lo.min(v), hi.max(v))))
+            })
+    }
+}
+
+impl TileSample for u8 {
+    const KIND: LayerKind = LayerKind::Color;
+    const FILL: Self = 0;
+    fn value_range(_: &[Self]) -> Option<(f64, f64)> {
+        None
+    }
+}

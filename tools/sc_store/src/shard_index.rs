@@ -1,0 +1,98 @@
+//! Reading a shard's index ourselves: which tiles a shard holds, with the crc32c checked and every
+//! byte range checked against the file size, so that a truncated or damaged shard is named clearly.
+//!
+//! Tiles' checksums are checked here too ([`ShardIndex::check_tile`]): zarrs 0.23 strips the
+//! crc32c of an inner chunk without checking it when it decodes a tile out of a shard.
+//!
+//! Why not zarrs' `subchunk_byte_range`: in zarrs 0.23 it adds offset and size of an empty entry
+//! (both `u64::MAX`) and overflows instead of answering "missing". The format is the Zarr v3
+//! `sharding_indexed` spec with the index at the end, encoded `bytes(little)` + `crc32c`, exactly
+//! as the writer configures it.
+
+use std::fs::File;
+use std::io::{Read, Seek, SeekFrom};
+use std::path::Path;
+
+/// The decoded index of one shard: `(offset, nbytes)` per tile, row-major over the shard's tiles.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) struct ShardIndex {
+    entries: Vec<(u64, u64)>,
+}
+
+const EMPTY: u64 = u64::MAX;
+
+impl ShardIndex {
+    /// Reads the index of the shard file at `path` holding `tiles` tiles. `Ok(None)`: no file.
+    /// `Err(detail)`: truncated, checksum mismatch or byte ranges outside the file.
+    pub(crate) fn read(path: &Path, tiles: usize) -> Result<Option<Self>, String> {
+        let mut f = match File::open(path) {
+            Ok(f) => f,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+            Err(e) => return Err(e.to_string()),
+        };
+        let len = f.metadata().map_err(|e| e.to_string())?.len();
+        let index_len = (tiles * 16 + 4) as u64;
+        if len < index_len {
+            return Err(format!(
+                "truncated shard: {len} bytes, the index alone needs {index_len}"
+            ));
+        }
+        let mut buf = vec![0u8; index_len as usize];
+        f.seek(SeekFrom::Start(len - index_len))
+            .and_then(|_| f.read_exact(&mut buf))
+            .map_err(|e| e.to_string())?;
+        let (body, crc) = buf.split_at(tiles * 16);
+        let stored = u32::from_le_bytes([crc[0], crc[1], crc[2], crc[3]]);
+        if crc32c::crc32c(body) != stored {
+            return Err("shard index checksum mismatch (truncated or damaged shard)".into());
+        }
+        let data_end = len - index_len;
+        let mut entries = Vec::with_capacity(tiles);
+        for e in body.chunks_exact(16) {
+            let mut a = [0u8; 8];
+            a.copy_from_slice(&e[..8]);
+            let offset = u64::from_le_bytes(a);
+            a.copy_from_slice(&e[8..]);
+            let nbytes = u64::from_le_bytes(a);
+            if !(offset == EMPTY && nbytes == EMPTY)
+                && offset.checked_add(nbytes).is_none_or(|end| end > data_end)
+            {
+                return Err(format!(
+                    "tile bytes {offset}+{nbytes} lie outside the shard's {data_end} data bytes"
+                ));
+            }
+            entries.push((offset, nbytes));
+        }
+        Ok(Some(Self { entries }))
+    }
+
+    /// Reads tile number `i`'s encoded bytes from `path` and checks their trailing crc32c.
+    pub(crate) fn check_tile(&self, path: &Path, i: usize) -> Result<(), String> {
+        use std::os::unix::fs::FileExt;
+        let Some(&(offset, nbytes)) = self.entries.get(i) else {
+            return Err(format!("tile {i} is not in the shard index"));
+        };
+        if nbytes < 4 {
+            return Err(format!(
+                "tile {i} has {nbytes} bytes, too few for its checksum"
+            ));
+        }
+        let mut buf = vec![0u8; nbytes as usize];
+        File::open(path)
+            .and_then(|f| f.read_exact_at(&mut buf, offset))
+            .map_err(|e| e.to_string())?;
+        let (body, crc) = buf.split_at(buf.len() - 4);
+        let stored = u32::from_le_bytes([crc[0], crc[1], crc[2], crc[3]]);
+        if crc32c::crc32c(body) != stored {
+            return Err("tile checksum mismatch (damaged bytes)".into());
+        }
+        Ok(())
+    }
+
+    /// Whether tile number `i` (row-major within the shard) is stored.
+    pub(crate) fn has(&self, i: usize) -> bool {
+        self.entries
+            .get(i)
+            .is_some_and(|&(o, n)| !(o == EMPTY && n == EMPTY))
+    }
+}

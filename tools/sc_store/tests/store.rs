@@ -1,0 +1,333 @@
+//! Store round-trip, corruption, version and concurrency tests.
+
+use std::path::Path;
+
+use rand::{Rng, SeedableRng, rngs::StdRng};
+use sc_core::{GridSpec, LevelId, ShardId, TileId};
+use sc_store::{
+    LayerKind, StoreConfig, StoreError, StoreReader, StoreWriter, TileRead, TileSample,
+};
+
+fn config() -> StoreConfig {
+    StoreConfig {
+        grid: GridSpec::new(32).expect("valid"),
+        shard_tiles: 2,
+        ..StoreConfig::default()
+    }
+}
+
+fn height_tile(tile: TileId, t: usize) -> Vec<f32> {
+    let mut rng =
+        StdRng::seed_from_u64(tile.x * 1000 + tile.y * 7 + u64::from(tile.level.level) * 31);
+    (0..t * t)
+        .map(|i| {
+            if i % 97 == 5 {
+                f32::NAN
+            } else {
+                rng.random_range(-11000.0..9000.0)
+            }
+        })
+        .collect()
+}
+
+fn color_tile(tile: TileId, t: usize) -> Vec<u8> {
+    let mut rng = StdRng::seed_from_u64(tile.x * 13 + tile.y * 1000 + 5);
+    (0..t * t * 4).map(|_| rng.random()).collect()
+}
+
+/// Writes every tile of `level` for layer T, shard by shard, returning the tiles written.
+fn write_level<T: TileSample>(
+    w: &StoreWriter,
+    level: LevelId,
+    make: impl Fn(TileId) -> Vec<T>,
+) -> Vec<TileId> {
+    let m = w.meta();
+    let (sx, sy) = ShardId::counts(m.grid, level, m.shard_tiles);
+    let mut all = Vec::new();
+    for y in 0..sy {
+        for x in 0..sx {
+            let mut sw = w.shard_writer::<T>(ShardId { level, x, y }).expect("claim");
+            let tiles: Vec<TileId> = sw.tiles().collect();
+            for t in tiles {
+                sw.put_tile(t, &make(t)).expect("put");
+                all.push(t);
+            }
+            sw.finish().expect("finish");
+        }
+    }
+    all
+}
+
+fn same_bits(a: &[f32], b: &[f32]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
+}
+
+fn write_sample_store(root: &Path) -> (Vec<TileId>, Vec<TileId>) {
+    let w = StoreWriter::create(root, config()).expect("create");
+    let t = 32;
+    let mut heights = Vec::new();
+    for level in [
+        LevelId::iso(0),
+        LevelId::iso(1),
+        LevelId::iso(2),
+        LevelId::new(2, 1),
+    ] {
+        heights.extend(write_level::<f32>(&w, level.expect("valid"), |tile| {
+            height_tile(tile, t)
+        }));
+    }
+    let colors = write_level::<u8>(&w, LevelId::iso(1).expect("valid"), |tile| {
+        color_tile(tile, t)
+    });
+    w.commit(None).expect("commit");
+    (heights, colors)
+}
+
+#[test]
+fn two_layers_several_levels_round_trip_bit_exactly() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let root = dir.path().join("s.zarr");
+    let (heights, colors) = write_sample_store(&root);
+    let r = StoreReader::open(&root).expect("open");
+    assert!(r.meta().complete);
+    assert_eq!(r.meta().levels(LayerKind::Height).len(), 4);
+    let mut buf = vec![0f32; 32 * 32];
+    for &tile in &heights {
+        assert_eq!(
+            r.read_tile(tile, &mut buf).expect("read"),
+            TileRead::Present
+        );
+        assert!(same_bits(&buf, &height_tile(tile, 32)), "{tile}");
+    }
+    let mut cbuf = vec![0u8; 32 * 32 * 4];
+    for &tile in &colors {
+        assert_eq!(
+            r.read_tile(tile, &mut cbuf).expect("read"),
+            TileRead::Present
+        );
+        assert_eq!(cbuf, color_tile(tile, 32), "{tile}");
+    }
+    // value range recorded and plausible
+    let stats = r.level_stats().expect("stats");
+    let l2 = stats
+        .iter()
+        .find(|s| s.layer == LayerKind::Height && s.level == LevelId::iso(2).expect("valid"))
+        .expect("level 2");
+    assert_eq!(l2.tiles_present, l2.tiles_total);
+    let (lo, hi) = l2.value_range.expect("range");
+    assert!(
+        (-11000.0..-10000.0).contains(&lo) && (8000.0..9000.0).contains(&hi),
+        "{lo} {hi}"
+    );
+    // clones share and work from threads
+    std::thread::scope(|s| {
+        for _ in 0..2 {
+            let r = r.clone();
+            let heights = &heights;
+            s.spawn(move || {
+                let mut buf = vec![0f32; 32 * 32];
+                for &tile in heights.iter().rev() {
+                    r.read_tile(tile, &mut buf).expect("read");
+                    assert!(same_bits(&buf, &height_tile(tile, 32)));
+                }
+            });
+        }
+    });
+}
+
+#[test]
+fn missing_tiles_are_missing_and_partial_rewrites_keep_the_rest() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let root = dir.path().join("s.zarr");
+    let level = LevelId::iso(2).expect("valid");
+    let a = TileId { level, x: 0, y: 0 };
+    let b = TileId { level, x: 1, y: 0 };
+    {
+        let w = StoreWriter::create(&root, config()).expect("create");
+        let mut sw = w.shard_writer::<f32>(a.shard(2)).expect("claim");
+        sw.put_tile(a, &height_tile(a, 32)).expect("put");
+        sw.finish().expect("finish");
+        w.commit(None).expect("commit");
+    }
+    let r = StoreReader::open(&root).expect("open");
+    let mut buf = vec![7f32; 32 * 32];
+    assert_eq!(r.read_tile(b, &mut buf).expect("read"), TileRead::Missing);
+    assert!(
+        buf.iter().all(|&v| v == 7.0),
+        "a missing tile leaves the buffer alone"
+    );
+    // a tile of a shard that has no file at all
+    let far = TileId { level, x: 7, y: 3 };
+    assert_eq!(r.read_tile(far, &mut buf).expect("read"), TileRead::Missing);
+    // a second session adds b to the same shard; a must survive
+    {
+        let w = StoreWriter::open(&root).expect("open for writing");
+        let mut sw = w.shard_writer::<f32>(b.shard(2)).expect("claim");
+        sw.put_tile(b, &height_tile(b, 32)).expect("put");
+        sw.finish().expect("finish");
+        w.commit(None).expect("commit");
+    }
+    let r = StoreReader::open(&root).expect("open");
+    r.read_tile(a, &mut buf).expect("read");
+    assert!(same_bits(&buf, &height_tile(a, 32)));
+    r.read_tile(b, &mut buf).expect("read");
+    assert!(same_bits(&buf, &height_tile(b, 32)));
+    // outside the level: usage error, not a panic
+    assert!(r.read_tile(TileId { level, x: 8, y: 0 }, &mut buf).is_err());
+    assert!(r.read_tile(a, &mut vec![0f32; 3]).is_err());
+}
+
+#[test]
+fn a_store_reads_incomplete_until_commit() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let root = dir.path().join("s.zarr");
+    let (_h, _c) = write_sample_store(&root);
+    let w = StoreWriter::open(&root).expect("open for writing");
+    assert!(
+        !StoreReader::open(&root).expect("open").meta().complete,
+        "opened for writing = incomplete"
+    );
+    // a second writer (another process would get the same) is refused while the lock is held
+    match StoreWriter::open(&root) {
+        Err(StoreError::Locked { .. }) => {}
+        other => panic!("expected Locked, got {other:?}"),
+    }
+    w.commit(None).expect("commit");
+    drop(w);
+    assert!(StoreReader::open(&root).expect("open").meta().complete);
+}
+
+#[test]
+fn one_writer_per_shard() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let w = StoreWriter::create(&dir.path().join("s.zarr"), config()).expect("create");
+    let shard = ShardId {
+        level: LevelId::iso(1).expect("valid"),
+        x: 0,
+        y: 0,
+    };
+    let first = w.shard_writer::<f32>(shard).expect("claim");
+    let err = w.shard_writer::<f32>(shard).expect_err("second claim");
+    assert!(err.to_string().contains("already has a writer"), "{err}");
+    assert!(w.commit(None).is_err(), "commit with an open shard writer");
+    drop(first);
+    let again = w.shard_writer::<f32>(shard).expect("released on drop");
+    drop(again);
+    let outside = ShardId {
+        level: LevelId::iso(1).expect("valid"),
+        x: 9,
+        y: 0,
+    };
+    assert!(w.shard_writer::<f32>(outside).is_err());
+}
+
+#[test]
+fn verify_names_the_shard_with_a_flipped_byte() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let root = dir.path().join("s.zarr");
+    write_sample_store(&root);
+    let r = StoreReader::open(&root).expect("open");
+    let clean = r.verify(&|| {}).expect("verify");
+    assert!(clean.problems.is_empty(), "{:?}", clean.problems);
+    assert!(clean.tiles_checked > 0);
+    // flip one byte in the middle of one shard file (a tile's bytes) and one at its end (the index)
+    let level = LevelId::iso(2).expect("valid");
+    let victim = r
+        .shard_path(LayerKind::Height, TileId { level, x: 2, y: 0 })
+        .expect("path");
+    let mut bytes = std::fs::read(&victim).expect("read shard");
+    let mid = bytes.len() / 3;
+    bytes[mid] ^= 0x40;
+    std::fs::write(&victim, &bytes).expect("write");
+    let report = StoreReader::open(&root)
+        .expect("open")
+        .verify(&|| {})
+        .expect("verify");
+    assert_eq!(report.problems.len(), 1, "{:?}", report.problems);
+    assert_eq!(report.problems[0].path, victim);
+    assert!(
+        report.problems[0].what.contains("tile"),
+        "{:?}",
+        report.problems[0]
+    );
+    // index corruption
+    let n = bytes.len();
+    bytes[n - 6] ^= 0x01;
+    std::fs::write(&victim, &bytes).expect("write");
+    let report = StoreReader::open(&root)
+        .expect("open")
+        .verify(&|| {})
+        .expect("verify");
+    assert!(
+        report
+            .problems
+            .iter()
+            .any(|p| p.path == victim && p.what.contains("index")),
+        "{:?}",
+        report.problems
+    );
+}
+
+#[test]
+fn a_truncated_shard_is_a_clear_error() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let root = dir.path().join("s.zarr");
+    write_sample_store(&root);
+    let level = LevelId::iso(2).expect("valid");
+    let tile = TileId { level, x: 0, y: 0 };
+    let victim = StoreReader::open(&root)
+        .expect("open")
+        .shard_path(LayerKind::Height, tile)
+        .expect("path");
+    let bytes = std::fs::read(&victim).expect("read");
+    std::fs::write(&victim, &bytes[..bytes.len() / 2]).expect("truncate");
+    let r = StoreReader::open(&root).expect("open");
+    let err = r
+        .read_tile(tile, &mut vec![0f32; 32 * 32])
+        .expect_err("truncated");
+    let msg = err.to_string();
+    assert!(matches!(err, StoreError::Corrupt { .. }), "{msg}");
+    assert!(
+        msg.contains(&victim.display().to_string()) && !msg.contains('\n'),
+        "{msg}"
+    );
+    // writing into that shard refuses too, and leaves the file as it is
+    let w = StoreWriter::open(&root).expect("open for writing");
+    assert!(w.shard_writer::<f32>(tile.shard(2)).is_err());
+    assert_eq!(std::fs::read(&victim).expect("read").len(), bytes.len() / 2);
+}
+
+#[test]
+fn not_a_store_and_newer_versions_are_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let missing = dir.path().join("nothing");
+    let e = StoreReader::open(&missing).expect_err("missing");
+    assert!(e.to_string().contains("does not exist"), "{e}");
+    std::fs::write(dir.path().join("file"), b"x").expect("write");
+    let e = StoreReader::open(&dir.path().join("file")).expect_err("file");
+    assert!(e.to_string().contains("not a sphereclip store"), "{e}");
+    let plain = dir.path().join("plain");
+    std::fs::create_dir(&plain).expect("mkdir");
+    std::fs::write(
+        plain.join("zarr.json"),
+        br#"{"zarr_format":3,"node_type":"group","attributes":{}}"#,
+    )
+    .expect("write");
+    let e = StoreReader::open(&plain).expect_err("plain zarr");
+    assert!(e.to_string().contains("not a sphereclip store"), "{e}");
+
+    let root = dir.path().join("s.zarr");
+    write_sample_store(&root);
+    let zj = root.join("zarr.json");
+    let text = std::fs::read_to_string(&zj).expect("read");
+    std::fs::write(
+        &zj,
+        text.replace("\"format_version\": \"1.0\"", "\"format_version\": \"2.0\""),
+    )
+    .expect("write");
+    let e = StoreReader::open(&root).expect_err("newer");
+    assert!(matches!(e, StoreError::UnsupportedVersion { .. }), "{e}");
+    assert!(e.to_string().contains("2.0"), "{e}");
+    let e = StoreWriter::open(&root).expect_err("newer");
+    assert!(matches!(e, StoreError::UnsupportedVersion { .. }), "{e}");
+}
