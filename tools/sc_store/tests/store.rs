@@ -174,7 +174,7 @@ fn missing_tiles_are_missing_and_partial_rewrites_keep_the_rest() {
     assert!(same_bits(&buf, &height_tile(b, 32)));
     // outside the level: usage error, not a panic
     assert!(r.read_tile(TileId { level, x: 8, y: 0 }, &mut buf).is_err());
-    assert!(r.read_tile(a, &mut vec![0f32; 3]).is_err());
+    assert!(r.read_tile(a, &mut [0f32; 3]).is_err());
 }
 
 #[test]
