@@ -1,0 +1,46 @@
+//! Raster files in and out of sphereclip. This is the only crate that links GDAL; no GDAL type
+//! crosses its public API.
+//!
+//! - [`export_geotiff`]: one level of a store as a tiled, compressed EPSG:4326 GeoTIFF that GDAL
+//!   3.6 and QGIS open (GDAL 3.6 cannot read Zarr v3).
+//! - [`export_exr`]: a height level as a single-channel f32 OpenEXR heightmap (exr crate; GDAL 3.6
+//!   has no EXR driver).
+
+mod export;
+
+use std::path::PathBuf;
+
+pub use export::{EXR_MAX_TEXELS, ExportSummary, export_exr, export_geotiff};
+
+/// Errors of raster IO. One line each, path last.
+#[derive(Debug, thiserror::Error)]
+pub enum RasterError {
+    /// GDAL refused or failed.
+    #[error("gdal: {detail} ({})", path.display())]
+    Gdal {
+        /// GDAL's message.
+        detail: String,
+        /// The file.
+        path: PathBuf,
+    },
+    /// The store failed.
+    #[error(transparent)]
+    Store(#[from] sc_store::StoreError),
+    /// A request that cannot be served.
+    #[error("{0}")]
+    Usage(String),
+    /// A size beyond an explicit limit.
+    #[error("{0}")]
+    LimitsExceeded(String),
+    /// The file system failed.
+    #[error("{source} ({})", path.display())]
+    Io {
+        /// The OS error.
+        source: std::io::Error,
+        /// The file.
+        path: PathBuf,
+    },
+}
+
+/// Result of this crate.
+pub type Result<T, E = RasterError> = std::result::Result<T, E>;

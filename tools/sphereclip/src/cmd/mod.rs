@@ -1,0 +1,39 @@
+//! One module per subcommand; [`run`] dispatches.
+
+mod demo;
+mod export;
+mod info;
+
+use std::process::ExitCode;
+
+use anyhow::Result;
+
+use crate::cli::{Cli, Command};
+
+/// Exit status of a subcommand that is not implemented yet.
+const NOT_IMPLEMENTED: u8 = 2;
+
+/// Runs the parsed command line.
+pub fn run(cli: Cli) -> Result<ExitCode> {
+    match cli.command {
+        Command::Info(a) => info::run(&a),
+        Command::Export(a) => export::run(&a),
+        Command::Demo(a) => demo::run(&a),
+        Command::Ingest(_) => pending("ingest"),
+        Command::Build(_) => pending("build"),
+        Command::Inspect(_) => pending("inspect"),
+        Command::View(_) => pending("view"),
+        Command::Render(_) => pending("render"),
+    }
+}
+
+fn pending(name: &str) -> Result<ExitCode> {
+    eprintln!("sphereclip {name}: not implemented yet");
+    Ok(ExitCode::from(NOT_IMPLEMENTED))
+}
+
+/// Parses a layer name into its kind, with the list of valid names in the error.
+pub fn parse_layer(name: &str) -> Result<sc_store::LayerKind> {
+    sc_store::LayerKind::from_name(name)
+        .ok_or_else(|| anyhow::anyhow!("unknown layer `{name}` (expected one of: height, color)"))
+}
