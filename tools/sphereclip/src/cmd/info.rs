@@ -93,7 +93,7 @@ fn print_text(reader: &StoreReader, stats: &[LevelStats], report: Option<&Verify
         for s in stats.iter().filter(|s| s.layer == *kind) {
             let range = s
                 .value_range
-                .map(|(lo, hi)| format!("{lo} .. {hi}"))
+                .map(|(lo, hi)| format!("{lo:.1} .. {hi:.1}"))
                 .unwrap_or_else(|| "-".into());
             let bad = if s.unreadable_shards > 0 {
                 format!(
