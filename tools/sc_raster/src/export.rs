@@ -120,6 +120,7 @@ fn write_geotiff(
         format!("BLOCKYSIZE={block}"),
         "COMPRESS=DEFLATE".into(),
         "BIGTIFF=IF_SAFER".into(),
+        "NUM_THREADS=ALL_CPUS".into(),
     ];
     let mut ds = match kind {
         LayerKind::Height => {

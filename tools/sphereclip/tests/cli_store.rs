@@ -22,15 +22,32 @@ fn text(b: &[u8]) -> String {
 fn make_store(dir: &Path) -> PathBuf {
     let root = dir.join("planet.zarr");
     let grid = GridSpec::new(32).expect("valid");
-    let w = StoreWriter::create(&root, StoreConfig { grid, shard_tiles: 2, ..StoreConfig::default() }).expect("create");
-    for level in [LevelId::iso(0), LevelId::iso(1), LevelId::iso(2), LevelId::new(2, 1)] {
+    let w = StoreWriter::create(
+        &root,
+        StoreConfig {
+            grid,
+            shard_tiles: 2,
+            ..StoreConfig::default()
+        },
+    )
+    .expect("create");
+    for level in [
+        LevelId::iso(0),
+        LevelId::iso(1),
+        LevelId::iso(2),
+        LevelId::new(2, 1),
+    ] {
         let level = level.expect("valid");
         let (sx, sy) = ShardId::counts(grid, level, 2);
         for y in 0..sy {
             for x in 0..sx {
-                let mut sw = w.shard_writer::<f32>(ShardId { level, x, y }).expect("claim");
+                let mut sw = w
+                    .shard_writer::<f32>(ShardId { level, x, y })
+                    .expect("claim");
                 for tile in sw.tiles().collect::<Vec<_>>() {
-                    let v: Vec<f32> = (0..32 * 32).map(|k| (k as f32) - 500.0 + tile.y as f32).collect();
+                    let v: Vec<f32> = (0..32 * 32)
+                        .map(|k| (k as f32) - 500.0 + tile.y as f32)
+                        .collect();
                     sw.put_tile(tile, &v).expect("put");
                 }
                 sw.finish().expect("finish");
@@ -46,8 +63,13 @@ fn help_lists_every_subcommand() {
     let o = run(&["--help"]);
     assert!(o.status.success());
     let out = text(&o.stdout);
-    for sub in ["ingest", "build", "inspect", "view", "render", "info", "export", "demo"] {
-        assert!(out.contains(&format!("  {sub} ")), "{sub} missing from:\n{out}");
+    for sub in [
+        "ingest", "build", "inspect", "view", "render", "info", "export", "demo",
+    ] {
+        assert!(
+            out.contains(&format!("  {sub} ")),
+            "{sub} missing from:\n{out}"
+        );
     }
 }
 
@@ -64,7 +86,10 @@ fn info_reports_levels_and_json() {
     assert!(o.status.success(), "{}", text(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
     assert_eq!(v["levels"].as_array().expect("levels").len(), 4);
-    assert_eq!(v["verify"]["problems"].as_array().expect("problems").len(), 0);
+    assert_eq!(
+        v["verify"]["problems"].as_array().expect("problems").len(),
+        0
+    );
     assert_eq!(v["meta"]["grid"]["tile_size"], 32);
 }
 
@@ -72,8 +97,15 @@ fn info_reports_levels_and_json() {
 fn verify_names_a_flipped_byte_and_fails() {
     let dir = tempfile::tempdir().expect("tempdir");
     let root = make_store(dir.path());
-    let tile = sc_core::TileId { level: LevelId::iso(2).expect("valid"), x: 3, y: 1 };
-    let victim = StoreReader::open(&root).expect("open").shard_path(sc_store::LayerKind::Height, tile).expect("path");
+    let tile = sc_core::TileId {
+        level: LevelId::iso(2).expect("valid"),
+        x: 3,
+        y: 1,
+    };
+    let victim = StoreReader::open(&root)
+        .expect("open")
+        .shard_path(sc_store::LayerKind::Height, tile)
+        .expect("path");
     let mut b = std::fs::read(&victim).expect("read");
     let k = b.len() / 2;
     b[k] ^= 0x10;
@@ -83,7 +115,10 @@ fn verify_names_a_flipped_byte_and_fails() {
     let err = text(&o.stderr);
     let lines: Vec<&str> = err.lines().filter(|l| l.starts_with("error:")).collect();
     assert_eq!(lines.len(), 1, "{err}");
-    assert!(lines[0].contains(&victim.display().to_string()) && lines[0].contains("checksum"), "{err}");
+    assert!(
+        lines[0].contains(&victim.display().to_string()) && lines[0].contains("checksum"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -96,12 +131,25 @@ fn bad_stores_get_one_line_errors() {
     assert_eq!(text(&o.stderr).lines().count(), 1, "{}", text(&o.stderr));
     assert!(text(&o.stderr).contains("not a sphereclip store"));
     // truncated shard: export fails naming the shard, info --verify names it too
-    let tile = sc_core::TileId { level: LevelId::iso(1).expect("valid"), x: 0, y: 0 };
-    let victim = StoreReader::open(&root).expect("open").shard_path(sc_store::LayerKind::Height, tile).expect("path");
+    let tile = sc_core::TileId {
+        level: LevelId::iso(1).expect("valid"),
+        x: 0,
+        y: 0,
+    };
+    let victim = StoreReader::open(&root)
+        .expect("open")
+        .shard_path(sc_store::LayerKind::Height, tile)
+        .expect("path");
     let b = std::fs::read(&victim).expect("read");
     std::fs::write(&victim, &b[..b.len() - 40]).expect("truncate");
     let out = dir.path().join("l1.tif");
-    let o = run(&["export", root.to_str().expect("utf8"), "--level", "1", out.to_str().expect("utf8")]);
+    let o = run(&[
+        "export",
+        root.to_str().expect("utf8"),
+        "--level",
+        "1",
+        out.to_str().expect("utf8"),
+    ]);
     assert_eq!(o.status.code(), Some(1));
     let err = text(&o.stderr);
     assert_eq!(err.lines().count(), 1, "{err}");
@@ -113,16 +161,34 @@ fn bad_stores_get_one_line_errors() {
     // newer major version
     let zj = root.join("zarr.json");
     let t = std::fs::read_to_string(&zj).expect("read");
-    std::fs::write(&zj, t.replace("\"format_version\": \"1.0\"", "\"format_version\": \"7.2\"")).expect("write");
+    std::fs::write(
+        &zj,
+        t.replace("\"format_version\": \"1.0\"", "\"format_version\": \"7.2\""),
+    )
+    .expect("write");
     let o = run(&["info", root.to_str().expect("utf8")]);
     assert_eq!(o.status.code(), Some(1));
     let err = text(&o.stderr);
     assert_eq!(err.lines().count(), 1, "{err}");
     assert!(err.contains("7.2") && err.contains("newer"), "{err}");
     // bad arguments
-    let o = run(&["export", root.to_str().expect("utf8"), "--level", "1", "--layer", "albedo", "x.tif"]);
+    let o = run(&[
+        "export",
+        root.to_str().expect("utf8"),
+        "--level",
+        "1",
+        "--layer",
+        "albedo",
+        "x.tif",
+    ]);
     assert!(text(&o.stderr).contains("unknown layer"));
-    let o = run(&["export", root.to_str().expect("utf8"), "--level", "99", "x.tif"]);
+    let o = run(&[
+        "export",
+        root.to_str().expect("utf8"),
+        "--level",
+        "99",
+        "x.tif",
+    ]);
     assert_eq!(o.status.code(), Some(2), "clap rejects the level");
 }
 
@@ -131,24 +197,52 @@ fn exported_geotiff_opens_in_gdalinfo_with_the_right_corners() {
     let dir = tempfile::tempdir().expect("tempdir");
     let root = make_store(dir.path());
     let out = dir.path().join("l2.tif");
-    let o = run(&["export", root.to_str().expect("utf8"), "--level", "2", out.to_str().expect("utf8")]);
+    let o = run(&[
+        "export",
+        root.to_str().expect("utf8"),
+        "--level",
+        "2",
+        out.to_str().expect("utf8"),
+    ]);
     assert!(o.status.success(), "{}", text(&o.stderr));
-    let g = Command::new("gdalinfo").arg("-json").arg(&out).output().expect("gdalinfo is installed (make test installs gdal-bin)");
+    let g = Command::new("gdalinfo")
+        .arg("-json")
+        .arg(&out)
+        .output()
+        .expect("gdalinfo is installed (make test installs gdal-bin)");
     assert!(g.status.success());
     let v: serde_json::Value = serde_json::from_slice(&g.stdout).expect("json");
     let cc = &v["cornerCoordinates"];
     assert_eq!(cc["upperLeft"], serde_json::json!([-180.0, 90.0]));
     assert_eq!(cc["lowerRight"], serde_json::json!([180.0, -90.0]));
     assert_eq!(v["size"], serde_json::json!([256, 128]));
-    assert!(v["coordinateSystem"]["wkt"].as_str().expect("wkt").contains("4326"));
+    assert!(
+        v["coordinateSystem"]["wkt"]
+            .as_str()
+            .expect("wkt")
+            .contains("4326")
+    );
     // anisotropic level: half the columns, same corners
     let out = dir.path().join("l2a1.tif");
-    let o = run(&["export", root.to_str().expect("utf8"), "--level", "2,1", out.to_str().expect("utf8")]);
+    let o = run(&[
+        "export",
+        root.to_str().expect("utf8"),
+        "--level",
+        "2,1",
+        out.to_str().expect("utf8"),
+    ]);
     assert!(o.status.success(), "{}", text(&o.stderr));
-    let g = Command::new("gdalinfo").arg("-json").arg(&out).output().expect("gdalinfo");
+    let g = Command::new("gdalinfo")
+        .arg("-json")
+        .arg(&out)
+        .output()
+        .expect("gdalinfo");
     let v: serde_json::Value = serde_json::from_slice(&g.stdout).expect("json");
     assert_eq!(v["size"], serde_json::json!([128, 128]));
-    assert_eq!(v["cornerCoordinates"]["lowerRight"], serde_json::json!([180.0, -90.0]));
+    assert_eq!(
+        v["cornerCoordinates"]["lowerRight"],
+        serde_json::json!([180.0, -90.0])
+    );
 }
 
 #[test]

@@ -1,0 +1,38 @@
+# The two commands of the README: `make demo` and `make test`. Both install missing system
+# packages first (scripts/deps.sh). One cargo profile (dev, optimised; see Cargo.toml) serves both,
+# so CI builds everything once.
+
+CARGO ?= cargo
+export XDG_RUNTIME_DIR ?= /tmp/sphereclip-xdg
+export CARGO_TERM_COLOR ?= never
+
+.PHONY: demo test deps build fmt-check clippy unit bench
+
+deps:
+	@bash scripts/deps.sh
+	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 0700 $(XDG_RUNTIME_DIR)
+
+build: deps
+	$(CARGO) build --locked --bin sphereclip
+
+demo: build
+	./target/debug/sphereclip demo --samples samples --out out
+
+fmt-check:
+	$(CARGO) fmt --all -- --check
+
+clippy: deps
+	$(CARGO) clippy --locked --all-targets -- -D warnings
+
+unit: deps
+	@if command -v cargo-nextest >/dev/null; then \
+		$(CARGO) nextest run --locked --no-fail-fast; \
+	else \
+		$(CARGO) test --locked --no-fail-fast; \
+	fi
+	$(CARGO) test --locked --doc
+
+test: deps fmt-check clippy unit
+
+bench: build
+	bash bench/run.sh
