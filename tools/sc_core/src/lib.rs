@@ -9,10 +9,12 @@
 //!   fractional texel coordinates and its centre is at `(i+½, j+½)`.
 
 mod grid;
+mod kernel;
 mod level;
 mod tile;
 
 pub use grid::{GeoRect, GridSpec, LonLat, TexelPos};
+pub use kernel::{Footprint, Kernel, KernelLut};
 pub use level::{ANISO_MAX, LEVEL_MAX, LevelId, aniso_min_abs_lat_deg};
 pub use tile::{ShardId, TileId};
 

@@ -3,14 +3,21 @@
 //!
 //! - [`export_geotiff`]: one level of a store as a tiled, compressed EPSG:4326 GeoTIFF that GDAL
 //!   3.6 and QGIS open (GDAL 3.6 cannot read Zarr v3).
+//! - [`RasterSource`]: any GDAL raster (or an EXR heightmap with bounds) opened for ingest, with
+//!   lon/lat → pixel transforms and windowed reads that wrap the globe and cross the poles.
 //! - [`export_exr`]: a height level as a single-channel f32 OpenEXR heightmap (exr crate; GDAL 3.6
 //!   has no EXR driver).
 
 mod export;
+mod source;
 
 use std::path::PathBuf;
 
 pub use export::{EXR_MAX_TEXELS, ExportSummary, export_exr, export_geotiff};
+pub use source::{
+    LonLatBox, MAX_PIXELS, MAX_SIDE, MAX_WINDOW, RasterSource, SampleRole, SourceInfo, SourceOptions,
+    Window, linear_to_srgb, quiet_gdal, srgb_to_linear,
+};
 
 /// Errors of raster IO. One line each, path last.
 #[derive(Debug, thiserror::Error)]

@@ -1,0 +1,816 @@
+//! Opening an input raster (any GDAL format, or an OpenEXR heightmap) and describing where its
+//! pixels are: a pixel-is-area affine geotransform, a coordinate transform from lon/lat, and the
+//! quirks of real files fixed on the way in.
+//!
+//! Rules (documented for users in README.md):
+//! - A raster with a CRS uses it (`--src-srs` overrides). A raster without one whose extent lies
+//!   within lon −180..540, lat −90..90 (± one pixel) is taken as EPSG:4326 with a warning. One
+//!   without any georeference needs `--bounds W,S,E,N` (taken as lon/lat, pixel-is-area edges).
+//! - Global geographic grids are snapped: a width within 0.1 % of 360° (area-registered) or of
+//!   360° + one pixel (node-registered, the last column repeating the first) gets exactly
+//!   360°/period per pixel, and the origin is snapped to half a pixel; likewise 180° in latitude
+//!   (node-registered grids that include both pole rows get 180°/(H−1)). This fixes ETOPO5, whose
+//!   stored step drifts from 1/12°.
+//! - Pixel-is-point rasters (SRTM) are already shifted by half a pixel by GDAL; nothing to do.
+//! - Geographic CRSs of any datum are used as lon/lat directly (datum shifts of at most a few
+//!   hundred metres are ignored); projected CRSs go through PROJ.
+
+use std::path::{Path, PathBuf};
+
+use gdal::raster::GdalDataType;
+use gdal::spatial_ref::{AxisMappingStrategy, CoordTransform, SpatialRef};
+use gdal::Dataset;
+
+use crate::{RasterError, Result};
+
+/// Largest raster side accepted, pixels.
+pub const MAX_SIDE: u64 = 1 << 21;
+/// Largest raster accepted, pixels.
+pub const MAX_PIXELS: u64 = 1 << 36;
+
+/// What the user says about an input beyond the file.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SourceOptions {
+    /// CRS definition overriding the file's (`EPSG:32633`, WKT, PROJ string).
+    pub src_srs: Option<String>,
+    /// Lon/lat bounds `[west, south, east, north]` of the raster's outer edges (for pictures
+    /// without georeference).
+    pub bounds: Option<[f64; 4]>,
+    /// Nodata value overriding the file's.
+    pub src_nodata: Option<f64>,
+    /// 1-based bands to use: one (grey or height), three (RGB) or four (RGBA).
+    pub bands: Option<Vec<usize>>,
+}
+
+/// What a source's samples are.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SampleRole {
+    /// One band of heights in metres.
+    Height,
+    /// Colour: grey, RGB or RGBA bands.
+    Color,
+}
+
+/// Where the pixels of a source are and what they hold (after quirk fixes).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SourceInfo {
+    /// The file.
+    pub path: PathBuf,
+    /// Columns.
+    pub width: usize,
+    /// Rows.
+    pub height: usize,
+    /// Pixel-is-area affine transform, GDAL order.
+    pub geotransform: [f64; 6],
+    /// True when pixel coordinates are lon/lat degrees (no PROJ transform).
+    pub geographic: bool,
+    /// Human description of the CRS.
+    pub crs: String,
+    /// Bands used, 1-based.
+    pub bands: Vec<usize>,
+    /// GDAL data type name of the first band used.
+    pub data_type: String,
+    /// Nodata value in effect.
+    pub nodata: Option<f64>,
+    /// Columns per 360° when the source wraps around the globe in longitude.
+    pub lon_period_px: Option<f64>,
+    /// Pixel y of the north pole if the source reaches it.
+    pub north_pole_y: Option<f64>,
+    /// Pixel y of the south pole if the source reaches it.
+    pub south_pole_y: Option<f64>,
+    /// Things the user should know (assumed CRS, snapped grid…).
+    pub warnings: Vec<String>,
+    /// Per used band, the linear map `v·a + b` to 0..255 for colour bands that are not 8-bit.
+    pub stretch: Vec<(f64, f64)>,
+}
+
+/// A lon/lat box (west may exceed east when crossing the antimeridian is not needed: we keep
+/// `west < east`, possibly beyond ±180).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LonLatBox {
+    /// West edge, degrees.
+    pub west: f64,
+    /// South edge, degrees.
+    pub south: f64,
+    /// East edge, degrees.
+    pub east: f64,
+    /// North edge, degrees.
+    pub north: f64,
+}
+
+enum Backend {
+    Gdal(Dataset),
+    Exr(std::sync::Arc<Vec<f32>>),
+}
+
+/// An opened input. Not `Sync`: open one per worker thread with [`RasterSource::reopen`].
+pub struct RasterSource {
+    info: SourceInfo,
+    role: SampleRole,
+    opts: SourceOptions,
+    backend: Backend,
+    to_src: Option<CoordTransform>,
+}
+
+impl std::fmt::Debug for RasterSource {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RasterSource").field("info", &self.info).finish()
+    }
+}
+
+fn gdal_err(path: &Path) -> impl Fn(gdal::errors::GdalError) -> RasterError + '_ {
+    move |e| RasterError::Gdal {
+        detail: e.to_string(),
+        path: path.to_path_buf(),
+    }
+}
+
+/// Routes GDAL's own error printing into silence: sphereclip reports errors itself, one line each.
+pub fn quiet_gdal() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| gdal::config::set_error_handler(|_, _, _| {}));
+}
+
+fn usage(path: &Path, what: impl std::fmt::Display) -> RasterError {
+    RasterError::Usage(format!("{what}: {}", path.display()))
+}
+
+/// Snaps a global axis: returns (pixel size, origin) and whether it was changed.
+fn snap_axis(n: usize, origin: f64, step: f64, span: f64) -> Option<(f64, f64)> {
+    let nf = n as f64;
+    let a = step.abs();
+    // area-registered (n pixels span the whole axis) or node-registered (n−1 steps do); whichever
+    // fits better, within a quarter of a pixel over the whole axis
+    let err_area = ((nf * a) / span - 1.0).abs();
+    let err_node = (((nf - 1.0) * a) / span - 1.0).abs();
+    let tol = 0.25 / nf;
+    let size = if err_area <= err_node && err_area < tol {
+        span / nf
+    } else if err_node < err_area && err_node < tol {
+        span / (nf - 1.0)
+    } else {
+        return None;
+    };
+    let half = size / 2.0;
+    let snapped = (origin / half).round() * half;
+    Some((size.copysign(step), snapped))
+}
+
+fn validate_bounds(b: [f64; 4]) -> Result<()> {
+    let [w, s, e, n] = b;
+    let ok = [w, s, e, n].iter().all(|v| v.is_finite())
+        && w < e
+        && s < n
+        && (-90.0..=90.0).contains(&s)
+        && (-90.0..=90.0).contains(&n)
+        && w >= -360.0
+        && e <= 540.0
+        && e - w <= 360.0 + 1e-9;
+    if !ok {
+        return Err(RasterError::Usage(format!(
+            "--bounds {w},{s},{e},{n} is out of range (expected W,S,E,N with W < E, S < N, latitudes within ±90 and at most 360° of longitude)"
+        )));
+    }
+    Ok(())
+}
+
+impl RasterSource {
+    /// Opens `path` for `role`, validating everything that can be validated up front (size
+    /// limits, georeference, CRS, bands, the first and last rows readable).
+    pub fn open(path: &Path, role: SampleRole, opts: &SourceOptions) -> Result<Self> {
+        quiet_gdal();
+        if let Some(b) = opts.bounds {
+            validate_bounds(b)?;
+        }
+        let meta = std::fs::metadata(path).map_err(|source| RasterError::Io {
+            source,
+            path: path.to_path_buf(),
+        })?;
+        if meta.is_dir() {
+            return Err(usage(path, "input is a folder, not a raster file"));
+        }
+        if meta.len() == 0 {
+            return Err(usage(path, "input is an empty file"));
+        }
+        let is_exr = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+        if is_exr {
+            return Self::open_exr(path, role, opts);
+        }
+        let ds = Dataset::open(path).map_err(|_| usage(path, "not a raster GDAL can read"))?;
+        let (w, h) = ds.raster_size();
+        check_size(path, w as u64, h as u64)?;
+        let count = ds.raster_count();
+        if count == 0 {
+            return Err(usage(path, "raster has no bands"));
+        }
+        let bands = choose_bands(path, role, count, opts.bands.as_deref())?;
+        let band1 = ds.rasterband(bands[0]).map_err(gdal_err(path))?;
+        let data_type = band1.band_type();
+        let mut nodata = opts.src_nodata.or(band1.no_data_value());
+        if role == SampleRole::Color && data_type == GdalDataType::UInt8 && opts.src_nodata.is_none() {
+            // 8-bit colour: a nodata tag is honoured, but never invented
+            nodata = band1.no_data_value();
+        }
+        let mut warnings = Vec::new();
+        let file_srs = ds.spatial_ref().ok();
+        let srs = match &opts.src_srs {
+            Some(def) => Some(SpatialRef::from_definition(def).map_err(|_| {
+                RasterError::Usage(format!(
+                    "unknown CRS `{def}` (expected e.g. EPSG:32633, a WKT or a PROJ string) for {}",
+                    path.display()
+                ))
+            })?),
+            None => file_srs,
+        };
+        let file_gt = ds.geo_transform().ok().filter(|gt| *gt != [0.0, 1.0, 0.0, 0.0, 0.0, 1.0]);
+        let (gt, geographic, crs, to_src) = match (opts.bounds, file_gt, srs) {
+            (Some(b), _, _) => {
+                let gt = [b[0], (b[2] - b[0]) / w as f64, 0.0, b[3], 0.0, -(b[3] - b[1]) / h as f64];
+                (gt, true, "EPSG:4326 (from --bounds)".to_string(), None)
+            }
+            (None, None, _) => {
+                return Err(usage(
+                    path,
+                    "raster has no georeference; give its lon/lat edges with --bounds W,S,E,N (e.g. --bounds -180,-90,180,90 for a whole-globe picture)",
+                ));
+            }
+            (None, Some(gt), Some(srs)) => {
+                if gt[2] != 0.0 || gt[4] != 0.0 {
+                    return Err(usage(path, "rotated geotransforms are not supported; warp the raster to north-up first (gdalwarp)"));
+                }
+                let name = srs.name().unwrap_or_else(|| "unnamed CRS".into());
+                let code = srs.auth_code().ok().map(|c| format!("EPSG:{c} ")).unwrap_or_default();
+                if srs.is_geographic() {
+                    (gt, true, format!("{code}{name}"), None)
+                } else {
+                    let mut wgs = SpatialRef::from_epsg(4326).map_err(gdal_err(path))?;
+                    wgs.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
+                    let mut s = srs.clone();
+                    s.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
+                    let t = CoordTransform::new(&wgs, &s).map_err(|e| {
+                        RasterError::Usage(format!(
+                            "cannot transform lon/lat to the raster's CRS {name}: {e} ({})",
+                            path.display()
+                        ))
+                    })?;
+                    (gt, false, format!("{code}{name}"), Some(t))
+                }
+            }
+            (None, Some(gt), None) => {
+                let (x0, x1) = (gt[0], gt[0] + gt[1] * w as f64);
+                let (y0, y1) = (gt[3], gt[3] + gt[5] * h as f64);
+                let (px, py) = (gt[1].abs(), gt[5].abs());
+                let geographic_looking = x0.min(x1) >= -180.0 - px
+                    && x0.max(x1) <= 540.0 + px
+                    && y0.min(y1) >= -90.0 - py
+                    && y0.max(y1) <= 90.0 + py;
+                if !geographic_looking || gt[2] != 0.0 || gt[4] != 0.0 {
+                    return Err(usage(
+                        path,
+                        "raster has no CRS and its extent is not lon/lat; give one with --src-srs",
+                    ));
+                }
+                warnings.push("no CRS in the file; its extent looks like lon/lat, so it is taken as EPSG:4326".into());
+                (gt, true, "EPSG:4326 (assumed)".to_string(), None)
+            }
+        };
+        let mut info = SourceInfo {
+            path: path.to_path_buf(),
+            width: w,
+            height: h,
+            geotransform: gt,
+            geographic,
+            crs,
+            bands,
+            data_type: data_type.name(),
+            nodata,
+            lon_period_px: None,
+            north_pole_y: None,
+            south_pole_y: None,
+            warnings,
+            stretch: Vec::new(),
+        };
+        if geographic {
+            snap_geographic(&mut info);
+        }
+        if role == SampleRole::Color {
+            info.stretch = info
+                .bands
+                .iter()
+                .map(|&b| {
+                    let band = ds.rasterband(b).map_err(gdal_err(path))?;
+                    if band.band_type() == GdalDataType::UInt8 {
+                        return Ok((1.0, 0.0));
+                    }
+                    let mm = band.compute_raster_min_max(true).map_err(gdal_err(path))?;
+                    let span = (mm.max - mm.min).max(1e-12);
+                    Ok((255.0 / span, -mm.min * 255.0 / span))
+                })
+                .collect::<Result<_>>()?;
+            if info.stretch.iter().any(|&s| s != (1.0, 0.0)) {
+                info.warnings.push(format!(
+                    "{} colour bands stretched linearly from their min..max to 0..255",
+                    data_type.name()
+                ));
+            }
+        }
+        let src = Self {
+            info,
+            role,
+            opts: opts.clone(),
+            backend: Backend::Gdal(ds),
+            to_src,
+        };
+        src.check_readable()?;
+        Ok(src)
+    }
+
+    fn open_exr(path: &Path, role: SampleRole, opts: &SourceOptions) -> Result<Self> {
+        use exr::prelude::*;
+        if role != SampleRole::Height {
+            return Err(usage(path, "EXR inputs are heightmaps; use them with --layer height"));
+        }
+        let Some(b) = opts.bounds else {
+            return Err(usage(path, "EXR heightmaps carry no georeference; give --bounds W,S,E,N"));
+        };
+        let image = read_first_flat_layer_from_file(path)
+            .map_err(|e| usage(path, format!("not a readable OpenEXR file ({e})")))?;
+        let size = image.layer_data.size;
+        check_size(path, size.0 as u64, size.1 as u64)?;
+        let list = &image.layer_data.channel_data.list;
+        let ch = list
+            .iter()
+            .find(|c| ["Y", "R", "height", "Z"].iter().any(|n| c.name == Text::from(*n)))
+            .or(list.first())
+            .ok_or_else(|| usage(path, "EXR file has no channels"))?;
+        let data: Vec<f32> = match &ch.sample_data {
+            FlatSamples::F32(v) => v.clone(),
+            FlatSamples::F16(v) => v.iter().map(|h| h.to_f32()).collect(),
+            FlatSamples::U32(v) => v.iter().map(|&u| u as f32).collect(),
+        };
+        let (w, h) = (size.0, size.1);
+        let gt = [b[0], (b[2] - b[0]) / w as f64, 0.0, b[3], 0.0, -(b[3] - b[1]) / h as f64];
+        let mut info = SourceInfo {
+            path: path.to_path_buf(),
+            width: w,
+            height: h,
+            geotransform: gt,
+            geographic: true,
+            crs: "EPSG:4326 (from --bounds)".into(),
+            bands: vec![1],
+            data_type: "Float32".into(),
+            nodata: opts.src_nodata,
+            lon_period_px: None,
+            north_pole_y: None,
+            south_pole_y: None,
+            warnings: Vec::new(),
+            stretch: Vec::new(),
+        };
+        snap_geographic(&mut info);
+        Ok(Self {
+            info,
+            role,
+            opts: opts.clone(),
+            backend: Backend::Exr(std::sync::Arc::new(data)),
+            to_src: None,
+        })
+    }
+
+    /// A second handle on the same input, for another worker thread.
+    pub fn reopen(&self) -> Result<Self> {
+        match &self.backend {
+            Backend::Exr(data) => Ok(Self {
+                info: self.info.clone(),
+                role: self.role,
+                opts: self.opts.clone(),
+                backend: Backend::Exr(data.clone()),
+                to_src: None,
+            }),
+            Backend::Gdal(_) => {
+                let path = &self.info.path;
+                let ds = Dataset::open(path).map_err(gdal_err(path))?;
+                let to_src = match &self.to_src {
+                    None => None,
+                    Some(_) => {
+                        let mut wgs = SpatialRef::from_epsg(4326).map_err(gdal_err(path))?;
+                        wgs.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
+                        let mut s = match &self.opts.src_srs {
+                            Some(d) => SpatialRef::from_definition(d),
+                            None => ds.spatial_ref(),
+                        }
+                        .map_err(gdal_err(path))?;
+                        s.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
+                        Some(CoordTransform::new(&wgs, &s).map_err(gdal_err(path))?)
+                    }
+                };
+                Ok(Self {
+                    info: self.info.clone(),
+                    role: self.role,
+                    opts: self.opts.clone(),
+                    backend: Backend::Gdal(ds),
+                    to_src,
+                })
+            }
+        }
+    }
+
+    /// Where the pixels are and what they hold.
+    pub fn info(&self) -> &SourceInfo {
+        &self.info
+    }
+
+    /// Reads the first and last row of every used band, so that a truncated file fails now,
+    /// before anything is written.
+    fn check_readable(&self) -> Result<()> {
+        let Backend::Gdal(ds) = &self.backend else { return Ok(()) };
+        let path = &self.info.path;
+        for &b in &self.info.bands {
+            let band = ds.rasterband(b).map_err(gdal_err(path))?;
+            for row in [0, self.info.height - 1] {
+                band.read_as::<f32>((0, row as isize), (self.info.width, 1), (self.info.width, 1), None)
+                    .map_err(|_| usage(path, "raster is truncated or damaged (its pixels cannot be read)"))?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Transforms lon/lat degrees (in place) to fractional pixel coordinates of this source
+    /// (pixel-is-area: pixel (c, r) spans [c, c+1) × [r, r+1)). Points that cannot be transformed
+    /// become NaN. For geographic sources x is wrapped into [x(lon0), x(lon0)+360°).
+    pub fn lonlat_to_pixel(&self, x: &mut [f64], y: &mut [f64]) {
+        let gt = self.info.geotransform;
+        if self.info.geographic {
+            for (lon, lat) in x.iter_mut().zip(y.iter_mut()) {
+                let dlon = (*lon - gt[0]).rem_euclid(360.0);
+                *lon = dlon / gt[1];
+                *lat = (*lat - gt[3]) / gt[5];
+            }
+            return;
+        }
+        if let Some(t) = &self.to_src {
+            let _ = t.transform_coords(x, y, &mut []);
+        }
+        for (px, py) in x.iter_mut().zip(y.iter_mut()) {
+            if !px.is_finite() || !py.is_finite() {
+                *px = f64::NAN;
+                *py = f64::NAN;
+                continue;
+            }
+            *px = (*px - gt[0]) / gt[1];
+            *py = (*py - gt[3]) / gt[5];
+        }
+    }
+
+    /// The lon/lat box the source covers (densified outline; whole bands of longitude for
+    /// sources that wrap or reach a pole).
+    pub fn lonlat_box(&self) -> Result<LonLatBox> {
+        let info = &self.info;
+        let gt = info.geotransform;
+        let (w, h) = (info.width as f64, info.height as f64);
+        if info.geographic {
+            let (xa, xb) = (gt[0], gt[0] + gt[1] * w);
+            let (ya, yb) = (gt[3], gt[3] + gt[5] * h);
+            let (mut west, mut east) = (xa.min(xb), xa.max(xb));
+            if info.lon_period_px.is_some() || info.north_pole_y.is_some() || info.south_pole_y.is_some() || east - west >= 360.0 {
+                west = -180.0;
+                east = 180.0;
+            } else if west >= 180.0 {
+                west -= 360.0;
+                east -= 360.0;
+            }
+            return Ok(LonLatBox {
+                west,
+                south: ya.min(yb).max(-90.0),
+                east,
+                north: ya.max(yb).min(90.0),
+            });
+        }
+        // projected: transform a densified outline back to lon/lat
+        let Backend::Gdal(ds) = &self.backend else {
+            return Err(RasterError::Usage("projected EXR sources are not supported".into()));
+        };
+        let path = &info.path;
+        let srs = match &self.opts.src_srs {
+            Some(d) => SpatialRef::from_definition(d),
+            None => ds.spatial_ref(),
+        };
+        let mut srs = srs.map_err(gdal_err(path))?;
+        srs.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
+        let mut wgs = SpatialRef::from_epsg(4326).map_err(gdal_err(path))?;
+        wgs.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
+        let t = CoordTransform::new(&srs, &wgs).map_err(gdal_err(path))?;
+        let n = 64;
+        let (mut xs, mut ys) = (Vec::new(), Vec::new());
+        for k in 0..=n {
+            let f = k as f64 / n as f64;
+            for (px, py) in [(f * w, 0.0), (f * w, h), (0.0, f * h), (w, f * h)] {
+                xs.push(gt[0] + px * gt[1] + py * gt[2]);
+                ys.push(gt[3] + px * gt[4] + py * gt[5]);
+            }
+        }
+        let _ = t.transform_coords(&mut xs, &mut ys, &mut []);
+        let pts: Vec<(f64, f64)> = xs
+            .into_iter()
+            .zip(ys)
+            .filter(|(x, y)| x.is_finite() && y.is_finite())
+            .collect();
+        if pts.is_empty() {
+            return Err(usage(path, "no pixel of the raster maps to lon/lat"));
+        }
+        let west = pts.iter().map(|p| p.0).fold(f64::INFINITY, f64::min);
+        let east = pts.iter().map(|p| p.0).fold(f64::NEG_INFINITY, f64::max);
+        let south = pts.iter().map(|p| p.1).fold(f64::INFINITY, f64::min);
+        let north = pts.iter().map(|p| p.1).fold(f64::NEG_INFINITY, f64::max);
+        // a small margin: the outline is sampled, and kernels reach past it
+        let m = 0.01 * ((east - west).max(north - south)) + 1e-6;
+        if east - west > 180.0 {
+            // a projected raster across the antimeridian: take the whole band of longitude
+            return Ok(LonLatBox { west: -180.0, south: (south - m).max(-90.0), east: 180.0, north: (north + m).min(90.0) });
+        }
+        Ok(LonLatBox {
+            west: west - m,
+            south: (south - m).max(-90.0),
+            east: east + m,
+            north: (north + m).min(90.0),
+        })
+    }
+
+    /// The source's ground spacing at its centre, metres on a sphere of `radius_m` (the finer
+    /// of its two axes).
+    pub fn centre_spacing_m(&self, radius_m: f64) -> f64 {
+        let info = &self.info;
+        let gt = info.geotransform;
+        if info.geographic {
+            let lat = (gt[3] + gt[5] * info.height as f64 / 2.0).clamp(-89.0, 89.0);
+            let dx = gt[1].abs().to_radians() * lat.to_radians().cos() * radius_m;
+            let dy = gt[5].abs().to_radians() * radius_m;
+            return dx.min(dy);
+        }
+        // projected units are metres for every CRS we accept (linear units scale them)
+        gt[1].abs().min(gt[5].abs())
+    }
+
+    /// Reads the rectangle of pixels `[c0, c0+w) × [r0, r0+h)` of this source into `planes`
+    /// (one for heights; R, G, B in linear light and alpha for colour), NaN in plane 0 where there
+    /// is no valid sample. Columns outside the raster wrap for global sources; rows beyond a
+    /// pole continue on the opposite meridian; anything else outside is NaN.
+    pub fn read_region(&self, c0: i64, r0: i64, w: usize, h: usize) -> Result<Window> {
+        let info = &self.info;
+        let nplanes = match self.role {
+            SampleRole::Height => 1,
+            SampleRole::Color => 4,
+        };
+        let mut planes = vec![vec![f32::NAN; w * h]; nplanes];
+        // map every (row, col) of the region to a source (row, col) or None
+        let map_row = |r: i64| -> Option<(i64, bool)> {
+            if (0..info.height as i64).contains(&r) {
+                return Some((r, false));
+            }
+            let mirror = |pole: f64| -> i64 { (2.0 * pole - r as f64 - 1.0).round() as i64 };
+            let rr = if r < 0 { info.north_pole_y.map(mirror) } else { info.south_pole_y.map(mirror) }?;
+            (0..info.height as i64).contains(&rr).then_some((rr, true))
+        };
+        let map_col = |c: i64, flipped: bool| -> Option<i64> {
+            match info.lon_period_px {
+                Some(p) => {
+                    let shift = if flipped { p / 2.0 } else { 0.0 };
+                    let cc = ((c as f64 + shift).rem_euclid(p)).floor() as i64;
+                    (cc < info.width as i64).then_some(cc)
+                }
+                None if flipped => None,
+                None => (0..info.width as i64).contains(&c).then_some(c),
+            }
+        };
+        let rows: Vec<Option<(i64, bool)>> = (0..h as i64).map(|k| map_row(r0 + k)).collect();
+        let src_rows: Vec<i64> = rows.iter().flatten().map(|&(r, _)| r).collect();
+        if src_rows.is_empty() {
+            return Ok(Window { c0, r0, w, h, planes });
+        }
+        let (rmin, rmax) = (
+            *src_rows.iter().min().unwrap_or(&0),
+            *src_rows.iter().max().unwrap_or(&0),
+        );
+        // the columns to read: everything when wrapping/flipping is involved, else the window
+        let direct = c0 >= 0 && c0 + w as i64 <= info.width as i64 && rows.iter().all(|r| matches!(r, Some((_, false))));
+        let (cmin, cmax) = if direct {
+            (c0, c0 + w as i64 - 1)
+        } else {
+            let cols: Vec<i64> = (0..w as i64)
+                .flat_map(|k| [map_col(c0 + k, false), map_col(c0 + k, true)])
+                .flatten()
+                .collect();
+            if cols.is_empty() {
+                return Ok(Window { c0, r0, w, h, planes });
+            }
+            (*cols.iter().min().unwrap_or(&0), *cols.iter().max().unwrap_or(&0))
+        };
+        let (rw, rh) = ((cmax - cmin + 1) as usize, (rmax - rmin + 1) as usize);
+        if (rw as u64) * (rh as u64) > MAX_WINDOW {
+            return Err(RasterError::LimitsExceeded(format!(
+                "one output tile needs {rw}x{rh} source pixels (limit {MAX_WINDOW}); choose a finer --level for {}",
+                info.path.display()
+            )));
+        }
+        let raw = self.read_raw(cmin, rmin, rw, rh)?;
+        for (k, row) in rows.iter().enumerate() {
+            let Some((sr, flipped)) = *row else { continue };
+            for j in 0..w {
+                let Some(sc) = map_col(c0 + j as i64, flipped) else { continue };
+                if sc < cmin || sc > cmax {
+                    continue;
+                }
+                let src = (sr - rmin) as usize * rw + (sc - cmin) as usize;
+                for (p, plane) in planes.iter_mut().enumerate() {
+                    plane[k * w + j] = raw[p][src];
+                }
+            }
+        }
+        Ok(Window { c0, r0, w, h, planes })
+    }
+
+    /// Reads a rectangle inside the raster, converting to planes with nodata as NaN.
+    fn read_raw(&self, c0: i64, r0: i64, w: usize, h: usize) -> Result<Vec<Vec<f32>>> {
+        let info = &self.info;
+        let path = &info.path;
+        let read_band = |b: usize| -> Result<Vec<f32>> {
+            match &self.backend {
+                Backend::Exr(data) => {
+                    let mut v = Vec::with_capacity(w * h);
+                    for r in 0..h {
+                        let s = (r0 as usize + r) * info.width + c0 as usize;
+                        v.extend_from_slice(&data[s..s + w]);
+                    }
+                    Ok(v)
+                }
+                Backend::Gdal(ds) => {
+                    let band = ds.rasterband(b).map_err(gdal_err(path))?;
+                    let buf = band
+                        .read_as::<f32>((c0 as isize, r0 as isize), (w, h), (w, h), None)
+                        .map_err(|e| RasterError::Gdal {
+                            detail: format!("reading pixels {c0},{r0} {w}x{h}: {e}"),
+                            path: path.to_path_buf(),
+                        })?;
+                    Ok(buf.into_shape_and_vec().1)
+                }
+            }
+        };
+        match self.role {
+            SampleRole::Height => {
+                let mut v = read_band(info.bands[0])?;
+                let int16 = info.data_type == "Int16";
+                for s in &mut v {
+                    let void = s.is_nan()
+                        || info.nodata.is_some_and(|nd| f64::from(*s) == nd)
+                        || (int16 && *s <= -32767.0)
+                        || s.abs() > 1e7;
+                    if void {
+                        *s = f32::NAN;
+                    }
+                }
+                Ok(vec![v])
+            }
+            SampleRole::Color => {
+                let raw: Vec<Vec<f32>> = info.bands.iter().map(|&b| read_band(b)).collect::<Result<_>>()?;
+                let n = w * h;
+                let mut planes = vec![vec![0f32; n]; 4];
+                let stretch = |b: usize, v: f32| -> f32 {
+                    let (a, o) = info.stretch.get(b).copied().unwrap_or((1.0, 0.0));
+                    ((f64::from(v) * a + o).clamp(0.0, 255.0)) as f32
+                };
+                for i in 0..n {
+                    let invalid = info.nodata.is_some_and(|nd| f64::from(raw[0][i]) == nd) || raw[0][i].is_nan();
+                    let (r, g, b, a) = match raw.len() {
+                        1 => {
+                            let v = stretch(0, raw[0][i]);
+                            (v, v, v, 255.0)
+                        }
+                        2 => {
+                            let v = stretch(0, raw[0][i]);
+                            (v, v, v, stretch(1, raw[1][i]))
+                        }
+                        3 => (stretch(0, raw[0][i]), stretch(1, raw[1][i]), stretch(2, raw[2][i]), 255.0),
+                        _ => (
+                            stretch(0, raw[0][i]),
+                            stretch(1, raw[1][i]),
+                            stretch(2, raw[2][i]),
+                            stretch(3, raw[3][i]),
+                        ),
+                    };
+                    if invalid || a <= 0.0 {
+                        planes[0][i] = f32::NAN;
+                        continue;
+                    }
+                    planes[0][i] = srgb_to_linear(r);
+                    planes[1][i] = srgb_to_linear(g);
+                    planes[2][i] = srgb_to_linear(b);
+                    planes[3][i] = a / 255.0;
+                }
+                Ok(planes)
+            }
+        }
+    }
+}
+
+/// Largest source rectangle read for one output tile: 2^26 pixels.
+pub const MAX_WINDOW: u64 = 1 << 26;
+
+/// Pixels read from a source around one output tile; see [`RasterSource::read_region`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Window {
+    /// First column (may be negative or beyond the raster for wrapping sources).
+    pub c0: i64,
+    /// First row (may be beyond a pole).
+    pub r0: i64,
+    /// Columns.
+    pub w: usize,
+    /// Rows.
+    pub h: usize,
+    /// Sample planes, row-major `w×h` each; NaN in plane 0 = no valid sample.
+    pub planes: Vec<Vec<f32>>,
+}
+
+/// sRGB 8-bit value (0..255 as f32) → linear light 0..1 (a table of the 256 integer values).
+pub fn srgb_to_linear(v: f32) -> f32 {
+    static LUT: std::sync::OnceLock<[f32; 256]> = std::sync::OnceLock::new();
+    let lut = LUT.get_or_init(|| {
+        std::array::from_fn(|i| {
+            let c = i as f64 / 255.0;
+            (if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }) as f32
+        })
+    });
+    lut[v.round().clamp(0.0, 255.0) as usize]
+}
+
+/// Linear light 0..1 → sRGB 8-bit.
+pub fn linear_to_srgb(v: f32) -> u8 {
+    let c = f64::from(v.clamp(0.0, 1.0));
+    let s = if c <= 0.003_130_8 { c * 12.92 } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 };
+    (s * 255.0).round().clamp(0.0, 255.0) as u8
+}
+
+fn check_size(path: &Path, w: u64, h: u64) -> Result<()> {
+    if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE || w * h > MAX_PIXELS {
+        return Err(RasterError::LimitsExceeded(format!(
+            "raster claims {w}x{h} pixels; the limits are {MAX_SIDE} per side and {MAX_PIXELS} in all: {}",
+            path.display()
+        )));
+    }
+    Ok(())
+}
+
+fn choose_bands(path: &Path, role: SampleRole, count: usize, asked: Option<&[usize]>) -> Result<Vec<usize>> {
+    if let Some(b) = asked {
+        if let Some(&bad) = b.iter().find(|&&b| b == 0 || b > count) {
+            return Err(usage(path, format!("--bands asks for band {bad} but the raster has bands 1..={count}")));
+        }
+        let ok = match role {
+            SampleRole::Height => b.len() == 1,
+            SampleRole::Color => (1..=4).contains(&b.len()),
+        };
+        if !ok {
+            return Err(usage(path, format!("--bands needs 1 band for heights, 1 to 4 for colour; got {}", b.len())));
+        }
+        return Ok(b.to_vec());
+    }
+    Ok(match (role, count) {
+        (SampleRole::Height, _) => vec![1],
+        (SampleRole::Color, 1..=4) => (1..=count).collect(),
+        // multispectral (Landsat TM/ETM+: bands 1, 2, 3 = blue, green, red): true colour
+        (SampleRole::Color, _) => vec![3, 2, 1],
+    })
+}
+
+/// Snaps global geographic grids and records wrapping and poles.
+fn snap_geographic(info: &mut SourceInfo) {
+    let gt = &mut info.geotransform;
+    if let Some((dx, x0)) = snap_axis(info.width, gt[0], gt[1], 360.0) {
+        if dx != gt[1] || x0 != gt[0] {
+            info.warnings.push(format!(
+                "global grid: longitude step {} snapped to {} and origin {} to {}",
+                gt[1], dx, gt[0], x0
+            ));
+        }
+        gt[1] = dx;
+        gt[0] = x0;
+        info.lon_period_px = Some(360.0 / dx.abs());
+    }
+    if let Some((dy, y0)) = snap_axis(info.height, gt[3], gt[5], 180.0) {
+        if (dy - gt[5]).abs() > 1e-12 || (y0 - gt[3]).abs() > 1e-12 {
+            info.warnings.push(format!(
+                "global grid: latitude step {} snapped to {} and origin {} to {}",
+                gt[5], dy, gt[3], y0
+            ));
+        }
+        gt[5] = dy;
+        gt[3] = y0;
+    }
+    // poles: pixel y of lat ±90 if within half a pixel of the raster's edge
+    let y_of = |lat: f64| (lat - gt[3]) / gt[5];
+    let (yn, ys) = (y_of(90.0), y_of(-90.0));
+    let h = info.height as f64;
+    info.north_pole_y = (-0.01..=0.51).contains(&yn).then_some(yn);
+    info.south_pole_y = ((h - 0.51)..=(h + 0.01)).contains(&ys).then_some(ys);
+}
