@@ -17,7 +17,7 @@ echo "== machine: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d
 
 # ETOPO5 sample as raw north-up f32 (node-registered, lon 0..360)
 raw="$out/etopo5.f32"
-[ -f "$raw" ] || gdal_translate -q -of ENVI -ot Float32 samples/etopo5.nc "$raw"
+[ -f "$raw" ] || gdal_translate -q -of ENVI -ot Float32 /vsigzip/samples/etopo5.cdf.gz "$raw"
 
 echo "== store: write a level from 2 workers, read 2000 random tiles (ETOPO5 nearest-sampled)"
 target/release/store_bench "$out" "$raw" 4320 2161 0 --level 5 --workers 2 --reads 2000

@@ -106,6 +106,7 @@ enum Backend {
 /// An opened input. Not `Sync`: open one per worker thread with [`RasterSource::reopen`].
 pub struct RasterSource {
     info: SourceInfo,
+    gdal_path: PathBuf,
     role: SampleRole,
     opts: SourceOptions,
     backend: Backend,
@@ -199,7 +200,7 @@ impl RasterSource {
         if is_exr {
             return Self::open_exr(path, role, opts);
         }
-        let ds = Dataset::open(path).map_err(|_| usage(path, "not a raster GDAL can read"))?;
+        let (ds, gdal_path) = open_gdal(path)?;
         let (w, h) = ds.raster_size();
         check_size(path, w as u64, h as u64)?;
         let count = ds.raster_count();
@@ -319,6 +320,7 @@ impl RasterSource {
         }
         let src = Self {
             info,
+            gdal_path,
             role,
             opts: opts.clone(),
             backend: Backend::Gdal(ds),
@@ -372,6 +374,7 @@ impl RasterSource {
         snap_geographic(&mut info);
         Ok(Self {
             info,
+            gdal_path: path.to_path_buf(),
             role,
             opts: opts.clone(),
             backend: Backend::Exr(std::sync::Arc::new(data)),
@@ -384,6 +387,7 @@ impl RasterSource {
         match &self.backend {
             Backend::Exr(data) => Ok(Self {
                 info: self.info.clone(),
+                gdal_path: self.gdal_path.clone(),
                 role: self.role,
                 opts: self.opts.clone(),
                 backend: Backend::Exr(data.clone()),
@@ -391,7 +395,7 @@ impl RasterSource {
             }),
             Backend::Gdal(_) => {
                 let path = &self.info.path;
-                let ds = Dataset::open(path).map_err(gdal_err(path))?;
+                let ds = Dataset::open(&self.gdal_path).map_err(gdal_err(path))?;
                 let to_src = match &self.to_src {
                     None => None,
                     Some(_) => {
@@ -408,6 +412,7 @@ impl RasterSource {
                 };
                 Ok(Self {
                     info: self.info.clone(),
+                    gdal_path: self.gdal_path.clone(),
                     role: self.role,
                     opts: self.opts.clone(),
                     backend: Backend::Gdal(ds),
@@ -749,6 +754,24 @@ pub fn linear_to_srgb(v: f32) -> u8 {
     let c = f64::from(v.clamp(0.0, 1.0));
     let s = if c <= 0.003_130_8 { c * 12.92 } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 };
     (s * 255.0).round().clamp(0.0, 255.0) as u8
+}
+
+/// Opens a file with GDAL; a `.gz` or `.zip` GDAL cannot open directly is read through
+/// `/vsigzip/` or `/vsizip/` (e.g. the gzipped ETOPO5 NetCDF sample).
+fn open_gdal(path: &Path) -> Result<(Dataset, PathBuf)> {
+    if let Ok(ds) = Dataset::open(path) {
+        return Ok((ds, path.to_path_buf()));
+    }
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    let vsi = match ext.as_deref() {
+        Some("gz") => "/vsigzip/",
+        Some("zip") => "/vsizip/",
+        _ => return Err(usage(path, "not a raster GDAL can read")),
+    };
+    let abs = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
+    let p = PathBuf::from(format!("{vsi}{}", abs.display()));
+    let ds = Dataset::open(&p).map_err(|_| usage(path, "not a raster GDAL can read (also not inside the archive)"))?;
+    Ok((ds, p))
 }
 
 fn check_size(path: &Path, w: u64, h: u64) -> Result<()> {

@@ -28,7 +28,7 @@ pub enum HeightCodec {
 }
 
 /// Settings of a new store.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StoreConfig {
     /// Grid (tile size T).
     pub grid: GridSpec,
@@ -386,6 +386,14 @@ impl StoreWriter {
             .lock()
             .unwrap_or_else(PoisonError::into_inner)
             .remove(&(kind, shard));
+    }
+
+    /// Widens the recorded value range of a level by values written by an earlier, interrupted run
+    /// (which the resumed run does not see).
+    pub fn note_range(&self, kind: LayerKind, level: LevelId, lo: f64, hi: f64) {
+        let mut ranges = self.ranges.lock().unwrap_or_else(PoisonError::into_inner);
+        let e = ranges.entry((kind, level)).or_insert((lo, hi));
+        *e = (e.0.min(lo), e.1.max(hi));
     }
 
     /// Records a build step and marks the store complete, durably, after every shard written so

@@ -17,8 +17,8 @@ pub struct Cli {
 /// Subcommands. Those marked "(not implemented yet)" exit with status 2.
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    /// Reproject GDAL rasters onto the store's global grid (not implemented yet).
-    Ingest(Pending),
+    /// Reproject rasters (any GDAL format and CRS, or EXR heightmaps) onto the store's global grid.
+    Ingest(IngestArgs),
     /// Build the pyramid with world-space circular kernels (not implemented yet).
     Build(Pending),
     /// Measure and picture pyramid quality near the poles (not implemented yet).
@@ -41,6 +41,48 @@ pub struct Pending {
     /// Arguments, ignored.
     #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
     pub args: Vec<String>,
+}
+
+/// `sphereclip ingest`.
+#[derive(Debug, clap::Args)]
+pub struct IngestArgs {
+    /// The store folder (created if missing).
+    pub store: PathBuf,
+    /// Input rasters; later ones win where they overlap (see --list for priorities).
+    pub inputs: Vec<PathBuf>,
+    /// Layer to write: height or color.
+    #[arg(long, default_value = "height")]
+    pub layer: String,
+    /// Output level `L` or `L,A`, or `auto`: per input, the coarsest level no coarser than the input.
+    #[arg(long, default_value = "auto")]
+    pub level: String,
+    /// Resampling kernel: nearest, bilinear, cubic, lanczos (world-space circular footprint).
+    #[arg(long, default_value = "cubic")]
+    pub resampling: String,
+    /// CRS of the inputs, overriding the files' (EPSG:32633, WKT, PROJ string).
+    #[arg(long)]
+    pub src_srs: Option<String>,
+    /// Nodata value of the inputs, overriding the files'.
+    #[arg(long, allow_hyphen_values = true)]
+    pub src_nodata: Option<f64>,
+    /// Lon/lat edges W,S,E,N of inputs without georeference (e.g. -180,-90,180,90).
+    #[arg(long, allow_hyphen_values = true)]
+    pub bounds: Option<String>,
+    /// Bands to use, 1-based, e.g. 3,2,1 (default: 1 for heights; grey/RGB/RGBA; 3,2,1 for 5+ bands).
+    #[arg(long)]
+    pub bands: Option<String>,
+    /// Priority of the inputs on the command line (higher wins where inputs overlap).
+    #[arg(long, default_value_t = 0, allow_hyphen_values = true)]
+    pub priority: i32,
+    /// A file listing more inputs, one per line: `PATH` or `PATH PRIORITY`.
+    #[arg(long)]
+    pub list: Option<PathBuf>,
+    /// Tile size of a new store.
+    #[arg(long, default_value_t = 256)]
+    pub tile_size: u32,
+    /// Print a JSON summary at the end.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// `sphereclip info`.

@@ -3,6 +3,7 @@
 mod demo;
 mod export;
 mod info;
+mod ingest;
 
 use std::process::ExitCode;
 
@@ -19,7 +20,7 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::Info(a) => info::run(&a),
         Command::Export(a) => export::run(&a),
         Command::Demo(a) => demo::run(&a),
-        Command::Ingest(_) => pending("ingest"),
+        Command::Ingest(a) => ingest::run(&a),
         Command::Build(_) => pending("build"),
         Command::Inspect(_) => pending("inspect"),
         Command::View(_) => pending("view"),

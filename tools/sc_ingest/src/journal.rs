@@ -1,0 +1,101 @@
+//! The resume journal of a long step: which shards are durable, with their value ranges, under
+//! `STORE/.sphereclip/journal-<step>.json`, rewritten atomically after every shard. A rerun of the
+//! same plan (same hash) skips what is done and reuses the first run's start time, so the store
+//! it ends with is byte-identical to an uninterrupted run's.
+
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+use sc_core::{LevelId, ShardId};
+use sc_store::LayerKind;
+
+use crate::{IngestError, Result, unix_now};
+
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+struct Data {
+    step: String,
+    plan: String,
+    started_unix: u64,
+    done: BTreeMap<String, Option<(LayerKind, LevelId, (f64, f64))>>,
+}
+
+/// A journal for one step of one plan.
+#[derive(Debug)]
+pub(crate) struct Journal {
+    path: PathBuf,
+    data: Mutex<Data>,
+}
+
+fn key(s: &ShardId) -> String {
+    format!("{}/{}/{}", s.level.key(), s.y, s.x)
+}
+
+impl Journal {
+    /// Opens the journal of `step` in the store at `root`: resumes it when it belongs to `plan`,
+    /// else starts a new one.
+    pub(crate) fn open(root: &Path, step: &str, plan: &str) -> Result<Self> {
+        let dir = root.join(".sphereclip");
+        std::fs::create_dir_all(&dir).map_err(|source| IngestError::Io { source, path: dir.clone() })?;
+        let path = dir.join(format!("journal-{step}.json"));
+        let old: Option<Data> = std::fs::read(&path)
+            .ok()
+            .and_then(|b| serde_json::from_slice(&b).ok())
+            .filter(|d: &Data| d.plan == plan && d.step == step);
+        let data = old.unwrap_or_else(|| Data {
+            step: step.into(),
+            plan: plan.into(),
+            started_unix: unix_now(),
+            done: BTreeMap::new(),
+        });
+        let j = Self {
+            path,
+            data: Mutex::new(data),
+        };
+        j.save()?;
+        Ok(j)
+    }
+
+    fn save(&self) -> Result<()> {
+        let data = self.data.lock().unwrap_or_else(|e| e.into_inner());
+        let bytes = serde_json::to_vec(&*data).map_err(|e| IngestError::Usage(e.to_string()))?;
+        let tmp = self.path.with_extension("json.tmp");
+        let io = |source| IngestError::Io { source, path: self.path.clone() };
+        let mut f = std::fs::File::create(&tmp).map_err(io)?;
+        f.write_all(&bytes).and_then(|_| f.sync_all()).map_err(io)?;
+        std::fs::rename(&tmp, &self.path).map_err(io)
+    }
+
+    pub(crate) fn is_done(&self, s: &ShardId) -> bool {
+        self.data.lock().unwrap_or_else(|e| e.into_inner()).done.contains_key(&key(s))
+    }
+
+    /// Records a durable shard and its value range.
+    pub(crate) fn mark_done(&self, s: &ShardId, range: Option<(LayerKind, LevelId, (f64, f64))>) -> Result<()> {
+        self.data
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .done
+            .insert(key(s), range);
+        self.save()
+    }
+
+    /// Value ranges of the shards done by earlier runs.
+    pub(crate) fn ranges(&self) -> Vec<(LayerKind, LevelId, (f64, f64))> {
+        self.data.lock().unwrap_or_else(|e| e.into_inner()).done.values().flatten().copied().collect()
+    }
+
+    /// When the first run of this plan started.
+    pub(crate) fn started_unix(&self) -> u64 {
+        self.data.lock().unwrap_or_else(|e| e.into_inner()).started_unix
+    }
+
+    /// Removes the journal after the store was committed.
+    pub(crate) fn finish(&self) -> Result<()> {
+        match std::fs::remove_file(&self.path) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(IngestError::Io { source: e, path: self.path.clone() }),
+            _ => Ok(()),
+        }
+    }
+}

@@ -1,0 +1,471 @@
+//! Ingest: put rasters in any projection onto a store's global grid.
+//!
+//! [`plan`] opens and validates every input before the store is touched (so bad input leaves the
+//! store unchanged), chooses each input's level, and lists the shards it touches. [`run`] writes
+//! those shards in parallel (rayon, one shard per task, each task with its own GDAL handles),
+//! mosaicking inputs in priority order over what the store already holds, and records each
+//! finished shard in a journal so that a killed run resumes where it stopped and ends with the same
+//! bytes as an uninterrupted one.
+
+mod journal;
+pub mod resample;
+
+use std::collections::BTreeMap;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::time::Instant;
+
+use rayon::prelude::*;
+use sc_core::{GridSpec, Kernel, KernelLut, LevelId, ShardId, TileId};
+use sc_raster::{LonLatBox, RasterError, RasterSource, SampleRole, SourceInfo, SourceOptions, linear_to_srgb};
+use sc_store::{BuildRecord, InputRecord, LayerKind, StoreConfig, StoreError, StoreWriter};
+use sha2::{Digest, Sha256};
+
+use crate::journal::Journal;
+use crate::resample::{TileSamples, resample_tile};
+
+/// Errors of ingest; one line each.
+#[derive(Debug, thiserror::Error)]
+pub enum IngestError {
+    /// An input could not be used.
+    #[error(transparent)]
+    Raster(#[from] RasterError),
+    /// The store failed.
+    #[error(transparent)]
+    Store(#[from] StoreError),
+    /// A request that cannot be served.
+    #[error("{0}")]
+    Usage(String),
+    /// The file system failed.
+    #[error("{source} ({})", path.display())]
+    Io {
+        /// The OS error.
+        source: std::io::Error,
+        /// The file.
+        path: PathBuf,
+    },
+}
+
+/// Result of ingest.
+pub type Result<T, E = IngestError> = std::result::Result<T, E>;
+
+/// Most texels one ingest run may write: 2^34 (64 GiB of f32).
+pub const MAX_TEXELS: u64 = 1 << 34;
+
+/// One input file with its options.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Input {
+    /// The raster.
+    pub path: PathBuf,
+    /// Georeferencing and band overrides.
+    pub options: SourceOptions,
+    /// Higher wins where inputs overlap; equal priorities: later in the list wins.
+    pub priority: i32,
+}
+
+/// How the output level is chosen.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LevelChoice {
+    /// Per input: the coarsest level whose spacing is no coarser than the input's at its centre.
+    Auto,
+    /// This level for every input.
+    Fixed(LevelId),
+}
+
+/// Settings of one ingest run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Settings {
+    /// The layer written.
+    pub layer: LayerKind,
+    /// Output level(s).
+    pub level: LevelChoice,
+    /// Resampling kernel.
+    pub kernel: Kernel,
+    /// Settings for a store that does not exist yet.
+    pub new_store: StoreConfig,
+}
+
+/// One input as planned.
+#[derive(Debug, Clone)]
+pub struct PlannedInput {
+    /// The input.
+    pub input: Input,
+    /// What the source is.
+    pub info: SourceInfo,
+    /// The level it goes to.
+    pub level: LevelId,
+    /// The lon/lat box it covers.
+    pub bbox: LonLatBox,
+    /// Size and content hash.
+    pub record: InputRecord,
+}
+
+/// Everything [`run`] will do; made by [`plan`] without touching the store.
+#[derive(Debug, Clone)]
+pub struct Plan {
+    /// Inputs in overlay order (lowest priority first; the last one wins).
+    pub inputs: Vec<PlannedInput>,
+    /// Shards to write, each with the tiles to touch and the inputs (indices) that cover them.
+    pub shards: BTreeMap<ShardId, BTreeMap<TileId, Vec<usize>>>,
+    /// Settings.
+    pub settings: Settings,
+    /// The store's grid.
+    pub grid: GridSpec,
+    /// Shard size of the store.
+    pub shard_tiles: u64,
+    /// Hash of everything that determines the output (inputs' contents, options, settings).
+    pub hash: String,
+}
+
+impl Plan {
+    /// Tiles the run touches.
+    pub fn tile_count(&self) -> u64 {
+        self.shards.values().map(|t| t.len() as u64).sum()
+    }
+}
+
+/// What a run did.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct Summary {
+    /// Shards written in this run (not counting those a resumed run found done).
+    pub shards_written: u64,
+    /// Shards a previous, interrupted run had already written.
+    pub shards_resumed: u64,
+    /// Tiles touched that now hold data.
+    pub tiles_written: u64,
+    /// Valid texels / texels of the touched tiles.
+    pub coverage: f64,
+    /// Range of the values written (heights).
+    pub value_range: Option<(f64, f64)>,
+    /// Wall time, seconds.
+    pub seconds: f64,
+    /// Levels written.
+    pub levels: Vec<String>,
+}
+
+fn hash_file(path: &Path) -> Result<InputRecord> {
+    let io = |source| IngestError::Io {
+        source,
+        path: path.to_path_buf(),
+    };
+    let mut f = std::fs::File::open(path).map_err(io)?;
+    let mut h = Sha256::new();
+    let mut buf = vec![0u8; 1 << 20];
+    let mut bytes = 0u64;
+    loop {
+        let n = f.read(&mut buf).map_err(io)?;
+        if n == 0 {
+            break;
+        }
+        bytes += n as u64;
+        h.update(&buf[..n]);
+    }
+    Ok(InputRecord {
+        path: path.display().to_string(),
+        bytes,
+        sha256: format!("{:x}", h.finalize()),
+    })
+}
+
+fn role(layer: LayerKind) -> SampleRole {
+    match layer {
+        LayerKind::Height => SampleRole::Height,
+        LayerKind::Color => SampleRole::Color,
+    }
+}
+
+/// Whether longitude intervals [a0, a1] and [b0, b1] overlap on the circle.
+fn lon_overlap(a0: f64, a1: f64, b0: f64, b1: f64) -> bool {
+    if a1 - a0 >= 360.0 || b1 - b0 >= 360.0 {
+        return true;
+    }
+    (-1..=1).any(|k| {
+        let s = f64::from(k) * 360.0;
+        a0 < b1 + s && b0 + s < a1
+    })
+}
+
+/// Opens and checks every input, chooses levels and lists the shards and tiles to write.
+/// `store_grid` is the grid of the existing store, or `None` for a new one.
+pub fn plan(inputs: &[Input], settings: &Settings, store: Option<(GridSpec, u64, f64)>) -> Result<Plan> {
+    if inputs.is_empty() {
+        return Err(IngestError::Usage("no input files given".into()));
+    }
+    let (grid, shard_tiles, radius_m) = store.unwrap_or((
+        settings.new_store.grid,
+        settings.new_store.shard_tiles,
+        settings.new_store.radius_m,
+    ));
+    let mut planned = Vec::new();
+    for input in inputs {
+        let src = RasterSource::open(&input.path, role(settings.layer), &input.options)?;
+        let level = match settings.level {
+            LevelChoice::Fixed(l) => l,
+            LevelChoice::Auto => {
+                let spacing_m = src.centre_spacing_m(radius_m);
+                let deg = spacing_m / radius_m * 180.0 / std::f64::consts::PI;
+                grid.level_for_spacing_deg(deg)
+            }
+        };
+        let bbox = src.lonlat_box()?;
+        planned.push(PlannedInput {
+            input: input.clone(),
+            info: src.info().clone(),
+            level,
+            bbox,
+            record: hash_file(&input.path)?,
+        });
+    }
+    // overlay order: ascending priority, stable (later inputs win among equals)
+    planned.sort_by_key(|p| p.input.priority);
+    let mut shards: BTreeMap<ShardId, BTreeMap<TileId, Vec<usize>>> = BTreeMap::new();
+    let mut texels = 0u64;
+    for (idx, p) in planned.iter().enumerate() {
+        let level = p.level;
+        let (tw, th) = (grid.tiles_x(level), grid.tiles_y(level));
+        let b = p.bbox;
+        // tile rows/cols overlapping the box (a margin of one tile for kernels reaching out)
+        let (_, dlat) = grid.texel_deg(level);
+        let tile_deg_y = dlat * f64::from(grid.tile_size());
+        let y0 = (((90.0 - b.north) / tile_deg_y).floor() as i64 - 1).max(0) as u64;
+        let y1 = (((90.0 - b.south) / tile_deg_y).ceil() as i64 + 1).min(th as i64) as u64;
+        for y in y0..y1 {
+            for x in 0..tw {
+                let tile = TileId { level, x, y };
+                let r = grid.tile_rect(tile);
+                let m = 360.0 / tw as f64;
+                if !lon_overlap(r.west - m, r.east + m, b.west, b.east) {
+                    continue;
+                }
+                shards
+                    .entry(tile.shard(shard_tiles))
+                    .or_default()
+                    .entry(tile)
+                    .or_default()
+                    .push(idx);
+                texels += u64::from(grid.tile_size()).pow(2);
+            }
+        }
+    }
+    if texels > MAX_TEXELS {
+        return Err(IngestError::Usage(format!(
+            "this ingest would write {texels} texels (limit {MAX_TEXELS}); choose a coarser --level"
+        )));
+    }
+    let mut h = Sha256::new();
+    h.update(format!("{:?}|{grid:?}|{shard_tiles}", settings).as_bytes());
+    for p in &planned {
+        h.update(format!("{}|{:?}|{}|{}|{}", p.record.sha256, p.input.options, p.input.priority, p.level, p.record.path).as_bytes());
+    }
+    Ok(Plan {
+        inputs: planned,
+        shards,
+        settings: settings.clone(),
+        grid,
+        shard_tiles,
+        hash: format!("{:x}", h.finalize()),
+    })
+}
+
+/// Unix seconds now, or `SOURCE_DATE_EPOCH` when set (reproducible stores).
+pub fn unix_now() -> u64 {
+    std::env::var("SOURCE_DATE_EPOCH")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| {
+            std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map(|d| d.as_secs())
+                .unwrap_or(0)
+        })
+}
+
+/// Writes the plan into the store at `root` (created if missing). `on_shard(done, total)` reports
+/// progress. Resumes an interrupted run of the same plan.
+pub fn run(root: &Path, plan: &Plan, on_shard: &(dyn Fn(u64, u64) + Sync)) -> Result<Summary> {
+    let start = Instant::now();
+    let settings = &plan.settings;
+    let writer = StoreWriter::open_or_create(root, settings.new_store)?;
+    let meta = writer.meta();
+    if meta.grid != plan.grid || meta.shard_tiles != plan.shard_tiles {
+        return Err(IngestError::Usage(format!(
+            "the plan was made for another store grid: {}",
+            root.display()
+        )));
+    }
+    let levels: std::collections::BTreeSet<LevelId> = plan.inputs.iter().map(|p| p.level).collect();
+    for &l in &levels {
+        writer.ensure_level(settings.layer, l)?;
+    }
+    let journal = Journal::open(root, "ingest", &plan.hash)?;
+    let mut summary = Summary {
+        levels: levels.iter().map(|l| l.to_string()).collect(),
+        ..Summary::default()
+    };
+    let todo: Vec<(&ShardId, &BTreeMap<TileId, Vec<usize>>)> =
+        plan.shards.iter().filter(|(s, _)| !journal.is_done(s)).collect();
+    summary.shards_resumed = (plan.shards.len() - todo.len()) as u64;
+    for r in journal.ranges() {
+        writer.note_range(r.0, r.1, r.2 .0, r.2 .1);
+    }
+    let total = plan.shards.len() as u64;
+    let done = std::sync::atomic::AtomicU64::new(summary.shards_resumed);
+    let stats = Mutex::new((0u64, 0u64, 0u64, None::<(f64, f64)>)); // tiles, valid texels, texels, range
+    let lut = KernelLut::new(settings.kernel);
+    on_shard(summary.shards_resumed, total);
+    todo.par_iter().try_for_each_init(
+        || -> Result<Vec<RasterSource>> {
+            plan.inputs
+                .iter()
+                .map(|p| RasterSource::open(&p.input.path, role(settings.layer), &p.input.options).map_err(IngestError::from))
+                .collect()
+        },
+        |sources, (shard, tiles)| -> Result<()> {
+            let sources = match sources {
+                Ok(s) => s,
+                Err(e) => return Err(IngestError::Usage(e.to_string())),
+            };
+            let s = write_shard(&writer, plan, &lut, sources, **shard, tiles)?;
+            journal.mark_done(shard, s.range.map(|r| (settings.layer, shard.level, r)))?;
+            {
+                let mut st = stats.lock().unwrap_or_else(|e| e.into_inner());
+                st.0 += s.tiles;
+                st.1 += s.valid;
+                st.2 += s.texels;
+                if let Some((lo, hi)) = s.range {
+                    st.3 = Some(st.3.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
+                }
+            }
+            let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            on_shard(d, total);
+            Ok(())
+        },
+    )?;
+    let record = BuildRecord {
+        step: "ingest".into(),
+        tool: format!("sphereclip {}", env!("CARGO_PKG_VERSION")),
+        unix_time_s: journal.started_unix(),
+        inputs: plan.inputs.iter().map(|p| p.record.clone()).collect(),
+        settings: serde_json::json!({
+            "layer": settings.layer,
+            "kernel": settings.kernel,
+            "levels": summary.levels,
+            "inputs": plan.inputs.iter().map(|p| serde_json::json!({
+                "path": p.record.path,
+                "level": p.level.to_string(),
+                "priority": p.input.priority,
+                "crs": p.info.crs,
+                "bands": p.info.bands,
+            })).collect::<Vec<_>>(),
+        }),
+    };
+    writer.commit(Some(record))?;
+    journal.finish()?;
+    let st = stats.into_inner().unwrap_or_else(|e| e.into_inner());
+    summary.shards_written = todo.len() as u64;
+    summary.tiles_written = st.0;
+    summary.coverage = if st.2 > 0 { st.1 as f64 / st.2 as f64 } else { 0.0 };
+    summary.value_range = st.3;
+    summary.seconds = start.elapsed().as_secs_f64();
+    Ok(summary)
+}
+
+struct ShardStats {
+    tiles: u64,
+    valid: u64,
+    texels: u64,
+    range: Option<(f64, f64)>,
+}
+
+fn write_shard(
+    writer: &StoreWriter,
+    plan: &Plan,
+    lut: &KernelLut,
+    sources: &[RasterSource],
+    shard: ShardId,
+    tiles: &BTreeMap<TileId, Vec<usize>>,
+) -> Result<ShardStats> {
+    let t = plan.grid.tile_size() as usize;
+    let n = t * t;
+    let mut st = ShardStats {
+        tiles: 0,
+        valid: 0,
+        texels: 0,
+        range: None,
+    };
+    match plan.settings.layer {
+        LayerKind::Height => {
+            let mut sw = writer.shard_writer::<f32>(shard)?;
+            let mut cur = vec![f32::NAN; n];
+            for (&tile, idxs) in tiles {
+                sw.get_tile(tile, &mut cur)?;
+                let mut changed = false;
+                for &i in idxs {
+                    if let Some(TileSamples { planes }) = resample_tile(&sources[i], plan.grid, tile, lut)? {
+                        for (c, v) in cur.iter_mut().zip(&planes[0]) {
+                            if !v.is_nan() {
+                                *c = *v;
+                                changed = true;
+                            }
+                        }
+                    }
+                }
+                st.texels += n as u64;
+                let valid: Vec<f64> = cur.iter().filter(|v| !v.is_nan()).map(|&v| f64::from(v)).collect();
+                st.valid += valid.len() as u64;
+                if !valid.is_empty() {
+                    st.tiles += 1;
+                }
+                if changed {
+                    for v in valid {
+                        st.range = Some(st.range.map_or((v, v), |(a, b)| (a.min(v), b.max(v))));
+                    }
+                    sw.put_tile(tile, &cur)?;
+                }
+            }
+            sw.finish()?;
+        }
+        LayerKind::Color => {
+            let mut sw = writer.shard_writer::<u8>(shard)?;
+            let mut cur = vec![0u8; n * 4];
+            for (&tile, idxs) in tiles {
+                sw.get_tile(tile, &mut cur)?;
+                let mut changed = false;
+                for &i in idxs {
+                    if let Some(TileSamples { planes }) = resample_tile(&sources[i], plan.grid, tile, lut)? {
+                        for k in 0..n {
+                            if planes[0][k].is_nan() {
+                                continue;
+                            }
+                            let a = planes[3][k].clamp(0.0, 1.0);
+                            let px = &mut cur[k * 4..k * 4 + 4];
+                            // non-premultiplied "over" compositing in linear light; opaque
+                            // sources simply replace what was there
+                            let old_a = f32::from(px[3]) / 255.0;
+                            let out_a = a + old_a * (1.0 - a);
+                            for c in 0..3 {
+                                let old = sc_raster::srgb_to_linear(f32::from(px[c]));
+                                let lin = (planes[c][k] * a + old * old_a * (1.0 - a)) / out_a.max(1e-6);
+                                px[c] = linear_to_srgb(lin);
+                            }
+                            px[3] = ((out_a * 255.0).round() as u8).max(1);
+                            changed = true;
+                        }
+                    }
+                }
+                st.texels += n as u64;
+                let valid = cur.chunks_exact(4).filter(|p| p[3] > 0).count() as u64;
+                st.valid += valid;
+                if valid > 0 {
+                    st.tiles += 1;
+                }
+                if changed {
+                    sw.put_tile(tile, &cur)?;
+                }
+            }
+            sw.finish()?;
+        }
+    }
+    Ok(st)
+}

@@ -1,0 +1,140 @@
+//! `sphereclip ingest STORE INPUT... [options]`.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::{Context, Result, bail};
+use sc_core::{GridSpec, Kernel, LevelId};
+use sc_ingest::{Input, LevelChoice, Settings};
+use sc_raster::SourceOptions;
+use sc_store::{StoreConfig, StoreReader};
+
+use crate::cli::IngestArgs;
+use crate::cmd::parse_layer;
+use crate::progress::Progress;
+
+fn parse_list<T: std::str::FromStr>(s: &str, what: &str) -> Result<Vec<T>> {
+    s.split(',')
+        .map(|v| v.trim().parse::<T>().map_err(|_| anyhow::anyhow!("{what}: `{v}` is not a number in `{s}`")))
+        .collect()
+}
+
+fn inputs(a: &IngestArgs, options: &SourceOptions) -> Result<Vec<Input>> {
+    let mut v: Vec<Input> = a
+        .inputs
+        .iter()
+        .map(|p| Input {
+            path: p.clone(),
+            options: options.clone(),
+            priority: a.priority,
+        })
+        .collect();
+    if let Some(list) = &a.list {
+        let text = std::fs::read_to_string(list).with_context(|| format!("cannot read input list {}", list.display()))?;
+        for (n, line) in text.lines().enumerate() {
+            let line = line.trim();
+            if line.is_empty() || line.starts_with('#') {
+                continue;
+            }
+            let (path, prio) = match line.rsplit_once(char::is_whitespace) {
+                Some((p, pr)) if pr.parse::<i32>().is_ok() => (p.trim(), pr.parse::<i32>().unwrap_or(0)),
+                _ => (line, a.priority),
+            };
+            if path.is_empty() {
+                bail!("line {} of {}: no path", n + 1, list.display());
+            }
+            v.push(Input {
+                path: PathBuf::from(path),
+                options: options.clone(),
+                priority: prio,
+            });
+        }
+    }
+    Ok(v)
+}
+
+/// Runs `ingest`.
+pub fn run(a: &IngestArgs) -> Result<ExitCode> {
+    let layer = parse_layer(&a.layer)?;
+    let kernel = Kernel::from_name(&a.resampling)
+        .filter(|k| matches!(k, Kernel::Nearest | Kernel::Bilinear | Kernel::Cubic | Kernel::Lanczos3 | Kernel::Lanczos2))
+        .ok_or_else(|| anyhow::anyhow!("unknown --resampling `{}` (expected nearest, bilinear, cubic or lanczos)", a.resampling))?;
+    let level = if a.level == "auto" {
+        LevelChoice::Auto
+    } else {
+        LevelChoice::Fixed(a.level.parse::<LevelId>().map_err(|e| anyhow::anyhow!("--level: {e}"))?)
+    };
+    let bounds = match &a.bounds {
+        None => None,
+        Some(b) => {
+            let v: Vec<f64> = parse_list(b, "--bounds")?;
+            let [w, s, e, n] = v[..] else {
+                bail!("--bounds needs four numbers W,S,E,N, found `{b}`");
+            };
+            Some([w, s, e, n])
+        }
+    };
+    let options = SourceOptions {
+        src_srs: a.src_srs.clone(),
+        bounds,
+        src_nodata: a.src_nodata,
+        bands: a.bands.as_deref().map(|b| parse_list(b, "--bands")).transpose()?,
+    };
+    let inputs = inputs(a, &options)?;
+    let grid = GridSpec::new(a.tile_size).map_err(|e| anyhow::anyhow!("--tile-size: {e}"))?;
+    let settings = Settings {
+        layer,
+        level,
+        kernel,
+        new_store: StoreConfig {
+            grid,
+            ..StoreConfig::default()
+        },
+    };
+    // the store's own grid if it exists (and must be readable before anything is written)
+    let existing = if a.store.join("zarr.json").exists() {
+        let r = StoreReader::open(&a.store).context("cannot read store")?;
+        let m = r.meta();
+        Some((m.grid, m.shard_tiles, m.radius_m))
+    } else {
+        if a.store.exists() && !a.store.is_dir() {
+            bail!("store path exists and is not a folder: {}", a.store.display());
+        }
+        None
+    };
+    let plan = sc_ingest::plan(&inputs, &settings, existing)?;
+    for p in &plan.inputs {
+        for w in &p.info.warnings {
+            eprintln!("warning: {}: {w}", p.input.path.display());
+        }
+        eprintln!(
+            "{} ({}x{}, {}) → level {} ({} m per texel)",
+            p.input.path.display(),
+            p.info.width,
+            p.info.height,
+            p.info.crs,
+            p.level,
+            plan.grid.iso_spacing_m(p.level, sc_core::EARTH_RADIUS_M).round()
+        );
+    }
+    let progress = Progress::new("ingest", plan.shards.len() as u64);
+    let summary = sc_ingest::run(&a.store, &plan, &|d, _| progress.set(d))
+        .with_context(|| format!("ingest stopped (rerun the same command to resume) in {}", a.store.display()))?;
+    progress.finish();
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&summary)?);
+    } else {
+        println!(
+            "ingested {} input(s) into {}: {} shards written{}, {} tiles with data, coverage {:.1} %, values {}, {:.1} s",
+            plan.inputs.len(),
+            a.store.display(),
+            summary.shards_written,
+            if summary.shards_resumed > 0 { format!(" ({} resumed)", summary.shards_resumed) } else { String::new() },
+            summary.tiles_written,
+            summary.coverage * 100.0,
+            summary.value_range.map(|(lo, hi)| format!("{lo:.1} .. {hi:.1}")).unwrap_or_else(|| "-".into()),
+            summary.seconds
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}
