@@ -119,8 +119,23 @@ impl KernelLut {
         if d2 >= self.support2 {
             return 0.0;
         }
-        let f = d2.sqrt() * self.scale;
-        let i = f as usize;
+        self.lookup(d2.sqrt())
+    }
+
+    /// Weight at normalised distance `d` (either sign; 0 beyond the support).
+    #[inline]
+    pub fn weight(&self, d: f64) -> f64 {
+        let d = d.abs();
+        if d * d >= self.support2 {
+            return 0.0;
+        }
+        self.lookup(d)
+    }
+
+    #[inline]
+    fn lookup(&self, d: f64) -> f64 {
+        let f = d * self.scale;
+        let i = (f as usize).min(Self::N);
         let t = f - i as f64;
         self.table[i] + t * (self.table[i + 1] - self.table[i])
     }
@@ -148,6 +163,8 @@ pub struct Footprint {
     q: (f64, f64, f64),
     /// Half extents of the bounding box of `d ≤ 1`, source pixels.
     half: (f64, f64),
+    /// No cross term: the ellipse's axes are the pixel axes.
+    aligned: bool,
 }
 
 impl Footprint {
@@ -164,7 +181,15 @@ impl Footprint {
         Self {
             q: (syy / det, -sxy / det, sxx / det),
             half: (sxx.sqrt(), syy.sqrt()),
+            aligned: sxy.abs() <= 1e-12 * (sxx + syy),
         }
+    }
+
+    /// The footprint's scale along x and y (source pixels per unit distance) when its axes are
+    /// the pixel axes (no cross term, as for every geographic source); `None` when rotated.
+    pub fn axis_scales(&self) -> Option<(f64, f64)> {
+        // without a cross term the semi-axes are √Σxx and √Σyy: the bounding box's half extents
+        self.aligned.then_some(self.half)
     }
 
     /// Squared normalised distance of a pixel offset.

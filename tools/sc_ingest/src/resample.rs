@@ -36,19 +36,36 @@ fn texel_map(src: &RasterSource, grid: GridSpec, tile: TileId, kernel: Kernel) -
     let rho = std::f64::consts::PI / grid.height(level) as f64;
     let n = t + 2;
     // texel centres with a one-texel margin, for finite-difference Jacobians
-    let mut xs = Vec::with_capacity(n * n);
-    let mut ys = Vec::with_capacity(n * n);
-    let mut lats = Vec::with_capacity(n * n);
-    for j in 0..n {
-        for i in 0..n {
-            let lon = -180.0 + (ox as f64 + i as f64 - 0.5) * dlon_deg;
-            let lat = 90.0 - (oy as f64 + j as f64 - 0.5) * dlat_deg;
-            xs.push(lon);
-            ys.push(lat.clamp(-90.0, 90.0));
-            lats.push(lat);
+    let lon_of = |i: usize| -180.0 + (ox as f64 + i as f64 - 0.5) * dlon_deg;
+    let lat_of = |j: usize| 90.0 - (oy as f64 + j as f64 - 0.5) * dlat_deg;
+    let lats: Vec<f64> = (0..n).flat_map(|j| std::iter::repeat_n(lat_of(j), n)).collect();
+    let (mut xs, mut ys);
+    if info.geographic {
+        // x depends on the column only and y on the row only: transform n points, not n²
+        let mut cx: Vec<f64> = (0..n).map(lon_of).collect();
+        let mut cy = vec![0.0; n];
+        src.lonlat_to_pixel(&mut cx, &mut cy);
+        let mut ry = vec![0.0; n];
+        let mut rx: Vec<f64> = (0..n).map(|j| lat_of(j).clamp(-90.0, 90.0)).collect();
+        std::mem::swap(&mut rx, &mut ry);
+        src.lonlat_to_pixel(&mut rx, &mut ry);
+        xs = Vec::with_capacity(n * n);
+        ys = Vec::with_capacity(n * n);
+        for &y in &ry {
+            xs.extend_from_slice(&cx);
+            ys.extend(std::iter::repeat_n(y, n));
         }
+    } else {
+        xs = Vec::with_capacity(n * n);
+        ys = Vec::with_capacity(n * n);
+        for j in 0..n {
+            for i in 0..n {
+                xs.push(lon_of(i));
+                ys.push(lat_of(j).clamp(-90.0, 90.0));
+            }
+        }
+        src.lonlat_to_pixel(&mut xs, &mut ys);
     }
-    src.lonlat_to_pixel(&mut xs, &mut ys);
     let gt = info.geotransform;
     // unwrap geographic x around the tile centre, so the tile's footprints form one window
     if let (true, Some(p)) = (info.geographic, info.lon_period_px) {
@@ -72,6 +89,7 @@ fn texel_map(src: &RasterSource, grid: GridSpec, tile: TileId, kernel: Kernel) -
         foot: Vec::with_capacity(t * t),
     };
     let deg = 180.0 / std::f64::consts::PI;
+    let coslats: Vec<f64> = (0..n).map(|j| lats[j * n].to_radians().cos().max(1e-12)).collect();
     let at = |i: usize, j: usize| (xs[j * n + i], ys[j * n + i]);
     for j in 1..=t {
         for i in 1..=t {
@@ -86,8 +104,7 @@ fn texel_map(src: &RasterSource, grid: GridSpec, tile: TileId, kernel: Kernel) -
                 map.foot.push(None);
                 continue;
             }
-            let lat = lats[j * n + i];
-            let coslat = lat.to_radians().cos().max(1e-12);
+            let coslat = coslats[j];
             let jac = if info.geographic {
                 [[deg / gt[1] / coslat, 0.0], [0.0, deg / gt[5]]]
             } else {
@@ -175,6 +192,7 @@ pub fn resample_tile(src: &RasterSource, grid: GridSpec, tile: TileId, lut: &Ker
     let mut out = vec![vec![f32::NAN; t * t]; nplanes];
     let mut any = false;
     let mut acc = vec![0f64; nplanes];
+    let mut mips = Mips::default();
     for k in 0..t * t {
         let (x, y) = (map.x[k], map.y[k]);
         if !x.is_finite() {
@@ -182,7 +200,17 @@ pub fn resample_tile(src: &RasterSource, grid: GridSpec, tile: TileId, lut: &Ker
         }
         let done = match &map.foot[k] {
             None => nearest(&win, x, y, &mut acc),
-            Some(f) => filtered(&win, f, lut, x, y, half[k], &mut acc),
+            Some(f) => match f.axis_scales() {
+                // axis-aligned footprints (every lon/lat source): separable, on a copy of the
+                // window averaged 2^m× in x where the footprint is wide (towards the poles), so a
+                // texel costs a bounded number of taps at any latitude
+                Some((sx, sy)) if sy <= MAX_SEPARABLE_TAPS_SCALE => {
+                    let m = mip_level(sx);
+                    let mip = mips.get(&win, m);
+                    separable(mip, lut, x, y, (sx, sy), &mut acc)
+                }
+                _ => filtered(&win, f, lut, x, y, half[k], &mut acc),
+            },
         };
         if done {
             for p in 0..nplanes {
@@ -192,6 +220,175 @@ pub fn resample_tile(src: &RasterSource, grid: GridSpec, tile: TileId, lut: &Ker
         }
     }
     Ok(any.then_some(TileSamples { planes: out }))
+}
+
+/// Largest footprint scale (source pixels) along y filtered separably (beyond: radial EWA).
+const MAX_SEPARABLE_TAPS_SCALE: f64 = 4.0;
+
+/// The x-averaging level for a footprint of x scale `sx`: 2^m source columns per sample so
+/// that the scale in averaged samples is at most 2.
+fn mip_level(sx: f64) -> u32 {
+    let mut m = 0;
+    while sx / f64::from(1u32 << m) > 2.0 && m < 20 {
+        m += 1;
+    }
+    m
+}
+
+/// A window's planes averaged 2^m× along x: sample q covers window columns [q·2^m, (q+1)·2^m).
+/// A sample is NaN (invalid) unless at least half of its columns are valid.
+#[derive(Debug)]
+struct Mip {
+    step: f64,
+    c0: f64,
+    r0: i64,
+    w: usize,
+    h: usize,
+    planes: Vec<Vec<f32>>,
+}
+
+#[derive(Debug, Default)]
+struct Mips {
+    levels: Vec<Mip>,
+}
+
+impl Mips {
+    fn get(&mut self, win: &Window, m: u32) -> &Mip {
+        if self.levels.is_empty() {
+            self.levels.push(Mip {
+                step: 1.0,
+                c0: win.c0 as f64,
+                r0: win.r0,
+                w: win.w,
+                h: win.h,
+                planes: win.planes.clone(),
+            });
+        }
+        while self.levels.len() <= m as usize {
+            let prev = self.levels.last().expect("level 0 exists");
+            let w = prev.w / 2;
+            let mut planes = vec![vec![f32::NAN; w * prev.h]; prev.planes.len()];
+            for r in 0..prev.h {
+                for q in 0..w {
+                    let (a, b) = (r * prev.w + 2 * q, r * prev.w + 2 * q + 1);
+                    let (va, vb) = (prev.planes[0][a], prev.planes[0][b]);
+                    let (ia, ib) = (!va.is_nan(), !vb.is_nan());
+                    if !ia && !ib {
+                        continue;
+                    }
+                    for (p, plane) in planes.iter_mut().enumerate() {
+                        let (x, y) = (prev.planes[p][a], prev.planes[p][b]);
+                        plane[r * w + q] = match (ia, ib) {
+                            (true, true) => 0.5 * (x + y),
+                            (true, false) => x,
+                            _ => y,
+                        };
+                    }
+                }
+            }
+            self.levels.push(Mip {
+                step: prev.step * 2.0,
+                c0: prev.c0,
+                r0: prev.r0,
+                w,
+                h: prev.h,
+                planes,
+            });
+        }
+        &self.levels[m as usize]
+    }
+}
+
+/// Separable filtering with per-axis scales: weights `k(dx/sx)·k(dy/sy)`, on samples averaged
+/// `mip.step`× along x (the scale along x shrinks by the same factor).
+fn separable(mip: &Mip, lut: &KernelLut, x: f64, y: f64, (sx, sy): (f64, f64), acc: &mut [f64]) -> bool {
+    const MAX: usize = 24;
+    let s = lut.kernel().support();
+    let u = (x - mip.c0) / mip.step;
+    let su = sx / mip.step;
+    let (c0, c1) = (ceil(u - 0.5 - s * su), floor(u - 0.5 + s * su));
+    let (r0, r1) = (ceil(y - 0.5 - s * sy), floor(y - 0.5 + s * sy));
+    let (nc, nr) = ((c1 - c0 + 1).max(0) as usize, (r1 - r0 + 1).max(0) as usize);
+    if nc == 0 || nr == 0 || nc > MAX || nr > MAX {
+        return false;
+    }
+    let mut wx = [0f64; MAX];
+    let mut wy = [0f64; MAX];
+    let mut wx_pos = 0.0;
+    for (i, w) in wx.iter_mut().enumerate().take(nc) {
+        *w = lut.weight(((c0 + i as i64) as f64 + 0.5 - u) / su);
+        wx_pos += w.max(0.0);
+    }
+    let mut wy_pos = 0.0;
+    for (j, w) in wy.iter_mut().enumerate().take(nr) {
+        *w = lut.weight(((r0 + j as i64) as f64 + 0.5 - y) / sy);
+        wy_pos += w.max(0.0);
+    }
+    acc.iter_mut().for_each(|a| *a = 0.0);
+    let (mut wsum, mut wpos_valid) = (0.0, 0.0);
+    let (mw, mh) = (mip.w as i64, mip.h as i64);
+    // the columns inside the samples, once for all rows
+    let i0 = (-c0).max(0) as usize;
+    let i1 = ((mw - c0).max(0) as usize).min(nc);
+    if i0 >= i1 {
+        return false;
+    }
+    let nplanes = mip.planes.len();
+    for (j, &wyj) in wy.iter().enumerate().take(nr) {
+        if wyj == 0.0 {
+            continue;
+        }
+        let r = r0 + j as i64 - mip.r0;
+        if r < 0 || r >= mh {
+            continue;
+        }
+        // c0 + i ≥ 0 for i ≥ i0, so every index below is in the row
+        let base = r * mw + c0;
+        let at = |i: usize| (base + i as i64) as usize;
+        let row0 = &mip.planes[0][at(i0)..at(i1)];
+        // one horizontal pass per row, then weight the row by wy
+        let (mut sv, mut sw, mut sp) = (0.0f64, 0.0f64, 0.0f64);
+        let mut sv_other = [0.0f64; 3];
+        for i in i0..i1 {
+            let v0 = row0[i - i0];
+            if v0.is_nan() {
+                continue;
+            }
+            let w = wx[i];
+            sv += w * f64::from(v0);
+            sw += w;
+            sp += w.max(0.0);
+            for (p, acc_p) in sv_other.iter_mut().enumerate().take(nplanes - 1) {
+                *acc_p += w * f64::from(mip.planes[p + 1][at(i)]);
+            }
+        }
+        acc[0] += wyj * sv;
+        for p in 1..nplanes {
+            acc[p] += wyj * sv_other[p - 1];
+        }
+        wsum += wyj * sw;
+        wpos_valid += wyj.max(0.0) * sp;
+    }
+    let wpos_all = wx_pos * wy_pos;
+    if wpos_all <= 0.0 || wpos_valid < MIN_COVERAGE * wpos_all || wsum.abs() < 1e-6 * wpos_all {
+        return false;
+    }
+    acc.iter_mut().for_each(|a| *a /= wsum);
+    true
+}
+
+/// `floor` without a libm call (the values here are far inside i64).
+#[inline]
+fn floor(v: f64) -> i64 {
+    let i = v as i64;
+    i - i64::from((i as f64) > v)
+}
+
+/// `ceil` without a libm call.
+#[inline]
+fn ceil(v: f64) -> i64 {
+    let i = v as i64;
+    i + i64::from((i as f64) < v)
 }
 
 fn sample(win: &Window, c: i64, r: i64, p: usize) -> f32 {
