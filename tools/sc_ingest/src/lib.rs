@@ -203,9 +203,7 @@ pub fn plan(inputs: &[Input], settings: &Settings, store: Option<(GridSpec, u64,
         let level = match settings.level {
             LevelChoice::Fixed(l) => l,
             LevelChoice::Auto => {
-                let spacing_m = src.centre_spacing_m(radius_m);
-                let deg = spacing_m / radius_m * 180.0 / std::f64::consts::PI;
-                grid.level_for_spacing_deg(deg)
+                grid.level_for_spacing_deg(src.centre_spacing_deg(radius_m))
             }
         };
         let bbox = src.lonlat_box()?;

@@ -543,19 +543,47 @@ impl RasterSource {
         })
     }
 
-    /// The source's ground spacing at its centre, metres on a sphere of `radius_m` (the finer
-    /// of its two axes).
-    pub fn centre_spacing_m(&self, radius_m: f64) -> f64 {
+    /// The source's pixel spacing at its centre in degrees of the grid, the finer of its two
+    /// axes: longitude spacing in degrees of longitude, latitude spacing in degrees of latitude
+    /// (projected pixels are converted at the centre latitude on a sphere of `radius_m`). A level
+    /// with `180°/H` no larger than this keeps every detail along both axes.
+    pub fn centre_spacing_deg(&self, radius_m: f64) -> f64 {
         let info = &self.info;
         let gt = info.geotransform;
         if info.geographic {
-            let lat = (gt[3] + gt[5] * info.height as f64 / 2.0).clamp(-89.0, 89.0);
-            let dx = gt[1].abs().to_radians() * lat.to_radians().cos() * radius_m;
-            let dy = gt[5].abs().to_radians() * radius_m;
-            return dx.min(dy);
+            return gt[1].abs().min(gt[5].abs());
         }
-        // projected units are metres for every CRS we accept (linear units scale them)
-        gt[1].abs().min(gt[5].abs())
+        // projected units are metres for every CRS we accept
+        let m_per_deg = radius_m * std::f64::consts::PI / 180.0;
+        let (mut x, mut y) = (vec![0.0], vec![0.0]);
+        let c = [
+            gt[0] + gt[1] * info.width as f64 / 2.0,
+            gt[3] + gt[5] * info.height as f64 / 2.0,
+        ];
+        let lat = match self.to_lonlat_point(c[0], c[1]) {
+            Some((_, lat)) => lat,
+            None => 0.0,
+        };
+        x[0] = gt[1].abs() / (m_per_deg * lat.to_radians().cos().max(1e-6));
+        y[0] = gt[5].abs() / m_per_deg;
+        x[0].min(y[0])
+    }
+
+    /// One point of the source CRS to lon/lat, if it transforms.
+    fn to_lonlat_point(&self, sx: f64, sy: f64) -> Option<(f64, f64)> {
+        let Backend::Gdal(ds) = &self.backend else { return None };
+        let mut srs = match &self.opts.src_srs {
+            Some(d) => SpatialRef::from_definition(d),
+            None => ds.spatial_ref(),
+        }
+        .ok()?;
+        srs.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
+        let mut wgs = SpatialRef::from_epsg(4326).ok()?;
+        wgs.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
+        let t = CoordTransform::new(&srs, &wgs).ok()?;
+        let (mut x, mut y) = ([sx], [sy]);
+        t.transform_coords(&mut x, &mut y, &mut []).ok()?;
+        (x[0].is_finite() && y[0].is_finite()).then_some((x[0], y[0]))
     }
 
     /// Reads the rectangle of pixels `[c0, c0+w) × [r0, r0+h)` of this source into `planes`
@@ -568,6 +596,12 @@ impl RasterSource {
             SampleRole::Height => 1,
             SampleRole::Color => 4,
         };
+        if (w as u64) * (h as u64) > MAX_WINDOW {
+            return Err(RasterError::LimitsExceeded(format!(
+                "one output tile needs {w}x{h} source pixels (limit {MAX_WINDOW}); choose a finer --level for {}",
+                info.path.display()
+            )));
+        }
         let mut planes = vec![vec![f32::NAN; w * h]; nplanes];
         // map every (row, col) of the region to a source (row, col) or None
         let map_row = |r: i64| -> Option<(i64, bool)> {
