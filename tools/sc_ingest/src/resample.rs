@@ -204,12 +204,15 @@ pub fn resample_tile(src: &RasterSource, grid: GridSpec, tile: TileId, lut: &Ker
                 // axis-aligned footprints (every lon/lat source): separable, on a copy of the
                 // window averaged 2^m× in x where the footprint is wide (towards the poles), so a
                 // texel costs a bounded number of taps at any latitude
-                Some((sx, sy)) if sy <= MAX_SEPARABLE_TAPS_SCALE => {
-                    let m = mip_level(sx);
-                    let mip = mips.get(&win, m);
+                Some((sx, sy)) => {
+                    let mip = mips.get(&win, mip_level(sx), mip_level(sy));
                     separable(mip, lut, x, y, (sx, sy), &mut acc)
                 }
-                _ => filtered(&win, f, lut, x, y, half[k], &mut acc),
+                None => {
+                    let (hx, hy) = half[k];
+                    let mip = mips.get(&win, mip_level(hx / 8.0), mip_level(hy / 8.0));
+                    filtered(mip, f, lut, x, y, half[k], &mut acc)
+                }
             },
         };
         if done {
@@ -222,11 +225,8 @@ pub fn resample_tile(src: &RasterSource, grid: GridSpec, tile: TileId, lut: &Ker
     Ok(any.then_some(TileSamples { planes: out }))
 }
 
-/// Largest footprint scale (source pixels) along y filtered separably (beyond: radial EWA).
-const MAX_SEPARABLE_TAPS_SCALE: f64 = 4.0;
-
-/// The x-averaging level for a footprint of x scale `sx`: 2^m source columns per sample so
-/// that the scale in averaged samples is at most 2.
+/// The averaging level for a footprint scale `sx` (source pixels): 2^m source pixels per
+/// sample so that the scale in averaged samples is at most 2.
 fn mip_level(sx: f64) -> u32 {
     let mut m = 0;
     while sx / f64::from(1u32 << m) > 2.0 && m < 20 {
@@ -235,13 +235,16 @@ fn mip_level(sx: f64) -> u32 {
     m
 }
 
-/// A window's planes averaged 2^m× along x: sample q covers window columns [q·2^m, (q+1)·2^m).
-/// A sample is NaN (invalid) unless at least half of its columns are valid.
+/// A window's planes averaged over blocks of 2^mx × 2^my pixels: sample (q, p) covers window
+/// columns [q·sx, (q+1)·sx) and rows [p·sy, (p+1)·sy). A sample is NaN (invalid) unless at least
+/// half of its block is valid; otherwise it is the mean of the valid pixels. Filtering these is
+/// the kernel applied to box-prefiltered data: a bounded number of taps however wide the
+/// footprint (near the poles, or a fine source onto a coarse level).
 #[derive(Debug)]
 struct Mip {
-    step: f64,
+    step: (f64, f64),
     c0: f64,
-    r0: i64,
+    r0: f64,
     w: usize,
     h: usize,
     planes: Vec<Vec<f32>>,
@@ -249,53 +252,56 @@ struct Mip {
 
 #[derive(Debug, Default)]
 struct Mips {
-    levels: Vec<Mip>,
+    levels: std::collections::HashMap<(u32, u32), Mip>,
 }
 
 impl Mips {
-    fn get(&mut self, win: &Window, m: u32) -> &Mip {
-        if self.levels.is_empty() {
-            self.levels.push(Mip {
-                step: 1.0,
-                c0: win.c0 as f64,
-                r0: win.r0,
-                w: win.w,
-                h: win.h,
-                planes: win.planes.clone(),
-            });
-        }
-        while self.levels.len() <= m as usize {
-            let prev = self.levels.last().expect("level 0 exists");
-            let w = prev.w / 2;
-            let mut planes = vec![vec![f32::NAN; w * prev.h]; prev.planes.len()];
-            for r in 0..prev.h {
-                for q in 0..w {
-                    let (a, b) = (r * prev.w + 2 * q, r * prev.w + 2 * q + 1);
-                    let (va, vb) = (prev.planes[0][a], prev.planes[0][b]);
-                    let (ia, ib) = (!va.is_nan(), !vb.is_nan());
-                    if !ia && !ib {
-                        continue;
-                    }
-                    for (p, plane) in planes.iter_mut().enumerate() {
-                        let (x, y) = (prev.planes[p][a], prev.planes[p][b]);
-                        plane[r * w + q] = match (ia, ib) {
-                            (true, true) => 0.5 * (x + y),
-                            (true, false) => x,
-                            _ => y,
-                        };
+    fn get(&mut self, win: &Window, mx: u32, my: u32) -> &Mip {
+        self.levels.entry((mx, my)).or_insert_with(|| {
+            let (bx, by) = (1usize << mx, 1usize << my);
+            let (w, h) = (win.w / bx.min(win.w.max(1)), win.h / by.min(win.h.max(1)));
+            let (w, h) = (w.max(1), h.max(1));
+            let np = win.planes.len();
+            let mut planes = vec![vec![f32::NAN; w * h]; np];
+            if bx == 1 && by == 1 {
+                planes.clone_from(&win.planes);
+            } else {
+                let mut sums = vec![0f64; np];
+                for p in 0..h {
+                    for q in 0..w {
+                        sums.iter_mut().for_each(|s| *s = 0.0);
+                        let mut n = 0usize;
+                        for r in p * by..((p + 1) * by).min(win.h) {
+                            let row = r * win.w;
+                            for c in q * bx..((q + 1) * bx).min(win.w) {
+                                let v = win.planes[0][row + c];
+                                if v.is_nan() {
+                                    continue;
+                                }
+                                n += 1;
+                                sums[0] += f64::from(v);
+                                for (k, s) in sums.iter_mut().enumerate().skip(1) {
+                                    *s += f64::from(win.planes[k][row + c]);
+                                }
+                            }
+                        }
+                        if 2 * n >= bx * by {
+                            for (k, plane) in planes.iter_mut().enumerate() {
+                                plane[p * w + q] = (sums[k] / n as f64) as f32;
+                            }
+                        }
                     }
                 }
             }
-            self.levels.push(Mip {
-                step: prev.step * 2.0,
-                c0: prev.c0,
-                r0: prev.r0,
+            Mip {
+                step: (bx as f64, by as f64),
+                c0: win.c0 as f64,
+                r0: win.r0 as f64,
                 w,
-                h: prev.h,
+                h,
                 planes,
-            });
-        }
-        &self.levels[m as usize]
+            }
+        })
     }
 }
 
@@ -304,10 +310,12 @@ impl Mips {
 fn separable(mip: &Mip, lut: &KernelLut, x: f64, y: f64, (sx, sy): (f64, f64), acc: &mut [f64]) -> bool {
     const MAX: usize = 24;
     let s = lut.kernel().support();
-    let u = (x - mip.c0) / mip.step;
-    let su = sx / mip.step;
+    let u = (x - mip.c0) / mip.step.0;
+    let su = sx / mip.step.0;
+    let v = (y - mip.r0) / mip.step.1;
+    let sv = sy / mip.step.1;
     let (c0, c1) = (ceil(u - 0.5 - s * su), floor(u - 0.5 + s * su));
-    let (r0, r1) = (ceil(y - 0.5 - s * sy), floor(y - 0.5 + s * sy));
+    let (r0, r1) = (ceil(v - 0.5 - s * sv), floor(v - 0.5 + s * sv));
     let (nc, nr) = ((c1 - c0 + 1).max(0) as usize, (r1 - r0 + 1).max(0) as usize);
     if nc == 0 || nr == 0 || nc > MAX || nr > MAX {
         return false;
@@ -321,7 +329,7 @@ fn separable(mip: &Mip, lut: &KernelLut, x: f64, y: f64, (sx, sy): (f64, f64), a
     }
     let mut wy_pos = 0.0;
     for (j, w) in wy.iter_mut().enumerate().take(nr) {
-        *w = lut.weight(((r0 + j as i64) as f64 + 0.5 - y) / sy);
+        *w = lut.weight(((r0 + j as i64) as f64 + 0.5 - v) / sv);
         wy_pos += w.max(0.0);
     }
     acc.iter_mut().for_each(|a| *a = 0.0);
@@ -338,7 +346,7 @@ fn separable(mip: &Mip, lut: &KernelLut, x: f64, y: f64, (sx, sy): (f64, f64), a
         if wyj == 0.0 {
             continue;
         }
-        let r = r0 + j as i64 - mip.r0;
+        let r = r0 + j as i64;
         if r < 0 || r >= mh {
             continue;
         }
@@ -410,19 +418,22 @@ fn nearest(win: &Window, x: f64, y: f64, acc: &mut [f64]) -> bool {
     true
 }
 
-fn filtered(win: &Window, f: &Footprint, lut: &KernelLut, x: f64, y: f64, half: (f64, f64), acc: &mut [f64]) -> bool {
+/// Radial (EWA) filtering for rotated footprints, on block-averaged samples whose centres are
+/// measured in source pixels.
+fn filtered(mip: &Mip, f: &Footprint, lut: &KernelLut, x: f64, y: f64, half: (f64, f64), acc: &mut [f64]) -> bool {
     let (hx, hy) = half;
-    let (c0, c1) = ((x - hx).floor() as i64, (x + hx).ceil() as i64);
-    let (r0, r1) = ((y - hy).floor() as i64, (y + hy).ceil() as i64);
+    let (bx, by) = mip.step;
+    // sample index range covering [x − hx, x + hx] × [y − hy, y + hy]
+    let (q0, q1) = (floor((x - hx - mip.c0) / bx), floor((x + hx - mip.c0) / bx));
+    let (p0, p1) = (floor((y - hy - mip.r0) / by), floor((y + hy - mip.r0) / by));
     let s2 = lut.support2();
     acc.iter_mut().for_each(|a| *a = 0.0);
     let (mut wsum, mut wpos_all, mut wpos_valid) = (0.0, 0.0, 0.0);
-    for r in r0..=r1 {
-        let dy = r as f64 + 0.5 - y;
-        let rr = r - win.r0;
-        let row_ok = rr >= 0 && rr < win.h as i64;
-        for c in c0..=c1 {
-            let dx = c as f64 + 0.5 - x;
+    for p in p0..=p1 {
+        let dy = mip.r0 + (p as f64 + 0.5) * by - y;
+        let row_ok = p >= 0 && p < mip.h as i64;
+        for q in q0..=q1 {
+            let dx = mip.c0 + (q as f64 + 0.5) * bx - x;
             let d2 = f.dist2(dx, dy);
             if d2 >= s2 {
                 continue;
@@ -431,12 +442,11 @@ fn filtered(win: &Window, f: &Footprint, lut: &KernelLut, x: f64, y: f64, half: 
             if wgt > 0.0 {
                 wpos_all += wgt;
             }
-            let cc = c - win.c0;
-            if !row_ok || cc < 0 || cc >= win.w as i64 {
+            if !row_ok || q < 0 || q >= mip.w as i64 {
                 continue;
             }
-            let idx = rr as usize * win.w + cc as usize;
-            let v0 = win.planes[0][idx];
+            let idx = p as usize * mip.w + q as usize;
+            let v0 = mip.planes[0][idx];
             if v0.is_nan() {
                 continue;
             }
@@ -445,8 +455,8 @@ fn filtered(win: &Window, f: &Footprint, lut: &KernelLut, x: f64, y: f64, half: 
             }
             wsum += wgt;
             acc[0] += wgt * f64::from(v0);
-            for (p, a) in acc.iter_mut().enumerate().skip(1) {
-                *a += wgt * f64::from(win.planes[p][idx]);
+            for (k, a) in acc.iter_mut().enumerate().skip(1) {
+                *a += wgt * f64::from(mip.planes[k][idx]);
             }
         }
     }
