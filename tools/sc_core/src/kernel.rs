@@ -211,13 +211,25 @@ mod tests {
 
     #[test]
     fn kernels_are_one_at_zero_and_zero_at_support() {
-        for k in [Kernel::Bilinear, Kernel::Cubic, Kernel::Lanczos2, Kernel::Lanczos3, Kernel::Gauss, Kernel::Nearest] {
+        for k in [
+            Kernel::Bilinear,
+            Kernel::Cubic,
+            Kernel::Lanczos2,
+            Kernel::Lanczos3,
+            Kernel::Gauss,
+            Kernel::Nearest,
+        ] {
             assert!((k.weight(0.0) - 1.0).abs() < 1e-12, "{k:?}");
             assert_eq!(k.weight(k.support()), 0.0, "{k:?}");
             assert_eq!(k.weight(k.support() + 1.0), 0.0, "{k:?}");
         }
         // interpolating kernels vanish at integer distances
-        for k in [Kernel::Bilinear, Kernel::Cubic, Kernel::Lanczos2, Kernel::Lanczos3] {
+        for k in [
+            Kernel::Bilinear,
+            Kernel::Cubic,
+            Kernel::Lanczos2,
+            Kernel::Lanczos3,
+        ] {
             assert!(k.weight(1.0).abs() < 1e-12, "{k:?}");
         }
         assert!(Kernel::Cubic.weight(1.5) < 0.0, "negative lobe");
@@ -247,7 +259,13 @@ mod tests {
 
     #[test]
     fn tables_match_the_kernels() {
-        for k in [Kernel::Bilinear, Kernel::Cubic, Kernel::Lanczos2, Kernel::Lanczos3, Kernel::Gauss] {
+        for k in [
+            Kernel::Bilinear,
+            Kernel::Cubic,
+            Kernel::Lanczos2,
+            Kernel::Lanczos3,
+            Kernel::Gauss,
+        ] {
             let lut = KernelLut::new(k);
             for i in 0..1000 {
                 let d = i as f64 * k.support() / 999.0;

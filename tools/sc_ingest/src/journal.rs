@@ -37,7 +37,10 @@ impl Journal {
     /// else starts a new one.
     pub(crate) fn open(root: &Path, step: &str, plan: &str) -> Result<Self> {
         let dir = root.join(".sphereclip");
-        std::fs::create_dir_all(&dir).map_err(|source| IngestError::Io { source, path: dir.clone() })?;
+        std::fs::create_dir_all(&dir).map_err(|source| IngestError::Io {
+            source,
+            path: dir.clone(),
+        })?;
         let path = dir.join(format!("journal-{step}.json"));
         let old: Option<Data> = std::fs::read(&path)
             .ok()
@@ -61,18 +64,29 @@ impl Journal {
         let data = self.data.lock().unwrap_or_else(|e| e.into_inner());
         let bytes = serde_json::to_vec(&*data).map_err(|e| IngestError::Usage(e.to_string()))?;
         let tmp = self.path.with_extension("json.tmp");
-        let io = |source| IngestError::Io { source, path: self.path.clone() };
+        let io = |source| IngestError::Io {
+            source,
+            path: self.path.clone(),
+        };
         let mut f = std::fs::File::create(&tmp).map_err(io)?;
         f.write_all(&bytes).and_then(|_| f.sync_all()).map_err(io)?;
         std::fs::rename(&tmp, &self.path).map_err(io)
     }
 
     pub(crate) fn is_done(&self, s: &ShardId) -> bool {
-        self.data.lock().unwrap_or_else(|e| e.into_inner()).done.contains_key(&key(s))
+        self.data
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .done
+            .contains_key(&key(s))
     }
 
     /// Records a durable shard and its value range.
-    pub(crate) fn mark_done(&self, s: &ShardId, range: Option<(LayerKind, LevelId, (f64, f64))>) -> Result<()> {
+    pub(crate) fn mark_done(
+        &self,
+        s: &ShardId,
+        range: Option<(LayerKind, LevelId, (f64, f64))>,
+    ) -> Result<()> {
         self.data
             .lock()
             .unwrap_or_else(|e| e.into_inner())
@@ -83,18 +97,31 @@ impl Journal {
 
     /// Value ranges of the shards done by earlier runs.
     pub(crate) fn ranges(&self) -> Vec<(LayerKind, LevelId, (f64, f64))> {
-        self.data.lock().unwrap_or_else(|e| e.into_inner()).done.values().flatten().copied().collect()
+        self.data
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .done
+            .values()
+            .flatten()
+            .copied()
+            .collect()
     }
 
     /// When the first run of this plan started.
     pub(crate) fn started_unix(&self) -> u64 {
-        self.data.lock().unwrap_or_else(|e| e.into_inner()).started_unix
+        self.data
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .started_unix
     }
 
     /// Removes the journal after the store was committed.
     pub(crate) fn finish(&self) -> Result<()> {
         match std::fs::remove_file(&self.path) {
-            Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(IngestError::Io { source: e, path: self.path.clone() }),
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(IngestError::Io {
+                source: e,
+                path: self.path.clone(),
+            }),
             _ => Ok(()),
         }
     }

@@ -18,7 +18,9 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 use sc_core::{GridSpec, Kernel, KernelLut, LevelId, ShardId, TileId};
-use sc_raster::{LonLatBox, RasterError, RasterSource, SampleRole, SourceInfo, SourceOptions, linear_to_srgb};
+use sc_raster::{
+    LonLatBox, RasterError, RasterSource, SampleRole, SourceInfo, SourceOptions, linear_to_srgb,
+};
 use sc_store::{BuildRecord, InputRecord, LayerKind, StoreConfig, StoreError, StoreWriter};
 use sha2::{Digest, Sha256};
 
@@ -188,7 +190,11 @@ fn lon_overlap(a0: f64, a1: f64, b0: f64, b1: f64) -> bool {
 
 /// Opens and checks every input, chooses levels and lists the shards and tiles to write.
 /// `store_grid` is the grid of the existing store, or `None` for a new one.
-pub fn plan(inputs: &[Input], settings: &Settings, store: Option<(GridSpec, u64, f64)>) -> Result<Plan> {
+pub fn plan(
+    inputs: &[Input],
+    settings: &Settings,
+    store: Option<(GridSpec, u64, f64)>,
+) -> Result<Plan> {
     if inputs.is_empty() {
         return Err(IngestError::Usage("no input files given".into()));
     }
@@ -202,9 +208,7 @@ pub fn plan(inputs: &[Input], settings: &Settings, store: Option<(GridSpec, u64,
         let src = RasterSource::open(&input.path, role(settings.layer), &input.options)?;
         let level = match settings.level {
             LevelChoice::Fixed(l) => l,
-            LevelChoice::Auto => {
-                grid.level_for_spacing_deg(src.centre_spacing_deg(radius_m))
-            }
+            LevelChoice::Auto => grid.level_for_spacing_deg(src.centre_spacing_deg(radius_m)),
         };
         let bbox = src.lonlat_box()?;
         planned.push(PlannedInput {
@@ -254,7 +258,13 @@ pub fn plan(inputs: &[Input], settings: &Settings, store: Option<(GridSpec, u64,
     let mut h = Sha256::new();
     h.update(format!("{:?}|{grid:?}|{shard_tiles}", settings).as_bytes());
     for p in &planned {
-        h.update(format!("{}|{:?}|{}|{}|{}", p.record.sha256, p.input.options, p.input.priority, p.level, p.record.path).as_bytes());
+        h.update(
+            format!(
+                "{}|{:?}|{}|{}|{}",
+                p.record.sha256, p.input.options, p.input.priority, p.level, p.record.path
+            )
+            .as_bytes(),
+        );
     }
     Ok(Plan {
         inputs: planned,
@@ -301,11 +311,14 @@ pub fn run(root: &Path, plan: &Plan, on_shard: &(dyn Fn(u64, u64) + Sync)) -> Re
         levels: levels.iter().map(|l| l.to_string()).collect(),
         ..Summary::default()
     };
-    let todo: Vec<(&ShardId, &BTreeMap<TileId, Vec<usize>>)> =
-        plan.shards.iter().filter(|(s, _)| !journal.is_done(s)).collect();
+    let todo: Vec<(&ShardId, &BTreeMap<TileId, Vec<usize>>)> = plan
+        .shards
+        .iter()
+        .filter(|(s, _)| !journal.is_done(s))
+        .collect();
     summary.shards_resumed = (plan.shards.len() - todo.len()) as u64;
     for r in journal.ranges() {
-        writer.note_range(r.0, r.1, r.2 .0, r.2 .1);
+        writer.note_range(r.0, r.1, r.2.0, r.2.1);
     }
     let total = plan.shards.len() as u64;
     let done = std::sync::atomic::AtomicU64::new(summary.shards_resumed);
@@ -316,7 +329,10 @@ pub fn run(root: &Path, plan: &Plan, on_shard: &(dyn Fn(u64, u64) + Sync)) -> Re
         || -> Result<Vec<RasterSource>> {
             plan.inputs
                 .iter()
-                .map(|p| RasterSource::open(&p.input.path, role(settings.layer), &p.input.options).map_err(IngestError::from))
+                .map(|p| {
+                    RasterSource::open(&p.input.path, role(settings.layer), &p.input.options)
+                        .map_err(IngestError::from)
+                })
                 .collect()
         },
         |sources, (shard, tiles)| -> Result<()> {
@@ -363,7 +379,11 @@ pub fn run(root: &Path, plan: &Plan, on_shard: &(dyn Fn(u64, u64) + Sync)) -> Re
     let st = stats.into_inner().unwrap_or_else(|e| e.into_inner());
     summary.shards_written = todo.len() as u64;
     summary.tiles_written = st.0;
-    summary.coverage = if st.2 > 0 { st.1 as f64 / st.2 as f64 } else { 0.0 };
+    summary.coverage = if st.2 > 0 {
+        st.1 as f64 / st.2 as f64
+    } else {
+        0.0
+    };
     summary.value_range = st.3;
     summary.seconds = start.elapsed().as_secs_f64();
     Ok(summary)
@@ -400,7 +420,9 @@ fn write_shard(
                 sw.get_tile(tile, &mut cur)?;
                 let mut changed = false;
                 for &i in idxs {
-                    if let Some(TileSamples { planes }) = resample_tile(&sources[i], plan.grid, tile, lut)? {
+                    if let Some(TileSamples { planes }) =
+                        resample_tile(&sources[i], plan.grid, tile, lut)?
+                    {
                         for (c, v) in cur.iter_mut().zip(&planes[0]) {
                             if !v.is_nan() {
                                 *c = *v;
@@ -410,7 +432,11 @@ fn write_shard(
                     }
                 }
                 st.texels += n as u64;
-                let valid: Vec<f64> = cur.iter().filter(|v| !v.is_nan()).map(|&v| f64::from(v)).collect();
+                let valid: Vec<f64> = cur
+                    .iter()
+                    .filter(|v| !v.is_nan())
+                    .map(|&v| f64::from(v))
+                    .collect();
                 st.valid += valid.len() as u64;
                 if !valid.is_empty() {
                     st.tiles += 1;
@@ -431,7 +457,9 @@ fn write_shard(
                 sw.get_tile(tile, &mut cur)?;
                 let mut changed = false;
                 for &i in idxs {
-                    if let Some(TileSamples { planes }) = resample_tile(&sources[i], plan.grid, tile, lut)? {
+                    if let Some(TileSamples { planes }) =
+                        resample_tile(&sources[i], plan.grid, tile, lut)?
+                    {
                         for k in 0..n {
                             if planes[0][k].is_nan() {
                                 continue;
@@ -444,7 +472,8 @@ fn write_shard(
                             let out_a = a + old_a * (1.0 - a);
                             for c in 0..3 {
                                 let old = sc_raster::srgb_to_linear(f32::from(px[c]));
-                                let lin = (planes[c][k] * a + old * old_a * (1.0 - a)) / out_a.max(1e-6);
+                                let lin =
+                                    (planes[c][k] * a + old * old_a * (1.0 - a)) / out_a.max(1e-6);
                                 px[c] = linear_to_srgb(lin);
                             }
                             px[3] = ((out_a * 255.0).round() as u8).max(1);

@@ -38,7 +38,9 @@ fn texel_map(src: &RasterSource, grid: GridSpec, tile: TileId, kernel: Kernel) -
     // texel centres with a one-texel margin, for finite-difference Jacobians
     let lon_of = |i: usize| -180.0 + (ox as f64 + i as f64 - 0.5) * dlon_deg;
     let lat_of = |j: usize| 90.0 - (oy as f64 + j as f64 - 0.5) * dlat_deg;
-    let lats: Vec<f64> = (0..n).flat_map(|j| std::iter::repeat_n(lat_of(j), n)).collect();
+    let lats: Vec<f64> = (0..n)
+        .flat_map(|j| std::iter::repeat_n(lat_of(j), n))
+        .collect();
     let (mut xs, mut ys);
     if info.geographic {
         // x depends on the column only and y on the row only: transform n points, not n²
@@ -89,7 +91,9 @@ fn texel_map(src: &RasterSource, grid: GridSpec, tile: TileId, kernel: Kernel) -
         foot: Vec::with_capacity(t * t),
     };
     let deg = 180.0 / std::f64::consts::PI;
-    let coslats: Vec<f64> = (0..n).map(|j| lats[j * n].to_radians().cos().max(1e-12)).collect();
+    let coslats: Vec<f64> = (0..n)
+        .map(|j| lats[j * n].to_radians().cos().max(1e-12))
+        .collect();
     let at = |i: usize, j: usize| (xs[j * n + i], ys[j * n + i]);
     for j in 1..=t {
         for i in 1..=t {
@@ -138,7 +142,12 @@ fn texel_map(src: &RasterSource, grid: GridSpec, tile: TileId, kernel: Kernel) -
 
 /// Resamples `src` onto `tile` with `lut`'s kernel. Returns `None` when the source contributes
 /// nothing to the tile.
-pub fn resample_tile(src: &RasterSource, grid: GridSpec, tile: TileId, lut: &KernelLut) -> Result<Option<TileSamples>> {
+pub fn resample_tile(
+    src: &RasterSource,
+    grid: GridSpec,
+    tile: TileId,
+    lut: &KernelLut,
+) -> Result<Option<TileSamples>> {
     let kernel = lut.kernel();
     let info = src.info();
     let t = grid.tile_size() as usize;
@@ -147,7 +156,12 @@ pub fn resample_tile(src: &RasterSource, grid: GridSpec, tile: TileId, lut: &Ker
     let period = info.lon_period_px;
     let (w, h) = (info.width as f64, info.height as f64);
     // the source rectangle the whole tile needs
-    let (mut cmin, mut cmax, mut rmin, mut rmax) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+    let (mut cmin, mut cmax, mut rmin, mut rmax) = (
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    );
     let mut half = Vec::with_capacity(t * t);
     for k in 0..t * t {
         let (x, y) = (map.x[k], map.y[k]);
@@ -166,7 +180,9 @@ pub fn resample_tile(src: &RasterSource, grid: GridSpec, tile: TileId, lut: &Ker
         // skip texels whose whole footprint misses a non-wrapping source
         let wraps_x = period.is_some();
         let reaches_pole = info.north_pole_y.is_some() || info.south_pole_y.is_some();
-        if (!wraps_x && (x + hx < 0.0 || x - hx > w)) || (!reaches_pole && (y + hy < 0.0 || y - hy > h)) {
+        if (!wraps_x && (x + hx < 0.0 || x - hx > w))
+            || (!reaches_pole && (y + hy < 0.0 || y - hy > h))
+        {
             continue;
         }
         cmin = cmin.min((x - hx).floor());
@@ -187,7 +203,12 @@ pub fn resample_tile(src: &RasterSource, grid: GridSpec, tile: TileId, lut: &Ker
     if info.south_pole_y.is_none() {
         rmax = rmax.min(h + 1.0);
     }
-    let win = src.read_region(cmin as i64, rmin as i64, (cmax - cmin + 1.0) as usize, (rmax - rmin + 1.0) as usize)?;
+    let win = src.read_region(
+        cmin as i64,
+        rmin as i64,
+        (cmax - cmin + 1.0) as usize,
+        (rmax - rmin + 1.0) as usize,
+    )?;
     let nplanes = win.planes.len();
     let mut out = vec![vec![f32::NAN; t * t]; nplanes];
     let mut any = false;
@@ -307,7 +328,14 @@ impl Mips {
 
 /// Separable filtering with per-axis scales: weights `k(dx/sx)·k(dy/sy)`, on samples averaged
 /// `mip.step`× along x (the scale along x shrinks by the same factor).
-fn separable(mip: &Mip, lut: &KernelLut, x: f64, y: f64, (sx, sy): (f64, f64), acc: &mut [f64]) -> bool {
+fn separable(
+    mip: &Mip,
+    lut: &KernelLut,
+    x: f64,
+    y: f64,
+    (sx, sy): (f64, f64),
+    acc: &mut [f64],
+) -> bool {
     const MAX: usize = 24;
     let s = lut.kernel().support();
     let u = (x - mip.c0) / mip.step.0;
@@ -420,7 +448,15 @@ fn nearest(win: &Window, x: f64, y: f64, acc: &mut [f64]) -> bool {
 
 /// Radial (EWA) filtering for rotated footprints, on block-averaged samples whose centres are
 /// measured in source pixels.
-fn filtered(mip: &Mip, f: &Footprint, lut: &KernelLut, x: f64, y: f64, half: (f64, f64), acc: &mut [f64]) -> bool {
+fn filtered(
+    mip: &Mip,
+    f: &Footprint,
+    lut: &KernelLut,
+    x: f64,
+    y: f64,
+    half: (f64, f64),
+    acc: &mut [f64],
+) -> bool {
     let (hx, hy) = half;
     let (bx, by) = mip.step;
     // sample index range covering [x − hx, x + hx] × [y − hy, y + hy]

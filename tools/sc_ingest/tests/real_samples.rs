@@ -10,7 +10,9 @@ use sc_raster::SourceOptions;
 use sc_store::{LayerKind, StoreConfig, StoreReader, TileRead};
 
 fn sample(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../samples").join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../samples")
+        .join(name)
 }
 
 fn settings(layer: LayerKind, level: LevelChoice) -> Settings {
@@ -61,12 +63,25 @@ fn level_image(r: &StoreReader, level: LevelId) -> (usize, usize, Vec<f32>) {
 }
 
 fn texel_of(g: GridSpec, level: LevelId, lon: f64, lat: f64) -> (usize, usize) {
-    let t = g.texel_from_lonlat(level, LonLat::new(lon, lat)).expect("on sphere");
-    (t.x as usize, (t.y as usize).min(g.height(level) as usize - 1))
+    let t = g
+        .texel_from_lonlat(level, LonLat::new(lon, lat))
+        .expect("on sphere");
+    (
+        t.x as usize,
+        (t.y as usize).min(g.height(level) as usize - 1),
+    )
 }
 
 /// Max/min of the image over a lon/lat box.
-fn box_stats(g: GridSpec, level: LevelId, img: &(usize, usize, Vec<f32>), w_: f64, s_: f64, e_: f64, n_: f64) -> (f32, f32) {
+fn box_stats(
+    g: GridSpec,
+    level: LevelId,
+    img: &(usize, usize, Vec<f32>),
+    w_: f64,
+    s_: f64,
+    e_: f64,
+    n_: f64,
+) -> (f32, f32) {
     let (i0, j0) = texel_of(g, level, w_, n_);
     let (i1, j1) = texel_of(g, level, e_, s_);
     let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
@@ -87,7 +102,11 @@ fn etopo5_lands_in_the_right_texels_with_constant_poles_and_a_seamless_antimerid
     let dir = tempfile::tempdir().expect("tempdir");
     let root = dir.path().join("e.zarr");
     let level = LevelId::iso(3).expect("valid");
-    let s = ingest(&root, &[input("etopo5.cdf.gz")], &settings(LayerKind::Height, LevelChoice::Fixed(level)));
+    let s = ingest(
+        &root,
+        &[input("etopo5.cdf.gz")],
+        &settings(LayerKind::Height, LevelChoice::Fixed(level)),
+    );
     assert_eq!(s.coverage, 1.0, "a global grid covers everything");
     let r = StoreReader::open(&root).expect("open");
     let g = r.meta().grid;
@@ -95,11 +114,17 @@ fn etopo5_lands_in_the_right_texels_with_constant_poles_and_a_seamless_antimerid
     let (w, h) = (img.0, img.1);
     // Everest area ≈ 6 km (ETOPO5 node: 6096 m); at 0.088° spacing a little is smoothed away
     let (_, everest) = box_stats(g, level, &img, 86.4, 27.5, 87.4, 28.5);
-    assert!((5500.0..=6600.0).contains(&everest), "Everest area max {everest}");
+    assert!(
+        (5500.0..=6600.0).contains(&everest),
+        "Everest area max {everest}"
+    );
     // Karakoram holds the global maximum 7833 m; nothing higher anywhere (cubic may ring a bit)
     let global_max = img.2.iter().copied().fold(f32::NEG_INFINITY, f32::max);
     let (_, karakoram) = box_stats(g, level, &img, 74.5, 35.8, 75.6, 36.8);
-    assert_eq!(karakoram, global_max, "the global maximum is in the Karakoram");
+    assert_eq!(
+        karakoram, global_max,
+        "the global maximum is in the Karakoram"
+    );
     assert!((7000.0..=8100.0).contains(&global_max), "{global_max}");
     // Mariana Trench minimum ≈ −10.4 km near 11.33 °N 142.33 °E
     let (mariana, _) = box_stats(g, level, &img, 141.8, 10.8, 142.9, 11.9);
@@ -107,7 +132,10 @@ fn etopo5_lands_in_the_right_texels_with_constant_poles_and_a_seamless_antimerid
     // at 0.088° the trench's narrow floor is smoothed to within a few hundred metres of the
     // deepest smoothed trench (ETOPO5's −10376 m node itself is 1/12° wide)
     assert!((-10800.0..=-9800.0).contains(&mariana), "{mariana}");
-    assert!(mariana - global_min < 300.0, "Mariana {mariana} vs global minimum {global_min}");
+    assert!(
+        mariana - global_min < 300.0,
+        "Mariana {mariana} vs global minimum {global_min}"
+    );
     // Greenland ice 72.6 °N 38.5 °W → 3185 m
     let (gx, gy) = texel_of(g, level, -38.5, 72.6);
     let green = img.2[gy * w + gx];
@@ -117,10 +145,17 @@ fn etopo5_lands_in_the_right_texels_with_constant_poles_and_a_seamless_antimerid
     // source's own row next to the pole (−4296..−4094 m in the north, 200 m of spread)
     for (row, expect) in [(0, -4290.0f32), (h - 1, 2810.0)] {
         let vals = &img.2[row * w..(row + 1) * w];
-        let (lo, hi) = vals.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+        let (lo, hi) = vals
+            .iter()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| {
+                (a.min(v), b.max(v))
+            });
         let mean = vals.iter().map(|&v| f64::from(v)).sum::<f64>() / w as f64;
         assert!(hi - lo < 60.0, "row {row} varies {lo}..{hi}");
-        assert!((mean - f64::from(expect)).abs() < 40.0, "row {row}: mean {mean} vs pole {expect}");
+        assert!(
+            (mean - f64::from(expect)).abs() < 40.0,
+            "row {row}: mean {mean} vs pole {expect}"
+        );
     }
     // antimeridian: the step across it is like any other step between neighbours
     let mut seam = 0.0f64;
@@ -128,9 +163,15 @@ fn etopo5_lands_in_the_right_texels_with_constant_poles_and_a_seamless_antimerid
     for j in 0..h {
         let row = &img.2[j * w..(j + 1) * w];
         seam += f64::from((row[w - 1] - row[0]).abs());
-        inner += f64::from((row[w / 2] - row[w / 2 + 1]).abs()) + f64::from((row[1] - row[0]).abs()) + f64::from((row[w - 2] - row[w - 1]).abs());
+        inner += f64::from((row[w / 2] - row[w / 2 + 1]).abs())
+            + f64::from((row[1] - row[0]).abs())
+            + f64::from((row[w - 2] - row[w - 1]).abs());
     }
-    assert!(seam <= inner / 3.0 * 2.0, "seam {seam} vs typical {}", inner / 3.0);
+    assert!(
+        seam <= inner / 3.0 * 2.0,
+        "seam {seam} vs typical {}",
+        inner / 3.0
+    );
 }
 
 fn gdal_value(file: &Path, lon: f64, lat: f64) -> f64 {
@@ -140,7 +181,10 @@ fn gdal_value(file: &Path, lon: f64, lat: f64) -> f64 {
         .args([lon.to_string(), lat.to_string()])
         .output()
         .expect("gdallocationinfo (gdal-bin) runs");
-    String::from_utf8_lossy(&o.stdout).trim().parse().expect("a value")
+    String::from_utf8_lossy(&o.stdout)
+        .trim()
+        .parse()
+        .expect("a value")
 }
 
 #[test]
@@ -148,8 +192,16 @@ fn srtm_tiles_match_gdal_and_override_etopo_only_inside_their_squares() {
     let dir = tempfile::tempdir().expect("tempdir");
     let fine = dir.path().join("srtm.zarr");
     // auto level for 3″ data
-    let s = ingest(&fine, &[input("N57E011.hgt.zip"), input("n07_w006_3arc_v2.tif")], &settings(LayerKind::Height, LevelChoice::Auto));
-    assert_eq!(s.levels, vec!["10".to_string()], "3″ = 0.00083° → level 10 (0.00069°)");
+    let s = ingest(
+        &fine,
+        &[input("N57E011.hgt.zip"), input("n07_w006_3arc_v2.tif")],
+        &settings(LayerKind::Height, LevelChoice::Auto),
+    );
+    assert_eq!(
+        s.levels,
+        vec!["10".to_string()],
+        "3″ = 0.00083° → level 10 (0.00069°)"
+    );
     let r = StoreReader::open(&fine).expect("open");
     let level = LevelId::iso(10).expect("valid");
     let g = r.meta().grid;
@@ -158,7 +210,11 @@ fn srtm_tiles_match_gdal_and_override_etopo_only_inside_their_squares() {
         let (i, j) = texel_of(g, level, lon, lat);
         let tile = g.tile_of_texel(level, i as u64, j as u64);
         let mut buf = vec![0f32; t * t];
-        assert_eq!(r.read_tile(tile, &mut buf).expect("read"), TileRead::Present, "{lon} {lat}");
+        assert_eq!(
+            r.read_tile(tile, &mut buf).expect("read"),
+            TileRead::Present,
+            "{lon} {lat}"
+        );
         let (ox, oy) = tile.origin_texel(g);
         let v = buf[(j - oy as usize) * t + (i - ox as usize)];
         // local variation around the texel, as the tolerance of resampling
@@ -177,13 +233,34 @@ fn srtm_tiles_match_gdal_and_override_etopo_only_inside_their_squares() {
         (v, hi - lo)
     };
     for (file, pts) in [
-        ("N57E011.hgt.zip", [(11.5, 57.5), (11.02, 57.02), (11.98, 57.98), (11.02, 57.98), (11.98, 57.02)]),
-        ("n07_w006_3arc_v2.tif", [(-5.5, 7.5), (-5.98, 7.02), (-5.02, 7.98), (-5.98, 7.98), (-5.02, 7.02)]),
+        (
+            "N57E011.hgt.zip",
+            [
+                (11.5, 57.5),
+                (11.02, 57.02),
+                (11.98, 57.98),
+                (11.02, 57.98),
+                (11.98, 57.02),
+            ],
+        ),
+        (
+            "n07_w006_3arc_v2.tif",
+            [
+                (-5.5, 7.5),
+                (-5.98, 7.02),
+                (-5.02, 7.98),
+                (-5.98, 7.98),
+                (-5.02, 7.02),
+            ],
+        ),
     ] {
         for (lon, lat) in pts {
             let (ours, spread) = value_at(lon, lat);
             let gdal = gdal_value(&sample(file), lon, lat);
-            assert!((f64::from(ours) - gdal).abs() <= f64::from(spread) + 1.0, "{file} at {lon},{lat}: ours {ours}, gdal {gdal}, local spread {spread}");
+            assert!(
+                (f64::from(ours) - gdal).abs() <= f64::from(spread) + 1.0,
+                "{file} at {lon},{lat}: ours {ours}, gdal {gdal}, local spread {spread}"
+            );
         }
     }
     // together with ETOPO at one level: SRTM replaces ETOPO inside its square only
@@ -192,7 +269,11 @@ fn srtm_tiles_match_gdal_and_override_etopo_only_inside_their_squares() {
     let etopo_only = dir.path().join("etopo.zarr");
     let srtm_only = dir.path().join("srtm5.zarr");
     let fixed = settings(LayerKind::Height, LevelChoice::Fixed(l5));
-    ingest(&mixed, &[input("etopo5.cdf.gz"), input("N57E011.hgt.zip")], &fixed);
+    ingest(
+        &mixed,
+        &[input("etopo5.cdf.gz"), input("N57E011.hgt.zip")],
+        &fixed,
+    );
     ingest(&etopo_only, &[input("etopo5.cdf.gz")], &fixed);
     ingest(&srtm_only, &[input("N57E011.hgt.zip")], &fixed);
     let (m, e, so) = (
@@ -202,14 +283,31 @@ fn srtm_tiles_match_gdal_and_override_etopo_only_inside_their_squares() {
     );
     let w = m.0;
     let (mut inside, mut outside) = (0, 0);
-    for (lon, lat) in [(11.5, 57.5), (11.2, 57.8), (11.8, 57.2), (10.5, 57.5), (12.5, 57.5), (11.5, 56.5), (11.5, 58.5), (-30.0, 10.0)] {
+    for (lon, lat) in [
+        (11.5, 57.5),
+        (11.2, 57.8),
+        (11.8, 57.2),
+        (10.5, 57.5),
+        (12.5, 57.5),
+        (11.5, 56.5),
+        (11.5, 58.5),
+        (-30.0, 10.0),
+    ] {
         let (i, j) = texel_of(GridSpec::default(), l5, lon, lat);
         let k = j * w + i;
         if (11.0..12.0).contains(&lon) && (57.0..58.0).contains(&lat) {
-            assert_eq!(m.2[k].to_bits(), so.2[k].to_bits(), "inside the square SRTM wins at {lon},{lat}");
+            assert_eq!(
+                m.2[k].to_bits(),
+                so.2[k].to_bits(),
+                "inside the square SRTM wins at {lon},{lat}"
+            );
             inside += 1;
         } else {
-            assert_eq!(m.2[k].to_bits(), e.2[k].to_bits(), "outside the square ETOPO stays at {lon},{lat}");
+            assert_eq!(
+                m.2[k].to_bits(),
+                e.2[k].to_bits(),
+                "outside the square ETOPO stays at {lon},{lat}"
+            );
             outside += 1;
         }
     }
@@ -218,7 +316,10 @@ fn srtm_tiles_match_gdal_and_override_etopo_only_inside_their_squares() {
 
 #[test]
 fn projected_scenes_land_where_gdaltransform_says() {
-    for (file, layer) in [("landsat7_etm_utm25s.tif", LayerKind::Color), ("aletsch_dhm200_lv95.tif", LayerKind::Height)] {
+    for (file, layer) in [
+        ("landsat7_etm_utm25s.tif", LayerKind::Color),
+        ("aletsch_dhm200_lv95.tif", LayerKind::Height),
+    ] {
         let dir = tempfile::tempdir().expect("tempdir");
         let root = dir.path().join("p.zarr");
         let s = ingest(&root, &[input(file)], &settings(layer, LevelChoice::Auto));
@@ -226,9 +327,16 @@ fn projected_scenes_land_where_gdaltransform_says() {
         let r = StoreReader::open(&root).expect("open");
         let g = r.meta().grid;
         // the corners' lon/lat according to GDAL
-        let out = Command::new("gdalinfo").arg("-json").arg(sample(file)).output().expect("gdalinfo");
+        let out = Command::new("gdalinfo")
+            .arg("-json")
+            .arg(sample(file))
+            .output()
+            .expect("gdalinfo");
         let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
-        let ring = v["wgs84Extent"]["coordinates"][0].as_array().expect("polygon").clone();
+        let ring = v["wgs84Extent"]["coordinates"][0]
+            .as_array()
+            .expect("polygon")
+            .clone();
         let xs: Vec<f64> = ring.iter().map(|p| p[0].as_f64().expect("x")).collect();
         let ys: Vec<f64> = ring.iter().map(|p| p[1].as_f64().expect("y")).collect();
         let min = |v: &[f64]| v.iter().copied().fold(f64::INFINITY, f64::min);
@@ -245,12 +353,16 @@ fn projected_scenes_land_where_gdaltransform_says() {
                 let valid: Vec<bool> = match layer {
                     LayerKind::Height => {
                         let mut b = vec![0f32; n];
-                        if r.read_tile(tile, &mut b).expect("read") == TileRead::Missing { continue; }
+                        if r.read_tile(tile, &mut b).expect("read") == TileRead::Missing {
+                            continue;
+                        }
                         b.iter().map(|v| !v.is_nan()).collect()
                     }
                     LayerKind::Color => {
                         let mut b = vec![0u8; n];
-                        if r.read_tile(tile, &mut b).expect("read") == TileRead::Missing { continue; }
+                        if r.read_tile(tile, &mut b).expect("read") == TileRead::Missing {
+                            continue;
+                        }
                         b.chunks_exact(4).map(|p| p[3] > 0).collect()
                     }
                 };
@@ -276,7 +388,12 @@ fn projected_scenes_land_where_gdaltransform_says() {
         // within one texel (plus the half texel of the coverage threshold)
         let tol = [1.5 * dx, 1.5 * dy, 1.5 * dx, 1.5 * dy];
         for k in 0..4 {
-            assert!((ours[k] - wgs[k]).abs() <= tol[k], "{file} edge {k}: ours {} vs gdal {} (texel {dx}x{dy}); w {w} h {h}", ours[k], wgs[k]);
+            assert!(
+                (ours[k] - wgs[k]).abs() <= tol[k],
+                "{file} edge {k}: ours {} vs gdal {} (texel {dx}x{dy}); w {w} h {h}",
+                ours[k],
+                wgs[k]
+            );
         }
     }
 }
@@ -285,14 +402,21 @@ fn projected_scenes_land_where_gdaltransform_says() {
 fn luxembourg_keeps_its_border_without_a_halo() {
     let dir = tempfile::tempdir().expect("tempdir");
     let root = dir.path().join("l.zarr");
-    let s = ingest(&root, &[input("terra_elev_luxembourg.tif")], &settings(LayerKind::Height, LevelChoice::Auto));
+    let s = ingest(
+        &root,
+        &[input("terra_elev_luxembourg.tif")],
+        &settings(LayerKind::Height, LevelChoice::Auto),
+    );
     let level: LevelId = s.levels[0].parse().expect("level");
     let r = StoreReader::open(&root).expect("open");
     let g = r.meta().grid;
     let img = level_image(&r, level);
     // every valid value is a plausible Luxembourg height: no −32768 bleeding in, no ringing halo
     let (lo, hi) = box_stats(g, level, &img, 5.6, 49.3, 6.7, 50.3);
-    assert!(lo >= 130.0 && hi <= 560.0, "values {lo}..{hi} (source 141..547)");
+    assert!(
+        lo >= 130.0 && hi <= 560.0,
+        "values {lo}..{hi} (source 141..547)"
+    );
     // the valid area matches the source's valid fraction (4608 of 8550 pixels) within 10 %
     let (i0, j0) = texel_of(g, level, 5.7416667, 50.1916667);
     let (i1, j1) = texel_of(g, level, 6.5333333, 49.4416667);
@@ -305,7 +429,10 @@ fn luxembourg_keeps_its_border_without_a_halo() {
         }
     }
     let frac = valid as f64 / all as f64;
-    assert!((frac - 4608.0 / 8550.0).abs() < 0.06, "valid fraction {frac}");
+    assert!(
+        (frac - 4608.0 / 8550.0).abs() < 0.06,
+        "valid fraction {frac}"
+    );
     // a point outside the border (France, south-west corner) stays nodata
     let (i, j) = texel_of(g, level, 5.76, 49.45);
     assert!(img.2[j * img.0 + i].is_nan());
@@ -318,7 +445,11 @@ fn blue_marble_and_exr_with_bounds() {
     let mut bm = input("bluemarble_5400x2700.jpg");
     bm.options.bounds = Some([-180.0, -90.0, 180.0, 90.0]);
     let level = LevelId::iso(1).expect("valid");
-    let s = ingest(&root, &[bm], &settings(LayerKind::Color, LevelChoice::Fixed(level)));
+    let s = ingest(
+        &root,
+        &[bm],
+        &settings(LayerKind::Color, LevelChoice::Fixed(level)),
+    );
     assert_eq!(s.coverage, 1.0);
     let r = StoreReader::open(&root).expect("open");
     let g = r.meta().grid;
@@ -333,9 +464,15 @@ fn blue_marble_and_exr_with_bounds() {
         [b[k], b[k + 1], b[k + 2], b[k + 3]]
     };
     let sahara = rgba(13.0, 24.0);
-    assert!(sahara[0] > sahara[2] + 40 && sahara[3] == 255, "Sahara is sand: {sahara:?}");
+    assert!(
+        sahara[0] > sahara[2] + 40 && sahara[3] == 255,
+        "Sahara is sand: {sahara:?}"
+    );
     let pacific = rgba(-150.0, 0.0);
-    assert!(pacific[2] > pacific[0] + 20, "the Pacific is blue: {pacific:?}");
+    assert!(
+        pacific[2] > pacific[0] + 20,
+        "the Pacific is blue: {pacific:?}"
+    );
     // an EXR heightmap: h = 100·lat + lon over a 10°×10° box, placed by --bounds
     use exr::prelude::*;
     let (w, h) = (200usize, 200usize);
@@ -348,15 +485,28 @@ fn blue_marble_and_exr_with_bounds() {
         .collect();
     let exr_path = dir.path().join("h.exr");
     let ch = AnyChannels::sort(vec![AnyChannel::new("Y", FlatSamples::F32(vals))].into());
-    Image::from_layer(Layer::new((w, h), LayerAttributes::named("h"), Encoding::FAST_LOSSLESS, ch))
-        .write()
-        .to_file(&exr_path)
-        .expect("write exr");
+    Image::from_layer(Layer::new(
+        (w, h),
+        LayerAttributes::named("h"),
+        Encoding::FAST_LOSSLESS,
+        ch,
+    ))
+    .write()
+    .to_file(&exr_path)
+    .expect("write exr");
     let hroot = dir.path().join("h.zarr");
-    let mut inp = Input { path: exr_path, options: SourceOptions::default(), priority: 0 };
+    let mut inp = Input {
+        path: exr_path,
+        options: SourceOptions::default(),
+        priority: 0,
+    };
     inp.options.bounds = Some([10.0, 40.0, 20.0, 50.0]);
     let l6 = LevelId::iso(6).expect("valid");
-    ingest(&hroot, &[inp], &settings(LayerKind::Height, LevelChoice::Fixed(l6)));
+    ingest(
+        &hroot,
+        &[inp],
+        &settings(LayerKind::Height, LevelChoice::Fixed(l6)),
+    );
     let rr = StoreReader::open(&hroot).expect("open");
     let img = level_image(&rr, l6);
     for (lon, lat) in [(15.0, 45.0), (11.0, 49.0), (19.0, 41.0)] {
@@ -364,6 +514,9 @@ fn blue_marble_and_exr_with_bounds() {
         let c = GridSpec::default().texel_centre(l6, i as u64, j as u64);
         let expect = 100.0 * c.lat_deg + c.lon_deg;
         let got = f64::from(img.2[j * img.0 + i]);
-        assert!((got - expect).abs() < 0.5, "EXR at {lon},{lat}: {got} vs {expect}");
+        assert!(
+            (got - expect).abs() < 0.5,
+            "EXR at {lon},{lat}: {got} vs {expect}"
+        );
     }
 }

@@ -17,9 +17,9 @@
 
 use std::path::{Path, PathBuf};
 
+use gdal::Dataset;
 use gdal::raster::GdalDataType;
 use gdal::spatial_ref::{AxisMappingStrategy, CoordTransform, SpatialRef};
-use gdal::Dataset;
 
 use crate::{RasterError, Result};
 
@@ -101,21 +101,34 @@ pub struct LonLatBox {
 enum Backend {
     Gdal(Dataset),
     Exr(std::sync::Arc<Vec<f32>>),
+    /// After drop: the dataset was closed under the driver lock.
+    Closed,
 }
 
-/// An opened input. Not `Sync`: open one per worker thread with [`RasterSource::reopen`].
+/// An opened input. Not `Sync`: open one per worker thread.
 pub struct RasterSource {
     info: SourceInfo,
-    gdal_path: PathBuf,
     role: SampleRole,
     opts: SourceOptions,
     backend: Backend,
     to_src: Option<CoordTransform>,
 }
 
+impl Drop for RasterSource {
+    fn drop(&mut self) {
+        if let Backend::Gdal(ds) = &self.backend {
+            // closing a netCDF dataset calls into libnetcdf too
+            let serial = is_serial(ds);
+            serialized(serial, || self.backend = Backend::Closed);
+        }
+    }
+}
+
 impl std::fmt::Debug for RasterSource {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("RasterSource").field("info", &self.info).finish()
+        f.debug_struct("RasterSource")
+            .field("info", &self.info)
+            .finish()
     }
 }
 
@@ -180,6 +193,10 @@ impl RasterSource {
     /// limits, georeference, CRS, bands, the first and last rows readable).
     pub fn open(path: &Path, role: SampleRole, opts: &SourceOptions) -> Result<Self> {
         quiet_gdal();
+        // opening may enter a non-thread-safe driver before we know which one it is
+        let _g = SERIAL_DRIVERS_LOCK
+            .lock()
+            .unwrap_or_else(|e| e.into_inner());
         if let Some(b) = opts.bounds {
             validate_bounds(b)?;
         }
@@ -200,7 +217,7 @@ impl RasterSource {
         if is_exr {
             return Self::open_exr(path, role, opts);
         }
-        let (ds, gdal_path) = open_gdal(path)?;
+        let ds = open_gdal(path)?;
         let (w, h) = ds.raster_size();
         check_size(path, w as u64, h as u64)?;
         let count = ds.raster_count();
@@ -211,7 +228,10 @@ impl RasterSource {
         let band1 = ds.rasterband(bands[0]).map_err(gdal_err(path))?;
         let data_type = band1.band_type();
         let mut nodata = opts.src_nodata.or(band1.no_data_value());
-        if role == SampleRole::Color && data_type == GdalDataType::UInt8 && opts.src_nodata.is_none() {
+        if role == SampleRole::Color
+            && data_type == GdalDataType::UInt8
+            && opts.src_nodata.is_none()
+        {
             // 8-bit colour: a nodata tag is honoured, but never invented
             nodata = band1.no_data_value();
         }
@@ -226,10 +246,20 @@ impl RasterSource {
             })?),
             None => file_srs,
         };
-        let file_gt = ds.geo_transform().ok().filter(|gt| *gt != [0.0, 1.0, 0.0, 0.0, 0.0, 1.0]);
+        let file_gt = ds
+            .geo_transform()
+            .ok()
+            .filter(|gt| *gt != [0.0, 1.0, 0.0, 0.0, 0.0, 1.0]);
         let (gt, geographic, crs, to_src) = match (opts.bounds, file_gt, srs) {
             (Some(b), _, _) => {
-                let gt = [b[0], (b[2] - b[0]) / w as f64, 0.0, b[3], 0.0, -(b[3] - b[1]) / h as f64];
+                let gt = [
+                    b[0],
+                    (b[2] - b[0]) / w as f64,
+                    0.0,
+                    b[3],
+                    0.0,
+                    -(b[3] - b[1]) / h as f64,
+                ];
                 (gt, true, "EPSG:4326 (from --bounds)".to_string(), None)
             }
             (None, None, _) => {
@@ -240,10 +270,17 @@ impl RasterSource {
             }
             (None, Some(gt), Some(srs)) => {
                 if gt[2] != 0.0 || gt[4] != 0.0 {
-                    return Err(usage(path, "rotated geotransforms are not supported; warp the raster to north-up first (gdalwarp)"));
+                    return Err(usage(
+                        path,
+                        "rotated geotransforms are not supported; warp the raster to north-up first (gdalwarp)",
+                    ));
                 }
                 let name = srs.name().unwrap_or_else(|| "unnamed CRS".into());
-                let code = srs.auth_code().ok().map(|c| format!("EPSG:{c} ")).unwrap_or_default();
+                let code = srs
+                    .auth_code()
+                    .ok()
+                    .map(|c| format!("EPSG:{c} "))
+                    .unwrap_or_default();
                 if srs.is_geographic() {
                     (gt, true, format!("{code}{name}"), None)
                 } else {
@@ -320,7 +357,6 @@ impl RasterSource {
         }
         let src = Self {
             info,
-            gdal_path,
             role,
             opts: opts.clone(),
             backend: Backend::Gdal(ds),
@@ -333,10 +369,16 @@ impl RasterSource {
     fn open_exr(path: &Path, role: SampleRole, opts: &SourceOptions) -> Result<Self> {
         use exr::prelude::*;
         if role != SampleRole::Height {
-            return Err(usage(path, "EXR inputs are heightmaps; use them with --layer height"));
+            return Err(usage(
+                path,
+                "EXR inputs are heightmaps; use them with --layer height",
+            ));
         }
         let Some(b) = opts.bounds else {
-            return Err(usage(path, "EXR heightmaps carry no georeference; give --bounds W,S,E,N"));
+            return Err(usage(
+                path,
+                "EXR heightmaps carry no georeference; give --bounds W,S,E,N",
+            ));
         };
         let image = read_first_flat_layer_from_file(path)
             .map_err(|e| usage(path, format!("not a readable OpenEXR file ({e})")))?;
@@ -345,7 +387,11 @@ impl RasterSource {
         let list = &image.layer_data.channel_data.list;
         let ch = list
             .iter()
-            .find(|c| ["Y", "R", "height", "Z"].iter().any(|n| c.name == Text::from(*n)))
+            .find(|c| {
+                ["Y", "R", "height", "Z"]
+                    .iter()
+                    .any(|n| c.name == Text::from(*n))
+            })
             .or(list.first())
             .ok_or_else(|| usage(path, "EXR file has no channels"))?;
         let data: Vec<f32> = match &ch.sample_data {
@@ -354,7 +400,14 @@ impl RasterSource {
             FlatSamples::U32(v) => v.iter().map(|&u| u as f32).collect(),
         };
         let (w, h) = (size.0, size.1);
-        let gt = [b[0], (b[2] - b[0]) / w as f64, 0.0, b[3], 0.0, -(b[3] - b[1]) / h as f64];
+        let gt = [
+            b[0],
+            (b[2] - b[0]) / w as f64,
+            0.0,
+            b[3],
+            0.0,
+            -(b[3] - b[1]) / h as f64,
+        ];
         let mut info = SourceInfo {
             path: path.to_path_buf(),
             width: w,
@@ -374,52 +427,11 @@ impl RasterSource {
         snap_geographic(&mut info);
         Ok(Self {
             info,
-            gdal_path: path.to_path_buf(),
             role,
             opts: opts.clone(),
             backend: Backend::Exr(std::sync::Arc::new(data)),
             to_src: None,
         })
-    }
-
-    /// A second handle on the same input, for another worker thread.
-    pub fn reopen(&self) -> Result<Self> {
-        match &self.backend {
-            Backend::Exr(data) => Ok(Self {
-                info: self.info.clone(),
-                gdal_path: self.gdal_path.clone(),
-                role: self.role,
-                opts: self.opts.clone(),
-                backend: Backend::Exr(data.clone()),
-                to_src: None,
-            }),
-            Backend::Gdal(_) => {
-                let path = &self.info.path;
-                let ds = Dataset::open(&self.gdal_path).map_err(gdal_err(path))?;
-                let to_src = match &self.to_src {
-                    None => None,
-                    Some(_) => {
-                        let mut wgs = SpatialRef::from_epsg(4326).map_err(gdal_err(path))?;
-                        wgs.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
-                        let mut s = match &self.opts.src_srs {
-                            Some(d) => SpatialRef::from_definition(d),
-                            None => ds.spatial_ref(),
-                        }
-                        .map_err(gdal_err(path))?;
-                        s.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
-                        Some(CoordTransform::new(&wgs, &s).map_err(gdal_err(path))?)
-                    }
-                };
-                Ok(Self {
-                    info: self.info.clone(),
-                    gdal_path: self.gdal_path.clone(),
-                    role: self.role,
-                    opts: self.opts.clone(),
-                    backend: Backend::Gdal(ds),
-                    to_src,
-                })
-            }
-        }
     }
 
     /// Where the pixels are and what they hold.
@@ -430,13 +442,25 @@ impl RasterSource {
     /// Reads the first and last row of every used band, so that a truncated file fails now,
     /// before anything is written.
     fn check_readable(&self) -> Result<()> {
-        let Backend::Gdal(ds) = &self.backend else { return Ok(()) };
+        let Backend::Gdal(ds) = &self.backend else {
+            return Ok(());
+        };
         let path = &self.info.path;
         for &b in &self.info.bands {
             let band = ds.rasterband(b).map_err(gdal_err(path))?;
             for row in [0, self.info.height - 1] {
-                band.read_as::<f32>((0, row as isize), (self.info.width, 1), (self.info.width, 1), None)
-                    .map_err(|_| usage(path, "raster is truncated or damaged (its pixels cannot be read)"))?;
+                band.read_as::<f32>(
+                    (0, row as isize),
+                    (self.info.width, 1),
+                    (self.info.width, 1),
+                    None,
+                )
+                .map_err(|_| {
+                    usage(
+                        path,
+                        "raster is truncated or damaged (its pixels cannot be read)",
+                    )
+                })?;
             }
         }
         Ok(())
@@ -479,7 +503,11 @@ impl RasterSource {
             let (xa, xb) = (gt[0], gt[0] + gt[1] * w);
             let (ya, yb) = (gt[3], gt[3] + gt[5] * h);
             let (mut west, mut east) = (xa.min(xb), xa.max(xb));
-            if info.lon_period_px.is_some() || info.north_pole_y.is_some() || info.south_pole_y.is_some() || east - west >= 360.0 {
+            if info.lon_period_px.is_some()
+                || info.north_pole_y.is_some()
+                || info.south_pole_y.is_some()
+                || east - west >= 360.0
+            {
                 west = -180.0;
                 east = 180.0;
             } else if west >= 180.0 {
@@ -495,7 +523,9 @@ impl RasterSource {
         }
         // projected: transform a densified outline back to lon/lat
         let Backend::Gdal(ds) = &self.backend else {
-            return Err(RasterError::Usage("projected EXR sources are not supported".into()));
+            return Err(RasterError::Usage(
+                "projected EXR sources are not supported".into(),
+            ));
         };
         let path = &info.path;
         let srs = match &self.opts.src_srs {
@@ -533,7 +563,12 @@ impl RasterSource {
         let m = 0.01 * ((east - west).max(north - south)) + 1e-6;
         if east - west > 180.0 {
             // a projected raster across the antimeridian: take the whole band of longitude
-            return Ok(LonLatBox { west: -180.0, south: (south - m).max(-90.0), east: 180.0, north: (north + m).min(90.0) });
+            return Ok(LonLatBox {
+                west: -180.0,
+                south: (south - m).max(-90.0),
+                east: 180.0,
+                north: (north + m).min(90.0),
+            });
         }
         Ok(LonLatBox {
             west: west - m,
@@ -571,7 +606,9 @@ impl RasterSource {
 
     /// One point of the source CRS to lon/lat, if it transforms.
     fn to_lonlat_point(&self, sx: f64, sy: f64) -> Option<(f64, f64)> {
-        let Backend::Gdal(ds) = &self.backend else { return None };
+        let Backend::Gdal(ds) = &self.backend else {
+            return None;
+        };
         let mut srs = match &self.opts.src_srs {
             Some(d) => SpatialRef::from_definition(d),
             None => ds.spatial_ref(),
@@ -609,7 +646,11 @@ impl RasterSource {
                 return Some((r, false));
             }
             let mirror = |pole: f64| -> i64 { (2.0 * pole - r as f64 - 1.0).round() as i64 };
-            let rr = if r < 0 { info.north_pole_y.map(mirror) } else { info.south_pole_y.map(mirror) }?;
+            let rr = if r < 0 {
+                info.north_pole_y.map(mirror)
+            } else {
+                info.south_pole_y.map(mirror)
+            }?;
             (0..info.height as i64).contains(&rr).then_some((rr, true))
         };
         let map_col = |c: i64, flipped: bool| -> Option<i64> {
@@ -626,14 +667,22 @@ impl RasterSource {
         let rows: Vec<Option<(i64, bool)>> = (0..h as i64).map(|k| map_row(r0 + k)).collect();
         let src_rows: Vec<i64> = rows.iter().flatten().map(|&(r, _)| r).collect();
         if src_rows.is_empty() {
-            return Ok(Window { c0, r0, w, h, planes });
+            return Ok(Window {
+                c0,
+                r0,
+                w,
+                h,
+                planes,
+            });
         }
         let (rmin, rmax) = (
             *src_rows.iter().min().unwrap_or(&0),
             *src_rows.iter().max().unwrap_or(&0),
         );
         // the columns to read: everything when wrapping/flipping is involved, else the window
-        let direct = c0 >= 0 && c0 + w as i64 <= info.width as i64 && rows.iter().all(|r| matches!(r, Some((_, false))));
+        let direct = c0 >= 0
+            && c0 + w as i64 <= info.width as i64
+            && rows.iter().all(|r| matches!(r, Some((_, false))));
         let (cmin, cmax) = if direct {
             (c0, c0 + w as i64 - 1)
         } else {
@@ -642,9 +691,18 @@ impl RasterSource {
                 .flatten()
                 .collect();
             if cols.is_empty() {
-                return Ok(Window { c0, r0, w, h, planes });
+                return Ok(Window {
+                    c0,
+                    r0,
+                    w,
+                    h,
+                    planes,
+                });
             }
-            (*cols.iter().min().unwrap_or(&0), *cols.iter().max().unwrap_or(&0))
+            (
+                *cols.iter().min().unwrap_or(&0),
+                *cols.iter().max().unwrap_or(&0),
+            )
         };
         let (rw, rh) = ((cmax - cmin + 1) as usize, (rmax - rmin + 1) as usize);
         if (rw as u64) * (rh as u64) > MAX_WINDOW {
@@ -657,7 +715,9 @@ impl RasterSource {
         for (k, row) in rows.iter().enumerate() {
             let Some((sr, flipped)) = *row else { continue };
             for j in 0..w {
-                let Some(sc) = map_col(c0 + j as i64, flipped) else { continue };
+                let Some(sc) = map_col(c0 + j as i64, flipped) else {
+                    continue;
+                };
                 if sc < cmin || sc > cmax {
                     continue;
                 }
@@ -667,7 +727,13 @@ impl RasterSource {
                 }
             }
         }
-        Ok(Window { c0, r0, w, h, planes })
+        Ok(Window {
+            c0,
+            r0,
+            w,
+            h,
+            planes,
+        })
     }
 
     /// Reads a rectangle inside the raster, converting to planes with nodata as NaN.
@@ -684,14 +750,19 @@ impl RasterSource {
                     }
                     Ok(v)
                 }
+                Backend::Closed => Err(RasterError::Usage(format!(
+                    "source already closed: {}",
+                    path.display()
+                ))),
                 Backend::Gdal(ds) => {
                     let band = ds.rasterband(b).map_err(gdal_err(path))?;
-                    let buf = band
-                        .read_as::<f32>((c0 as isize, r0 as isize), (w, h), (w, h), None)
-                        .map_err(|e| RasterError::Gdal {
-                            detail: format!("reading pixels {c0},{r0} {w}x{h}: {e}"),
-                            path: path.to_path_buf(),
-                        })?;
+                    let buf = serialized(is_serial(ds), || {
+                        band.read_as::<f32>((c0 as isize, r0 as isize), (w, h), (w, h), None)
+                    })
+                    .map_err(|e| RasterError::Gdal {
+                        detail: format!("reading pixels {c0},{r0} {w}x{h}: {e}"),
+                        path: path.to_path_buf(),
+                    })?;
                     Ok(buf.into_shape_and_vec().1)
                 }
             }
@@ -712,7 +783,11 @@ impl RasterSource {
                 Ok(vec![v])
             }
             SampleRole::Color => {
-                let raw: Vec<Vec<f32>> = info.bands.iter().map(|&b| read_band(b)).collect::<Result<_>>()?;
+                let raw: Vec<Vec<f32>> = info
+                    .bands
+                    .iter()
+                    .map(|&b| read_band(b))
+                    .collect::<Result<_>>()?;
                 let n = w * h;
                 let mut planes = vec![vec![0f32; n]; 4];
                 let stretch = |b: usize, v: f32| -> f32 {
@@ -720,7 +795,8 @@ impl RasterSource {
                     ((f64::from(v) * a + o).clamp(0.0, 255.0)) as f32
                 };
                 for i in 0..n {
-                    let invalid = info.nodata.is_some_and(|nd| f64::from(raw[0][i]) == nd) || raw[0][i].is_nan();
+                    let invalid = info.nodata.is_some_and(|nd| f64::from(raw[0][i]) == nd)
+                        || raw[0][i].is_nan();
                     let (r, g, b, a) = match raw.len() {
                         1 => {
                             let v = stretch(0, raw[0][i]);
@@ -730,7 +806,12 @@ impl RasterSource {
                             let v = stretch(0, raw[0][i]);
                             (v, v, v, stretch(1, raw[1][i]))
                         }
-                        3 => (stretch(0, raw[0][i]), stretch(1, raw[1][i]), stretch(2, raw[2][i]), 255.0),
+                        3 => (
+                            stretch(0, raw[0][i]),
+                            stretch(1, raw[1][i]),
+                            stretch(2, raw[2][i]),
+                            255.0,
+                        ),
                         _ => (
                             stretch(0, raw[0][i]),
                             stretch(1, raw[1][i]),
@@ -777,7 +858,11 @@ pub fn srgb_to_linear(v: f32) -> f32 {
     let lut = LUT.get_or_init(|| {
         std::array::from_fn(|i| {
             let c = i as f64 / 255.0;
-            (if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }) as f32
+            (if c <= 0.04045 {
+                c / 12.92
+            } else {
+                ((c + 0.055) / 1.055).powf(2.4)
+            }) as f32
         })
     });
     lut[v.round().clamp(0.0, 255.0) as usize]
@@ -786,17 +871,46 @@ pub fn srgb_to_linear(v: f32) -> f32 {
 /// Linear light 0..1 → sRGB 8-bit.
 pub fn linear_to_srgb(v: f32) -> u8 {
     let c = f64::from(v.clamp(0.0, 1.0));
-    let s = if c <= 0.003_130_8 { c * 12.92 } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 };
+    let s = if c <= 0.003_130_8 {
+        c * 12.92
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    };
     (s * 255.0).round().clamp(0.0, 255.0) as u8
+}
+
+/// Drivers whose underlying library is not thread-safe (libnetcdf, libhdf5 as Debian builds
+/// them): every read and close on their datasets, and every open, holds [`SERIAL_DRIVERS_LOCK`].
+const SERIAL_DRIVERS: [&str; 4] = ["netCDF", "HDF5", "HDF5Image", "HDF4"];
+
+static SERIAL_DRIVERS_LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+/// Holds the lock for a non-thread-safe driver while `f` runs.
+fn serialized<T>(serial: bool, f: impl FnOnce() -> T) -> T {
+    if serial {
+        let _g = SERIAL_DRIVERS_LOCK
+            .lock()
+            .unwrap_or_else(|e| e.into_inner());
+        f()
+    } else {
+        f()
+    }
+}
+
+fn is_serial(ds: &Dataset) -> bool {
+    SERIAL_DRIVERS.contains(&ds.driver().short_name().as_str())
 }
 
 /// Opens a file with GDAL; a `.gz` or `.zip` GDAL cannot open directly is read through
 /// `/vsigzip/` or `/vsizip/` (e.g. the gzipped ETOPO5 NetCDF sample).
-fn open_gdal(path: &Path) -> Result<(Dataset, PathBuf)> {
+fn open_gdal(path: &Path) -> Result<Dataset> {
     if let Ok(ds) = Dataset::open(path) {
-        return Ok((ds, path.to_path_buf()));
+        return Ok(ds);
     }
-    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
     let vsi = match ext.as_deref() {
         Some("gz") => "/vsigzip/",
         Some("zip") => "/vsizip/",
@@ -804,8 +918,12 @@ fn open_gdal(path: &Path) -> Result<(Dataset, PathBuf)> {
     };
     let abs = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
     let p = PathBuf::from(format!("{vsi}{}", abs.display()));
-    let ds = Dataset::open(&p).map_err(|_| usage(path, "not a raster GDAL can read (also not inside the archive)"))?;
-    Ok((ds, p))
+    Dataset::open(&p).map_err(|_| {
+        usage(
+            path,
+            "not a raster GDAL can read (also not inside the archive)",
+        )
+    })
 }
 
 fn check_size(path: &Path, w: u64, h: u64) -> Result<()> {
@@ -818,17 +936,31 @@ fn check_size(path: &Path, w: u64, h: u64) -> Result<()> {
     Ok(())
 }
 
-fn choose_bands(path: &Path, role: SampleRole, count: usize, asked: Option<&[usize]>) -> Result<Vec<usize>> {
+fn choose_bands(
+    path: &Path,
+    role: SampleRole,
+    count: usize,
+    asked: Option<&[usize]>,
+) -> Result<Vec<usize>> {
     if let Some(b) = asked {
         if let Some(&bad) = b.iter().find(|&&b| b == 0 || b > count) {
-            return Err(usage(path, format!("--bands asks for band {bad} but the raster has bands 1..={count}")));
+            return Err(usage(
+                path,
+                format!("--bands asks for band {bad} but the raster has bands 1..={count}"),
+            ));
         }
         let ok = match role {
             SampleRole::Height => b.len() == 1,
             SampleRole::Color => (1..=4).contains(&b.len()),
         };
         if !ok {
-            return Err(usage(path, format!("--bands needs 1 band for heights, 1 to 4 for colour; got {}", b.len())));
+            return Err(usage(
+                path,
+                format!(
+                    "--bands needs 1 band for heights, 1 to 4 for colour; got {}",
+                    b.len()
+                ),
+            ));
         }
         return Ok(b.to_vec());
     }

@@ -544,9 +544,12 @@ impl<T: TileSample> ShardWriter<'_, T> {
     pub fn finish(mut self) -> Result<()> {
         let indices = shard_indices(T::KIND, self.shard);
         let samples = std::mem::take(&mut self.samples);
+        // one thread per shard: zarrs places concurrently encoded tiles in completion order, which
+        // would make a shard's bytes differ run to run (parallelism lives one level up, per shard)
+        let options = zarrs::array::codec::api::CodecOptions::default().with_concurrent_target(1);
         self.arrays
             .write
-            .store_chunk(&indices, samples)
+            .store_chunk_opt(&indices, samples, &options)
             .map_err(|e| StoreError::Format {
                 what: format!("writing {} {}: {e}", T::KIND, self.shard),
                 path: self.path.clone(),

@@ -10,7 +10,11 @@ use anyhow::{Result, bail};
 use crate::cli::DemoArgs;
 
 /// The bundled samples the demo uses.
-const SAMPLES: [&str; 3] = ["etopo5.cdf.gz", "bluemarble_5400x2700.jpg", "N57E011.hgt.zip"];
+const SAMPLES: [&str; 3] = [
+    "etopo5.cdf.gz",
+    "bluemarble_5400x2700.jpg",
+    "N57E011.hgt.zip",
+];
 
 /// Runs `demo`.
 pub fn run(a: &DemoArgs) -> Result<ExitCode> {

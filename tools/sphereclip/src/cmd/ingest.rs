@@ -15,7 +15,11 @@ use crate::progress::Progress;
 
 fn parse_list<T: std::str::FromStr>(s: &str, what: &str) -> Result<Vec<T>> {
     s.split(',')
-        .map(|v| v.trim().parse::<T>().map_err(|_| anyhow::anyhow!("{what}: `{v}` is not a number in `{s}`")))
+        .map(|v| {
+            v.trim()
+                .parse::<T>()
+                .map_err(|_| anyhow::anyhow!("{what}: `{v}` is not a number in `{s}`"))
+        })
         .collect()
 }
 
@@ -30,14 +34,17 @@ fn inputs(a: &IngestArgs, options: &SourceOptions) -> Result<Vec<Input>> {
         })
         .collect();
     if let Some(list) = &a.list {
-        let text = std::fs::read_to_string(list).with_context(|| format!("cannot read input list {}", list.display()))?;
+        let text = std::fs::read_to_string(list)
+            .with_context(|| format!("cannot read input list {}", list.display()))?;
         for (n, line) in text.lines().enumerate() {
             let line = line.trim();
             if line.is_empty() || line.starts_with('#') {
                 continue;
             }
             let (path, prio) = match line.rsplit_once(char::is_whitespace) {
-                Some((p, pr)) if pr.parse::<i32>().is_ok() => (p.trim(), pr.parse::<i32>().unwrap_or(0)),
+                Some((p, pr)) if pr.parse::<i32>().is_ok() => {
+                    (p.trim(), pr.parse::<i32>().unwrap_or(0))
+                }
                 _ => (line, a.priority),
             };
             if path.is_empty() {
@@ -57,12 +64,30 @@ fn inputs(a: &IngestArgs, options: &SourceOptions) -> Result<Vec<Input>> {
 pub fn run(a: &IngestArgs) -> Result<ExitCode> {
     let layer = parse_layer(&a.layer)?;
     let kernel = Kernel::from_name(&a.resampling)
-        .filter(|k| matches!(k, Kernel::Nearest | Kernel::Bilinear | Kernel::Cubic | Kernel::Lanczos3 | Kernel::Lanczos2))
-        .ok_or_else(|| anyhow::anyhow!("unknown --resampling `{}` (expected nearest, bilinear, cubic or lanczos)", a.resampling))?;
+        .filter(|k| {
+            matches!(
+                k,
+                Kernel::Nearest
+                    | Kernel::Bilinear
+                    | Kernel::Cubic
+                    | Kernel::Lanczos3
+                    | Kernel::Lanczos2
+            )
+        })
+        .ok_or_else(|| {
+            anyhow::anyhow!(
+                "unknown --resampling `{}` (expected nearest, bilinear, cubic or lanczos)",
+                a.resampling
+            )
+        })?;
     let level = if a.level == "auto" {
         LevelChoice::Auto
     } else {
-        LevelChoice::Fixed(a.level.parse::<LevelId>().map_err(|e| anyhow::anyhow!("--level: {e}"))?)
+        LevelChoice::Fixed(
+            a.level
+                .parse::<LevelId>()
+                .map_err(|e| anyhow::anyhow!("--level: {e}"))?,
+        )
     };
     let bounds = match &a.bounds {
         None => None,
@@ -78,7 +103,11 @@ pub fn run(a: &IngestArgs) -> Result<ExitCode> {
         src_srs: a.src_srs.clone(),
         bounds,
         src_nodata: a.src_nodata,
-        bands: a.bands.as_deref().map(|b| parse_list(b, "--bands")).transpose()?,
+        bands: a
+            .bands
+            .as_deref()
+            .map(|b| parse_list(b, "--bands"))
+            .transpose()?,
     };
     let inputs = inputs(a, &options)?;
     let grid = GridSpec::new(a.tile_size).map_err(|e| anyhow::anyhow!("--tile-size: {e}"))?;
@@ -98,7 +127,10 @@ pub fn run(a: &IngestArgs) -> Result<ExitCode> {
         Some((m.grid, m.shard_tiles, m.radius_m))
     } else {
         if a.store.exists() && !a.store.is_dir() {
-            bail!("store path exists and is not a folder: {}", a.store.display());
+            bail!(
+                "store path exists and is not a folder: {}",
+                a.store.display()
+            );
         }
         None
     };
@@ -114,12 +146,18 @@ pub fn run(a: &IngestArgs) -> Result<ExitCode> {
             p.info.height,
             p.info.crs,
             p.level,
-            plan.grid.iso_spacing_m(p.level, sc_core::EARTH_RADIUS_M).round()
+            plan.grid
+                .iso_spacing_m(p.level, sc_core::EARTH_RADIUS_M)
+                .round()
         );
     }
     let progress = Progress::new("ingest", plan.shards.len() as u64);
-    let summary = sc_ingest::run(&a.store, &plan, &|d, _| progress.set(d))
-        .with_context(|| format!("ingest stopped (rerun the same command to resume) in {}", a.store.display()))?;
+    let summary = sc_ingest::run(&a.store, &plan, &|d, _| progress.set(d)).with_context(|| {
+        format!(
+            "ingest stopped (rerun the same command to resume) in {}",
+            a.store.display()
+        )
+    })?;
     progress.finish();
     if a.json {
         println!("{}", serde_json::to_string_pretty(&summary)?);
@@ -129,10 +167,17 @@ pub fn run(a: &IngestArgs) -> Result<ExitCode> {
             plan.inputs.len(),
             a.store.display(),
             summary.shards_written,
-            if summary.shards_resumed > 0 { format!(" ({} resumed)", summary.shards_resumed) } else { String::new() },
+            if summary.shards_resumed > 0 {
+                format!(" ({} resumed)", summary.shards_resumed)
+            } else {
+                String::new()
+            },
             summary.tiles_written,
             summary.coverage * 100.0,
-            summary.value_range.map(|(lo, hi)| format!("{lo:.1} .. {hi:.1}")).unwrap_or_else(|| "-".into()),
+            summary
+                .value_range
+                .map(|(lo, hi)| format!("{lo:.1} .. {hi:.1}"))
+                .unwrap_or_else(|| "-".into()),
             summary.seconds
         );
     }

@@ -1,0 +1,189 @@
+//! `sphereclip ingest` end to end: bad input leaves the store alone with a one-line error, and a
+//! run killed with SIGKILL resumes to the same bytes as an uninterrupted run.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::time::{Duration, Instant};
+
+fn bin() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_sphereclip"));
+    c.env("SOURCE_DATE_EPOCH", "1790000000");
+    c
+}
+
+fn sample(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../samples")
+        .join(name)
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+/// Every file of a store except the lock and the journal folder, with its bytes.
+fn snapshot(root: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
+    fn walk(dir: &Path, root: &Path, out: &mut BTreeMap<PathBuf, Vec<u8>>) {
+        for e in std::fs::read_dir(dir).expect("read_dir").flatten() {
+            let p = e.path();
+            let rel = p.strip_prefix(root).expect("inside").to_path_buf();
+            if rel == Path::new(".lock") || rel.starts_with(".sphereclip") {
+                continue;
+            }
+            if p.is_dir() {
+                walk(&p, root, out);
+            } else {
+                out.insert(rel, std::fs::read(&p).expect("read"));
+            }
+        }
+    }
+    let mut out = BTreeMap::new();
+    walk(root, root, &mut out);
+    out
+}
+
+fn ingest(store: &Path, args: &[&str]) -> Output {
+    bin()
+        .arg("ingest")
+        .arg(store)
+        .args(args)
+        .output()
+        .expect("runs")
+}
+
+#[test]
+fn bad_input_is_one_line_and_leaves_the_store_unchanged() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let store = dir.path().join("s.zarr");
+    let lux = sample("terra_elev_luxembourg.tif");
+    let o = ingest(&store, &[lux.to_str().expect("utf8")]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let before = snapshot(&store);
+
+    let empty = dir.path().join("empty.tif");
+    std::fs::write(&empty, b"").expect("write");
+    let text_file = dir.path().join("notes.tif");
+    std::fs::write(&text_file, b"this is not a raster\n").expect("write");
+    let truncated = dir.path().join("truncated.tif");
+    let full = std::fs::read(sample("n07_w006_3arc_v2.tif")).expect("read");
+    std::fs::write(&truncated, &full[..full.len() / 2]).expect("write");
+    let huge = dir.path().join("huge.vrt");
+    std::fs::write(
+        &huge,
+        r#"<VRTDataset rasterXSize="10000000" rasterYSize="10000000"><SRS>EPSG:4326</SRS><GeoTransform>-180, 0.000036, 0, 90, 0, -0.000018</GeoTransform><VRTRasterBand dataType="Int16" band="1"/></VRTDataset>"#,
+    )
+    .expect("write");
+    let bm = sample("bluemarble_5400x2700.jpg");
+    let cases: Vec<(Vec<String>, &str)> = vec![
+        (
+            vec![dir.path().join("missing.tif").display().to_string()],
+            "No such file",
+        ),
+        (vec![dir.path().display().to_string()], "folder"),
+        (vec![empty.display().to_string()], "empty file"),
+        (vec![truncated.display().to_string()], "truncated"),
+        (vec![text_file.display().to_string()], "not a raster"),
+        (
+            vec![
+                lux.display().to_string(),
+                "--src-srs".into(),
+                "EPSG:999999".into(),
+            ],
+            "unknown CRS",
+        ),
+        (
+            vec!["--layer".into(), "color".into(), bm.display().to_string()],
+            "--bounds",
+        ),
+        (
+            vec![
+                "--layer".into(),
+                "color".into(),
+                bm.display().to_string(),
+                "--bounds".into(),
+                "-200,-90,180,95".into(),
+            ],
+            "out of range",
+        ),
+        (vec![huge.display().to_string()], "10000000x10000000"),
+        (
+            vec![lux.display().to_string(), "--level".into(), "30".into()],
+            "level",
+        ),
+        (
+            vec![
+                lux.display().to_string(),
+                "--resampling".into(),
+                "magic".into(),
+            ],
+            "resampling",
+        ),
+    ];
+    for (args, expect) in cases {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let o = ingest(&store, &args);
+        let err = text(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
+        let lines: Vec<&str> = err.lines().collect();
+        assert_eq!(lines.len(), 1, "{args:?} should fail in one line:\n{err}");
+        assert!(
+            lines[0].starts_with("error: ") && lines[0].contains(expect),
+            "{args:?}: {err}"
+        );
+        assert!(snapshot(&store) == before, "{args:?} changed the store");
+    }
+}
+
+#[test]
+fn a_killed_ingest_resumes_to_identical_bytes() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let etopo = sample("etopo5.cdf.gz");
+    let args = [etopo.to_str().expect("utf8"), "--level", "4"];
+    // the reference: one uninterrupted run
+    let reference = dir.path().join("ref.zarr");
+    let o = ingest(&reference, &args);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    // the same run, killed (SIGKILL) once the journal shows a durable shard, then rerun
+    let store = dir.path().join("s.zarr");
+    let journal = store.join(".sphereclip/journal-ingest.json");
+    let mut child = bin()
+        .arg("ingest")
+        .arg(&store)
+        .args(args)
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("spawn");
+    let start = Instant::now();
+    let mut killed = false;
+    while start.elapsed() < Duration::from_secs(120) {
+        let done = std::fs::read_to_string(&journal)
+            .map(|j| j.matches("L04/").count())
+            .unwrap_or(0);
+        if done >= 1 {
+            child.kill().expect("kill -9");
+            killed = true;
+            break;
+        }
+        if child.try_wait().expect("wait").is_some() {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let _ = child.wait();
+    assert!(killed, "the run ended before it could be killed mid-way");
+    let o = bin().arg("info").arg(&store).output().expect("info");
+    assert!(
+        text(&o.stdout).contains("INCOMPLETE"),
+        "a killed store reads as incomplete"
+    );
+    let o = ingest(&store, &args);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    assert!(text(&o.stdout).contains("resumed"), "{}", text(&o.stdout));
+    let (a, b) = (snapshot(&reference), snapshot(&store));
+    assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>());
+    for (k, v) in &a {
+        assert!(b[k] == *v, "{} differs after resume", k.display());
+    }
+    assert!(!journal.exists(), "the journal is removed after commit");
+}
