@@ -43,3 +43,24 @@ ours=$(secs "$t0" "$t1"); theirs=$(secs "$t2" "$t3"); theirs_mt=$(secs "$t3" "$t
 printf 'sphereclip export: %.2f s | gdal_translate from an uncompressed GeoTIFF: %.2f s (ratio gdal/ours %sx), with NUM_THREADS=ALL_CPUS: %.2f s (ratio %sx)\n' \
   "$ours" "$theirs" "$(ratio "$theirs" "$ours")" "$theirs_mt" "$(ratio "$theirs_mt" "$ours")"
 printf 'sizes: ours %s bytes, gdal %s bytes\n' "$(stat -c %s "$out/ours.tif")" "$(stat -c %s "$out/gdal.tif")"
+
+echo "== ingest vs gdalwarp -r cubic -wo NUM_THREADS=2 -multi, same grid, compressed output for both"
+bench_ingest() { # name, sphereclip args..., -- gdalwarp args...
+  local name=$1; shift
+  local ours=() theirs=() side=ours
+  for a in "$@"; do if [ "$a" = "--" ]; then side=theirs; continue; fi; if [ $side = ours ]; then ours+=("$a"); else theirs+=("$a"); fi; done
+  rm -rf "$out/ingest-$name.zarr" "$out/gdalwarp-$name.tif"
+  local t0 t1 t2
+  t0=$(now); $sc ingest "$out/ingest-$name.zarr" "${ours[@]}" >/dev/null 2>&1; t1=$(now)
+  gdalwarp -q -overwrite -r cubic -wo NUM_THREADS=2 -multi -t_srs EPSG:4326 -te -180 -90 180 90 \
+    -co COMPRESS=DEFLATE -co PREDICTOR=2 -co TILED=YES "${theirs[@]}" "$out/gdalwarp-$name.tif" 2>/dev/null
+  t2=$(now)
+  local a b; a=$(secs "$t0" "$t1"); b=$(secs "$t1" "$t2")
+  printf '%-12s sphereclip ingest %.2f s | gdalwarp %.2f s | throughput ratio (gdalwarp time / ours) %sx | sizes: ours %s, gdalwarp %s bytes\n' \
+    "$name" "$a" "$b" "$(ratio "$b" "$a")" "$(du -sb "$out/ingest-$name.zarr" | cut -f1)" "$(stat -c %s "$out/gdalwarp-$name.tif")"
+}
+bench_ingest etopo5-l4 samples/etopo5.cdf.gz --level 4 -- -s_srs EPSG:4326 -ts 8192 4096 /vsigzip/samples/etopo5.cdf.gz
+# GDAL needs the picture's georeference in a VRT (a few hundred bytes, made outside the timing)
+gdal_translate -q -of VRT -a_srs EPSG:4326 -a_ullr -180 90 180 -90 samples/bluemarble_5400x2700.jpg "$out/bluemarble.vrt"
+bench_ingest bluemarble --layer color samples/bluemarble_5400x2700.jpg --bounds -180,-90,180,90 -- \
+  -ts 8192 4096 "$out/bluemarble.vrt"

@@ -16,7 +16,6 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::Instant;
 
-use rayon::prelude::*;
 use sc_core::{GridSpec, Kernel, KernelLut, LevelId, ShardId, TileId};
 use sc_raster::{
     LonLatBox, RasterError, RasterSource, SampleRole, SourceInfo, SourceOptions, linear_to_srgb,
@@ -325,37 +324,84 @@ pub fn run(root: &Path, plan: &Plan, on_shard: &(dyn Fn(u64, u64) + Sync)) -> Re
     let stats = Mutex::new((0u64, 0u64, 0u64, None::<(f64, f64)>)); // tiles, valid texels, texels, range
     let lut = KernelLut::new(settings.kernel);
     on_shard(summary.shards_resumed, total);
-    todo.par_iter().try_for_each_init(
-        || -> Result<Vec<RasterSource>> {
-            plan.inputs
-                .iter()
-                .map(|p| {
-                    RasterSource::open(&p.input.path, role(settings.layer), &p.input.options)
-                        .map_err(IngestError::from)
-                })
-                .collect()
-        },
-        |sources, (shard, tiles)| -> Result<()> {
-            let sources = match sources {
-                Ok(s) => s,
-                Err(e) => return Err(IngestError::Usage(e.to_string())),
-            };
-            let s = write_shard(&writer, plan, &lut, sources, **shard, tiles)?;
-            journal.mark_done(shard, s.range.map(|r| (settings.layer, shard.level, r)))?;
-            {
-                let mut st = stats.lock().unwrap_or_else(|e| e.into_inner());
-                st.0 += s.tiles;
-                st.1 += s.valid;
-                st.2 += s.texels;
-                if let Some((lo, hi)) = s.range {
-                    st.3 = Some(st.3.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
-                }
+    // small inputs are decoded once and shared by every worker's handle; handles are pooled so
+    // each input is opened at most once per worker thread (opening a gzipped NetCDF costs seconds)
+    let caches: Vec<sc_raster::SampleCache> =
+        plan.inputs.iter().map(|_| Default::default()).collect();
+    let open_set = || -> Result<Vec<RasterSource>> {
+        plan.inputs
+            .iter()
+            .zip(&caches)
+            .map(|(p, c)| {
+                RasterSource::reopen(
+                    &p.input.path,
+                    role(settings.layer),
+                    &p.input.options,
+                    c.clone(),
+                )
+                .map_err(IngestError::from)
+            })
+            .collect()
+    };
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let failed = std::sync::atomic::AtomicBool::new(false);
+    let do_shard = |sources: &[RasterSource],
+                    shard: &ShardId,
+                    tiles: &BTreeMap<TileId, Vec<usize>>|
+     -> Result<()> {
+        let s = write_shard(&writer, plan, &lut, sources, *shard, tiles)?;
+        journal.mark_done(shard, s.range.map(|r| (settings.layer, shard.level, r)))?;
+        {
+            let mut st = stats.lock().unwrap_or_else(|e| e.into_inner());
+            st.0 += s.tiles;
+            st.1 += s.valid;
+            st.2 += s.texels;
+            if let Some((lo, hi)) = s.range {
+                st.3 = Some(st.3.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
             }
-            let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-            on_shard(d, total);
-            Ok(())
-        },
-    )?;
+        }
+        let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+        on_shard(d, total);
+        Ok(())
+    };
+    // one worker thread per core, each with its own GDAL handles (opened once: opening a gzipped
+    // NetCDF costs seconds), taking shards in plan order
+    let workers = rayon::current_num_threads().clamp(1, todo.len().max(1));
+    let results: Vec<Result<()>> = std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..workers)
+            .map(|_| {
+                scope.spawn(|| -> Result<()> {
+                    let mut sources: Option<Vec<RasterSource>> = None;
+                    loop {
+                        let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        if k >= todo.len() || failed.load(std::sync::atomic::Ordering::Relaxed) {
+                            return Ok(());
+                        }
+                        if sources.is_none() {
+                            sources = Some(open_set()?);
+                        }
+                        let (shard, tiles) = todo[k];
+                        if let Err(e) =
+                            do_shard(sources.as_deref().unwrap_or_default(), shard, tiles)
+                        {
+                            failed.store(true, std::sync::atomic::Ordering::Relaxed);
+                            return Err(e);
+                        }
+                    }
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| {
+                h.join()
+                    .unwrap_or_else(|_| Err(IngestError::Usage("an ingest worker panicked".into())))
+            })
+            .collect()
+    });
+    for r in results {
+        r?;
+    }
     let record = BuildRecord {
         step: "ingest".into(),
         tool: format!("sphereclip {}", env!("CARGO_PKG_VERSION")),

@@ -15,8 +15,8 @@ use std::path::PathBuf;
 
 pub use export::{EXR_MAX_TEXELS, ExportSummary, export_exr, export_geotiff};
 pub use source::{
-    LonLatBox, MAX_PIXELS, MAX_SIDE, MAX_WINDOW, RasterSource, SampleRole, SourceInfo,
-    SourceOptions, Window, linear_to_srgb, quiet_gdal, srgb_to_linear,
+    LonLatBox, MAX_CACHED_SAMPLES, MAX_PIXELS, MAX_SIDE, MAX_WINDOW, RasterSource, SampleCache,
+    SampleRole, SourceInfo, SourceOptions, Window, linear_to_srgb, quiet_gdal, srgb_to_linear,
 };
 
 /// Errors of raster IO. One line each, path last.

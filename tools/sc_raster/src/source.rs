@@ -108,6 +108,7 @@ enum Backend {
 /// An opened input. Not `Sync`: open one per worker thread.
 pub struct RasterSource {
     info: SourceInfo,
+    cache: SampleCache,
     role: SampleRole,
     opts: SourceOptions,
     backend: Backend,
@@ -192,6 +193,23 @@ impl RasterSource {
     /// Opens `path` for `role`, validating everything that can be validated up front (size
     /// limits, georeference, CRS, bands, the first and last rows readable).
     pub fn open(path: &Path, role: SampleRole, opts: &SourceOptions) -> Result<Self> {
+        let src = Self::open_unchecked(path, role, opts)?;
+        src.check_readable()?;
+        Ok(src)
+    }
+
+    /// Another handle on an input [`RasterSource::open`] already checked (for worker threads):
+    /// the same, minus reading the first and last rows, sharing `cache`.
+    pub fn reopen(
+        path: &Path,
+        role: SampleRole,
+        opts: &SourceOptions,
+        cache: SampleCache,
+    ) -> Result<Self> {
+        Ok(Self::open_unchecked(path, role, opts)?.with_cache(cache))
+    }
+
+    fn open_unchecked(path: &Path, role: SampleRole, opts: &SourceOptions) -> Result<Self> {
         quiet_gdal();
         // opening may enter a non-thread-safe driver before we know which one it is
         let _g = SERIAL_DRIVERS_LOCK
@@ -355,15 +373,14 @@ impl RasterSource {
                 ));
             }
         }
-        let src = Self {
+        Ok(Self {
             info,
+            cache: SampleCache::default(),
             role,
             opts: opts.clone(),
             backend: Backend::Gdal(ds),
             to_src,
-        };
-        src.check_readable()?;
-        Ok(src)
+        })
     }
 
     fn open_exr(path: &Path, role: SampleRole, opts: &SourceOptions) -> Result<Self> {
@@ -427,11 +444,17 @@ impl RasterSource {
         snap_geographic(&mut info);
         Ok(Self {
             info,
+            cache: SampleCache::default(),
             role,
             opts: opts.clone(),
             backend: Backend::Exr(std::sync::Arc::new(data)),
             to_src: None,
         })
+    }
+
+    fn with_cache(mut self, cache: SampleCache) -> Self {
+        self.cache = cache;
+        self
     }
 
     /// Where the pixels are and what they hold.
@@ -711,7 +734,7 @@ impl RasterSource {
                 info.path.display()
             )));
         }
-        let raw = self.read_raw(cmin, rmin, rw, rh)?;
+        let raw = self.read_cached(cmin, rmin, rw, rh)?;
         for (k, row) in rows.iter().enumerate() {
             let Some((sr, flipped)) = *row else { continue };
             for j in 0..w {
@@ -734,6 +757,40 @@ impl RasterSource {
             h,
             planes,
         })
+    }
+
+    /// Like [`Self::read_raw`], but a source of at most [`MAX_CACHED_SAMPLES`] samples is read
+    /// whole on first use and served from memory (one GDAL read instead of one per tile; a
+    /// gzipped NetCDF is decompressed once instead of re-seeked per tile).
+    fn read_cached(&self, c0: i64, r0: i64, w: usize, h: usize) -> Result<Vec<Vec<f32>>> {
+        let info = &self.info;
+        let total = info.width as u64 * info.height as u64 * info.bands.len() as u64;
+        if total > MAX_CACHED_SAMPLES {
+            return self.read_raw(c0, r0, w, h);
+        }
+        let all = {
+            // the first worker reads while the others wait for it
+            let mut slot = self.cache.lock().unwrap_or_else(|e| e.into_inner());
+            match &*slot {
+                Some(a) => a.clone(),
+                None => {
+                    let a = std::sync::Arc::new(self.read_raw(0, 0, info.width, info.height)?);
+                    *slot = Some(a.clone());
+                    a
+                }
+            }
+        };
+        Ok(all
+            .iter()
+            .map(|plane| {
+                let mut v = Vec::with_capacity(w * h);
+                for r in 0..h {
+                    let s = (r0 as usize + r) * info.width + c0 as usize;
+                    v.extend_from_slice(&plane[s..s + w]);
+                }
+                v
+            })
+            .collect())
     }
 
     /// Reads a rectangle inside the raster, converting to planes with nodata as NaN.
@@ -833,6 +890,12 @@ impl RasterSource {
         }
     }
 }
+
+/// A whole small source decoded into planes, shared by the handles of every worker thread.
+pub type SampleCache = std::sync::Arc<std::sync::Mutex<Option<std::sync::Arc<Vec<Vec<f32>>>>>>;
+
+/// Largest source (pixels × bands used) kept whole in memory: 2^26 samples.
+pub const MAX_CACHED_SAMPLES: u64 = 1 << 26;
 
 /// Largest source rectangle read for one output tile: 2^26 pixels.
 pub const MAX_WINDOW: u64 = 1 << 26;

@@ -1,35 +1,131 @@
-//! `sphereclip demo`: runs what exists so far on the bundled samples.
-//!
-//! Today that is checking the samples are there; it grows with each capability
-//! (ingest → build → render/view).
+//! `sphereclip demo`: runs what exists so far on the bundled samples: ingest heights (ETOPO5 and
+//! two SRTM tiles) and colour (Blue Marble) into one store, show it, export a level for GDAL users.
+//! It grows with each capability (build → render/view).
 
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use anyhow::{Result, bail};
+use anyhow::{Context, Result, bail};
+use sc_core::{GridSpec, Kernel, LevelId};
+use sc_ingest::{Input, LevelChoice, Settings};
+use sc_raster::SourceOptions;
+use sc_store::{LayerKind, StoreConfig, StoreReader};
 
 use crate::cli::DemoArgs;
+use crate::progress::Progress;
 
-/// The bundled samples the demo uses.
-const SAMPLES: [&str; 3] = [
-    "etopo5.cdf.gz",
-    "bluemarble_5400x2700.jpg",
-    "N57E011.hgt.zip",
-];
+fn ingest(store: &Path, layer: LayerKind, level: LevelChoice, inputs: Vec<Input>) -> Result<()> {
+    let settings = Settings {
+        layer,
+        level,
+        kernel: Kernel::Cubic,
+        new_store: StoreConfig {
+            grid: GridSpec::default(),
+            ..StoreConfig::default()
+        },
+    };
+    let existing = StoreReader::open(store).ok().map(|r| {
+        let m = r.meta();
+        (m.grid, m.shard_tiles, m.radius_m)
+    });
+    let plan = sc_ingest::plan(&inputs, &settings, existing)?;
+    let names: Vec<String> = inputs
+        .iter()
+        .map(|i| i.path.display().to_string())
+        .collect();
+    let p = Progress::new(&format!("ingest {layer}"), plan.shards.len() as u64);
+    let s = sc_ingest::run(store, &plan, &|d, _| p.set(d))?;
+    p.finish();
+    eprintln!(
+        "demo: {layer} from {} → level(s) {} in {:.1} s",
+        names.join(", "),
+        s.levels.join(" "),
+        s.seconds
+    );
+    Ok(())
+}
+
+fn input(samples: &Path, name: &str, bounds: Option<[f64; 4]>) -> Input {
+    Input {
+        path: samples.join(name),
+        options: SourceOptions {
+            bounds,
+            ..SourceOptions::default()
+        },
+        priority: 0,
+    }
+}
 
 /// Runs `demo`.
 pub fn run(a: &DemoArgs) -> Result<ExitCode> {
-    for s in SAMPLES {
-        let p = a.samples.join(s);
-        if !p.is_file() {
+    let s = &a.samples;
+    for name in [
+        "etopo5.cdf.gz",
+        "bluemarble_5400x2700.jpg",
+        "N57E011.hgt.zip",
+        "n07_w006_3arc_v2.tif",
+    ] {
+        if !s.join(name).is_file() {
             bail!(
                 "sample missing: {} (run from the repository root or pass --samples)",
-                p.display()
+                s.join(name).display()
             );
         }
     }
+    std::fs::create_dir_all(&a.out)
+        .with_context(|| format!("cannot create {}", a.out.display()))?;
+    let store: PathBuf = a.out.join("planet.zarr");
+    if store.exists() {
+        std::fs::remove_dir_all(&store)
+            .with_context(|| format!("cannot replace {}", store.display()))?;
+    }
+    let l3 = LevelChoice::Fixed(LevelId::iso(3)?);
+    ingest(
+        &store,
+        LayerKind::Height,
+        l3,
+        vec![input(s, "etopo5.cdf.gz", None)],
+    )?;
+    ingest(
+        &store,
+        LayerKind::Height,
+        LevelChoice::Auto,
+        vec![
+            input(s, "N57E011.hgt.zip", None),
+            input(s, "n07_w006_3arc_v2.tif", None),
+        ],
+    )?;
+    ingest(
+        &store,
+        LayerKind::Color,
+        l3,
+        vec![input(
+            s,
+            "bluemarble_5400x2700.jpg",
+            Some([-180.0, -90.0, 180.0, 90.0]),
+        )],
+    )?;
+    let reader = StoreReader::open(&store)?;
+    let height = a.out.join("height_level3.tif");
+    let color = a.out.join("color_level3.tif");
+    let l = LevelId::iso(3)?;
+    sc_raster::export_geotiff(&reader, LayerKind::Height, l, &height, &|_, _| {})?;
+    sc_raster::export_geotiff(&reader, LayerKind::Color, l, &color, &|_, _| {})?;
+    for st in reader.level_stats()? {
+        eprintln!(
+            "demo: {} level {}: {}x{} texels, {}/{} tiles",
+            st.layer, st.level, st.width, st.height, st.tiles_present, st.tiles_total
+        );
+    }
+    println!(
+        "store:   {}  (try: sphereclip info {})",
+        store.display(),
+        store.display()
+    );
+    println!("geotiff: {}", height.display());
+    println!("geotiff: {}", color.display());
     eprintln!(
-        "demo: samples found in {}; ingest, build and the viewer are not implemented yet, so there is nothing more to show",
-        a.samples.display()
+        "demo: the pyramid builder and the viewer are not implemented yet; these are the ingested levels"
     );
     Ok(ExitCode::SUCCESS)
 }
