@@ -13,12 +13,15 @@ use sc_store::LayerKind;
 
 use crate::{IngestError, Result, unix_now};
 
+/// A durable shard's value range: (layer, level, (min, max)).
+pub(crate) type ShardRange = (LayerKind, LevelId, (f64, f64));
+
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 struct Data {
     step: String,
     plan: String,
     started_unix: u64,
-    done: BTreeMap<String, Option<(LayerKind, LevelId, (f64, f64))>>,
+    done: BTreeMap<String, Option<ShardRange>>,
 }
 
 /// A journal for one step of one plan.
@@ -96,7 +99,7 @@ impl Journal {
     }
 
     /// Value ranges of the shards done by earlier runs.
-    pub(crate) fn ranges(&self) -> Vec<(LayerKind, LevelId, (f64, f64))> {
+    pub(crate) fn ranges(&self) -> Vec<ShardRange> {
         self.data
             .lock()
             .unwrap_or_else(|e| e.into_inner())

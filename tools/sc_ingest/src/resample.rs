@@ -95,6 +95,7 @@ fn texel_map(src: &RasterSource, grid: GridSpec, tile: TileId, kernel: Kernel) -
         .map(|j| lats[j * n].to_radians().cos().max(1e-12))
         .collect();
     let at = |i: usize, j: usize| (xs[j * n + i], ys[j * n + i]);
+    #[allow(clippy::needless_range_loop)] // j indexes the padded grid and coslats alike
     for j in 1..=t {
         for i in 1..=t {
             let (x, y) = at(i, j);

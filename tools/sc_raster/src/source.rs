@@ -404,11 +404,7 @@ impl RasterSource {
         let list = &image.layer_data.channel_data.list;
         let ch = list
             .iter()
-            .find(|c| {
-                ["Y", "R", "height", "Z"]
-                    .iter()
-                    .any(|n| c.name == Text::from(*n))
-            })
+            .find(|c| ["Y", "R", "height", "Z"].iter().any(|n| c.name.eq(n)))
             .or(list.first())
             .ok_or_else(|| usage(path, "EXR file has no channels"))?;
         let data: Vec<f32> = match &ch.sample_data {
