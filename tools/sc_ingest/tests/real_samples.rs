@@ -41,25 +41,48 @@ fn ingest(root: &Path, inputs: &[Input], s: &Settings) -> sc_ingest::Summary {
     sc_ingest::run(root, &plan, &|_, _| {}).expect("run")
 }
 
-/// A whole level as a row-major f32 image (NaN where missing).
-fn level_image(r: &StoreReader, level: LevelId) -> (usize, usize, Vec<f32>) {
+/// The tiles a level holds, loaded sparsely (only tiles present), addressed by texel.
+struct Level {
+    w: usize,
+    h: usize,
+    t: usize,
+    tiles: std::collections::HashMap<(usize, usize), Vec<f32>>,
+}
+
+impl Level {
+    fn get(&self, i: usize, j: usize) -> f32 {
+        self.tiles
+            .get(&(i / self.t, j / self.t))
+            .map_or(f32::NAN, |v| v[(j % self.t) * self.t + i % self.t])
+    }
+
+    fn values(&self) -> impl Iterator<Item = f32> + '_ {
+        self.tiles
+            .values()
+            .flatten()
+            .copied()
+            .filter(|v| !v.is_nan())
+    }
+}
+
+fn level_image(r: &StoreReader, level: LevelId) -> Level {
     let g = r.meta().grid;
-    let (w, h) = (g.width(level) as usize, g.height(level) as usize);
     let t = g.tile_size() as usize;
-    let mut img = vec![f32::NAN; w * h];
-    let mut buf = vec![0f32; t * t];
+    let mut tiles = std::collections::HashMap::new();
     for shard in r.shards_on_disk(LayerKind::Height, level).expect("shards") {
         for tile in shard.tiles(g, r.meta().shard_tiles) {
-            let (tx, ty) = (tile.x, tile.y);
+            let mut buf = vec![0f32; t * t];
             if r.read_tile(tile, &mut buf).expect("read") == TileRead::Present {
-                for row in 0..t {
-                    let d = (ty as usize * t + row) * w + tx as usize * t;
-                    img[d..d + t].copy_from_slice(&buf[row * t..(row + 1) * t]);
-                }
+                tiles.insert((tile.x as usize, tile.y as usize), buf);
             }
         }
     }
-    (w, h, img)
+    Level {
+        w: g.width(level) as usize,
+        h: g.height(level) as usize,
+        t,
+        tiles,
+    }
 }
 
 fn texel_of(g: GridSpec, level: LevelId, lon: f64, lat: f64) -> (usize, usize) {
@@ -76,7 +99,7 @@ fn texel_of(g: GridSpec, level: LevelId, lon: f64, lat: f64) -> (usize, usize) {
 fn box_stats(
     g: GridSpec,
     level: LevelId,
-    img: &(usize, usize, Vec<f32>),
+    img: &Level,
     w_: f64,
     s_: f64,
     e_: f64,
@@ -87,7 +110,7 @@ fn box_stats(
     let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
     for j in j0..=j1 {
         for i in i0..=i1 {
-            let v = img.2[j * img.0 + i];
+            let v = img.get(i, j);
             if !v.is_nan() {
                 lo = lo.min(v);
                 hi = hi.max(v);
@@ -111,7 +134,7 @@ fn etopo5_lands_in_the_right_texels_with_constant_poles_and_a_seamless_antimerid
     let r = StoreReader::open(&root).expect("open");
     let g = r.meta().grid;
     let img = level_image(&r, level);
-    let (w, h) = (img.0, img.1);
+    let (w, h) = (img.w, img.h);
     // Everest area ≈ 6 km (ETOPO5 node: 6096 m); at 0.088° spacing a little is smoothed away
     let (_, everest) = box_stats(g, level, &img, 86.4, 27.5, 87.4, 28.5);
     assert!(
@@ -119,7 +142,7 @@ fn etopo5_lands_in_the_right_texels_with_constant_poles_and_a_seamless_antimerid
         "Everest area max {everest}"
     );
     // Karakoram holds the global maximum 7833 m; nothing higher anywhere (cubic may ring a bit)
-    let global_max = img.2.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+    let global_max = img.values().fold(f32::NEG_INFINITY, f32::max);
     let (_, karakoram) = box_stats(g, level, &img, 74.5, 35.8, 75.6, 36.8);
     assert_eq!(
         karakoram, global_max,
@@ -128,7 +151,7 @@ fn etopo5_lands_in_the_right_texels_with_constant_poles_and_a_seamless_antimerid
     assert!((7000.0..=8100.0).contains(&global_max), "{global_max}");
     // Mariana Trench minimum ≈ −10.4 km near 11.33 °N 142.33 °E
     let (mariana, _) = box_stats(g, level, &img, 141.8, 10.8, 142.9, 11.9);
-    let global_min = img.2.iter().copied().fold(f32::INFINITY, f32::min);
+    let global_min = img.values().fold(f32::INFINITY, f32::min);
     // at 0.088° the trench's narrow floor is smoothed to within a few hundred metres of the
     // deepest smoothed trench (ETOPO5's −10376 m node itself is 1/12° wide)
     assert!((-10800.0..=-9800.0).contains(&mariana), "{mariana}");
@@ -138,13 +161,13 @@ fn etopo5_lands_in_the_right_texels_with_constant_poles_and_a_seamless_antimerid
     );
     // Greenland ice 72.6 °N 38.5 °W → 3185 m
     let (gx, gy) = texel_of(g, level, -38.5, 72.6);
-    let green = img.2[gy * w + gx];
+    let green = img.get(gx, gy);
     assert!((green - 3185.0).abs() < 150.0, "Greenland {green}");
     // the rows next to the poles: a pole is one point (ETOPO5: −4290 m north, 2810 m south) and
     // the texels 0.044° from it see the whole circle around it, so they vary far less than the
     // source's own row next to the pole (−4296..−4094 m in the north, 200 m of spread)
     for (row, expect) in [(0, -4290.0f32), (h - 1, 2810.0)] {
-        let vals = &img.2[row * w..(row + 1) * w];
+        let vals: Vec<f32> = (0..w).map(|i| img.get(i, row)).collect();
         let (lo, hi) = vals
             .iter()
             .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| {
@@ -161,7 +184,7 @@ fn etopo5_lands_in_the_right_texels_with_constant_poles_and_a_seamless_antimerid
     let mut seam = 0.0f64;
     let mut inner = 0.0f64;
     for j in 0..h {
-        let row = &img.2[j * w..(j + 1) * w];
+        let row: Vec<f32> = (0..w).map(|i| img.get(i, j)).collect();
         seam += f64::from((row[w - 1] - row[0]).abs());
         inner += f64::from((row[w / 2] - row[w / 2 + 1]).abs())
             + f64::from((row[1] - row[0]).abs())
@@ -281,7 +304,7 @@ fn srtm_tiles_match_gdal_and_override_etopo_only_inside_their_squares() {
         level_image(&StoreReader::open(&etopo_only).expect("open"), l5),
         level_image(&StoreReader::open(&srtm_only).expect("open"), l5),
     );
-    let w = m.0;
+
     let (mut inside, mut outside) = (0, 0);
     for (lon, lat) in [
         (11.5, 57.5),
@@ -294,18 +317,18 @@ fn srtm_tiles_match_gdal_and_override_etopo_only_inside_their_squares() {
         (-30.0, 10.0),
     ] {
         let (i, j) = texel_of(GridSpec::default(), l5, lon, lat);
-        let k = j * w + i;
+
         if (11.0..12.0).contains(&lon) && (57.0..58.0).contains(&lat) {
             assert_eq!(
-                m.2[k].to_bits(),
-                so.2[k].to_bits(),
+                m.get(i, j).to_bits(),
+                so.get(i, j).to_bits(),
                 "inside the square SRTM wins at {lon},{lat}"
             );
             inside += 1;
         } else {
             assert_eq!(
-                m.2[k].to_bits(),
-                e.2[k].to_bits(),
+                m.get(i, j).to_bits(),
+                e.get(i, j).to_bits(),
                 "outside the square ETOPO stays at {lon},{lat}"
             );
             outside += 1;
@@ -425,7 +448,7 @@ fn luxembourg_keeps_its_border_without_a_halo() {
     for j in j0..=j1 {
         for i in i0..=i1 {
             all += 1;
-            valid += usize::from(!img.2[j * img.0 + i].is_nan());
+            valid += usize::from(!img.get(i, j).is_nan());
         }
     }
     let frac = valid as f64 / all as f64;
@@ -435,7 +458,7 @@ fn luxembourg_keeps_its_border_without_a_halo() {
     );
     // a point outside the border (France, south-west corner) stays nodata
     let (i, j) = texel_of(g, level, 5.76, 49.45);
-    assert!(img.2[j * img.0 + i].is_nan());
+    assert!(img.get(i, j).is_nan());
 }
 
 #[test]
@@ -513,7 +536,7 @@ fn blue_marble_and_exr_with_bounds() {
         let (i, j) = texel_of(GridSpec::default(), l6, lon, lat);
         let c = GridSpec::default().texel_centre(l6, i as u64, j as u64);
         let expect = 100.0 * c.lat_deg + c.lon_deg;
-        let got = f64::from(img.2[j * img.0 + i]);
+        let got = f64::from(img.get(i, j));
         assert!(
             (got - expect).abs() < 0.5,
             "EXR at {lon},{lat}: {got} vs {expect}"

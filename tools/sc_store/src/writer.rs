@@ -145,6 +145,8 @@ impl StoreWriter {
             _ => HeightCodec::Pcodec,
         };
         let w = Self::with_meta(root, meta, codec)?;
+        // we hold the lock: temp files left behind are from writers that died mid-write
+        remove_stale_temp_files(root);
         w.lock_meta().complete = false;
         w.write_group_meta()?;
         Ok(w)
@@ -430,6 +432,21 @@ impl StoreWriter {
             m.complete = true;
         }
         self.write_group_meta()
+    }
+}
+
+/// Removes `NAME.tmp.PID.N` files (see `DurableFs`) below `dir`, best effort.
+fn remove_stale_temp_files(dir: &Path) {
+    let Ok(rd) = fs::read_dir(dir) else { return };
+    for e in rd.flatten() {
+        let p = e.path();
+        match e.file_type() {
+            Ok(t) if t.is_dir() => remove_stale_temp_files(&p),
+            Ok(_) if e.file_name().to_string_lossy().contains(".tmp.") => {
+                let _ = fs::remove_file(&p);
+            }
+            _ => {}
+        }
     }
 }
 

@@ -195,6 +195,11 @@ fn a_store_reads_incomplete_until_commit() {
     w.commit(None).expect("commit");
     drop(w);
     assert!(StoreReader::open(&root).expect("open").meta().complete);
+    // a writer killed mid-write leaves its temp file; the next writer removes it
+    let stale = root.join("height/L02/c/0/0.tmp.99999.3");
+    std::fs::write(&stale, b"half a shard").expect("write");
+    drop(StoreWriter::open(&root).expect("open for writing"));
+    assert!(!stale.exists());
 }
 
 #[test]
