@@ -7,7 +7,7 @@
 //! positive weight (samples outside the raster count as invalid).
 
 use sc_core::{Footprint, GridSpec, Kernel, KernelLut, TileId};
-use sc_raster::{RasterSource, Result, Window};
+use sc_raster::{RasterSource, Result, SourceInfo, Window};
 
 /// Fraction of the footprint's positive weight that valid samples must carry.
 pub const MIN_COVERAGE: f64 = 0.5;
@@ -20,6 +20,30 @@ pub struct TileSamples {
     pub planes: Vec<Vec<f32>>,
 }
 
+/// Anything resampling can read: where its pixels are ([`SourceInfo`]: a pixel-is-area affine
+/// transform, wrapping, poles), lon/lat → pixel, and windows of planes with NaN for nodata.
+/// Implemented by GDAL/EXR inputs ([`RasterSource`]) and by store levels (the pyramid builder).
+pub trait PixelSource {
+    /// Geometry and sample description.
+    fn info(&self) -> &SourceInfo;
+    /// Lon/lat degrees → fractional pixel coordinates, in place (NaN where it cannot).
+    fn lonlat_to_pixel(&self, x: &mut [f64], y: &mut [f64]);
+    /// Pixels `[c0, c0+w) × [r0, r0+h)`, wrapping and crossing poles as the source allows.
+    fn read_region(&self, c0: i64, r0: i64, w: usize, h: usize) -> Result<Window>;
+}
+
+impl PixelSource for RasterSource {
+    fn info(&self) -> &SourceInfo {
+        RasterSource::info(self)
+    }
+    fn lonlat_to_pixel(&self, x: &mut [f64], y: &mut [f64]) {
+        RasterSource::lonlat_to_pixel(self, x, y);
+    }
+    fn read_region(&self, c0: i64, r0: i64, w: usize, h: usize) -> Result<Window> {
+        RasterSource::read_region(self, c0, r0, w, h)
+    }
+}
+
 /// Per-texel geometry: source pixel position and footprint.
 struct TexelMap {
     x: Vec<f64>,
@@ -27,7 +51,7 @@ struct TexelMap {
     foot: Vec<Option<Footprint>>,
 }
 
-fn texel_map(src: &RasterSource, grid: GridSpec, tile: TileId, kernel: Kernel) -> TexelMap {
+fn texel_map(src: &dyn PixelSource, grid: GridSpec, tile: TileId, kernel: Kernel) -> TexelMap {
     let t = grid.tile_size() as usize;
     let info = src.info();
     let level = tile.level;
@@ -144,7 +168,7 @@ fn texel_map(src: &RasterSource, grid: GridSpec, tile: TileId, kernel: Kernel) -
 /// Resamples `src` onto `tile` with `lut`'s kernel. Returns `None` when the source contributes
 /// nothing to the tile.
 pub fn resample_tile(
-    src: &RasterSource,
+    src: &dyn PixelSource,
     grid: GridSpec,
     tile: TileId,
     lut: &KernelLut,
