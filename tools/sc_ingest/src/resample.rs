@@ -251,12 +251,12 @@ pub fn resample_tile(
                 // window averaged 2^m× in x where the footprint is wide (towards the poles), so a
                 // texel costs a bounded number of taps at any latitude
                 Some((sx, sy)) => {
-                    let mip = mips.get(&win, mip_level(sx), mip_level(sy));
+                    let mip = mips.view(&win, mip_level(sx), mip_level(sy));
                     separable(mip, lut, x, y, (sx, sy), &mut acc)
                 }
                 None => {
                     let (hx, hy) = half[k];
-                    let mip = mips.get(&win, mip_level(hx / 8.0), mip_level(hy / 8.0));
+                    let mip = mips.view(&win, mip_level(hx / 8.0), mip_level(hy / 8.0));
                     filtered(mip, f, lut, x, y, half[k], &mut acc)
                 }
             },
@@ -282,10 +282,11 @@ fn mip_level(sx: f64) -> u32 {
 }
 
 /// A window's planes averaged over blocks of 2^mx × 2^my pixels: sample (q, p) covers window
-/// columns [q·sx, (q+1)·sx) and rows [p·sy, (p+1)·sy). A sample is NaN (invalid) unless at least
-/// half of its block is valid; otherwise it is the mean of the valid pixels. Filtering these is
-/// the kernel applied to box-prefiltered data: a bounded number of taps however wide the
-/// footprint (near the poles, or a fine source onto a coarse level).
+/// columns [q·bx, (q+1)·bx) and rows [p·by, (p+1)·by). Each level is made from the next finer one
+/// by averaging pairs along one axis, weighted by their valid coverage; a sample is exposed as
+/// invalid (NaN in plane 0) where less than half of its block is valid, so nodata borders stay
+/// where they are. Filtering these is the kernel applied to box-prefiltered data: a bounded number
+/// of taps however wide the footprint (near the poles, or a fine source onto a coarse level).
 #[derive(Debug)]
 struct Mip {
     step: (f64, f64),
@@ -293,68 +294,149 @@ struct Mip {
     r0: f64,
     w: usize,
     h: usize,
+    /// Planes as filtering sees them (plane 0 NaN where coverage < ½).
     planes: Vec<Vec<f32>>,
+    /// Means of the valid pixels of each block (NaN only where none is valid).
+    raw: Vec<Vec<f32>>,
+    /// Fraction of each block that is valid.
+    cov: Vec<f32>,
 }
 
+/// A borrowed view of a window or one of its averaged levels.
+#[derive(Debug, Clone, Copy)]
+struct MipView<'a> {
+    step: (f64, f64),
+    c0: f64,
+    r0: f64,
+    w: usize,
+    h: usize,
+    planes: &'a [Vec<f32>],
+}
+
+/// The averaged levels of one window, made on demand; level (0, 0) is the window itself.
 #[derive(Debug, Default)]
 struct Mips {
-    levels: std::collections::HashMap<(u32, u32), Mip>,
+    levels: Vec<Option<Mip>>,
 }
 
+const MIP_SIDE: usize = 24;
+
 impl Mips {
-    fn get(&mut self, win: &Window, mx: u32, my: u32) -> &Mip {
-        self.levels.entry((mx, my)).or_insert_with(|| {
-            let (bx, by) = (1usize << mx, 1usize << my);
-            let (w, h) = (win.w / bx.min(win.w.max(1)), win.h / by.min(win.h.max(1)));
-            let (w, h) = (w.max(1), h.max(1));
-            let np = win.planes.len();
-            let mut planes = vec![vec![f32::NAN; w * h]; np];
-            if bx == 1 && by == 1 {
-                planes.clone_from(&win.planes);
+    fn view<'a>(&'a mut self, win: &'a Window, mx: u32, my: u32) -> MipView<'a> {
+        let (mx, my) = (mx.min(MIP_SIDE as u32 - 1), my.min(MIP_SIDE as u32 - 1));
+        if mx == 0 && my == 0 {
+            return MipView {
+                step: (1.0, 1.0),
+                c0: win.c0 as f64,
+                r0: win.r0 as f64,
+                w: win.w,
+                h: win.h,
+                planes: &win.planes,
+            };
+        }
+        self.make(win, mx, my);
+        let m = self.levels[mx as usize * MIP_SIDE + my as usize]
+            .as_ref()
+            .expect("made above");
+        MipView {
+            step: m.step,
+            c0: m.c0,
+            r0: m.r0,
+            w: m.w,
+            h: m.h,
+            planes: &m.planes,
+        }
+    }
+
+    fn make(&mut self, win: &Window, mx: u32, my: u32) {
+        if self.levels.is_empty() {
+            self.levels.resize_with(MIP_SIDE * MIP_SIDE, || None);
+        }
+        let k = mx as usize * MIP_SIDE + my as usize;
+        if self.levels[k].is_some() || (mx == 0 && my == 0) {
+            return;
+        }
+        // from the next finer level along x if mx > 0, else along y
+        let (pmx, pmy, along_x) = if mx > 0 {
+            (mx - 1, my, true)
+        } else {
+            (mx, my - 1, false)
+        };
+        self.make(win, pmx, pmy);
+        // the finer level's raw means and coverage (level 0: the window, coverage 1 or 0)
+        let (pw, ph, pstep, praw, pcov): (usize, usize, (f64, f64), &[Vec<f32>], Option<&[f32]>) =
+            if pmx == 0 && pmy == 0 {
+                (win.w, win.h, (1.0, 1.0), &win.planes, None)
             } else {
-                let mut sums = vec![0f64; np];
-                for p in 0..h {
-                    for q in 0..w {
-                        sums.iter_mut().for_each(|s| *s = 0.0);
-                        let mut n = 0usize;
-                        for r in p * by..((p + 1) * by).min(win.h) {
-                            let row = r * win.w;
-                            for c in q * bx..((q + 1) * bx).min(win.w) {
-                                let v = win.planes[0][row + c];
-                                if v.is_nan() {
-                                    continue;
-                                }
-                                n += 1;
-                                sums[0] += f64::from(v);
-                                for (k, s) in sums.iter_mut().enumerate().skip(1) {
-                                    *s += f64::from(win.planes[k][row + c]);
-                                }
-                            }
-                        }
-                        if 2 * n >= bx * by {
-                            for (k, plane) in planes.iter_mut().enumerate() {
-                                plane[p * w + q] = (sums[k] / n as f64) as f32;
-                            }
-                        }
+                let m = self.levels[pmx as usize * MIP_SIDE + pmy as usize]
+                    .as_ref()
+                    .expect("made above");
+                (m.w, m.h, m.step, &m.raw, Some(&m.cov))
+            };
+        let (w, h) = if along_x {
+            ((pw / 2).max(1), ph)
+        } else {
+            (pw, (ph / 2).max(1))
+        };
+        let np = praw.len();
+        let mut raw = vec![vec![f32::NAN; w * h]; np];
+        let mut planes = vec![vec![f32::NAN; w * h]; np];
+        let mut cov = vec![0f32; w * h];
+        for p in 0..h {
+            for q in 0..w {
+                let (a, b) = if along_x {
+                    (p * pw + 2 * q, p * pw + (2 * q + 1).min(pw - 1))
+                } else {
+                    (2 * p * pw + q, ((2 * p + 1).min(ph - 1)) * pw + q)
+                };
+                let c_of = |i: usize| match pcov {
+                    Some(c) => c[i],
+                    None => f32::from(u8::from(!praw[0][i].is_nan())),
+                };
+                let (ca, cb) = (c_of(a), c_of(b));
+                let k = p * w + q;
+                cov[k] = 0.5 * (ca + cb);
+                if ca + cb <= 0.0 {
+                    continue;
+                }
+                for (pl, src) in praw.iter().enumerate() {
+                    let (va, vb) = (src[a], src[b]);
+                    let v = match (ca > 0.0, cb > 0.0) {
+                        (true, true) => (va * ca + vb * cb) / (ca + cb),
+                        (true, false) => va,
+                        _ => vb,
+                    };
+                    raw[pl][k] = v;
+                    if cov[k] >= 0.5 {
+                        planes[pl][k] = v;
                     }
                 }
             }
-            Mip {
-                step: (bx as f64, by as f64),
-                c0: win.c0 as f64,
-                r0: win.r0 as f64,
-                w,
-                h,
-                planes,
-            }
-        })
+        }
+        let prev_step = pstep;
+        let step = if along_x {
+            (prev_step.0 * 2.0, prev_step.1)
+        } else {
+            (prev_step.0, prev_step.1 * 2.0)
+        };
+        let (c0, r0) = (win.c0 as f64, win.r0 as f64);
+        self.levels[k] = Some(Mip {
+            step,
+            c0,
+            r0,
+            w,
+            h,
+            planes,
+            raw,
+            cov,
+        });
     }
 }
 
 /// Separable filtering with per-axis scales: weights `k(dx/sx)·k(dy/sy)`, on samples averaged
 /// `mip.step`× along x (the scale along x shrinks by the same factor).
 fn separable(
-    mip: &Mip,
+    mip: MipView<'_>,
     lut: &KernelLut,
     x: f64,
     y: f64,
@@ -474,7 +556,7 @@ fn nearest(win: &Window, x: f64, y: f64, acc: &mut [f64]) -> bool {
 /// Radial (EWA) filtering for rotated footprints, on block-averaged samples whose centres are
 /// measured in source pixels.
 fn filtered(
-    mip: &Mip,
+    mip: MipView<'_>,
     f: &Footprint,
     lut: &KernelLut,
     x: f64,
