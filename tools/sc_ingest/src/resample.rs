@@ -364,15 +364,21 @@ impl Mips {
         };
         self.make(win, pmx, pmy);
         // the finer level's raw means and coverage (level 0: the window, coverage 1 or 0)
-        let (pw, ph, pstep, praw, pcov): (usize, usize, (f64, f64), &[Vec<f32>], Option<&[f32]>) =
-            if pmx == 0 && pmy == 0 {
-                (win.w, win.h, (1.0, 1.0), &win.planes, None)
-            } else {
-                let m = self.levels[pmx as usize * MIP_SIDE + pmy as usize]
-                    .as_ref()
-                    .expect("made above");
-                (m.w, m.h, m.step, &m.raw, Some(&m.cov))
-            };
+        #[allow(clippy::type_complexity)] // a tuple read once, right below
+        let (pw, ph, pstep, praw, pcov): (
+            usize,
+            usize,
+            (f64, f64),
+            &[Vec<f32>],
+            Option<&[f32]>,
+        ) = if pmx == 0 && pmy == 0 {
+            (win.w, win.h, (1.0, 1.0), &win.planes, None)
+        } else {
+            let m = self.levels[pmx as usize * MIP_SIDE + pmy as usize]
+                .as_ref()
+                .expect("made above");
+            (m.w, m.h, m.step, &m.raw, Some(&m.cov))
+        };
         let (w, h) = if along_x {
             ((pw / 2).max(1), ph)
         } else {
