@@ -310,12 +310,23 @@ pub fn run(root: &Path, plan: &Plan, on_shard: &(dyn Fn(u64, u64) + Sync)) -> Re
         levels: levels.iter().map(|l| l.to_string()).collect(),
         ..Summary::default()
     };
-    let todo: Vec<(&ShardId, &BTreeMap<TileId, Vec<usize>>)> = plan
+    let mut todo: Vec<(&ShardId, &BTreeMap<TileId, Vec<usize>>)> = plan
         .shards
         .iter()
         .filter(|(s, _)| !journal.is_done(s))
         .collect();
     summary.shards_resumed = (plan.shards.len() - todo.len()) as u64;
+    // polar shards cost most (their footprints widen): start them first so that no worker is
+    // left with one at the end (the bytes written do not depend on the order)
+    let grid = plan.grid;
+    let polar = |s: &ShardId| {
+        let t = s
+            .tiles(grid, plan.shard_tiles)
+            .next()
+            .map(|t| grid.tile_rect(t));
+        t.map_or(0.0, |r| r.north.abs().max(r.south.abs()))
+    };
+    todo.sort_by(|a, b| polar(b.0).total_cmp(&polar(a.0)).then(a.0.cmp(b.0)));
     for r in journal.ranges() {
         writer.note_range(r.0, r.1, r.2.0, r.2.1);
     }

@@ -239,6 +239,7 @@ pub fn resample_tile(
     let mut any = false;
     let mut acc = vec![0f64; nplanes];
     let mut mips = Mips::default();
+    let mut rows = RowWeights::default();
     for k in 0..t * t {
         let (x, y) = (map.x[k], map.y[k]);
         if !x.is_finite() {
@@ -252,7 +253,7 @@ pub fn resample_tile(
                 // texel costs a bounded number of taps at any latitude
                 Some((sx, sy)) => {
                     let mip = mips.view(&win, mip_level(sx), mip_level(sy));
-                    separable(mip, lut, x, y, (sx, sy), &mut acc)
+                    separable(mip, lut, x, y, (sx, sy), &mut acc, &mut rows)
                 }
                 None => {
                     let (hx, hy) = half[k];
@@ -441,6 +442,18 @@ impl Mips {
 
 /// Separable filtering with per-axis scales: weights `k(dx/sx)·k(dy/sy)`, on samples averaged
 /// `mip.step`× along x (the scale along x shrinks by the same factor).
+/// The y weights of the last texel: texels of one output row share them (lon/lat sources).
+#[derive(Debug, Default)]
+struct RowWeights {
+    key: (f64, f64, f64),
+    r0: i64,
+    nr: usize,
+    wy: [f64; SEP_MAX],
+    wy_pos: f64,
+}
+
+const SEP_MAX: usize = 24;
+
 fn separable(
     mip: MipView<'_>,
     lut: &KernelLut,
@@ -448,30 +461,39 @@ fn separable(
     y: f64,
     (sx, sy): (f64, f64),
     acc: &mut [f64],
+    rows: &mut RowWeights,
 ) -> bool {
-    const MAX: usize = 24;
+    const MAX: usize = SEP_MAX;
     let s = lut.kernel().support();
     let u = (x - mip.c0) / mip.step.0;
     let su = sx / mip.step.0;
     let v = (y - mip.r0) / mip.step.1;
     let sv = sy / mip.step.1;
     let (c0, c1) = (ceil(u - 0.5 - s * su), floor(u - 0.5 + s * su));
-    let (r0, r1) = (ceil(v - 0.5 - s * sv), floor(v - 0.5 + s * sv));
-    let (nc, nr) = ((c1 - c0 + 1).max(0) as usize, (r1 - r0 + 1).max(0) as usize);
+    let nc = (c1 - c0 + 1).max(0) as usize;
+    if rows.key != (v, sv, mip.step.1) {
+        let (r0, r1) = (ceil(v - 0.5 - s * sv), floor(v - 0.5 + s * sv));
+        rows.key = (v, sv, mip.step.1);
+        rows.r0 = r0;
+        rows.nr = (r1 - r0 + 1).max(0) as usize;
+        rows.wy_pos = 0.0;
+        if rows.nr <= MAX {
+            for j in 0..rows.nr {
+                rows.wy[j] = lut.weight(((r0 + j as i64) as f64 + 0.5 - v) / sv);
+                rows.wy_pos += rows.wy[j].max(0.0);
+            }
+        }
+    }
+    let (r0, nr, wy_pos) = (rows.r0, rows.nr, rows.wy_pos);
     if nc == 0 || nr == 0 || nc > MAX || nr > MAX {
         return false;
     }
+    let wy = &rows.wy;
     let mut wx = [0f64; MAX];
-    let mut wy = [0f64; MAX];
     let mut wx_pos = 0.0;
     for (i, w) in wx.iter_mut().enumerate().take(nc) {
         *w = lut.weight(((c0 + i as i64) as f64 + 0.5 - u) / su);
         wx_pos += w.max(0.0);
-    }
-    let mut wy_pos = 0.0;
-    for (j, w) in wy.iter_mut().enumerate().take(nr) {
-        *w = lut.weight(((r0 + j as i64) as f64 + 0.5 - v) / sv);
-        wy_pos += w.max(0.0);
     }
     acc.iter_mut().for_each(|a| *a = 0.0);
     let (mut wsum, mut wpos_valid) = (0.0, 0.0);
