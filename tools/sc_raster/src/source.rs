@@ -171,6 +171,18 @@ fn snap_axis(n: usize, origin: f64, step: f64, span: f64) -> Option<(f64, f64)> 
     Some((size.copysign(step), snapped))
 }
 
+/// The pixel-is-area geotransform of a `w×h` raster whose outer edges are `[W, S, E, N]`.
+fn geotransform_from_bounds(b: [f64; 4], w: usize, h: usize) -> [f64; 6] {
+    [
+        b[0],
+        (b[2] - b[0]) / w as f64,
+        0.0,
+        b[3],
+        0.0,
+        -(b[3] - b[1]) / h as f64,
+    ]
+}
+
 fn validate_bounds(b: [f64; 4]) -> Result<()> {
     let [w, s, e, n] = b;
     let ok = [w, s, e, n].iter().all(|v| v.is_finite())
@@ -269,17 +281,12 @@ impl RasterSource {
             .ok()
             .filter(|gt| *gt != [0.0, 1.0, 0.0, 0.0, 0.0, 1.0]);
         let (gt, geographic, crs, to_src) = match (opts.bounds, file_gt, srs) {
-            (Some(b), _, _) => {
-                let gt = [
-                    b[0],
-                    (b[2] - b[0]) / w as f64,
-                    0.0,
-                    b[3],
-                    0.0,
-                    -(b[3] - b[1]) / h as f64,
-                ];
-                (gt, true, "EPSG:4326 (from --bounds)".to_string(), None)
-            }
+            (Some(b), _, _) => (
+                geotransform_from_bounds(b, w, h),
+                true,
+                "EPSG:4326 (from --bounds)".to_string(),
+                None,
+            ),
             (None, None, _) => {
                 return Err(usage(
                     path,
@@ -413,14 +420,7 @@ impl RasterSource {
             FlatSamples::U32(v) => v.iter().map(|&u| u as f32).collect(),
         };
         let (w, h) = (size.0, size.1);
-        let gt = [
-            b[0],
-            (b[2] - b[0]) / w as f64,
-            0.0,
-            b[3],
-            0.0,
-            -(b[3] - b[1]) / h as f64,
-        ];
+        let gt = geotransform_from_bounds(b, w, h);
         let mut info = SourceInfo {
             path: path.to_path_buf(),
             width: w,
