@@ -11,6 +11,8 @@
 mod grid;
 mod kernel;
 mod level;
+pub mod reference;
+pub mod signal;
 mod tile;
 
 pub use grid::{GeoRect, GridSpec, LonLat, TexelPos};

@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::Instant;
 
-use sc_core::{GridSpec, Kernel, KernelLut, LevelId, ShardId, TileId};
+use sc_core::{GridSpec, Kernel, LevelId, ShardId, TileId};
 use sc_raster::{
     LonLatBox, RasterError, RasterSource, SampleRole, SourceInfo, SourceOptions, linear_to_srgb,
 };
@@ -24,7 +24,7 @@ use sc_store::{BuildRecord, InputRecord, LayerKind, StoreConfig, StoreError, Sto
 use sha2::{Digest, Sha256};
 
 use crate::journal::Journal;
-use crate::resample::{TileSamples, resample_tile};
+use crate::resample::{Kernels, TileSamples, resample_tile};
 
 /// Errors of ingest; one line each.
 #[derive(Debug, thiserror::Error)]
@@ -333,7 +333,7 @@ pub fn run(root: &Path, plan: &Plan, on_shard: &(dyn Fn(u64, u64) + Sync)) -> Re
     let total = plan.shards.len() as u64;
     let done = std::sync::atomic::AtomicU64::new(summary.shards_resumed);
     let stats = Mutex::new((0u64, 0u64, 0u64, None::<(f64, f64)>)); // tiles, valid texels, texels, range
-    let lut = KernelLut::new(settings.kernel);
+    let lut = Kernels::new(settings.kernel);
     on_shard(summary.shards_resumed, total);
     // small inputs are decoded once and shared by every worker's handle; handles are pooled so
     // each input is opened at most once per worker thread (opening a gzipped NetCDF costs seconds)
@@ -456,7 +456,7 @@ struct ShardStats {
 fn write_shard(
     writer: &StoreWriter,
     plan: &Plan,
-    lut: &KernelLut,
+    lut: &Kernels,
     sources: &[RasterSource],
     shard: ShardId,
     tiles: &BTreeMap<TileId, Vec<usize>>,

@@ -165,19 +165,43 @@ fn texel_map(src: &dyn PixelSource, grid: GridSpec, tile: TileId, kernel: Kernel
     map
 }
 
-/// Resamples `src` onto `tile` with `lut`'s kernel. Returns `None` when the source contributes
+/// The kernel of a run, tabulated for separable use (the 1-D shape the user chose) and for radial
+/// use. A radial sinc is a poor 2-D low-pass (its spectrum peaks at the cutoff), so the Lanczos
+/// kernels become [`Kernel::JincLanczos3`] where a footprint is filtered radially.
+#[derive(Debug, Clone)]
+pub struct Kernels {
+    separable: KernelLut,
+    radial: KernelLut,
+}
+
+impl Kernels {
+    /// Tables for `kernel`.
+    pub fn new(kernel: Kernel) -> Self {
+        let radial = match kernel {
+            Kernel::Lanczos2 | Kernel::Lanczos3 => Kernel::JincLanczos3,
+            k => k,
+        };
+        Self {
+            separable: KernelLut::new(kernel),
+            radial: KernelLut::new(radial),
+        }
+    }
+}
+
+/// Resamples `src` onto `tile` with `kernels`. Returns `None` when the source contributes
 /// nothing to the tile.
 pub fn resample_tile(
     src: &dyn PixelSource,
     grid: GridSpec,
     tile: TileId,
-    lut: &KernelLut,
+    kernels: &Kernels,
 ) -> Result<Option<TileSamples>> {
+    let lut = &kernels.separable;
     let kernel = lut.kernel();
     let info = src.info();
     let t = grid.tile_size() as usize;
     let map = texel_map(src, grid, tile, kernel);
-    let support = kernel.support();
+    let support = kernel.support().max(kernels.radial.kernel().support());
     let period = info.lon_period_px;
     let (w, h) = (info.width as f64, info.height as f64);
     // the source rectangle the whole tile needs
@@ -258,7 +282,7 @@ pub fn resample_tile(
                 None => {
                     let (hx, hy) = half[k];
                     let mip = mips.view(&win, mip_level(hx / 8.0), mip_level(hy / 8.0));
-                    filtered(mip, f, lut, x, y, half[k], &mut acc)
+                    filtered(mip, f, &kernels.radial, x, y, half[k], &mut acc)
                 }
             },
         };
