@@ -126,6 +126,18 @@ fn print_text(reader: &StoreReader, stats: &[LevelStats], report: Option<&Verify
             p.inputs.len()
         );
     }
+    let journals: Vec<String> = std::fs::read_dir(reader.root().join(".sphereclip"))
+        .map(|rd| {
+            rd.flatten()
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .filter(|n| n.starts_with("journal-") && n.ends_with(".json"))
+                .collect()
+        })
+        .unwrap_or_default();
+    for j in journals {
+        let step = j.trim_start_matches("journal-").trim_end_matches(".json");
+        println!("interrupted {step}: rerun the same `sphereclip {step}` command to resume it");
+    }
     if let Some(r) = report {
         println!(
             "verify: {} shards, {} tiles checked, {} problem(s)",
