@@ -83,6 +83,9 @@ pub struct Settings {
     pub level: LevelChoice,
     /// Resampling kernel.
     pub kernel: Kernel,
+    /// Width in output texels over which an input fades in from its own nodata edges onto what
+    /// is already there (0: hard edges; the later/higher-priority input simply wins).
+    pub feather_texels: u32,
     /// Settings for a store that does not exist yet.
     pub new_store: StoreConfig,
 }
@@ -446,6 +449,61 @@ pub fn run(root: &Path, plan: &Plan, on_shard: &(dyn Fn(u64, u64) + Sync)) -> Re
     Ok(summary)
 }
 
+/// Feathering weights of one resampled tile (`plane0` NaN = no data from this input): 1 at
+/// `width` texels or more from the input's nodata, falling linearly to 1/width next to it (a
+/// two-pass chamfer distance inside the tile; beyond the tile's edges counts as valid, so tiles
+/// never feather along their own borders). All ones when `width` is 0.
+fn feather_weights(plane0: &[f32], t: usize, width: u32) -> Vec<f32> {
+    if width == 0 {
+        return vec![1.0; plane0.len()];
+    }
+    const FAR: f32 = 1e9;
+    let mut d: Vec<f32> = plane0
+        .iter()
+        .map(|v| if v.is_nan() { 0.0 } else { FAR })
+        .collect();
+    let (o, g) = (1.0f32, std::f32::consts::SQRT_2);
+    for j in 0..t {
+        for i in 0..t {
+            let k = j * t + i;
+            let mut m = d[k];
+            if i > 0 {
+                m = m.min(d[k - 1] + o);
+            }
+            if j > 0 {
+                m = m.min(d[k - t] + o);
+                if i > 0 {
+                    m = m.min(d[k - t - 1] + g);
+                }
+                if i + 1 < t {
+                    m = m.min(d[k - t + 1] + g);
+                }
+            }
+            d[k] = m;
+        }
+    }
+    for j in (0..t).rev() {
+        for i in (0..t).rev() {
+            let k = j * t + i;
+            let mut m = d[k];
+            if i + 1 < t {
+                m = m.min(d[k + 1] + o);
+            }
+            if j + 1 < t {
+                m = m.min(d[k + t] + o);
+                if i + 1 < t {
+                    m = m.min(d[k + t + 1] + g);
+                }
+                if i > 0 {
+                    m = m.min(d[k + t - 1] + g);
+                }
+            }
+            d[k] = m;
+        }
+    }
+    d.iter().map(|&x| (x / width as f32).min(1.0)).collect()
+}
+
 struct ShardStats {
     tiles: u64,
     valid: u64,
@@ -480,9 +538,15 @@ fn write_shard(
                     if let Some(TileSamples { planes }) =
                         resample_tile(&sources[i], plan.grid, tile, lut)?
                     {
-                        for (c, v) in cur.iter_mut().zip(&planes[0]) {
+                        let fw = feather_weights(&planes[0], t, plan.settings.feather_texels);
+                        for ((c, v), w) in cur.iter_mut().zip(&planes[0]).zip(&fw) {
                             if !v.is_nan() {
-                                *c = *v;
+                                // fade in from the input's own edges where data already exists
+                                *c = if c.is_nan() {
+                                    *v
+                                } else {
+                                    w * v + (1.0 - w) * *c
+                                };
                                 changed = true;
                             }
                         }
@@ -517,11 +581,12 @@ fn write_shard(
                     if let Some(TileSamples { planes }) =
                         resample_tile(&sources[i], plan.grid, tile, lut)?
                     {
+                        let fw = feather_weights(&planes[0], t, plan.settings.feather_texels);
                         for k in 0..n {
                             if planes[0][k].is_nan() {
                                 continue;
                             }
-                            let a = planes[3][k].clamp(0.0, 1.0);
+                            let a = planes[3][k].clamp(0.0, 1.0) * fw[k];
                             let px = &mut cur[k * 4..k * 4 + 4];
                             // non-premultiplied "over" compositing in linear light; opaque
                             // sources simply replace what was there

@@ -20,6 +20,7 @@ fn settings(layer: LayerKind, level: LevelChoice) -> Settings {
         layer,
         level,
         kernel: Kernel::Cubic,
+        feather_texels: 0,
         new_store: StoreConfig::default(),
     }
 }
@@ -542,4 +543,64 @@ fn blue_marble_and_exr_with_bounds() {
             "EXR at {lon},{lat}: {got} vs {expect}"
         );
     }
+}
+
+#[test]
+fn feathering_fades_a_regional_source_into_what_is_there() {
+    use exr::prelude::*;
+    let dir = tempfile::tempdir().expect("tempdir");
+    // a flat 1000 m base over 10..13 °E, 56..59 °N (an EXR heightmap placed with --bounds)
+    let base_exr = dir.path().join("base.exr");
+    let ch = AnyChannels::sort(
+        vec![AnyChannel::new(
+            "Y",
+            FlatSamples::F32(vec![1000.0; 300 * 300]),
+        )]
+        .into(),
+    );
+    Image::from_layer(Layer::new(
+        (300, 300),
+        LayerAttributes::named("b"),
+        Encoding::FAST_LOSSLESS,
+        ch,
+    ))
+    .write()
+    .to_file(&base_exr)
+    .expect("write exr");
+    let mut base = Input {
+        path: base_exr,
+        options: SourceOptions::default(),
+        priority: 0,
+    };
+    base.options.bounds = Some([10.0, 56.0, 13.0, 59.0]);
+    let l = LevelId::iso(6).expect("valid");
+    let fixed = settings(LayerKind::Height, LevelChoice::Fixed(l));
+    let mut feathered = fixed.clone();
+    feathered.feather_texels = 4;
+    let (hard, soft) = (dir.path().join("hard.zarr"), dir.path().join("soft.zarr"));
+    for (root, s) in [(&hard, &fixed), (&soft, &feathered)] {
+        ingest(root, &[base.clone()], &fixed);
+        ingest(root, &[input("N57E011.hgt.zip")], s);
+    }
+    let (h, s) = (
+        level_image(&StoreReader::open(&hard).expect("open"), l),
+        level_image(&StoreReader::open(&soft).expect("open"), l),
+    );
+    let g = GridSpec::default();
+    let dx = g.texel_deg(l).0;
+    // deep inside the square (more than 4 texels from its edges) feathering changes nothing
+    let (i, j) = texel_of(g, l, 11.5, 57.5);
+    assert_eq!(s.get(i, j).to_bits(), h.get(i, j).to_bits());
+    // one texel inside the west edge: hard edges take SRTM, feathering lies between it and 1000 m
+    let (i, j) = texel_of(g, l, 11.0 + 1.5 * dx, 57.5);
+    let (sv, hv) = (s.get(i, j), h.get(i, j));
+    assert!(hv < 500.0, "SRTM heights here are low: {hv}");
+    let t = (sv - 1000.0) / (hv - 1000.0);
+    assert!(
+        t > 0.05 && t < 0.8,
+        "feathered {sv} between base 1000 and srtm {hv}: t = {t}"
+    );
+    // outside the square both keep the base
+    let (i, j) = texel_of(g, l, 10.5, 57.5);
+    assert_eq!((s.get(i, j), h.get(i, j)), (1000.0, 1000.0));
 }

@@ -74,6 +74,10 @@ pub struct IngestArgs {
     /// Priority of the inputs on the command line (higher wins where inputs overlap).
     #[arg(long, default_value_t = 0, allow_hyphen_values = true)]
     pub priority: i32,
+    /// Fade the inputs in over this many output texels from their own nodata edges onto what the
+    /// store already holds (0: hard edges).
+    #[arg(long, default_value_t = 0)]
+    pub feather: u32,
     /// A file listing more inputs, one per line: `PATH` or `PATH PRIORITY`.
     #[arg(long)]
     pub list: Option<PathBuf>,

@@ -19,6 +19,7 @@ fn ingest(store: &Path, layer: LayerKind, level: LevelChoice, inputs: Vec<Input>
         layer,
         level,
         kernel: Kernel::Cubic,
+        feather_texels: 0,
         new_store: StoreConfig {
             grid: GridSpec::default(),
             ..StoreConfig::default()

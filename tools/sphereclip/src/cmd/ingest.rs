@@ -115,6 +115,7 @@ pub fn run(a: &IngestArgs) -> Result<ExitCode> {
         layer,
         level,
         kernel,
+        feather_texels: a.feather,
         new_store: StoreConfig {
             grid,
             ..StoreConfig::default()
