@@ -276,12 +276,14 @@ pub fn resample_tile(
                 // window averaged 2^m× in x where the footprint is wide (towards the poles), so a
                 // texel costs a bounded number of taps at any latitude
                 Some((sx, sy)) => {
-                    let mip = mips.view(&win, mip_level(sx), mip_level(sy));
+                    let step = win.step as f64;
+                    let mip = mips.view(&win, mip_level(sx / step), mip_level(sy / step));
                     separable(mip, lut, x, y, (sx, sy), &mut acc, &mut rows)
                 }
                 None => {
                     let (hx, hy) = half[k];
-                    let mip = mips.view(&win, mip_level(hx / 8.0), mip_level(hy / 8.0));
+                    let step = 8.0 * win.step as f64;
+                    let mip = mips.view(&win, mip_level(hx / step), mip_level(hy / step));
                     filtered(mip, f, &kernels.radial, x, y, half[k], &mut acc)
                 }
             },
@@ -351,7 +353,7 @@ impl Mips {
         let (mx, my) = (mx.min(MIP_SIDE as u32 - 1), my.min(MIP_SIDE as u32 - 1));
         if mx == 0 && my == 0 {
             return MipView {
-                step: (1.0, 1.0),
+                step: (win.step as f64, win.step as f64),
                 c0: win.c0 as f64,
                 r0: win.r0 as f64,
                 w: win.w,
@@ -586,6 +588,8 @@ fn ceil(v: f64) -> i64 {
     i + i64::from((i as f64) < v)
 }
 
+/// Sample of `win` at (c, r): source pixel coordinates for a full window, or
+/// `c0 + sample index` for an averaged one (see `nearest`).
 fn sample(win: &Window, c: i64, r: i64, p: usize) -> f32 {
     let (cc, rr) = (c - win.c0, r - win.r0);
     if cc < 0 || rr < 0 || cc >= win.w as i64 || rr >= win.h as i64 {
@@ -595,7 +599,12 @@ fn sample(win: &Window, c: i64, r: i64, p: usize) -> f32 {
 }
 
 fn nearest(win: &Window, x: f64, y: f64, acc: &mut [f64]) -> bool {
-    let (c, r) = (x.floor() as i64, y.floor() as i64);
+    // in source pixels; an averaged window's samples cover step×step pixels
+    let k = win.step as i64;
+    let (c, r) = (
+        win.c0 + (floor(x) - win.c0).div_euclid(k),
+        win.r0 + (floor(y) - win.r0).div_euclid(k),
+    );
     if sample(win, c, r, 0).is_nan() {
         return false;
     }

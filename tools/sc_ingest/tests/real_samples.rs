@@ -604,3 +604,40 @@ fn feathering_fades_a_regional_source_into_what_is_there() {
     let (i, j) = texel_of(g, l, 10.5, 57.5);
     assert_eq!((s.get(i, j), h.get(i, j)), (1000.0, 1000.0));
 }
+
+#[test]
+fn a_raster_too_fine_for_one_read_is_read_averaged() {
+    // Luxembourg blown up to 12000×12000 pixels (144 M, more than one window may hold) onto
+    // level 2, where one texel covers the whole country
+    let dir = tempfile::tempdir().expect("tempdir");
+    let big = dir.path().join("big.tif");
+    let o = Command::new("gdal_translate")
+        .args([
+            "-q",
+            "-outsize",
+            "12000",
+            "12000",
+            "-r",
+            "nearest",
+            "-co",
+            "COMPRESS=DEFLATE",
+            "-co",
+            "TILED=YES",
+        ])
+        .arg(sample("terra_elev_luxembourg.tif"))
+        .arg(&big)
+        .output()
+        .expect("gdal_translate runs");
+    assert!(o.status.success());
+    let root = dir.path().join("b.zarr");
+    let l = LevelId::iso(2).expect("valid");
+    let mut inp = input("terra_elev_luxembourg.tif");
+    inp.path = big;
+    let s = ingest(
+        &root,
+        &[inp],
+        &settings(LayerKind::Height, LevelChoice::Fixed(l)),
+    );
+    let (lo, hi) = s.value_range.expect("data written");
+    assert!(lo >= 141.0 && hi <= 547.0, "{lo}..{hi}");
+}

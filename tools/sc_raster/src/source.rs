@@ -653,10 +653,7 @@ impl RasterSource {
             SampleRole::Color => 4,
         };
         if (w as u64) * (h as u64) > MAX_WINDOW {
-            return Err(RasterError::LimitsExceeded(format!(
-                "one output tile needs {w}x{h} source pixels (limit {MAX_WINDOW}); choose a finer --level for {}",
-                info.path.display()
-            )));
+            return self.read_region_averaged(c0, r0, w, h);
         }
         let mut planes = vec![vec![f32::NAN; w * h]; nplanes];
         // map every (row, col) of the region to a source (row, col) or None
@@ -691,6 +688,7 @@ impl RasterSource {
                 r0,
                 w,
                 h,
+                step: 1,
                 planes,
             });
         }
@@ -715,6 +713,7 @@ impl RasterSource {
                     r0,
                     w,
                     h,
+                    step: 1,
                     planes,
                 });
             }
@@ -751,6 +750,7 @@ impl RasterSource {
             r0,
             w,
             h,
+            step: 1,
             planes,
         })
     }
@@ -791,10 +791,84 @@ impl RasterSource {
 
     /// Reads a rectangle inside the raster, converting to planes with nodata as NaN.
     fn read_raw(&self, c0: i64, r0: i64, w: usize, h: usize) -> Result<Vec<Vec<f32>>> {
+        self.read_raw_into(c0, r0, w, h, (w, h))
+    }
+
+    /// A region too large to read whole (one output tile of a fine regional source on a coarse
+    /// level): read through GDAL averaged k×k (RasterIO's average resampling, nodata-aware) into
+    /// at most [`MAX_WINDOW`] samples. Wrapping or polar sources and EXR inputs are small enough
+    /// never to need it; they are refused.
+    fn read_region_averaged(&self, c0: i64, r0: i64, w: usize, h: usize) -> Result<Window> {
         let info = &self.info;
+        let wraps = info.lon_period_px.is_some()
+            || info.north_pole_y.is_some()
+            || info.south_pole_y.is_some();
+        let too_big = || {
+            RasterError::LimitsExceeded(format!(
+                "one output tile needs {w}x{h} source pixels (limit {MAX_WINDOW}); choose a finer --level for {}",
+                info.path.display()
+            ))
+        };
+        if wraps || !matches!(self.backend, Backend::Gdal(_)) {
+            return Err(too_big());
+        }
+        // the part inside the raster; everything outside is nodata anyway
+        let (x0, y0) = (c0.max(0), r0.max(0));
+        let (x1, y1) = (
+            (c0 + w as i64).min(info.width as i64),
+            (r0 + h as i64).min(info.height as i64),
+        );
+        let nplanes = match self.role {
+            SampleRole::Height => 1,
+            SampleRole::Color => 4,
+        };
+        if x0 >= x1 || y0 >= y1 {
+            return Ok(Window {
+                c0,
+                r0,
+                w: 1,
+                h: 1,
+                step: w.max(h),
+                planes: vec![vec![f32::NAN]; nplanes],
+            });
+        }
+        let (cw, ch) = ((x1 - x0) as usize, (y1 - y0) as usize);
+        let k = ((cw as f64 * ch as f64 / MAX_WINDOW as f64).sqrt().ceil() as usize).max(2);
+        // whole k×k blocks only, so that every sample covers exactly k×k pixels
+        let (bw, bh) = (cw / k, ch / k);
+        if bw == 0 || bh == 0 {
+            return Err(too_big());
+        }
+        let planes = self.read_raw_into(x0, y0, bw * k, bh * k, (bw, bh))?;
+        Ok(Window {
+            c0: x0,
+            r0: y0,
+            w: bw,
+            h: bh,
+            step: k,
+            planes,
+        })
+    }
+
+    /// Reads `[c0, c0+w) × [r0, r0+h)` into a `buf` = (columns, rows) buffer (averaged by GDAL
+    /// when smaller), converting to planes with nodata as NaN.
+    fn read_raw_into(
+        &self,
+        c0: i64,
+        r0: i64,
+        w: usize,
+        h: usize,
+        buf: (usize, usize),
+    ) -> Result<Vec<Vec<f32>>> {
+        let info = &self.info;
+        let (ow, oh) = buf;
         let path = &info.path;
         let read_band = |b: usize| -> Result<Vec<f32>> {
             match &self.backend {
+                Backend::Exr(_) if (ow, oh) != (w, h) => Err(RasterError::Usage(format!(
+                    "averaged reads of EXR inputs are not supported: {}",
+                    path.display()
+                ))),
                 Backend::Exr(data) => {
                     let mut v = Vec::with_capacity(w * h);
                     for r in 0..h {
@@ -810,7 +884,9 @@ impl RasterSource {
                 Backend::Gdal(ds) => {
                     let band = ds.rasterband(b).map_err(gdal_err(path))?;
                     let buf = serialized(is_serial(ds), || {
-                        band.read_as::<f32>((c0 as isize, r0 as isize), (w, h), (w, h), None)
+                        let alg =
+                            ((ow, oh) != (w, h)).then_some(gdal::raster::ResampleAlg::Average);
+                        band.read_as::<f32>((c0 as isize, r0 as isize), (w, h), (ow, oh), alg)
                     })
                     .map_err(|e| RasterError::Gdal {
                         detail: format!("reading pixels {c0},{r0} {w}x{h}: {e}"),
@@ -841,7 +917,7 @@ impl RasterSource {
                     .iter()
                     .map(|&b| read_band(b))
                     .collect::<Result<_>>()?;
-                let n = w * h;
+                let n = ow * oh;
                 let mut planes = vec![vec![0f32; n]; 4];
                 let stretch = |b: usize, v: f32| -> f32 {
                     let (a, o) = info.stretch.get(b).copied().unwrap_or((1.0, 0.0));
@@ -907,6 +983,9 @@ pub struct Window {
     pub w: usize,
     /// Rows.
     pub h: usize,
+    /// Source pixels per sample along each axis (1, or k when a huge region was read averaged
+    /// k×k: sample (q, p) then covers pixels [c0 + q·k, c0 + (q+1)·k) × [r0 + p·k, …)).
+    pub step: usize,
     /// Sample planes, row-major `w×h` each; NaN in plane 0 = no valid sample.
     pub planes: Vec<Vec<f32>>,
 }
