@@ -71,6 +71,17 @@ fn jinc(x: f64) -> f64 {
 }
 
 impl Kernel {
+    /// Every kernel.
+    pub const ALL: [Kernel; 7] = [
+        Kernel::Nearest,
+        Kernel::Bilinear,
+        Kernel::Cubic,
+        Kernel::Lanczos2,
+        Kernel::Lanczos3,
+        Kernel::Gauss,
+        Kernel::JincLanczos3,
+    ];
+
     /// Distance beyond which the weight is 0.
     pub fn support(self) -> f64 {
         match self {
@@ -260,14 +271,7 @@ mod tests {
 
     #[test]
     fn kernels_are_one_at_zero_and_zero_at_support() {
-        for k in [
-            Kernel::Bilinear,
-            Kernel::Cubic,
-            Kernel::Lanczos2,
-            Kernel::Lanczos3,
-            Kernel::Gauss,
-            Kernel::Nearest,
-        ] {
+        for k in Kernel::ALL {
             assert!((k.weight(0.0) - 1.0).abs() < 1e-12, "{k:?}");
             assert_eq!(k.weight(k.support()), 0.0, "{k:?}");
             assert_eq!(k.weight(k.support() + 1.0), 0.0, "{k:?}");
@@ -308,13 +312,8 @@ mod tests {
 
     #[test]
     fn tables_match_the_kernels() {
-        for k in [
-            Kernel::Bilinear,
-            Kernel::Cubic,
-            Kernel::Lanczos2,
-            Kernel::Lanczos3,
-            Kernel::Gauss,
-        ] {
+        // (nearest is a step at 0.5: no table interpolates a step)
+        for k in Kernel::ALL.into_iter().filter(|&k| k != Kernel::Nearest) {
             let lut = KernelLut::new(k);
             for i in 0..1000 {
                 let d = i as f64 * k.support() / 999.0;

@@ -192,26 +192,30 @@ fn bad_stores_get_one_line_errors() {
     assert_eq!(o.status.code(), Some(2), "clap rejects the level");
 }
 
-#[test]
-fn exported_geotiff_opens_in_gdalinfo_with_the_right_corners() {
-    let dir = tempfile::tempdir().expect("tempdir");
-    let root = make_store(dir.path());
-    let out = dir.path().join("l2.tif");
+/// Exports `level` of `root` to a GeoTIFF and returns `gdalinfo -json` of it.
+fn export_and_gdalinfo(root: &Path, level: &str, out: &Path) -> serde_json::Value {
     let o = run(&[
         "export",
         root.to_str().expect("utf8"),
         "--level",
-        "2",
+        level,
         out.to_str().expect("utf8"),
     ]);
     assert!(o.status.success(), "{}", text(&o.stderr));
     let g = Command::new("gdalinfo")
         .arg("-json")
-        .arg(&out)
+        .arg(out)
         .output()
         .expect("gdalinfo is installed (make test installs gdal-bin)");
     assert!(g.status.success());
-    let v: serde_json::Value = serde_json::from_slice(&g.stdout).expect("json");
+    serde_json::from_slice(&g.stdout).expect("json")
+}
+
+#[test]
+fn exported_geotiff_opens_in_gdalinfo_with_the_right_corners() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let root = make_store(dir.path());
+    let v = export_and_gdalinfo(&root, "2", &dir.path().join("l2.tif"));
     let cc = &v["cornerCoordinates"];
     assert_eq!(cc["upperLeft"], serde_json::json!([-180.0, 90.0]));
     assert_eq!(cc["lowerRight"], serde_json::json!([180.0, -90.0]));
@@ -223,22 +227,12 @@ fn exported_geotiff_opens_in_gdalinfo_with_the_right_corners() {
             .contains("4326")
     );
     // anisotropic level: half the columns, same corners
-    let out = dir.path().join("l2a1.tif");
-    let o = run(&[
-        "export",
-        root.to_str().expect("utf8"),
-        "--level",
-        "2,1",
-        out.to_str().expect("utf8"),
-    ]);
-    assert!(o.status.success(), "{}", text(&o.stderr));
-    let g = Command::new("gdalinfo")
-        .arg("-json")
-        .arg(&out)
-        .output()
-        .expect("gdalinfo");
-    let v: serde_json::Value = serde_json::from_slice(&g.stdout).expect("json");
+    let v = export_and_gdalinfo(&root, "2,1", &dir.path().join("l2a1.tif"));
     assert_eq!(v["size"], serde_json::json!([128, 128]));
+    assert_eq!(
+        v["cornerCoordinates"]["upperLeft"],
+        serde_json::json!([-180.0, 90.0])
+    );
     assert_eq!(
         v["cornerCoordinates"]["lowerRight"],
         serde_json::json!([180.0, -90.0])
