@@ -61,7 +61,19 @@ fn texel_map(src: &dyn PixelSource, grid: GridSpec, tile: TileId, kernel: Kernel
     let n = t + 2;
     // texel centres with a one-texel margin, for finite-difference Jacobians
     let lon_of = |i: usize| -180.0 + (ox as f64 + i as f64 - 0.5) * dlon_deg;
-    let lat_of = |j: usize| 90.0 - (oy as f64 + j as f64 - 0.5) * dlat_deg;
+    // a pole row holds the value at the pole itself (a pole is one point: its row is constant,
+    // as in `sc_core::reference`); margin row j sits at level row oy + j − 1
+    let last_row = grid.height(level) as f64 - 1.0;
+    let lat_of = |j: usize| {
+        let row = oy as f64 + j as f64 - 1.0;
+        if row == 0.0 {
+            90.0
+        } else if row == last_row {
+            -90.0
+        } else {
+            90.0 - (row + 0.5) * dlat_deg
+        }
+    };
     let lats: Vec<f64> = (0..n)
         .flat_map(|j| std::iter::repeat_n(lat_of(j), n))
         .collect();
@@ -264,8 +276,35 @@ pub fn resample_tile(
     let mut acc = vec![0f64; nplanes];
     let mut mips = Mips::default();
     let mut rows = RowWeights::default();
+    // pole rows: one value for the whole row, the circle around the pole averaged row by row
+    let (_, oy) = tile.origin_texel(grid);
+    let last_row = grid.height(tile.level) - 1;
+    let mut pole_values: [Option<Option<Vec<f64>>>; 2] = [None, None];
     for k in 0..t * t {
         let (x, y) = (map.x[k], map.y[k]);
+        let row = oy + (k / t) as u64;
+        let pole = match row {
+            0 if info.north_pole_y.is_some() && info.lon_period_px.is_some() => Some(0),
+            r if r == last_row && info.south_pole_y.is_some() && info.lon_period_px.is_some() => {
+                Some(1)
+            }
+            _ => None,
+        };
+        if let Some(p) = pole {
+            let sy = map.foot[k]
+                .and_then(|f| f.axis_scales())
+                .map_or(1.0, |s| s.1);
+            let v = pole_values[p].get_or_insert_with(|| {
+                pole_value(&win, lut, y, sy, info.lon_period_px.unwrap_or(1.0))
+            });
+            if let Some(v) = v {
+                for (pl, val) in v.iter().enumerate() {
+                    out[pl][k] = *val as f32;
+                }
+                any = true;
+            }
+            continue;
+        }
         if !x.is_finite() {
             continue;
         }
@@ -572,6 +611,47 @@ fn separable(
     }
     acc.iter_mut().for_each(|a| *a /= wsum);
     true
+}
+
+/// The filtered value at a pole of a wrapping source: each window row within the footprint's
+/// reach is averaged over one full period of longitude (the circle around the pole), and the rows
+/// are weighted by the kernel of their distance from the pole. `None` without enough valid data.
+fn pole_value(win: &Window, lut: &KernelLut, y: f64, sy: f64, period: f64) -> Option<Vec<f64>> {
+    let s = lut.kernel().support();
+    let p = (period.floor() as usize).min(win.w);
+    if p == 0 || win.step != 1 {
+        return None;
+    }
+    let np = win.planes.len();
+    let (mut acc, mut wsum, mut wall) = (vec![0f64; np], 0.0, 0.0);
+    for r in ceil(y - 0.5 - s * sy)..=floor(y - 0.5 + s * sy) {
+        let w = lut.weight((r as f64 + 0.5 - y) / sy);
+        wall += w.max(0.0);
+        let rr = r - win.r0;
+        if w == 0.0 || rr < 0 || rr >= win.h as i64 {
+            continue;
+        }
+        let base = rr as usize * win.w;
+        let mut sums = vec![0f64; np];
+        let mut n = 0usize;
+        for c in 0..p {
+            if win.planes[0][base + c].is_nan() {
+                continue;
+            }
+            n += 1;
+            for (pl, sum) in sums.iter_mut().enumerate() {
+                *sum += f64::from(win.planes[pl][base + c]);
+            }
+        }
+        if 2 * n < p {
+            continue;
+        }
+        for (a, sum) in acc.iter_mut().zip(&sums) {
+            *a += w * sum / n as f64;
+        }
+        wsum += w;
+    }
+    (wall > 0.0 && wsum >= MIN_COVERAGE * wall).then(|| acc.into_iter().map(|a| a / wsum).collect())
 }
 
 /// `floor` without a libm call (the values here are far inside i64).
