@@ -122,13 +122,6 @@ pub struct Plan {
     pub hash: String,
 }
 
-impl Plan {
-    /// Tiles the run touches.
-    pub fn tile_count(&self) -> u64 {
-        self.shards.values().map(|t| t.len() as u64).sum()
-    }
-}
-
 /// What a run did.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
 pub struct Summary {

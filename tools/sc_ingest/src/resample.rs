@@ -74,9 +74,6 @@ fn texel_map(src: &dyn PixelSource, grid: GridSpec, tile: TileId, kernel: Kernel
             90.0 - (row + 0.5) * dlat_deg
         }
     };
-    let lats: Vec<f64> = (0..n)
-        .flat_map(|j| std::iter::repeat_n(lat_of(j), n))
-        .collect();
     let (mut xs, mut ys);
     if info.geographic {
         // x depends on the column only and y on the row only: transform n points, not n²
@@ -128,7 +125,7 @@ fn texel_map(src: &dyn PixelSource, grid: GridSpec, tile: TileId, kernel: Kernel
     };
     let deg = 180.0 / std::f64::consts::PI;
     let coslats: Vec<f64> = (0..n)
-        .map(|j| lats[j * n].to_radians().cos().max(1e-12))
+        .map(|j| lat_of(j).to_radians().cos().max(1e-12))
         .collect();
     let at = |i: usize, j: usize| (xs[j * n + i], ys[j * n + i]);
     #[allow(clippy::needless_range_loop)] // j indexes the padded grid and coslats alike

@@ -147,19 +147,12 @@ impl StoreReader {
     pub fn shard_path(&self, kind: LayerKind, tile: TileId) -> Result<PathBuf> {
         let lr = self.level(kind, tile.level)?;
         let shard = tile.shard(self.inner.meta.shard_tiles);
-        let mut idx = vec![shard.y, shard.x];
-        if kind.channels() > 1 {
-            idx.push(0);
-        }
+        let idx = kind.chunk_indices(shard.x, shard.y);
         Ok(self.inner.root.join(lr.array.chunk_key(&idx).as_str()))
     }
 
     pub(crate) fn tile_indices(kind: LayerKind, tile: TileId) -> Vec<u64> {
-        let mut v = vec![tile.y, tile.x];
-        if kind.channels() > 1 {
-            v.push(0);
-        }
-        v
+        kind.chunk_indices(tile.x, tile.y)
     }
 
     /// Whether the store holds `tile` (reads the shard index once per shard, then cached).

@@ -55,6 +55,16 @@ impl LayerKind {
         }
     }
 
+    /// Zarr chunk indices of tile or shard (`x`, `y`) in this layer's arrays: `[y, x]`, plus the
+    /// band axis (always one chunk) for multi-channel layers.
+    pub(crate) fn chunk_indices(self, x: u64, y: u64) -> Vec<u64> {
+        if self.channels() > 1 {
+            vec![y, x, 0]
+        } else {
+            vec![y, x]
+        }
+    }
+
     pub(crate) fn data_type(self) -> DataType {
         match self {
             LayerKind::Height => data_type::float32(),

@@ -344,7 +344,7 @@ impl StoreWriter {
                 "{kind} {shard} already has a writer"
             )));
         }
-        let indices = shard_indices(kind, shard);
+        let indices = kind.chunk_indices(shard.x, shard.y);
         let shard_path = self.root.join(arrays.read.chunk_key(&indices).as_str());
         let t = self.lock_meta().shard_tiles;
         if let Err(detail) = crate::shard_index::ShardIndex::read(&shard_path, (t * t) as usize) {
@@ -450,14 +450,6 @@ fn remove_stale_temp_files(dir: &Path) {
     }
 }
 
-fn shard_indices(kind: LayerKind, shard: ShardId) -> Vec<u64> {
-    let mut v = vec![shard.y, shard.x];
-    if kind.channels() > 1 {
-        v.push(0);
-    }
-    v
-}
-
 /// Writer of one shard. Put tiles, then [`ShardWriter::finish`]; dropping it unfinished discards
 /// the changes and leaves the shard on disk as it was.
 pub struct ShardWriter<'w, T: TileSample> {
@@ -559,7 +551,7 @@ impl<T: TileSample> ShardWriter<'_, T> {
 
     /// Encodes the shard and replaces its file atomically and durably.
     pub fn finish(mut self) -> Result<()> {
-        let indices = shard_indices(T::KIND, self.shard);
+        let indices = T::KIND.chunk_indices(self.shard.x, self.shard.y);
         let samples = std::mem::take(&mut self.samples);
         // one thread per shard: zarrs places concurrently encoded tiles in completion order, which
         // would make a shard's bytes differ run to run (parallelism lives one level up, per shard)
