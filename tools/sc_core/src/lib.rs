@@ -8,9 +8,11 @@
 //! - column 0 starts at −180°, row 0 at +90°; texel (i, j) spans `[i, i+1) × [j, j+1)` in
 //!   fractional texel coordinates and its centre is at `(i+½, j+½)`.
 
+pub mod color;
 mod grid;
 mod kernel;
 mod level;
+pub mod pyramid;
 pub mod reference;
 pub mod signal;
 mod tile;

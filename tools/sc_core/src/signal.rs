@@ -81,3 +81,128 @@ impl PlaneWaves {
             .collect()
     }
 }
+
+/// The 10° latitude bands of the quality metrics (|lat|, degrees), with the polar caps split finer.
+pub const QUALITY_BANDS: [(f64, f64); 12] = [
+    (0.0, 10.0),
+    (10.0, 20.0),
+    (20.0, 30.0),
+    (30.0, 40.0),
+    (40.0, 50.0),
+    (50.0, 60.0),
+    (60.0, 70.0),
+    (70.0, 80.0),
+    (80.0, 85.0),
+    (85.0, 88.0),
+    (88.0, 89.5),
+    (89.5, 90.01),
+];
+
+/// One latitude band's score: an RMS relative to the signal's amplitude RMS, and how many texels
+/// it is over (0: nothing measured there).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct BandScore {
+    /// Lower |lat| of the band, degrees.
+    pub lat0: f64,
+    /// Upper |lat| of the band, degrees.
+    pub lat1: f64,
+    /// Relative RMS.
+    pub rms: f64,
+    /// Texels measured.
+    pub texels: u64,
+}
+
+/// Stop-band residual of one wave (unit amplitude) after filtering onto `level`: the RMS of
+/// `values` per band relative to the wave's RMS (1/√2), over texels where the wave's local
+/// frequency `ω·sin∠(p, ±d)` stays at least `2×` the level's Nyquist over a footprint of radius
+/// `reach_rad` (a plane wave is low-frequency near ±d: there it belongs in the pass band). NaN
+/// texels are skipped; pole rows count at the pole.
+pub fn stop_band_residual(
+    grid: GridSpec,
+    level: LevelId,
+    values: &[f64],
+    wave: &Wave,
+    reach_rad: f64,
+    bands: &[(f64, f64)],
+) -> Vec<BandScore> {
+    let nyq = nyquist(grid, level);
+    let min_angle = if wave.omega > 2.0 * nyq {
+        (2.0 * nyq / wave.omega).asin() + reach_rad
+    } else {
+        std::f64::consts::PI
+    };
+    let d = wave.dir;
+    band_rms(grid, level, values, bands, &|p, v| {
+        let u = p.to_unit_vector();
+        let c = (u[0] * d[0] + u[1] * d[1] + u[2] * d[2]).abs().min(1.0);
+        (c.acos() >= min_angle).then_some(v / wave.amp)
+    })
+    .into_iter()
+    .map(|b| BandScore {
+        rms: b.rms / 0.5f64.sqrt(),
+        ..b
+    })
+    .collect()
+}
+
+/// Pass-band error: RMS of `values − signal` per band relative to the amplitude RMS of the waves
+/// (√(Σa²/2)); pole rows compare with the signal at the pole.
+pub fn pass_band_error(
+    grid: GridSpec,
+    level: LevelId,
+    values: &[f64],
+    signal: &PlaneWaves,
+    bands: &[(f64, f64)],
+) -> Vec<BandScore> {
+    let amp = (signal.waves.iter().map(|w| w.amp * w.amp).sum::<f64>() / 2.0).sqrt();
+    band_rms(grid, level, values, bands, &|p, v| {
+        Some((v - signal.eval(p)) / amp)
+    })
+}
+
+fn band_rms(
+    grid: GridSpec,
+    level: LevelId,
+    values: &[f64],
+    bands: &[(f64, f64)],
+    term: &dyn Fn(LonLat, f64) -> Option<f64>,
+) -> Vec<BandScore> {
+    let (w, h) = (grid.width(level), grid.height(level));
+    let mut acc = vec![(0.0f64, 0u64); bands.len()];
+    for j in 0..h {
+        let lat = grid.texel_centre(level, 0, j).lat_deg;
+        let Some(b) = bands
+            .iter()
+            .position(|&(a, b)| lat.abs() >= a && lat.abs() < b)
+        else {
+            continue;
+        };
+        for i in 0..w {
+            let v = values[(j * w + i) as usize];
+            if v.is_nan() {
+                continue;
+            }
+            let p = if j == 0 {
+                LonLat::new(0.0, 90.0)
+            } else if j + 1 == h {
+                LonLat::new(0.0, -90.0)
+            } else {
+                grid.texel_centre(level, i, j)
+            };
+            if let Some(x) = term(p, v) {
+                acc[b].0 += x * x;
+                acc[b].1 += 1;
+            }
+        }
+    }
+    bands
+        .iter()
+        .zip(acc)
+        .map(|(&(lat0, lat1), (s, n))| BandScore {
+            lat0,
+            lat1,
+            rms: if n > 0 { (s / n as f64).sqrt() } else { 0.0 },
+            texels: n,
+        })
+        .collect()
+}

@@ -11,12 +11,13 @@
 mod export;
 mod source;
 
+pub use sc_core::color::{linear_to_srgb, srgb_to_linear};
 use std::path::PathBuf;
 
 pub use export::{EXR_MAX_TEXELS, ExportSummary, export_exr, export_geotiff};
 pub use source::{
     LonLatBox, MAX_CACHED_SAMPLES, MAX_PIXELS, MAX_SIDE, MAX_WINDOW, RasterSource, SampleCache,
-    SampleRole, SourceInfo, SourceOptions, Window, linear_to_srgb, quiet_gdal, srgb_to_linear,
+    SampleRole, SourceInfo, SourceOptions, Window, quiet_gdal,
 };
 
 /// Errors of raster IO. One line each, path last.

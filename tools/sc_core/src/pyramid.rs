@@ -1,0 +1,854 @@
+//! The pyramid's filters, in plain Rust (the CPU reference every faster path is tested against).
+//!
+//! **Isotropic level ℓ from level ℓ+1.** An output texel is the normalised sum of source samples
+//! weighted by a kernel of their great-circle distance (unit: ℓ's isotropic spacing ρ = π/H) times
+//! the samples' area. A naïve sum touches whole source rows near the poles (the kernel's circle
+//! spans 1/cos(lat) more longitude there). The construction that bounds the cost:
+//!
+//! 1. Every source row is read at its *natural* longitude resolution: decimated by 2^a' with
+//!    `2^a'·cos(lat') ≤ 1`, so its samples are still no farther apart on the ground than the
+//!    source's isotropic spacing (it loses nothing the sphere can show at that level). The
+//!    decimation halves longitude with a 12-tap Lanczos3 filter, starting from the coarsest stored
+//!    anisotropic level (ℓ+1, a) with a ≤ a' — the cascade: a polar row is never read at full
+//!    width. The error this makes: each halving attenuates the band it keeps by < 1 % below half
+//!    its new Nyquist frequency, which is above anything the output keeps.
+//! 2. Every output row is computed at its natural resolution too (`2^a_o·cos(lat) ≤ ½`, so the
+//!    kernel's pass band sits below half the row's Nyquist), then interpolated to the stored width
+//!    with Lanczos3 (error < 1 % in that band). Pole rows are the filtered value at the pole itself.
+//! 3. Between a natural output row and a natural source row the sample spacings differ by a power
+//!    of two, so the weights repeat along the row: one small table per (output row, source row,
+//!    phase), great-circle distances evaluated once per table, not per texel.
+//!
+//! Each output sample thus costs ≈ π·(support·ρ)² / (source spacing)² taps, at every latitude.
+//!
+//! **Anisotropic level (ℓ, a) from (ℓ, a−1)**: longitude halved by the same 12-tap filter, only on
+//! the tile rows the grid stores. Level ℓ is already band-limited to what the sphere supports, and
+//! where (ℓ, a) is stored (2^a·cos(lat) ≤ 1 at the poleward edge) its longitude spacing is no
+//! coarser than the isotropic one, so halving loses nothing there.
+//!
+//! Values travel premultiplied by coverage: `v·c` per channel and `c` (1 valid, 0 nodata; colour
+//! alpha), so nodata gets zero weight and every step renormalises over valid samples.
+
+use std::collections::HashMap;
+use std::f64::consts::PI;
+use std::rc::Rc;
+
+use crate::{GridSpec, Kernel, KernelLut, LevelId};
+
+/// Half-width of the halving filter in fine samples (12 taps).
+pub const HALVE_R: i64 = 6;
+/// Half-width of the Lanczos3 interpolator in coarse samples (6 taps).
+const UP_R: i64 = 3;
+
+/// Fraction of a footprint's weight that must fall on valid samples for a valid height.
+pub const MIN_COVERAGE: f64 = 0.5;
+
+/// A window of a periodic row of `n` samples: `ch` channels of premultiplied values and the
+/// coverage, for samples `first .. first + len` (indices taken modulo `n`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RowWindow {
+    /// Samples in the whole row (the period).
+    pub n: u64,
+    /// Index of the window's first sample (may lie outside `0..n`; the row is periodic).
+    pub first: i64,
+    /// Channels.
+    pub ch: usize,
+    /// Premultiplied values, `len × ch`.
+    pub v: Vec<f64>,
+    /// Coverage per sample.
+    pub c: Vec<f64>,
+    /// Whether every coverage is exactly 1 (lets the filters skip coverage sums).
+    pub full: bool,
+}
+
+impl RowWindow {
+    /// A window with every sample zero (no coverage).
+    pub fn empty(n: u64, first: i64, len: usize, ch: usize) -> Self {
+        Self {
+            n,
+            first,
+            ch,
+            v: vec![0.0; len * ch],
+            c: vec![0.0; len],
+            full: false,
+        }
+    }
+
+    /// Samples in the window.
+    pub fn len(&self) -> usize {
+        self.c.len()
+    }
+
+    /// Whether the window holds no sample.
+    pub fn is_empty(&self) -> bool {
+        self.c.is_empty()
+    }
+
+    /// Whether the window covers the whole period.
+    pub fn is_whole(&self) -> bool {
+        self.len() as u64 >= self.n
+    }
+
+    fn index(&self, m: i64) -> usize {
+        if self.is_whole() {
+            (m - self.first).rem_euclid(self.n as i64) as usize
+        } else {
+            let k = m - self.first;
+            debug_assert!(
+                k >= 0 && (k as usize) < self.len(),
+                "sample {m} outside window"
+            );
+            k as usize
+        }
+    }
+
+    /// The samples `m0..m1` as a contiguous window (periodic: a whole-row window serves any range).
+    pub fn sub(&self, m0: i64, m1: i64) -> RowWindow {
+        if m0 == self.first && (m1 - m0) as usize == self.len() {
+            return self.clone();
+        }
+        let len = (m1 - m0).max(0) as usize;
+        let ch = self.ch;
+        let mut out = RowWindow::empty(self.n, m0, len, ch);
+        out.full = self.full;
+        for (k, m) in (m0..m1).enumerate() {
+            let s = self.index(m);
+            out.v[k * ch..(k + 1) * ch].copy_from_slice(&self.v[s * ch..(s + 1) * ch]);
+            out.c[k] = self.c[s];
+        }
+        out
+    }
+}
+
+/// Lanczos3 at half-integer offsets, scaled ×2: the halving filter, normalised.
+fn halving_taps() -> [f64; 2 * HALVE_R as usize] {
+    let mut h = [0.0; 2 * HALVE_R as usize];
+    for (u, w) in h.iter_mut().enumerate() {
+        *w = Kernel::Lanczos3.weight((u as f64 - HALVE_R as f64 + 0.5) / 2.0);
+    }
+    let s: f64 = h.iter().sum();
+    h.iter_mut().for_each(|w| *w /= s);
+    h
+}
+
+/// Fine samples [`halve`] needs to make coarse samples `m0..m1`.
+pub fn halve_needs(m0: i64, m1: i64) -> (i64, i64) {
+    (2 * m0 - HALVE_R + 1, 2 * m1 + HALVE_R - 1)
+}
+
+/// Halves a periodic row (n even): coarse sample m (centre between fine 2m and 2m+1) for
+/// `m0..m1`. `src` must cover [`halve_needs`]`(m0, m1)` or the whole row.
+pub fn halve(src: &RowWindow, m0: i64, m1: i64) -> RowWindow {
+    let h = halving_taps();
+    let (f0, f1) = halve_needs(m0, m1);
+    let s = src.sub(f0, f1);
+    let ch = s.ch;
+    let len = (m1 - m0).max(0) as usize;
+    let mut out = RowWindow::empty(src.n / 2, m0, len, ch);
+    out.full = s.full;
+    for k in 0..len {
+        let base = 2 * k; // fine index of tap 0 within s
+        let mut c = 0.0;
+        for (u, &w) in h.iter().enumerate() {
+            c += w * s.c[base + u];
+            for q in 0..ch {
+                out.v[k * ch + q] += w * s.v[(base + u) * ch + q];
+            }
+        }
+        out.c[k] = if s.full { 1.0 } else { c };
+    }
+    out
+}
+
+/// Coarse samples [`upsample`] by `u` needs to make fine samples `i0..i1`.
+pub fn upsample_needs(u: u64, i0: i64, i1: i64) -> (i64, i64) {
+    let x = |i: i64| ((2 * i + 1 - u as i64) as f64 / (2 * u) as f64).floor() as i64;
+    (x(i0) - UP_R + 1, x(i1 - 1) + UP_R + 1)
+}
+
+/// Interpolates a periodic row `u` times finer (u a power of two) with Lanczos3: fine samples
+/// `i0..i1`. `src` must cover [`upsample_needs`] or the whole row.
+pub fn upsample(src: &RowWindow, u: u64, i0: i64, i1: i64) -> RowWindow {
+    if u == 1 {
+        return src.sub(i0, i1);
+    }
+    let (m0, m1) = upsample_needs(u, i0, i1);
+    let s = src.sub(m0, m1);
+    let ch = s.ch;
+    let len = (i1 - i0).max(0) as usize;
+    let mut out = RowWindow::empty(src.n * u, i0, len, ch);
+    out.full = s.full;
+    // weights per phase i mod u
+    let phases: Vec<(i64, [f64; 2 * UP_R as usize])> = (0..u as i64)
+        .map(|p| {
+            let x = (2 * p + 1 - u as i64) as f64 / (2 * u) as f64;
+            let fl = x.floor();
+            let mut w = [0.0; 2 * UP_R as usize];
+            for (t, wt) in w.iter_mut().enumerate() {
+                let m = fl - UP_R as f64 + 1.0 + t as f64;
+                *wt = Kernel::Lanczos3.weight(x - m);
+            }
+            let sum: f64 = w.iter().sum();
+            w.iter_mut().for_each(|x| *x /= sum);
+            (fl as i64 - UP_R + 1, w)
+        })
+        .collect();
+    for (k, i) in (i0..i1).enumerate() {
+        let (p, q) = (i.rem_euclid(u as i64), i.div_euclid(u as i64));
+        let (off, w) = &phases[p as usize];
+        let base = (q + off - m0) as usize;
+        let mut c = 0.0;
+        for (t, &wt) in w.iter().enumerate() {
+            c += wt * s.c[base + t];
+            for ch_i in 0..ch {
+                out.v[k * ch + ch_i] += wt * s.v[(base + t) * ch + ch_i];
+            }
+        }
+        out.c[k] = if s.full { 1.0 } else { c };
+    }
+    out
+}
+
+/// Natural decimation of a source row: the largest `a'` with `2^a'·cos(lat) ≤ 1` (at most
+/// `max`).
+pub fn source_natural_aniso(lat_rad: f64, max: u32) -> u32 {
+    let c = lat_rad.cos();
+    if c <= 0.0 {
+        return max;
+    }
+    ((1.0 / c).log2().floor().max(0.0) as u32).min(max)
+}
+
+/// Natural decimation of an output row: the largest `a_o` with `2^a_o·cos(lat) ≤ ½` (0 where
+/// cos(lat) > ½), at most `max`.
+pub fn output_natural_aniso(lat_rad: f64, max: u32) -> u32 {
+    let c = lat_rad.cos();
+    if c <= 0.0 {
+        return max;
+    }
+    ((0.5 / c).log2().floor().max(0.0) as u32).min(max)
+}
+
+/// Latitude (radians) of the centre of row `j` of a level with `h` rows.
+pub fn row_lat(j: u64, h: u64) -> f64 {
+    PI / 2.0 - (j as f64 + 0.5) * PI / h as f64
+}
+
+/// Area of a texel band of row `j` (of `h` rows) per radian of longitude, relative:
+/// `sin(north) − sin(south)` over the band's angular height.
+pub fn row_band_area(j: u64, h: u64) -> f64 {
+    let d = PI / h as f64;
+    let l = row_lat(j, h);
+    ((l + d / 2.0).sin() - (l - d / 2.0).sin()) / d
+}
+
+fn hav(x: f64) -> f64 {
+    let s = (x / 2.0).sin();
+    s * s
+}
+
+/// One phase of the weights between an output row and a source row.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Phase {
+    /// First source sample of output column `P·kk + phase`, minus `Qs·kk`.
+    pub b: i64,
+    /// Weights of consecutive source samples.
+    pub w: Vec<f64>,
+    /// Their sum.
+    pub wsum: f64,
+}
+
+/// Weights of one source row for every column of one output row (natural resolutions): output
+/// column `k = P·kk + ph` takes source samples `Qs·kk + b_ph + t`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PairTaps {
+    /// Output columns per period of the weights.
+    pub p: i64,
+    /// Source samples per period.
+    pub qs: i64,
+    /// The phases.
+    pub phases: Vec<Phase>,
+}
+
+impl PairTaps {
+    /// Weights between output row at latitude `lat` with `n_out` samples and source row at `lat_s`
+    /// with `n_src` samples (row counts are powers of two times the same base, or `n_out` = 1 for
+    /// a pole), for a kernel of unit `rho` radians. `area` is the source row's relative band area.
+    /// `None` when the source row is out of reach.
+    pub fn new(
+        lut: &KernelLut,
+        rho: f64,
+        (lat, n_out): (f64, u64),
+        (lat_s, n_src): (f64, u64),
+        area: f64,
+    ) -> Option<Self> {
+        let reach = lut.support2().sqrt() * rho;
+        let dphi = (lat - lat_s).abs();
+        if dphi >= reach {
+            return None;
+        }
+        let cc = lat.cos().max(0.0) * lat_s.cos().max(0.0);
+        let ratio = if cc <= 1e-300 {
+            2.0
+        } else {
+            (hav(reach) - hav(dphi)) / cc
+        };
+        let whole = ratio >= 1.0;
+        let dlon_max = if whole { PI } else { 2.0 * ratio.sqrt().asin() };
+        let (p, qs) = if n_src >= n_out {
+            (1, (n_src / n_out) as i64)
+        } else {
+            ((n_out / n_src) as i64, 1)
+        };
+        let step = 2.0 * PI / n_src as f64;
+        let per_sample = area / n_src as f64;
+        let phases = (0..p)
+            .map(|ph| {
+                // centre of output column ph (kk = 0) in source sample coordinates
+                let o = (ph as f64 + 0.5) * n_src as f64 / n_out as f64 - 0.5;
+                let (b, len) = if whole {
+                    let b = (o - n_src as f64 / 2.0).ceil() as i64;
+                    (b, n_src as i64)
+                } else {
+                    let r = dlon_max / step;
+                    let b = (o - r).ceil() as i64;
+                    let e = (o + r).floor() as i64;
+                    (b, (e - b + 1).clamp(0, n_src as i64))
+                };
+                let w: Vec<f64> = (0..len)
+                    .map(|t| {
+                        let dlon = (b + t) as f64 - o;
+                        let h = hav(dphi) + cc * hav(dlon * step);
+                        let d = 2.0 * h.clamp(0.0, 1.0).sqrt().asin();
+                        lut.weight(d / rho) * per_sample
+                    })
+                    .collect();
+                let wsum = w.iter().sum();
+                Phase { b, w, wsum }
+            })
+            .collect::<Vec<Phase>>();
+        // every phase gives the row the same total weight (the kernel's integral along the
+        // parallel, sampled at different offsets, varies slightly): otherwise a field that
+        // depends on latitude only would pick up a longitude pattern of period P
+        let mut phases = phases;
+        let mean = phases.iter().map(|p| p.wsum).sum::<f64>() / phases.len() as f64;
+        for ph in &mut phases {
+            if ph.wsum.abs() > 1e-300 && ph.wsum != mean {
+                let f = mean / ph.wsum;
+                ph.w.iter_mut().for_each(|w| *w *= f);
+                ph.wsum = ph.w.iter().sum();
+            }
+        }
+        Some(Self { p, qs, phases })
+    }
+
+    /// Source samples needed for output columns `k0..k1`.
+    pub fn needs(&self, k0: i64, k1: i64) -> (i64, i64) {
+        let mut lo = i64::MAX;
+        let mut hi = i64::MIN;
+        for k in (k0..k1)
+            .take(self.p as usize)
+            .chain((k0..k1).rev().take(self.p as usize))
+        {
+            let ph = &self.phases[k.rem_euclid(self.p) as usize];
+            let s = self.qs * k.div_euclid(self.p) + ph.b;
+            lo = lo.min(s);
+            hi = hi.max(s + ph.w.len() as i64);
+        }
+        (lo, hi.max(lo))
+    }
+}
+
+/// Sums of one natural output row being filtered: premultiplied values, coverage and weight.
+#[derive(Debug, Clone)]
+pub struct RowAcc {
+    /// Output columns `first..first + len` of a row of `n`.
+    pub n: u64,
+    /// First column.
+    pub first: i64,
+    /// Channels.
+    pub ch: usize,
+    v: Vec<f64>,
+    c: Vec<f64>,
+    w: Vec<f64>,
+}
+
+impl RowAcc {
+    /// Empty sums for columns `k0..k1` of a row of `n`.
+    pub fn new(n: u64, k0: i64, k1: i64, ch: usize) -> Self {
+        let len = (k1 - k0).max(0) as usize;
+        Self {
+            n,
+            first: k0,
+            ch,
+            v: vec![0.0; len * ch],
+            c: vec![0.0; len],
+            w: vec![0.0; len],
+        }
+    }
+
+    /// Adds one source row (`src` must cover `taps.needs(first, first + len)`).
+    pub fn add(&mut self, taps: &PairTaps, src: &RowWindow) {
+        let ch = self.ch;
+        let (k0, k1) = (self.first, self.first + self.w.len() as i64);
+        let (m0, m1) = taps.needs(k0, k1);
+        let s = src.sub(m0, m1);
+        for (k, kx) in (k0..k1).enumerate() {
+            let ph = &taps.phases[kx.rem_euclid(taps.p) as usize];
+            let base = (taps.qs * kx.div_euclid(taps.p) + ph.b - m0) as usize;
+            let n = ph.w.len();
+            self.w[k] += ph.wsum;
+            if ch == 1 {
+                self.v[k] += dot(&ph.w, &s.v[base..base + n]);
+            } else {
+                for (t, &wt) in ph.w.iter().enumerate() {
+                    for q in 0..ch {
+                        self.v[k * ch + q] += wt * s.v[(base + t) * ch + q];
+                    }
+                }
+            }
+            self.c[k] += if s.full {
+                ph.wsum
+            } else {
+                dot(&ph.w, &s.c[base..base + n])
+            };
+        }
+    }
+
+    /// The filtered row: premultiplied values and coverage divided by the weight (a column with
+    /// no weight has no coverage).
+    pub fn finish(self) -> RowWindow {
+        let ch = self.ch;
+        let mut out = RowWindow::empty(self.n, self.first, self.w.len(), ch);
+        let mut full = true;
+        for (k, &w) in self.w.iter().enumerate() {
+            if w.abs() > 1e-300 {
+                for q in 0..ch {
+                    out.v[k * ch + q] = self.v[k * ch + q] / w;
+                }
+                out.c[k] = self.c[k] / w;
+            }
+            full &= out.c[k] == 1.0;
+        }
+        out.full = full;
+        out
+    }
+}
+
+/// Dot product in four interleaved partial sums (a fixed order: results do not depend on the
+/// machine or the thread count).
+#[inline]
+fn dot(w: &[f64], x: &[f64]) -> f64 {
+    let mut s = [0.0f64; 4];
+    let (wc, wr) = w.split_at(w.len() / 4 * 4);
+    let (xc, xr) = x.split_at(wc.len());
+    for (a, b) in wc.chunks_exact(4).zip(xc.chunks_exact(4)) {
+        s[0] += a[0] * b[0];
+        s[1] += a[1] * b[1];
+        s[2] += a[2] * b[2];
+        s[3] += a[3] * b[3];
+    }
+    let mut r = (s[0] + s[1]) + (s[2] + s[3]);
+    for (a, b) in wr.iter().zip(xr) {
+        r += a * b;
+    }
+    r
+}
+
+/// Where the rows of one level come from: the stored representations of a level (isotropic and
+/// anisotropic), read as windows of periodic rows.
+pub trait StoredRows {
+    /// Error of reading.
+    type Error;
+    /// Rows of the level.
+    fn height(&self) -> u64;
+    /// Samples in a row of anisotropy `a`.
+    fn width(&self, a: u32) -> u64;
+    /// The largest stored anisotropy ≤ `a` that holds row `j`.
+    fn best_stored(&self, j: u64, a: u32) -> u32;
+    /// Samples `m0..m1` (periodic) of row `j` of stored anisotropy `a`.
+    fn read(&mut self, j: u64, a: u32, m0: i64, m1: i64) -> Result<RowWindow, Self::Error>;
+}
+
+/// Reads rows of a [`StoredRows`] at any anisotropy, halving from the best stored one; whole rows
+/// made on the way are kept (a polar row is made once per reader).
+#[derive(Debug)]
+pub struct RowReader<S> {
+    /// The stored rows.
+    pub src: S,
+    whole: HashMap<(u64, u32), Rc<RowWindow>>,
+}
+
+impl<S: StoredRows> RowReader<S> {
+    /// A reader over `src`.
+    pub fn new(src: S) -> Self {
+        Self {
+            src,
+            whole: HashMap::new(),
+        }
+    }
+
+    /// Forgets whole rows above row `j` (call as a band moves south).
+    pub fn forget_rows_before(&mut self, j: u64) {
+        self.whole.retain(|&(r, _), _| r >= j);
+    }
+
+    /// Samples `m0..m1` of row `j` at anisotropy `a`.
+    pub fn window(&mut self, j: u64, a: u32, m0: i64, m1: i64) -> Result<RowWindow, S::Error> {
+        let a_s = self.src.best_stored(j, a);
+        if a_s >= a {
+            return self.src.read(j, a_s, m0, m1);
+        }
+        let n = self.src.width(a);
+        if (m1 - m0) as u64 >= n {
+            let w = self.whole_row(j, a)?;
+            return Ok(w.sub(m0, m1));
+        }
+        let (f0, f1) = halve_needs(m0, m1);
+        let fine = self.window(j, a - 1, f0, f1)?;
+        Ok(halve(&fine, m0, m1))
+    }
+
+    fn whole_row(&mut self, j: u64, a: u32) -> Result<Rc<RowWindow>, S::Error> {
+        if let Some(w) = self.whole.get(&(j, a)) {
+            return Ok(w.clone());
+        }
+        let n = self.src.width(a) as i64;
+        let (f0, f1) = halve_needs(0, n);
+        let fine = self.window(j, a - 1, f0, f1)?;
+        let w = Rc::new(halve(&fine, 0, n));
+        self.whole.insert((j, a), w.clone());
+        Ok(w)
+    }
+}
+
+/// The filter from isotropic level ℓ+1 onto isotropic level ℓ.
+#[derive(Debug, Clone)]
+pub struct LevelFilter {
+    grid: GridSpec,
+    to: LevelId,
+    lut: KernelLut,
+    rho: f64,
+    reach: f64,
+}
+
+impl LevelFilter {
+    /// The filter onto isotropic level `to` (from `to + 1`) with `kernel`.
+    pub fn new(grid: GridSpec, to: u32, kernel: Kernel) -> Self {
+        let to = LevelId {
+            level: to,
+            aniso: 0,
+        };
+        let rho = PI / grid.height(to) as f64;
+        Self {
+            grid,
+            to,
+            lut: KernelLut::new(kernel),
+            rho,
+            reach: kernel.support() * rho,
+        }
+    }
+
+    /// Output rows `r0..r1`, columns `c0..c1` of the full-width level (periodic), as filtered
+    /// rows (premultiplied, coverage), from `src` rows of level ℓ+1.
+    pub fn filter_band<S: StoredRows>(
+        &self,
+        src: &mut RowReader<S>,
+        ch: usize,
+        (r0, r1): (u64, u64),
+        (c0, c1): (i64, i64),
+    ) -> Result<Vec<RowWindow>, S::Error> {
+        let h = self.grid.height(self.to);
+        let w = self.grid.width(self.to);
+        let hs = src.src.height();
+        let ws = src.src.width(0);
+        let max_out = w.trailing_zeros().saturating_sub(3);
+        let max_src = ws.trailing_zeros().saturating_sub(2);
+        let mut rows = Vec::with_capacity((r1 - r0) as usize);
+        for j in r0..r1 {
+            let pole = j == 0 || j + 1 == h;
+            let lat = if j == 0 {
+                PI / 2.0
+            } else if j + 1 == h {
+                -PI / 2.0
+            } else {
+                row_lat(j, h)
+            };
+            let (n_nat, u) = if pole {
+                (1, w)
+            } else {
+                let a = output_natural_aniso(lat, max_out);
+                (w >> a, 1u64 << a)
+            };
+            let (k0, k1) = if u == 1 {
+                (c0, c1)
+            } else {
+                let (k0, k1) = upsample_needs(u, c0, c1);
+                if (k1 - k0) as u64 >= n_nat {
+                    (0, n_nat as i64)
+                } else {
+                    (k0, k1)
+                }
+            };
+            let mut acc = RowAcc::new(n_nat, k0, k1, ch);
+            // source rows within reach in latitude
+            let js0 = (((PI / 2.0 - (lat + self.reach)) / (PI / hs as f64))
+                .floor()
+                .max(0.0)) as u64;
+            let js1 =
+                ((((PI / 2.0 - (lat - self.reach)) / (PI / hs as f64)).ceil()) as u64).min(hs);
+            for js in js0..js1 {
+                let lat_s = row_lat(js, hs);
+                let a_s = source_natural_aniso(lat_s, max_src);
+                let n_src = ws >> a_s;
+                let Some(taps) = PairTaps::new(
+                    &self.lut,
+                    self.rho,
+                    (lat, n_nat),
+                    (lat_s, n_src),
+                    row_band_area(js, hs),
+                ) else {
+                    continue;
+                };
+                let (m0, m1) = taps.needs(k0, k1);
+                if m1 <= m0 {
+                    continue;
+                }
+                let win = src.window(js, a_s, m0, m1)?;
+                acc.add(&taps, &win);
+            }
+            let nat = acc.finish();
+            rows.push(if pole {
+                // one point: the same value in every column, exactly
+                let len = (c1 - c0).max(0) as usize;
+                let mut r = RowWindow::empty(w, c0, len, ch);
+                for k in 0..len {
+                    r.v[k * ch..(k + 1) * ch].copy_from_slice(&nat.v[..ch]);
+                    r.c[k] = nat.c[0];
+                }
+                r.full = nat.full;
+                r
+            } else {
+                upsample(&nat, u, c0, c1)
+            });
+        }
+        Ok(rows)
+    }
+}
+
+/// A whole level in memory (row-major, `ch` channels premultiplied + coverage), as stored rows:
+/// the in-memory twin of the store-backed builder, for tests and analytic signals.
+#[derive(Debug, Clone)]
+pub struct MemLevels {
+    grid: GridSpec,
+    level: u32,
+    ch: usize,
+    /// anisotropy → rows (one window per row; empty windows for rows not stored)
+    data: HashMap<u32, Vec<RowWindow>>,
+}
+
+impl MemLevels {
+    /// Isotropic level `level` of `values` (row-major, `ch` channels, NaN = nodata).
+    pub fn from_values(grid: GridSpec, level: u32, ch: usize, values: &[f64]) -> Self {
+        let l = LevelId { level, aniso: 0 };
+        let (w, h) = (grid.width(l) as usize, grid.height(l) as usize);
+        assert_eq!(values.len(), w * h * ch, "level size");
+        let rows = (0..h)
+            .map(|j| {
+                let mut r = RowWindow::empty(w as u64, 0, w, ch);
+                let mut full = true;
+                for i in 0..w {
+                    let px = &values[(j * w + i) * ch..(j * w + i + 1) * ch];
+                    if px.iter().all(|x| x.is_finite()) {
+                        r.v[i * ch..(i + 1) * ch].copy_from_slice(px);
+                        r.c[i] = 1.0;
+                    } else {
+                        full = false;
+                    }
+                }
+                r.full = full;
+                r
+            })
+            .collect();
+        Self {
+            grid,
+            level,
+            ch,
+            data: HashMap::from([(0, rows)]),
+        }
+    }
+
+    /// Builds the anisotropic levels (level, 1..=max) by halving, on the rows the grid stores.
+    pub fn build_aniso(&mut self) {
+        for a in LevelId::aniso_levels_of(self.level) {
+            let id = a;
+            let h = self.grid.height(id);
+            let w = self.grid.width(id) as i64;
+            let t = u64::from(self.grid.tile_size());
+            let rows: Vec<RowWindow> = (0..h)
+                .map(|j| {
+                    if self.grid.level_has_tile_row(id, j / t) {
+                        let (f0, f1) = halve_needs(0, w);
+                        let fine = self.data[&(id.aniso - 1)][j as usize].sub(f0, f1);
+                        halve(&fine, 0, w)
+                    } else {
+                        RowWindow::empty(w as u64, 0, 0, self.ch)
+                    }
+                })
+                .collect();
+            self.data.insert(id.aniso, rows);
+        }
+    }
+
+    /// The next coarser level, filtered with `kernel`, its anisotropic levels built.
+    pub fn coarser(&self, kernel: Kernel) -> MemLevels {
+        let to = self.level - 1;
+        let f = LevelFilter::new(self.grid, to, kernel);
+        let l = LevelId {
+            level: to,
+            aniso: 0,
+        };
+        let (w, h) = (self.grid.width(l), self.grid.height(l));
+        let mut reader = RowReader::new(self);
+        let rows = match f.filter_band(&mut reader, self.ch, (0, h), (0, w as i64)) {
+            Ok(r) => r,
+            Err(e) => match e {},
+        };
+        let mut out = MemLevels {
+            grid: self.grid,
+            level: to,
+            ch: self.ch,
+            data: HashMap::from([(0, rows)]),
+        };
+        out.build_aniso();
+        out
+    }
+
+    /// The level.
+    pub fn level(&self) -> u32 {
+        self.level
+    }
+
+    /// Values of anisotropic level `a` (row-major, NaN for nodata and for rows not stored),
+    /// heights' rule: valid where coverage ≥ [`MIN_COVERAGE`].
+    pub fn values(&self, a: u32) -> Vec<f64> {
+        let id = LevelId {
+            level: self.level,
+            aniso: a,
+        };
+        let (w, h) = (self.grid.width(id) as usize, self.grid.height(id) as usize);
+        let mut out = vec![f64::NAN; w * h * self.ch];
+        for (j, r) in self.data[&a].iter().enumerate().take(h) {
+            for i in 0..r.len() {
+                if r.c[i] >= MIN_COVERAGE {
+                    for q in 0..self.ch {
+                        out[(j * w + i) * self.ch + q] = r.v[i * self.ch + q] / r.c[i];
+                    }
+                }
+            }
+        }
+        out
+    }
+}
+
+impl StoredRows for &MemLevels {
+    type Error = std::convert::Infallible;
+
+    fn height(&self) -> u64 {
+        self.grid.height(LevelId {
+            level: self.level,
+            aniso: 0,
+        })
+    }
+
+    fn width(&self, a: u32) -> u64 {
+        self.grid.width(LevelId {
+            level: self.level,
+            aniso: 0,
+        }) >> a
+    }
+
+    fn best_stored(&self, j: u64, a: u32) -> u32 {
+        let t = u64::from(self.grid.tile_size());
+        (0..=a)
+            .rev()
+            .find(|&x| {
+                x == 0
+                    || (self.data.contains_key(&x)
+                        && LevelId::new(self.level, x)
+                            .is_ok_and(|id| self.grid.level_has_tile_row(id, j / t)))
+            })
+            .unwrap_or(0)
+    }
+
+    fn read(&mut self, j: u64, a: u32, m0: i64, m1: i64) -> Result<RowWindow, Self::Error> {
+        Ok(self.data[&a][j as usize].sub(m0, m1))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn grid() -> GridSpec {
+        GridSpec::new(16).expect("valid")
+    }
+
+    #[test]
+    fn halving_and_upsampling_keep_constants_and_low_frequencies() {
+        let n = 64u64;
+        let mut r = RowWindow::empty(n, 0, n as usize, 1);
+        for i in 0..n as usize {
+            let x = 2.0 * PI * (i as f64 + 0.5) / n as f64;
+            r.v[i] = 5.0 + (3.0 * x).cos();
+            r.c[i] = 1.0;
+        }
+        r.full = true;
+        let h = halve(&r, 0, 32);
+        for (k, v) in h.v.iter().enumerate() {
+            let x = 2.0 * PI * (k as f64 + 0.5) / 32.0;
+            assert!((v - 5.0 - (3.0 * x).cos()).abs() < 0.01, "{k}: {v}");
+        }
+        let u = upsample(&h, 4, -5, 200);
+        for (k, v) in u.v.iter().enumerate() {
+            let i = k as i64 - 5;
+            let x = 2.0 * PI * (i as f64 + 0.5) / 128.0;
+            assert!((v - 5.0 - (3.0 * x).cos()).abs() < 0.01, "{i}: {v}");
+        }
+    }
+
+    #[test]
+    fn pair_tap_weights_sum_to_the_covered_area_and_are_symmetric() {
+        let lut = KernelLut::new(Kernel::JincLanczos3);
+        let rho = PI / 64.0;
+        for (lat, lat_s) in [(0.1, 0.12), (1.3, 1.32), (1.5, 1.53)] {
+            let t = PairTaps::new(&lut, rho, (lat, 128), (lat_s, 256), 1.0).expect("reach");
+            assert_eq!(t.p, 1);
+            let w = &t.phases[0].w;
+            for k in 0..w.len() {
+                assert!((w[k] - w[w.len() - 1 - k]).abs() < 1e-12);
+            }
+        }
+        // out of reach
+        assert!(PairTaps::new(&lut, rho, (0.0, 128), (0.5, 256), 1.0).is_none());
+    }
+
+    #[test]
+    fn pole_rows_are_constant_and_constants_stay_exact() {
+        let g = grid();
+        let l = LevelId::iso(3).expect("valid");
+        let (w, h) = (g.width(l) as usize, g.height(l) as usize);
+        let vals: Vec<f64> = (0..w * h).map(|_| 1234.5678f32 as f64).collect();
+        let mut m = MemLevels::from_values(g, 3, 1, &vals);
+        m.build_aniso();
+        let mut cur = m;
+        while cur.level() > 0 {
+            cur = cur.coarser(Kernel::JincLanczos3);
+            for a in 0..=cur.level().min(crate::ANISO_MAX) {
+                for v in cur.values(a).iter().filter(|v| !v.is_nan()) {
+                    assert_eq!(*v as f32, 1234.5678f32, "level {} a {a}", cur.level());
+                }
+            }
+        }
+    }
+}
