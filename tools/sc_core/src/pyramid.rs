@@ -392,10 +392,17 @@ impl RowAcc {
         let ch = self.ch;
         let (k0, k1) = (self.first, self.first + self.w.len() as i64);
         let (m0, m1) = taps.needs(k0, k1);
-        let s = src.sub(m0, m1);
+        let owned;
+        // a window that covers what is needed is used in place (offset), others are copied
+        let (s, off) = if src.first <= m0 && m1 <= src.first + src.len() as i64 {
+            (src, m0 - src.first)
+        } else {
+            owned = src.sub(m0, m1);
+            (&owned, 0)
+        };
         for (k, kx) in (k0..k1).enumerate() {
             let ph = &taps.phases[kx.rem_euclid(taps.p) as usize];
-            let base = (taps.qs * kx.div_euclid(taps.p) + ph.b - m0) as usize;
+            let base = (taps.qs * kx.div_euclid(taps.p) + ph.b - m0 + off) as usize;
             let n = ph.w.len();
             self.w[k] += ph.wsum;
             if ch == 1 {
@@ -565,6 +572,9 @@ impl LevelFilter {
         let max_out = w.trailing_zeros().saturating_sub(3);
         let max_src = ws.trailing_zeros().saturating_sub(2);
         let mut rows = Vec::with_capacity((r1 - r0) as usize);
+        // source rows serve ~2·reach/ρ' consecutive output rows with the same window: keep the
+        // rows of the current reach
+        let mut recent: HashMap<(u64, u32), Rc<RowWindow>> = HashMap::new();
         for j in r0..r1 {
             let pole = j == 0 || j + 1 == h;
             let lat = if j == 0 {
@@ -614,7 +624,17 @@ impl LevelFilter {
                 if m1 <= m0 {
                     continue;
                 }
-                let win = src.window(js, a_s, m0, m1)?;
+                let win = match recent.get(&(js, a_s)) {
+                    Some(w) if w.first <= m0 && m1 <= w.first + w.len() as i64 => w.clone(),
+                    _ => {
+                        // a little wider than this pair needs: the next rows' reach differs by
+                        // a few samples
+                        let pad = 8 + (m1 - m0) / 16;
+                        let w = Rc::new(src.window(js, a_s, m0 - pad, m1 + pad)?);
+                        recent.insert((js, a_s), w.clone());
+                        w
+                    }
+                };
                 acc.add(&taps, &win);
             }
             let nat = acc.finish();

@@ -19,8 +19,8 @@ pub struct Cli {
 pub enum Command {
     /// Reproject rasters (any GDAL format and CRS, or EXR heightmaps) onto the store's global grid.
     Ingest(IngestArgs),
-    /// Build the pyramid with world-space circular kernels (not implemented yet).
-    Build(Pending),
+    /// Build the pyramid: coarser levels by world-space circular kernels, anisotropic polar levels.
+    Build(BuildArgs),
     /// Measure and picture pyramid quality near the poles (not implemented yet).
     Inspect(Pending),
     /// Open the planet viewer (not implemented yet).
@@ -84,6 +84,29 @@ pub struct IngestArgs {
     /// Tile size of a new store.
     #[arg(long, default_value_t = 256)]
     pub tile_size: u32,
+    /// Print a JSON summary at the end.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `sphereclip build`.
+#[derive(Debug, clap::Args)]
+pub struct BuildArgs {
+    /// The store folder.
+    pub store: PathBuf,
+    /// Layer to build: height, color or all.
+    #[arg(long, default_value = "all")]
+    pub layer: String,
+    /// Circular kernel on the sphere: gauss, lanczos2 or lanczos3 (jinc-windowed jinc, the radial
+    /// Lanczos).
+    #[arg(long, default_value = "lanczos3")]
+    pub kernel: String,
+    /// The finest level to build from (default: the finest isotropic level of each layer).
+    #[arg(long)]
+    pub from_level: Option<u32>,
+    /// Worker threads (default: one per core).
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
     /// Print a JSON summary at the end.
     #[arg(long)]
     pub json: bool,

@@ -1,5 +1,6 @@
 //! One module per subcommand; [`run`] dispatches.
 
+mod build;
 mod demo;
 mod export;
 mod info;
@@ -21,7 +22,7 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::Export(a) => export::run(&a),
         Command::Demo(a) => demo::run(&a),
         Command::Ingest(a) => ingest::run(&a),
-        Command::Build(_) => pending("build"),
+        Command::Build(a) => build::run(&a),
         Command::Inspect(_) => pending("inspect"),
         Command::View(_) => pending("view"),
         Command::Render(_) => pending("render"),

@@ -1,0 +1,651 @@
+//! `sphereclip build`: the pyramid of a store.
+//!
+//! From the finest isotropic level of each layer down to level 0: every isotropic level ℓ is
+//! filtered from ℓ+1 with a world-space circular kernel, and every anisotropic level (ℓ, a) is
+//! (ℓ, a−1) halved in longitude, on the tile rows the grid stores
+//! ([`sc_core::pyramid`] explains both and the cascade that bounds the cost near the poles).
+//!
+//! Work is one output shard per task, one worker thread per core. A shard's bytes do not depend
+//! on the thread count or the order. What each shard was built from is recorded in a manifest per
+//! output level (`STORE/.sphereclip/build/LAYER-LEVEL.json`: the settings and a SHA-256 of every
+//! finest-base shard file in the shard's footprint), written after the shard is durable. A rerun
+//! skips shards whose record still matches: that is both the resume after a kill and the
+//! incremental rebuild after an ingest changed a region (only shards whose footprint touches a
+//! changed shard, and their ancestors, are made again).
+
+mod rows;
+
+use std::collections::{BTreeMap, HashMap};
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+use std::time::Instant;
+
+use sc_core::pyramid::{LevelFilter, RowReader, halve, halve_needs};
+use sc_core::{ANISO_MAX, GridSpec, Kernel, LevelId, ShardId, TileId};
+use sc_store::BuildRecord;
+use sc_store::{LayerKind, StoreError, StoreReader, StoreWriter};
+use sha2::{Digest, Sha256};
+
+use rows::{StoreRows, Texel, iso};
+
+/// Errors of the builder. One line each.
+#[derive(Debug, thiserror::Error)]
+pub enum BuildError {
+    /// The store failed (corrupt shard, lock held by another process, …).
+    #[error(transparent)]
+    Store(#[from] StoreError),
+    /// The request does not fit the store.
+    #[error("{0}")]
+    Usage(String),
+    /// The file system failed.
+    #[error("{source} ({})", path.display())]
+    Io {
+        /// The OS error.
+        source: std::io::Error,
+        /// The file.
+        path: PathBuf,
+    },
+}
+
+/// Result of the builder.
+pub type Result<T, E = BuildError> = std::result::Result<T, E>;
+
+/// Version of the construction, part of every shard's record: a change rebuilds everything.
+const BUILDER: &str = "pyramid-1";
+
+/// What to build.
+#[derive(Debug, Clone)]
+pub struct Settings {
+    /// Layers to build (empty: every layer the store holds).
+    pub layers: Vec<LayerKind>,
+    /// The circular kernel of the isotropic levels.
+    pub kernel: Kernel,
+    /// The finest level to build from (default: the finest isotropic level of each layer).
+    pub from_level: Option<u32>,
+    /// Worker threads (0: one per core).
+    pub threads: usize,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Self {
+            layers: Vec::new(),
+            kernel: Kernel::JincLanczos3,
+            from_level: None,
+            threads: 0,
+        }
+    }
+}
+
+/// How one output level is made.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum StepKind {
+    /// Isotropic level ℓ filtered from ℓ+1.
+    Filter,
+    /// (ℓ, a) halved from (ℓ, a−1).
+    Halve,
+}
+
+/// One output level of one layer.
+#[derive(Debug, Clone)]
+struct Step {
+    layer: LayerKind,
+    out: LevelId,
+    kind: StepKind,
+    shards: Vec<ShardId>,
+}
+
+/// A checked build: the steps in order (finest first).
+#[derive(Debug, Clone)]
+pub struct Plan {
+    settings: Settings,
+    grid: GridSpec,
+    shard_tiles: u64,
+    steps: Vec<Step>,
+    /// The finest level of each layer.
+    pub finest: BTreeMap<LayerKind, u32>,
+}
+
+impl Plan {
+    /// Output shards of every step.
+    pub fn shard_count(&self) -> u64 {
+        self.steps.iter().map(|s| s.shards.len() as u64).sum()
+    }
+
+    /// Output levels, as `layer level` text.
+    pub fn levels(&self) -> Vec<String> {
+        self.steps
+            .iter()
+            .map(|s| format!("{} {}", s.layer, s.out))
+            .collect()
+    }
+}
+
+/// What a build did.
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct Summary {
+    /// Output levels built, `layer level`.
+    pub levels: Vec<String>,
+    /// Shards computed and written.
+    pub shards_written: u64,
+    /// Shards whose record matched (resumed or unchanged).
+    pub shards_skipped: u64,
+    /// Shards with no data in their footprint (nothing to build).
+    pub shards_empty: u64,
+    /// Output texels computed.
+    pub texels: u64,
+    /// Wall time, seconds.
+    pub seconds: f64,
+}
+
+/// Checks the store and makes the plan. Does not write.
+pub fn plan(meta: &sc_store::StoreMeta, root: &Path, settings: Settings) -> Result<Plan> {
+    let grid = meta.grid;
+    let layers: Vec<LayerKind> = if settings.layers.is_empty() {
+        meta.layers.keys().copied().collect()
+    } else {
+        settings.layers.clone()
+    };
+    if layers.is_empty() {
+        return Err(BuildError::Usage(format!(
+            "the store holds no layer to build from; run `sphereclip ingest` first: {}",
+            root.display()
+        )));
+    }
+    let mut steps = Vec::new();
+    let mut finest = BTreeMap::new();
+    for layer in layers {
+        let levels = meta.levels(layer);
+        let isos: Vec<u32> = levels
+            .iter()
+            .filter(|l| l.is_iso())
+            .map(|l| l.level)
+            .collect();
+        if isos.is_empty() {
+            return Err(BuildError::Usage(format!(
+                "the store has no {layer} level to build from; run `sphereclip ingest --layer {layer}` first: {}",
+                root.display()
+            )));
+        }
+        let top = match settings.from_level {
+            Some(l) if isos.contains(&l) => l,
+            Some(l) => {
+                return Err(BuildError::Usage(format!(
+                    "the store has no {layer} level {l} to build from (it has {}): {}",
+                    isos.iter()
+                        .map(u32::to_string)
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                    root.display()
+                )));
+            }
+            None => isos.iter().copied().max().unwrap_or(0),
+        };
+        finest.insert(layer, top);
+        for level in (0..=top).rev() {
+            if level < top {
+                steps.push(step(
+                    grid,
+                    meta.shard_tiles,
+                    layer,
+                    iso(level),
+                    StepKind::Filter,
+                ));
+            }
+            for a in 1..=level.min(ANISO_MAX) {
+                let out = LevelId { level, aniso: a };
+                steps.push(step(grid, meta.shard_tiles, layer, out, StepKind::Halve));
+            }
+        }
+    }
+    Ok(Plan {
+        settings,
+        grid,
+        shard_tiles: meta.shard_tiles,
+        steps,
+        finest,
+    })
+}
+
+fn step(grid: GridSpec, s: u64, layer: LayerKind, out: LevelId, kind: StepKind) -> Step {
+    let (sx, sy) = ShardId::counts(grid, out, s);
+    let t_y = grid.tiles_y(out);
+    let shards = (0..sy)
+        .filter(|&y| (y * s..((y + 1) * s).min(t_y)).any(|ty| grid.level_has_tile_row(out, ty)))
+        .flat_map(|y| (0..sx).map(move |x| ShardId { level: out, x, y }))
+        .collect();
+    Step {
+        layer,
+        out,
+        kind,
+        shards,
+    }
+}
+
+/// The finest-base shards a shard's values depend on: for a filtered level ℓ, the shards of
+/// ℓ+1 within the kernel's reach (plus the halving margins); for (ℓ, a), the shards of (ℓ, 0)
+/// under it (plus margins). Whole rows where the reach wraps the circle.
+fn footprint(grid: GridSpec, s: u64, step: &Step, shard: ShardId, kernel: Kernel) -> Vec<ShardId> {
+    use std::f64::consts::PI;
+    let t = u64::from(grid.tile_size());
+    let out = step.out;
+    let (r0, r1) = (
+        shard.y * s * t,
+        ((shard.y + 1) * s * t).min(grid.height(out)),
+    );
+    let w_out = grid.width(out);
+    let (c0, c1) = (shard.x * s * t, ((shard.x + 1) * s * t).min(w_out));
+    let base = match step.kind {
+        StepKind::Filter => iso(out.level + 1),
+        StepKind::Halve => iso(out.level),
+    };
+    let (hb, wb) = (grid.height(base), grid.width(base));
+    let scale = hb / grid.height(out); // base rows per output row
+    let rho_b = PI / hb as f64;
+    let (rows, margin_rad) = match step.kind {
+        StepKind::Filter => {
+            let m = (kernel.support() * scale as f64).ceil() as u64 + 2;
+            let reach = kernel.support() * PI / grid.height(out) as f64;
+            (
+                (r0 * scale).saturating_sub(m)..(r1 * scale + m).min(hb),
+                reach + 16.0 * rho_b,
+            )
+        }
+        StepKind::Halve => (
+            r0..r1,
+            16.0 * f64::from(1u32 << out.aniso) * 2.0 * PI / wb as f64,
+        ),
+    };
+    // the most poleward latitude of those rows sets the widest longitude reach
+    let lat_edge = |j: u64| (PI / 2.0 - j as f64 * rho_b).abs();
+    let pole_lat = lat_edge(rows.start).max(lat_edge(rows.end));
+    let cos = pole_lat.cos();
+    let dlon = match step.kind {
+        StepKind::Filter if cos * PI <= margin_rad => PI,
+        StepKind::Filter => (margin_rad / cos).min(PI),
+        StepKind::Halve => margin_rad,
+    };
+    let lon0 = -PI + c0 as f64 * 2.0 * PI / w_out as f64 - dlon;
+    let lon1 = -PI + c1 as f64 * 2.0 * PI / w_out as f64 + dlon;
+    let col = |lon: f64| ((lon + PI) / (2.0 * PI) * wb as f64).floor() as i64;
+    let (b0, b1) = if dlon >= PI {
+        (0, wb as i64 - 1)
+    } else {
+        (col(lon0), col(lon1))
+    };
+    let st = (s * t) as i64;
+    let (sxn, _) = ShardId::counts(grid, base, s);
+    let mut xs: Vec<u64> = (b0.div_euclid(st)..=b1.div_euclid(st))
+        .map(|x| x.rem_euclid(sxn as i64) as u64)
+        .collect();
+    xs.sort_unstable();
+    xs.dedup();
+    let ys = (rows.start / (s * t))..=((rows.end.max(1) - 1) / (s * t));
+    ys.flat_map(|y| xs.iter().map(move |&x| ShardId { level: base, x, y }))
+        .collect()
+}
+
+/// Per output level: what each shard was built from.
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
+struct Manifest {
+    settings: String,
+    shards: BTreeMap<String, BTreeMap<String, String>>,
+}
+
+fn shard_key(s: &ShardId) -> String {
+    format!("{}/{}/{}", s.level.key(), s.y, s.x)
+}
+
+struct ManifestFile {
+    path: PathBuf,
+    data: Mutex<Manifest>,
+}
+
+impl ManifestFile {
+    fn open(root: &Path, layer: LayerKind, level: LevelId, settings: &str) -> Result<Self> {
+        let dir = root.join(".sphereclip").join("build");
+        std::fs::create_dir_all(&dir).map_err(|source| BuildError::Io {
+            source,
+            path: dir.clone(),
+        })?;
+        let path = dir.join(format!("{}-{}.json", layer.name(), level.key()));
+        let data = std::fs::read(&path)
+            .ok()
+            .and_then(|b| serde_json::from_slice::<Manifest>(&b).ok())
+            .filter(|m| m.settings == settings)
+            .unwrap_or_else(|| Manifest {
+                settings: settings.to_string(),
+                shards: BTreeMap::new(),
+            });
+        Ok(Self {
+            path,
+            data: Mutex::new(data),
+        })
+    }
+
+    fn matches(&self, shard: &ShardId, deps: &BTreeMap<String, String>) -> bool {
+        self.data
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .shards
+            .get(&shard_key(shard))
+            .is_some_and(|d| d == deps)
+    }
+
+    fn record(&self, shard: &ShardId, deps: BTreeMap<String, String>) -> Result<()> {
+        // the lock is held through the write: a later snapshot never lands before an earlier one
+        let mut m = self.data.lock().unwrap_or_else(|e| e.into_inner());
+        m.shards.insert(shard_key(shard), deps);
+        let bytes = serde_json::to_vec(&*m).map_err(|e| BuildError::Usage(e.to_string()))?;
+        write_atomic(&self.path, &bytes)
+    }
+}
+
+fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    use std::io::Write;
+    let io = |source| BuildError::Io {
+        source,
+        path: path.to_path_buf(),
+    };
+    let tmp = path.with_extension("json.tmp");
+    let mut f = std::fs::File::create(&tmp).map_err(io)?;
+    f.write_all(bytes).and_then(|_| f.sync_all()).map_err(io)?;
+    std::fs::rename(&tmp, path).map_err(io)
+}
+
+/// SHA-256 (hex, 128 bits shown) of shard files, each read once per build.
+#[derive(Default)]
+struct Fingerprints {
+    memo: Mutex<HashMap<PathBuf, String>>,
+}
+
+impl Fingerprints {
+    fn of(&self, path: &Path) -> Result<String> {
+        if let Some(f) = self
+            .memo
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .get(path)
+        {
+            return Ok(f.clone());
+        }
+        let f = match std::fs::read(path) {
+            Ok(bytes) => {
+                let h = Sha256::digest(&bytes);
+                h[..16].iter().map(|b| format!("{b:02x}")).collect()
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => "-".to_string(),
+            Err(source) => {
+                return Err(BuildError::Io {
+                    source,
+                    path: path.to_path_buf(),
+                });
+            }
+        };
+        self.memo
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .insert(path.to_path_buf(), f.clone());
+        Ok(f)
+    }
+}
+
+/// Fingerprint of an output shard as it is now (not memoised: the build rewrites it).
+fn own_fingerprint(path: &Path) -> Result<String> {
+    Fingerprints::default().of(path)
+}
+
+/// `SOURCE_DATE_EPOCH` when set (reproducible builds), else now.
+fn unix_now() -> u64 {
+    std::env::var("SOURCE_DATE_EPOCH")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| {
+            std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map(|d| d.as_secs())
+                .unwrap_or(0)
+        })
+}
+
+/// Runs the plan on the store open in `writer`. `on_shard(done, total)` reports progress.
+pub fn run(
+    writer: &StoreWriter,
+    plan: &Plan,
+    on_shard: &(dyn Fn(u64, u64) + Sync),
+) -> Result<Summary> {
+    let start = Instant::now();
+    let root = writer.root().to_path_buf();
+    let settings_hash = format!(
+        "{BUILDER} kernel={:?} grid={} shard={}",
+        plan.settings.kernel,
+        plan.grid.tile_size(),
+        plan.shard_tiles
+    );
+    let total = plan.shard_count();
+    let done = AtomicU64::new(0);
+    let fps = Fingerprints::default();
+    let mut summary = Summary {
+        levels: plan.levels(),
+        ..Summary::default()
+    };
+    let threads = if plan.settings.threads == 0 {
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    } else {
+        plan.settings.threads
+    };
+    on_shard(0, total);
+    for step in &plan.steps {
+        writer.ensure_level(step.layer, step.out)?;
+        // a fresh reader per step sees the levels the previous steps wrote
+        let reader = StoreReader::open(&root)?;
+        let manifest = ManifestFile::open(&root, step.layer, step.out, &settings_hash)?;
+        let stored_src = |level: u32| -> Vec<u32> {
+            reader
+                .meta()
+                .levels(step.layer)
+                .iter()
+                .filter(|l| l.level == level)
+                .map(|l| l.aniso)
+                .collect()
+        };
+        let (src_level, stored) = match step.kind {
+            StepKind::Filter => (step.out.level + 1, stored_src(step.out.level + 1)),
+            StepKind::Halve => (step.out.level, stored_src(step.out.level)),
+        };
+        let next = AtomicUsize::new(0);
+        let failed = AtomicBool::new(false);
+        let counts = Mutex::new((0u64, 0u64, 0u64, 0u64)); // written, skipped, empty, texels
+        let base_reader = &reader;
+        let do_shard = |shard: ShardId| -> Result<()> {
+            let deps = footprint(
+                plan.grid,
+                plan.shard_tiles,
+                step,
+                shard,
+                plan.settings.kernel,
+            );
+            let mut rec = BTreeMap::new();
+            for d in &deps {
+                let tile = TileId {
+                    level: d.level,
+                    x: d.x * plan.shard_tiles,
+                    y: d.y * plan.shard_tiles,
+                };
+                let p = base_reader.shard_path(step.layer, tile)?;
+                rec.insert(shard_key(d), fps.of(&p)?);
+            }
+            let out_tile = TileId {
+                level: shard.level,
+                x: shard.x * plan.shard_tiles,
+                y: shard.y * plan.shard_tiles,
+            };
+            let out_path = base_reader.shard_path(step.layer, out_tile)?;
+            // the shard as the last build left it (an ingest into this level since changes it)
+            rec.insert("self".into(), own_fingerprint(&out_path)?);
+            let mut c = counts.lock().unwrap_or_else(|e| e.into_inner());
+            if rec.iter().all(|(k, f)| k == "self" || f == "-") {
+                // no finer data in the footprint: nothing to filter, the level stays as it is
+                c.2 += 1;
+            } else if manifest.matches(&shard, &rec) {
+                c.1 += 1;
+            } else {
+                drop(c);
+                let texels = match step.layer {
+                    LayerKind::Height => build_shard::<f32>(
+                        writer,
+                        base_reader,
+                        plan,
+                        step,
+                        shard,
+                        src_level,
+                        &stored,
+                    )?,
+                    LayerKind::Color => build_shard::<u8>(
+                        writer,
+                        base_reader,
+                        plan,
+                        step,
+                        shard,
+                        src_level,
+                        &stored,
+                    )?,
+                };
+                rec.insert("self".into(), own_fingerprint(&out_path)?);
+                manifest.record(&shard, rec)?;
+                c = counts.lock().unwrap_or_else(|e| e.into_inner());
+                c.0 += 1;
+                c.3 += texels;
+            }
+            drop(c);
+            on_shard(done.fetch_add(1, Ordering::Relaxed) + 1, total);
+            Ok(())
+        };
+        let workers = threads.clamp(1, step.shards.len().max(1));
+        // polar shards cost most: start them first (bytes do not depend on the order)
+        let mut order = step.shards.clone();
+        let ny = ShardId::counts(plan.grid, step.out, plan.shard_tiles).1;
+        order.sort_by_key(|s| (s.y.min(ny - 1 - s.y), s.y, s.x));
+        let results: Vec<Result<()>> = std::thread::scope(|scope| {
+            let handles: Vec<_> = (0..workers)
+                .map(|_| {
+                    scope.spawn(|| -> Result<()> {
+                        loop {
+                            let k = next.fetch_add(1, Ordering::Relaxed);
+                            if k >= order.len() || failed.load(Ordering::Relaxed) {
+                                return Ok(());
+                            }
+                            if let Err(e) = do_shard(order[k]) {
+                                failed.store(true, Ordering::Relaxed);
+                                return Err(e);
+                            }
+                        }
+                    })
+                })
+                .collect();
+            handles
+                .into_iter()
+                .map(|h| {
+                    h.join().unwrap_or_else(|_| {
+                        Err(BuildError::Usage("a build worker panicked".into()))
+                    })
+                })
+                .collect()
+        });
+        for r in results {
+            r?;
+        }
+        let c = counts.into_inner().unwrap_or_else(|e| e.into_inner());
+        summary.shards_written += c.0;
+        summary.shards_skipped += c.1;
+        summary.shards_empty += c.2;
+        summary.texels += c.3;
+    }
+    let record = BuildRecord {
+        step: "build".into(),
+        tool: format!("sphereclip {}", env!("CARGO_PKG_VERSION")),
+        unix_time_s: unix_now(),
+        inputs: Vec::new(),
+        settings: serde_json::json!({
+            "builder": BUILDER,
+            "kernel": plan.settings.kernel,
+            "from": plan.finest.iter().map(|(k, l)| (k.name().to_string(), *l)).collect::<BTreeMap<_, _>>(),
+            "levels": summary.levels,
+        }),
+    };
+    writer.commit(Some(record))?;
+    summary.seconds = start.elapsed().as_secs_f64();
+    Ok(summary)
+}
+
+/// Computes and writes one output shard; returns the texels computed.
+fn build_shard<T: Texel>(
+    writer: &StoreWriter,
+    reader: &StoreReader,
+    plan: &Plan,
+    step: &Step,
+    shard: ShardId,
+    src_level: u32,
+    stored: &[u32],
+) -> Result<u64> {
+    let grid = plan.grid;
+    let t = u64::from(grid.tile_size());
+    let s = plan.shard_tiles;
+    let out = step.out;
+    let w = grid.width(out);
+    let (c0, c1) = (shard.x * s * t, ((shard.x + 1) * s * t).min(w));
+    let mut sw = writer.shard_writer::<T>(shard)?;
+    let mut rr = RowReader::new(StoreRows::<T>::new(reader, src_level, stored.to_vec()));
+    let filter = LevelFilter::new(grid, out.level, plan.settings.kernel);
+    let sc = T::KIND.channels();
+    let ch = T::CH;
+    let mut tile_buf = vec![T::default_fill(); (t * t) as usize * sc];
+    let tile_id = |tx: u64, ty: u64| {
+        TileId::new(grid, out, tx, ty).map_err(|e| BuildError::Usage(e.to_string()))
+    };
+    let mut texels = 0;
+    let (ty0, ty1) = (shard.y * s, ((shard.y + 1) * s).min(grid.tiles_y(out)));
+    for ty in ty0..ty1 {
+        if !grid.level_has_tile_row(out, ty) {
+            continue;
+        }
+        let (r0, r1) = (ty * t, (ty + 1) * t);
+        let rows = match step.kind {
+            StepKind::Filter => {
+                let first = (r0 * 2).saturating_sub(64);
+                rr.forget_rows_before(first);
+                rr.src.forget_rows_before(first);
+                filter.filter_band(&mut rr, ch, (r0, r1), (c0 as i64, c1 as i64))?
+            }
+            StepKind::Halve => {
+                rr.forget_rows_before(r0);
+                rr.src.forget_rows_before(r0);
+                let (f0, f1) = halve_needs(c0 as i64, c1 as i64);
+                (r0..r1)
+                    .map(|j| {
+                        rr.window(j, out.aniso - 1, f0, f1)
+                            .map(|fine| halve(&fine, c0 as i64, c1 as i64))
+                    })
+                    .collect::<Result<Vec<_>, _>>()?
+            }
+        };
+        for tx in c0 / t..c1 / t {
+            let x0 = (tx * t - c0) as usize;
+            // over what the level holds (nodata where it holds nothing)
+            sw.get_tile(tile_id(tx, ty)?, &mut tile_buf)?;
+            for (r, row) in rows.iter().enumerate() {
+                for i in 0..t as usize {
+                    let k = x0 + i;
+                    let px =
+                        &mut tile_buf[(r * t as usize + i) * sc..(r * t as usize + i + 1) * sc];
+                    T::merge(&row.v[k * ch..(k + 1) * ch], row.c[k], px);
+                }
+            }
+            sw.put_tile(tile_id(tx, ty)?, &tile_buf)?;
+            texels += t * t;
+        }
+    }
+    sw.finish()?;
+    Ok(texels)
+}

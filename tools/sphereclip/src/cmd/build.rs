@@ -1,0 +1,78 @@
+//! `sphereclip build STORE [--layer] [--kernel] [--from-level] [--threads] [--json]`.
+
+use std::path::Path;
+use std::process::ExitCode;
+
+use anyhow::{Context, Result, bail};
+use sc_build::Settings;
+use sc_core::Kernel;
+use sc_store::StoreWriter;
+
+use crate::cli::BuildArgs;
+use crate::cmd::parse_layer;
+use crate::progress::Progress;
+
+/// The kernels `build` offers, by CLI name.
+pub fn parse_kernel(name: &str) -> Result<Kernel> {
+    Ok(match name {
+        "gauss" => Kernel::Gauss,
+        "lanczos2" => Kernel::JincLanczos2,
+        "lanczos3" | "lanczos" => Kernel::JincLanczos3,
+        _ => bail!("unknown --kernel `{name}` (expected gauss, lanczos2 or lanczos3)"),
+    })
+}
+
+/// Builds the pyramid of the store at `store`; prints one line (or JSON).
+pub fn build(store: &Path, settings: Settings, json: bool) -> Result<sc_build::Summary> {
+    if !store.join("zarr.json").is_file() {
+        bail!("not a sphereclip store (no zarr.json): {}", store.display());
+    }
+    let writer = StoreWriter::open(store).context("cannot open store for writing")?;
+    let plan = sc_build::plan(&writer.meta(), store, settings)?;
+    let progress = Progress::new("build", plan.shard_count());
+    let summary = sc_build::run(&writer, &plan, &|d, _| progress.set(d)).with_context(|| {
+        format!(
+            "build stopped (rerun the same command to resume) in {}",
+            store.display()
+        )
+    })?;
+    progress.finish();
+    if json {
+        println!("{}", serde_json::to_string_pretty(&summary)?);
+    } else {
+        let from: Vec<String> = plan
+            .finest
+            .iter()
+            .map(|(k, l)| format!("{k} from level {l}"))
+            .collect();
+        println!(
+            "built {} level(s) of {} ({}): {} shards written, {} unchanged, {} without data, {:.1} Mtexel, {:.1} s",
+            summary.levels.len(),
+            store.display(),
+            from.join(", "),
+            summary.shards_written,
+            summary.shards_skipped,
+            summary.shards_empty,
+            summary.texels as f64 / 1e6,
+            summary.seconds
+        );
+    }
+    Ok(summary)
+}
+
+/// Runs `build`.
+pub fn run(a: &BuildArgs) -> Result<ExitCode> {
+    let layers = if a.layer == "all" {
+        Vec::new()
+    } else {
+        vec![parse_layer(&a.layer)?]
+    };
+    let settings = Settings {
+        layers,
+        kernel: parse_kernel(&a.kernel)?,
+        from_level: a.from_level,
+        threads: a.threads,
+    };
+    build(&a.store, settings, a.json)?;
+    Ok(ExitCode::SUCCESS)
+}
