@@ -223,66 +223,101 @@ fn step(grid: GridSpec, s: u64, layer: LayerKind, out: LevelId, kind: StepKind) 
     }
 }
 
-/// The finest-base shards a shard's values depend on: for a filtered level ℓ, the shards of
-/// ℓ+1 within the kernel's reach (plus the halving margins); for (ℓ, a), the shards of (ℓ, 0)
-/// under it (plus margins). Whole rows where the reach wraps the circle.
+/// The texels of the finest base a block of output texels depends on: for a filtered level ℓ,
+/// level ℓ+1 within the kernel's reach (plus the halving margins); for (ℓ, a), (ℓ, 0) under it
+/// (plus margins). Whole rows where the reach wraps the circle.
+#[derive(Debug, Clone)]
+struct Region {
+    base: LevelId,
+    rows: std::ops::Range<u64>,
+    /// Columns `c0..=c1`, periodic (may lie outside `0..W`).
+    cols: (i64, i64),
+}
+
+impl Region {
+    fn new(
+        grid: GridSpec,
+        step: &Step,
+        (r0, r1): (u64, u64),
+        (c0, c1): (u64, u64),
+        kernel: Kernel,
+    ) -> Self {
+        use std::f64::consts::PI;
+        let out = step.out;
+        let w_out = grid.width(out);
+        let base = match step.kind {
+            StepKind::Filter => iso(out.level + 1),
+            StepKind::Halve => iso(out.level),
+        };
+        let (hb, wb) = (grid.height(base), grid.width(base));
+        let scale = hb / grid.height(out); // base rows per output row
+        let rho_b = PI / hb as f64;
+        let (rows, margin_rad) = match step.kind {
+            StepKind::Filter => {
+                let m = (kernel.support() * scale as f64).ceil() as u64 + 2;
+                let reach = kernel.support() * PI / grid.height(out) as f64;
+                (
+                    (r0 * scale).saturating_sub(m)..(r1 * scale + m).min(hb),
+                    reach + 16.0 * rho_b,
+                )
+            }
+            StepKind::Halve => (
+                r0..r1,
+                16.0 * f64::from(1u32 << out.aniso) * 2.0 * PI / wb as f64,
+            ),
+        };
+        // the most poleward latitude of those rows sets the widest longitude reach
+        let lat_edge = |j: u64| (PI / 2.0 - j as f64 * rho_b).abs();
+        let cos = lat_edge(rows.start).max(lat_edge(rows.end)).cos();
+        let dlon = match step.kind {
+            StepKind::Filter if cos * PI <= margin_rad => PI,
+            StepKind::Filter => (margin_rad / cos).min(PI),
+            StepKind::Halve => margin_rad,
+        };
+        let lon0 = -PI + c0 as f64 * 2.0 * PI / w_out as f64 - dlon;
+        let lon1 = -PI + c1 as f64 * 2.0 * PI / w_out as f64 + dlon;
+        let col = |lon: f64| ((lon + PI) / (2.0 * PI) * wb as f64).floor() as i64;
+        let cols = if dlon >= PI || col(lon1) - col(lon0) >= wb as i64 {
+            (0, wb as i64 - 1)
+        } else {
+            (col(lon0), col(lon1))
+        };
+        Self { base, rows, cols }
+    }
+
+    /// Indices (y, x) of the blocks of `size` texels the region touches.
+    fn blocks(&self, grid: GridSpec, size: u64) -> impl Iterator<Item = (u64, u64)> {
+        let n = (grid.width(self.base) / size).max(1) as i64;
+        let mut xs: Vec<u64> = (self.cols.0.div_euclid(size as i64)
+            ..=self.cols.1.div_euclid(size as i64))
+            .map(|x| x.rem_euclid(n) as u64)
+            .collect();
+        xs.sort_unstable();
+        xs.dedup();
+        let ys = (self.rows.start / size)..=((self.rows.end.max(1) - 1) / size);
+        ys.flat_map(move |y| xs.clone().into_iter().map(move |x| (y, x)))
+    }
+}
+
+/// The finest-base shards a shard's values depend on.
 fn footprint(grid: GridSpec, s: u64, step: &Step, shard: ShardId, kernel: Kernel) -> Vec<ShardId> {
-    use std::f64::consts::PI;
     let t = u64::from(grid.tile_size());
     let out = step.out;
-    let (r0, r1) = (
+    let rows = (
         shard.y * s * t,
         ((shard.y + 1) * s * t).min(grid.height(out)),
     );
-    let w_out = grid.width(out);
-    let (c0, c1) = (shard.x * s * t, ((shard.x + 1) * s * t).min(w_out));
-    let base = match step.kind {
-        StepKind::Filter => iso(out.level + 1),
-        StepKind::Halve => iso(out.level),
-    };
-    let (hb, wb) = (grid.height(base), grid.width(base));
-    let scale = hb / grid.height(out); // base rows per output row
-    let rho_b = PI / hb as f64;
-    let (rows, margin_rad) = match step.kind {
-        StepKind::Filter => {
-            let m = (kernel.support() * scale as f64).ceil() as u64 + 2;
-            let reach = kernel.support() * PI / grid.height(out) as f64;
-            (
-                (r0 * scale).saturating_sub(m)..(r1 * scale + m).min(hb),
-                reach + 16.0 * rho_b,
-            )
-        }
-        StepKind::Halve => (
-            r0..r1,
-            16.0 * f64::from(1u32 << out.aniso) * 2.0 * PI / wb as f64,
-        ),
-    };
-    // the most poleward latitude of those rows sets the widest longitude reach
-    let lat_edge = |j: u64| (PI / 2.0 - j as f64 * rho_b).abs();
-    let pole_lat = lat_edge(rows.start).max(lat_edge(rows.end));
-    let cos = pole_lat.cos();
-    let dlon = match step.kind {
-        StepKind::Filter if cos * PI <= margin_rad => PI,
-        StepKind::Filter => (margin_rad / cos).min(PI),
-        StepKind::Halve => margin_rad,
-    };
-    let lon0 = -PI + c0 as f64 * 2.0 * PI / w_out as f64 - dlon;
-    let lon1 = -PI + c1 as f64 * 2.0 * PI / w_out as f64 + dlon;
-    let col = |lon: f64| ((lon + PI) / (2.0 * PI) * wb as f64).floor() as i64;
-    let (b0, b1) = if dlon >= PI {
-        (0, wb as i64 - 1)
-    } else {
-        (col(lon0), col(lon1))
-    };
-    let st = (s * t) as i64;
-    let (sxn, _) = ShardId::counts(grid, base, s);
-    let mut xs: Vec<u64> = (b0.div_euclid(st)..=b1.div_euclid(st))
-        .map(|x| x.rem_euclid(sxn as i64) as u64)
-        .collect();
-    xs.sort_unstable();
-    xs.dedup();
-    let ys = (rows.start / (s * t))..=((rows.end.max(1) - 1) / (s * t));
-    ys.flat_map(|y| xs.iter().map(move |&x| ShardId { level: base, x, y }))
+    let cols = (
+        shard.x * s * t,
+        ((shard.x + 1) * s * t).min(grid.width(out)),
+    );
+    let r = Region::new(grid, step, rows, cols, kernel);
+    r.blocks(grid, s * t)
+        .map(|(y, x)| ShardId {
+            level: r.base,
+            x,
+            y,
+        })
         .collect()
 }
 
@@ -290,7 +325,15 @@ fn footprint(grid: GridSpec, s: u64, step: &Step, shard: ShardId, kernel: Kernel
 #[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 struct Manifest {
     settings: String,
-    shards: BTreeMap<String, BTreeMap<String, String>>,
+    shards: BTreeMap<String, Entry>,
+}
+
+/// One built shard: the fingerprints of what it was built from (and of itself as written), and
+/// the range of values it holds (a resumed build notes the ranges of the shards it skips).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+struct Entry {
+    deps: BTreeMap<String, String>,
+    range: Option<(f64, f64)>,
 }
 
 fn shard_key(s: &ShardId) -> String {
@@ -324,19 +367,21 @@ impl ManifestFile {
         })
     }
 
-    fn matches(&self, shard: &ShardId, deps: &BTreeMap<String, String>) -> bool {
+    /// The entry of `shard` when it was built from exactly `deps`.
+    fn matching(&self, shard: &ShardId, deps: &BTreeMap<String, String>) -> Option<Entry> {
         self.data
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .shards
             .get(&shard_key(shard))
-            .is_some_and(|d| d == deps)
+            .filter(|e| e.deps == *deps)
+            .cloned()
     }
 
-    fn record(&self, shard: &ShardId, deps: BTreeMap<String, String>) -> Result<()> {
+    fn record(&self, shard: &ShardId, entry: Entry) -> Result<()> {
         // the lock is held through the write: a later snapshot never lands before an earlier one
         let mut m = self.data.lock().unwrap_or_else(|e| e.into_inner());
-        m.shards.insert(shard_key(shard), deps);
+        m.shards.insert(shard_key(shard), entry);
         let bytes = serde_json::to_vec(&*m).map_err(|e| BuildError::Usage(e.to_string()))?;
         write_atomic(&self.path, &bytes)
     }
@@ -488,11 +533,14 @@ pub fn run(
             if rec.iter().all(|(k, f)| k == "self" || f == "-") {
                 // no finer data in the footprint: nothing to filter, the level stays as it is
                 c.2 += 1;
-            } else if manifest.matches(&shard, &rec) {
+            } else if let Some(e) = manifest.matching(&shard, &rec) {
+                if let Some((lo, hi)) = e.range {
+                    writer.note_range(step.layer, step.out, lo, hi);
+                }
                 c.1 += 1;
             } else {
                 drop(c);
-                let texels = match step.layer {
+                let (texels, range) = match step.layer {
                     LayerKind::Height => build_shard::<f32>(
                         writer,
                         base_reader,
@@ -513,7 +561,7 @@ pub fn run(
                     )?,
                 };
                 rec.insert("self".into(), own_fingerprint(&out_path)?);
-                manifest.record(&shard, rec)?;
+                manifest.record(&shard, Entry { deps: rec, range })?;
                 c = counts.lock().unwrap_or_else(|e| e.into_inner());
                 c.0 += 1;
                 c.3 += texels;
@@ -579,7 +627,7 @@ pub fn run(
     Ok(summary)
 }
 
-/// Computes and writes one output shard; returns the texels computed.
+/// Computes and writes one output shard; returns the texels computed and the range of values.
 fn build_shard<T: Texel>(
     writer: &StoreWriter,
     reader: &StoreReader,
@@ -588,7 +636,7 @@ fn build_shard<T: Texel>(
     shard: ShardId,
     src_level: u32,
     stored: &[u32],
-) -> Result<u64> {
+) -> Result<(u64, Option<(f64, f64)>)> {
     let grid = plan.grid;
     let t = u64::from(grid.tile_size());
     let s = plan.shard_tiles;
@@ -605,47 +653,85 @@ fn build_shard<T: Texel>(
         TileId::new(grid, out, tx, ty).map_err(|e| BuildError::Usage(e.to_string()))
     };
     let mut texels = 0;
+    let mut range: Option<(f64, f64)> = None;
     let (ty0, ty1) = (shard.y * s, ((shard.y + 1) * s).min(grid.tiles_y(out)));
     for ty in ty0..ty1 {
         if !grid.level_has_tile_row(out, ty) {
             continue;
         }
         let (r0, r1) = (ty * t, (ty + 1) * t);
-        let rows = match step.kind {
-            StepKind::Filter => {
-                let first = (r0 * 2).saturating_sub(64);
-                rr.forget_rows_before(first);
-                rr.src.forget_rows_before(first);
-                filter.filter_band(&mut rr, ch, (r0, r1), (c0 as i64, c1 as i64))?
-            }
-            StepKind::Halve => {
-                rr.forget_rows_before(r0);
-                rr.src.forget_rows_before(r0);
-                let (f0, f1) = halve_needs(c0 as i64, c1 as i64);
-                (r0..r1)
-                    .map(|j| {
-                        rr.window(j, out.aniso - 1, f0, f1)
-                            .map(|fine| halve(&fine, c0 as i64, c1 as i64))
-                    })
-                    .collect::<Result<Vec<_>, _>>()?
-            }
-        };
+        // only tiles with finer data in their footprint are computed (a regional ingest makes
+        // a few tiles of each coarser shard); runs of them are filtered together
+        let mut with_data = Vec::new();
         for tx in c0 / t..c1 / t {
-            let x0 = (tx * t - c0) as usize;
-            // over what the level holds (nodata where it holds nothing)
-            sw.get_tile(tile_id(tx, ty)?, &mut tile_buf)?;
-            for (r, row) in rows.iter().enumerate() {
-                for i in 0..t as usize {
-                    let k = x0 + i;
-                    let px =
-                        &mut tile_buf[(r * t as usize + i) * sc..(r * t as usize + i + 1) * sc];
-                    T::merge(&row.v[k * ch..(k + 1) * ch], row.c[k], px);
+            let region = Region::new(
+                grid,
+                step,
+                (r0, r1),
+                (tx * t, (tx + 1) * t),
+                plan.settings.kernel,
+            );
+            let mut any = false;
+            for (y, x) in region.blocks(grid, t) {
+                let id = TileId::new(grid, region.base, x, y)
+                    .map_err(|e| BuildError::Usage(e.to_string()))?;
+                if reader.has_tile(step.layer, id)? {
+                    any = true;
+                    break;
                 }
             }
-            sw.put_tile(tile_id(tx, ty)?, &tile_buf)?;
-            texels += t * t;
+            if any {
+                with_data.push(tx);
+            }
+        }
+        let mut spans: Vec<(u64, u64)> = Vec::new();
+        for tx in with_data {
+            match spans.last_mut() {
+                Some(last) if last.1 == tx => last.1 = tx + 1,
+                _ => spans.push((tx, tx + 1)),
+            }
+        }
+        for (tx0, tx1) in spans {
+            let (s0, s1) = (tx0 * t, tx1 * t);
+            let rows = match step.kind {
+                StepKind::Filter => {
+                    let first = (r0 * 2).saturating_sub(64);
+                    rr.forget_rows_before(first);
+                    rr.src.forget_rows_before(first);
+                    filter.filter_band(&mut rr, ch, (r0, r1), (s0 as i64, s1 as i64))?
+                }
+                StepKind::Halve => {
+                    rr.forget_rows_before(r0);
+                    rr.src.forget_rows_before(r0);
+                    let (f0, f1) = halve_needs(s0 as i64, s1 as i64);
+                    (r0..r1)
+                        .map(|j| {
+                            rr.window(j, out.aniso - 1, f0, f1)
+                                .map(|fine| halve(&fine, s0 as i64, s1 as i64))
+                        })
+                        .collect::<Result<Vec<_>, _>>()?
+                }
+            };
+            for tx in tx0..tx1 {
+                let x0 = (tx * t - s0) as usize;
+                // over what the level holds (nodata where it holds nothing)
+                sw.get_tile(tile_id(tx, ty)?, &mut tile_buf)?;
+                for (r, row) in rows.iter().enumerate() {
+                    for i in 0..t as usize {
+                        let k = x0 + i;
+                        let px =
+                            &mut tile_buf[(r * t as usize + i) * sc..(r * t as usize + i + 1) * sc];
+                        T::merge(&row.v[k * ch..(k + 1) * ch], row.c[k], px);
+                    }
+                }
+                if let Some((lo, hi)) = T::value_range(&tile_buf) {
+                    range = Some(range.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
+                }
+                sw.put_tile(tile_id(tx, ty)?, &tile_buf)?;
+                texels += t * t;
+            }
         }
     }
     sw.finish()?;
-    Ok(texels)
+    Ok((texels, range))
 }
