@@ -137,6 +137,8 @@ pub struct Summary {
     pub texels: u64,
     /// Wall time, seconds.
     pub seconds: f64,
+    /// Wall time per output level (`layer level`, seconds), in build order.
+    pub step_seconds: Vec<(String, f64)>,
 }
 
 /// Checks the store and makes the plan. Does not write.
@@ -482,6 +484,7 @@ pub fn run(
     };
     on_shard(0, total);
     for step in &plan.steps {
+        let step_start = Instant::now();
         writer.ensure_level(step.layer, step.out)?;
         // a fresh reader per step sees the levels the previous steps wrote
         let reader = StoreReader::open(&root)?;
@@ -503,6 +506,8 @@ pub fn run(
         let failed = AtomicBool::new(false);
         let counts = Mutex::new((0u64, 0u64, 0u64, 0u64)); // written, skipped, empty, texels
         let base_reader = &reader;
+        // steps with fewer shards than threads split each shard's tile rows between threads
+        let inner = (threads / step.shards.len().max(1)).max(1);
         let do_shard = |shard: ShardId| -> Result<()> {
             let deps = footprint(
                 plan.grid,
@@ -549,6 +554,7 @@ pub fn run(
                         shard,
                         src_level,
                         &stored,
+                        inner,
                     )?,
                     LayerKind::Color => build_shard::<u8>(
                         writer,
@@ -558,6 +564,7 @@ pub fn run(
                         shard,
                         src_level,
                         &stored,
+                        inner,
                     )?,
                 };
                 rec.insert("self".into(), own_fingerprint(&out_path)?);
@@ -609,6 +616,10 @@ pub fn run(
         summary.shards_skipped += c.1;
         summary.shards_empty += c.2;
         summary.texels += c.3;
+        summary.step_seconds.push((
+            format!("{} {}", step.layer, step.out),
+            step_start.elapsed().as_secs_f64(),
+        ));
     }
     let record = BuildRecord {
         step: "build".into(),
@@ -627,7 +638,98 @@ pub fn run(
     Ok(summary)
 }
 
-/// Computes and writes one output shard; returns the texels computed and the range of values.
+/// Filtered rows of one output tile row: runs of tiles `tx0..tx1` with their rows.
+type TileRowSpans = Vec<(u64, u64, Vec<sc_core::pyramid::RowWindow>)>;
+
+/// What one worker needs to compute tile rows of one step.
+struct TileRowJob<'a> {
+    reader: &'a StoreReader,
+    plan: &'a Plan,
+    step: &'a Step,
+    src_level: u32,
+    stored: &'a [u32],
+    cols: (u64, u64),
+}
+
+impl TileRowJob<'_> {
+    /// Computes tile rows `tys` in order, handing each to `emit`.
+    fn run<T: Texel>(
+        &self,
+        tys: &[u64],
+        emit: &mut dyn FnMut(u64, TileRowSpans) -> Result<()>,
+    ) -> Result<()> {
+        let grid = self.plan.grid;
+        let t = u64::from(grid.tile_size());
+        let out = self.step.out;
+        let (c0, c1) = self.cols;
+        let mut rr = RowReader::new(StoreRows::<T>::new(
+            self.reader,
+            self.src_level,
+            self.stored.to_vec(),
+        ));
+        let filter = LevelFilter::new(grid, out.level, self.plan.settings.kernel);
+        for &ty in tys {
+            let (r0, r1) = (ty * t, (ty + 1) * t);
+            // only tiles with finer data in their footprint are computed (a regional ingest
+            // makes a few tiles of each coarser shard); runs of them are filtered together
+            let mut spans: Vec<(u64, u64)> = Vec::new();
+            for tx in c0 / t..c1 / t {
+                let region = Region::new(
+                    grid,
+                    self.step,
+                    (r0, r1),
+                    (tx * t, (tx + 1) * t),
+                    self.plan.settings.kernel,
+                );
+                let mut any = false;
+                for (y, x) in region.blocks(grid, t) {
+                    let id = TileId::new(grid, region.base, x, y)
+                        .map_err(|e| BuildError::Usage(e.to_string()))?;
+                    if self.reader.has_tile(self.step.layer, id)? {
+                        any = true;
+                        break;
+                    }
+                }
+                if any {
+                    match spans.last_mut() {
+                        Some(last) if last.1 == tx => last.1 = tx + 1,
+                        _ => spans.push((tx, tx + 1)),
+                    }
+                }
+            }
+            let mut done = Vec::with_capacity(spans.len());
+            for (tx0, tx1) in spans {
+                let (s0, s1) = ((tx0 * t) as i64, (tx1 * t) as i64);
+                let rows = match self.step.kind {
+                    StepKind::Filter => {
+                        let first = (r0 * 2).saturating_sub(64);
+                        rr.forget_rows_before(first);
+                        rr.src.forget_rows_before(first);
+                        filter.filter_band(&mut rr, T::CH, (r0, r1), (s0, s1))?
+                    }
+                    StepKind::Halve => {
+                        rr.forget_rows_before(r0);
+                        rr.src.forget_rows_before(r0);
+                        let (f0, f1) = halve_needs(s0, s1);
+                        (r0..r1)
+                            .map(|j| {
+                                rr.window(j, out.aniso - 1, f0, f1)
+                                    .map(|fine| halve(&fine, s0, s1))
+                            })
+                            .collect::<Result<Vec<_>, _>>()?
+                    }
+                };
+                done.push((tx0, tx1, rows));
+            }
+            emit(ty, done)?;
+        }
+        Ok(())
+    }
+}
+
+/// Computes and writes one output shard with `inner` threads; returns the texels computed and
+/// the range of values. The bytes do not depend on `inner`.
+#[allow(clippy::too_many_arguments)]
 fn build_shard<T: Texel>(
     writer: &StoreWriter,
     reader: &StoreReader,
@@ -636,86 +738,35 @@ fn build_shard<T: Texel>(
     shard: ShardId,
     src_level: u32,
     stored: &[u32],
+    inner: usize,
 ) -> Result<(u64, Option<(f64, f64)>)> {
     let grid = plan.grid;
     let t = u64::from(grid.tile_size());
     let s = plan.shard_tiles;
     let out = step.out;
     let w = grid.width(out);
-    let (c0, c1) = (shard.x * s * t, ((shard.x + 1) * s * t).min(w));
+    let job = TileRowJob {
+        reader,
+        plan,
+        step,
+        src_level,
+        stored,
+        cols: (shard.x * s * t, ((shard.x + 1) * s * t).min(w)),
+    };
     let mut sw = writer.shard_writer::<T>(shard)?;
-    let mut rr = RowReader::new(StoreRows::<T>::new(reader, src_level, stored.to_vec()));
-    let filter = LevelFilter::new(grid, out.level, plan.settings.kernel);
     let sc = T::KIND.channels();
     let ch = T::CH;
     let mut tile_buf = vec![T::default_fill(); (t * t) as usize * sc];
-    let tile_id = |tx: u64, ty: u64| {
-        TileId::new(grid, out, tx, ty).map_err(|e| BuildError::Usage(e.to_string()))
-    };
     let mut texels = 0;
     let mut range: Option<(f64, f64)> = None;
-    let (ty0, ty1) = (shard.y * s, ((shard.y + 1) * s).min(grid.tiles_y(out)));
-    for ty in ty0..ty1 {
-        if !grid.level_has_tile_row(out, ty) {
-            continue;
-        }
-        let (r0, r1) = (ty * t, (ty + 1) * t);
-        // only tiles with finer data in their footprint are computed (a regional ingest makes
-        // a few tiles of each coarser shard); runs of them are filtered together
-        let mut with_data = Vec::new();
-        for tx in c0 / t..c1 / t {
-            let region = Region::new(
-                grid,
-                step,
-                (r0, r1),
-                (tx * t, (tx + 1) * t),
-                plan.settings.kernel,
-            );
-            let mut any = false;
-            for (y, x) in region.blocks(grid, t) {
-                let id = TileId::new(grid, region.base, x, y)
-                    .map_err(|e| BuildError::Usage(e.to_string()))?;
-                if reader.has_tile(step.layer, id)? {
-                    any = true;
-                    break;
-                }
-            }
-            if any {
-                with_data.push(tx);
-            }
-        }
-        let mut spans: Vec<(u64, u64)> = Vec::new();
-        for tx in with_data {
-            match spans.last_mut() {
-                Some(last) if last.1 == tx => last.1 = tx + 1,
-                _ => spans.push((tx, tx + 1)),
-            }
-        }
-        for (tx0, tx1) in spans {
-            let (s0, s1) = (tx0 * t, tx1 * t);
-            let rows = match step.kind {
-                StepKind::Filter => {
-                    let first = (r0 * 2).saturating_sub(64);
-                    rr.forget_rows_before(first);
-                    rr.src.forget_rows_before(first);
-                    filter.filter_band(&mut rr, ch, (r0, r1), (s0 as i64, s1 as i64))?
-                }
-                StepKind::Halve => {
-                    rr.forget_rows_before(r0);
-                    rr.src.forget_rows_before(r0);
-                    let (f0, f1) = halve_needs(s0 as i64, s1 as i64);
-                    (r0..r1)
-                        .map(|j| {
-                            rr.window(j, out.aniso - 1, f0, f1)
-                                .map(|fine| halve(&fine, s0 as i64, s1 as i64))
-                        })
-                        .collect::<Result<Vec<_>, _>>()?
-                }
-            };
+    let mut merge = |ty: u64, spans: TileRowSpans| -> Result<()> {
+        for (tx0, tx1, rows) in spans {
             for tx in tx0..tx1 {
-                let x0 = (tx * t - s0) as usize;
+                let x0 = ((tx - tx0) * t) as usize;
+                let id =
+                    TileId::new(grid, out, tx, ty).map_err(|e| BuildError::Usage(e.to_string()))?;
                 // over what the level holds (nodata where it holds nothing)
-                sw.get_tile(tile_id(tx, ty)?, &mut tile_buf)?;
+                sw.get_tile(id, &mut tile_buf)?;
                 for (r, row) in rows.iter().enumerate() {
                     for i in 0..t as usize {
                         let k = x0 + i;
@@ -727,10 +778,44 @@ fn build_shard<T: Texel>(
                 if let Some((lo, hi)) = T::value_range(&tile_buf) {
                     range = Some(range.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
                 }
-                sw.put_tile(tile_id(tx, ty)?, &tile_buf)?;
+                sw.put_tile(id, &tile_buf)?;
                 texels += t * t;
             }
         }
+        Ok(())
+    };
+    let tys: Vec<u64> = (shard.y * s..((shard.y + 1) * s).min(grid.tiles_y(out)))
+        .filter(|&ty| grid.level_has_tile_row(out, ty))
+        .collect();
+    let inner = inner.clamp(1, tys.len().max(1));
+    if inner == 1 {
+        job.run::<T>(&tys, &mut merge)?;
+    } else {
+        // contiguous runs of tile rows per thread (their source rows overlap least); results are
+        // merged here as they come, through a bounded channel
+        let chunk = tys.len().div_ceil(inner);
+        std::thread::scope(|scope| -> Result<()> {
+            let (tx, rx) = std::sync::mpsc::sync_channel::<Result<(u64, TileRowSpans)>>(1);
+            let job = &job;
+            for part in tys.chunks(chunk) {
+                let tx = tx.clone();
+                scope.spawn(move || {
+                    let mut send = |ty, spans| {
+                        tx.send(Ok((ty, spans)))
+                            .map_err(|_| BuildError::Usage("build stopped".into()))
+                    };
+                    if let Err(e) = job.run::<T>(part, &mut send) {
+                        let _ = tx.send(Err(e));
+                    }
+                });
+            }
+            drop(tx);
+            for msg in rx {
+                let (ty, spans) = msg?;
+                merge(ty, spans)?;
+            }
+            Ok(())
+        })?;
     }
     sw.finish()?;
     Ok((texels, range))

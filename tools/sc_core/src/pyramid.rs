@@ -109,14 +109,38 @@ impl RowWindow {
         }
         let len = (m1 - m0).max(0) as usize;
         let ch = self.ch;
-        let mut out = RowWindow::empty(self.n, m0, len, ch);
-        out.full = self.full;
-        for (k, m) in (m0..m1).enumerate() {
+        let mut out = RowWindow {
+            n: self.n,
+            first: m0,
+            ch,
+            v: Vec::with_capacity(len * ch),
+            c: Vec::with_capacity(len),
+            full: self.full,
+        };
+        // copy in runs that do not wrap
+        let mut m = m0;
+        while m < m1 {
             let s = self.index(m);
-            out.v[k * ch..(k + 1) * ch].copy_from_slice(&self.v[s * ch..(s + 1) * ch]);
-            out.c[k] = self.c[s];
+            let run = if self.is_whole() {
+                ((self.n as usize - s.min(self.n as usize)).min(self.len() - s)).max(1)
+            } else {
+                self.len() - s
+            }
+            .min((m1 - m) as usize);
+            out.v.extend_from_slice(&self.v[s * ch..(s + run) * ch]);
+            out.c.extend_from_slice(&self.c[s..s + run]);
+            m += run as i64;
         }
         out
+    }
+
+    /// This window itself when it covers `m0..m1` (with the offset of `m0`), else a copy.
+    fn covering(&self, m0: i64, m1: i64) -> (std::borrow::Cow<'_, RowWindow>, usize) {
+        if self.first <= m0 && m1 <= self.first + self.len() as i64 {
+            (std::borrow::Cow::Borrowed(self), (m0 - self.first) as usize)
+        } else {
+            (std::borrow::Cow::Owned(self.sub(m0, m1)), 0)
+        }
     }
 }
 
@@ -141,21 +165,28 @@ pub fn halve_needs(m0: i64, m1: i64) -> (i64, i64) {
 pub fn halve(src: &RowWindow, m0: i64, m1: i64) -> RowWindow {
     let h = halving_taps();
     let (f0, f1) = halve_needs(m0, m1);
-    let s = src.sub(f0, f1);
+    let (s, off) = src.covering(f0, f1);
     let ch = s.ch;
     let len = (m1 - m0).max(0) as usize;
     let mut out = RowWindow::empty(src.n / 2, m0, len, ch);
     out.full = s.full;
+    let taps = h.len();
     for k in 0..len {
-        let base = 2 * k; // fine index of tap 0 within s
-        let mut c = 0.0;
-        for (u, &w) in h.iter().enumerate() {
-            c += w * s.c[base + u];
-            for q in 0..ch {
-                out.v[k * ch + q] += w * s.v[(base + u) * ch + q];
+        let base = off + 2 * k; // fine index of tap 0 within s
+        if ch == 1 {
+            out.v[k] = dot(&h, &s.v[base..base + taps]);
+        } else {
+            for (u, &w) in h.iter().enumerate() {
+                for q in 0..ch {
+                    out.v[k * ch + q] += w * s.v[(base + u) * ch + q];
+                }
             }
         }
-        out.c[k] = if s.full { 1.0 } else { c };
+        out.c[k] = if s.full {
+            1.0
+        } else {
+            dot(&h, &s.c[base..base + taps])
+        };
     }
     out
 }
@@ -392,14 +423,13 @@ impl RowAcc {
         let ch = self.ch;
         let (k0, k1) = (self.first, self.first + self.w.len() as i64);
         let (m0, m1) = taps.needs(k0, k1);
-        let owned;
         // a window that covers what is needed is used in place (offset), others are copied
-        let (s, off) = if src.first <= m0 && m1 <= src.first + src.len() as i64 {
-            (src, m0 - src.first)
-        } else {
-            owned = src.sub(m0, m1);
-            (&owned, 0)
-        };
+        let (s, off) = src.covering(m0, m1);
+        if taps.p == 1 && ch == 1 {
+            self.add_polyphase(taps, &s, off as i64 - m0);
+            return;
+        }
+        let off = off as i64;
         for (k, kx) in (k0..k1).enumerate() {
             let ph = &taps.phases[kx.rem_euclid(taps.p) as usize];
             let base = (taps.qs * kx.div_euclid(taps.p) + ph.b - m0 + off) as usize;
@@ -419,6 +449,59 @@ impl RowAcc {
             } else {
                 dot(&ph.w, &s.c[base..base + n])
             };
+        }
+    }
+
+    /// One phase, one channel: tap by tap over all columns (`acc[k] += w_t·src[qs·k + b + t]`),
+    /// on the source split into its `qs` polyphase components so that every pass is a
+    /// contiguous, vectorisable multiply-add. `shift` maps source indices into `s`. Same sums
+    /// in the same order as the per-column loop's partial sums would not be: results differ from
+    /// it in the last bits, but are the same on every machine and thread count.
+    fn add_polyphase(&mut self, taps: &PairTaps, s: &RowWindow, shift: i64) {
+        let ph = &taps.phases[0];
+        let qs = taps.qs as usize;
+        let len = self.w.len();
+        let base0 = (taps.qs * self.first + ph.b + shift) as usize;
+        for w in &mut self.w {
+            *w += ph.wsum;
+        }
+        let comps = |x: &[f64]| -> Vec<Vec<f64>> {
+            (0..qs)
+                .map(|c| x[base0 + c..].iter().step_by(qs).copied().collect())
+                .collect()
+        };
+        let axpy = |acc: &mut [f64], comps: &[Vec<f64>]| {
+            for (t, &w) in ph.w.iter().enumerate() {
+                let comp = &comps[t % qs];
+                let src = &comp[t / qs..t / qs + len];
+                for (a, x) in acc.iter_mut().zip(src) {
+                    *a += w * x;
+                }
+            }
+        };
+        if qs == 1 {
+            let src = &s.v[base0..];
+            for (t, &w) in ph.w.iter().enumerate() {
+                for (a, x) in self.v.iter_mut().zip(&src[t..t + len]) {
+                    *a += w * x;
+                }
+            }
+        } else {
+            axpy(&mut self.v, &comps(&s.v));
+        }
+        if s.full {
+            for c in &mut self.c {
+                *c += ph.wsum;
+            }
+        } else if qs == 1 {
+            let src = &s.c[base0..];
+            for (t, &w) in ph.w.iter().enumerate() {
+                for (a, x) in self.c.iter_mut().zip(&src[t..t + len]) {
+                    *a += w * x;
+                }
+            }
+        } else {
+            axpy(&mut self.c, &comps(&s.c));
         }
     }
 
