@@ -64,3 +64,4 @@ bench_ingest etopo5-l4 samples/etopo5.cdf.gz --level 4 -- -s_srs EPSG:4326 -ts 8
 gdal_translate -q -of VRT -a_srs EPSG:4326 -a_ullr -180 90 180 -90 samples/bluemarble_5400x2700.jpg "$out/bluemarble.vrt"
 bench_ingest bluemarble --layer color samples/bluemarble_5400x2700.jpg --bounds -180,-90,180,90 -- \
   -ts 8192 4096 "$out/bluemarble.vrt"
+bash bench/build.sh "$out"
