@@ -335,3 +335,76 @@ fn finer_data_replaces_a_coarser_ingest_only_where_it_has_coverage_and_rebuilds_
     assert_eq!(again.shards_written, 0, "{again:?}");
     assert_eq!(before, shard_files(dir.path()));
 }
+
+#[test]
+fn colour_is_filtered_in_linear_light_and_a_constant_colour_stays_exact() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let g = grid();
+    let id = lv(3, 0);
+    {
+        let w = StoreWriter::open_or_create(dir.path(), config()).expect("store");
+        w.ensure_level(LayerKind::Color, id).expect("level");
+        let (sx, sy) = ShardId::counts(g, id, 2);
+        for y in 0..sy {
+            for x in 0..sx {
+                let mut sw = w
+                    .shard_writer::<u8>(ShardId { level: id, x, y })
+                    .expect("shard");
+                for tile in sw.tiles().collect::<Vec<_>>() {
+                    // west half: a black/white checkerboard; east half: a constant opaque colour
+                    let mut buf = vec![0u8; T * T * 4];
+                    for r in 0..T {
+                        for c in 0..T {
+                            let (i, j) = (tile.x as usize * T + c, tile.y as usize * T + r);
+                            let px = if i < g.width(id) as usize / 2 {
+                                let v = if (i + j) % 2 == 0 { 255 } else { 0 };
+                                [v, v, v, 255]
+                            } else {
+                                [200, 120, 40, 255]
+                            };
+                            buf[(r * T + c) * 4..(r * T + c + 1) * 4].copy_from_slice(&px);
+                        }
+                    }
+                    sw.put_tile(tile, &buf).expect("put");
+                }
+                sw.finish().expect("finish");
+            }
+        }
+        w.commit(None).expect("commit");
+    }
+    build(dir.path(), Settings::default()).expect("build");
+    let r = StoreReader::open(dir.path()).expect("open");
+    let l2 = lv(2, 0);
+    let mut buf = vec![0u8; T * T * 4];
+    let (w2, h2) = (g.width(l2), g.height(l2));
+    for ty in 0..g.tiles_y(l2) {
+        for tx in 0..g.tiles_x(l2) {
+            let tile = TileId::new(g, l2, tx, ty).expect("tile");
+            assert_eq!(
+                r.read_tile(tile, &mut buf).expect("read"),
+                TileRead::Present
+            );
+            for k in 0..T * T {
+                let (i, j) = (
+                    tx * T as u64 + (k % T) as u64,
+                    ty * T as u64 + (k / T) as u64,
+                );
+                let px = &buf[k * 4..k * 4 + 4];
+                let lon = -180.0 + (i as f64 + 0.5) * 360.0 / w2 as f64;
+                // away from the seams between the halves (0° and ±180°) and from the polar caps,
+                // where the circular kernel spans both halves
+                let lat = 90.0 - (j as f64 + 0.5) * 180.0 / h2 as f64;
+                if lon.abs() < 30.0 || lon.abs() > 150.0 || lat.abs() > 60.0 {
+                    continue;
+                }
+                if lon > 0.0 {
+                    assert_eq!(px, [200, 120, 40, 255], "texel {i},{j}");
+                } else {
+                    // half the light of white is sRGB 188, not the 128 of averaging sRGB codes
+                    assert!((180..=196).contains(&px[0]), "texel {i},{j}: {px:?}");
+                    assert_eq!(px[3], 255);
+                }
+            }
+        }
+    }
+}
