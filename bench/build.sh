@@ -7,7 +7,6 @@ cd "$(dirname "$0")/.."
 out=${1:-bench/out}
 mkdir -p "$out"
 cargo build --release --quiet --bin sphereclip -p sphereclip
-cargo build --release --quiet --bin pyramid_quality -p sc_bench
 sc=target/release/sphereclip
 now() { date +%s.%N; }
 secs() { echo "$2 - $1" | bc -l; }
@@ -40,5 +39,25 @@ print("in-process %.2f s, %.1f Mtexel out; per level:" % (d["seconds"], d["texel
       ", ".join("%s %.2f" % (k.split()[1], v) for k, v in d["step_seconds"]))
 PY
 
-echo "== quality on plane waves: level 4 -> level 1, ours vs gdaladdo (markdown)"
-target/release/pyramid_quality "$out" 4 1 2>/dev/null
+echo "== inspect: the ETOPO5 pyramid (levels 0..4, 8192x4096 the largest), report folder with pictures and plots"
+rm -rf "$out/inspect"
+t0=$(now); $sc inspect "$out/build.zarr" --out "$out/inspect" >/dev/null; t1=$(now)
+printf 'sphereclip inspect (5 levels, 11.2 Mtexel + 33.5 Mtexel): %.2f s\n' "$(secs "$t0" "$t1")"
+rm -rf "$out/inspect4"
+t0=$(now); $sc inspect "$out/build.zarr" --levels 4 --out "$out/inspect4" >/dev/null; t1=$(now)
+printf 'sphereclip inspect, level 4 alone (8192x4096): %.2f s\n' "$(secs "$t0" "$t1")"
+
+echo "== quality on plane waves: level 4 -> level 1, ours vs gdaladdo (inspect --test-signal 1 --compare-gdal)"
+rm -rf "$out/quality"
+$sc inspect --test-signal 1 --compare-gdal --out "$out/quality" --json > "$out/quality.json"
+python3 - "$out/quality.json" <<'PY'
+import json, sys
+d = json.load(open(sys.argv[1]))
+for t in d["test_signal"]:
+    print("\n" + t["title"] + " — goal < %.0f %%" % (t["limit"] * 100))
+    print("| |lat| band | " + " | ".join(t["methods"]) + " |")
+    print("|---" * (len(t["methods"]) + 1) + "|")
+    for (lo, hi), vals in t["rows"]:
+        cells = ["–" if v is None else "%.1f %%" % (v * 100) for v in vals]
+        print("| %g–%g° | %s |" % (lo, min(hi, 90), " | ".join(cells)))
+PY

@@ -9,12 +9,14 @@
 //!   has no EXR driver).
 
 mod export;
+mod global;
 mod source;
 
 pub use sc_core::color::{linear_to_srgb, srgb_to_linear};
 use std::path::PathBuf;
 
 pub use export::{EXR_MAX_TEXELS, ExportSummary, export_exr, export_geotiff};
+pub use global::{GLOBAL_MAX_TEXELS, GlobalLevel, read_global_levels};
 pub use source::{
     LonLatBox, MAX_CACHED_SAMPLES, MAX_PIXELS, MAX_SIDE, MAX_WINDOW, RasterSource, SampleCache,
     SampleRole, SourceInfo, SourceOptions, Window, quiet_gdal,

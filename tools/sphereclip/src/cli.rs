@@ -21,8 +21,8 @@ pub enum Command {
     Ingest(IngestArgs),
     /// Build the pyramid: coarser levels by world-space circular kernels, anisotropic polar levels.
     Build(BuildArgs),
-    /// Measure and picture pyramid quality near the poles (not implemented yet).
-    Inspect(Pending),
+    /// Measure and picture pyramid quality near the poles, of a store or a global EPSG:4326 raster.
+    Inspect(InspectArgs),
     /// Open the planet viewer (not implemented yet).
     View(Pending),
     /// Render a view headless to a PNG (not implemented yet).
@@ -108,6 +108,44 @@ pub struct BuildArgs {
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
     /// Print a JSON summary at the end.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `sphereclip inspect`.
+#[derive(Debug, clap::Args)]
+pub struct InspectArgs {
+    /// A store folder, or a global EPSG:4326 raster (its overviews count as levels). Not needed
+    /// with --test-signal.
+    pub input: Option<PathBuf>,
+    /// Where to write the report (report.json, index.html, PNG pictures, SVG plots).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Layer of a store: height or color.
+    #[arg(long, default_value = "height")]
+    pub layer: String,
+    /// Levels to inspect, `L` or `L,A` (default: every isotropic level up to 2^25 texels; for a
+    /// raster: `full` and `overview N`).
+    #[arg(long, num_args = 1..)]
+    pub levels: Vec<String>,
+    /// Another store or raster: report the cos(lat)-weighted RMS difference (WS-RMS, WS-PSNR)
+    /// of each level from the same level there.
+    #[arg(long)]
+    pub against: Option<PathBuf>,
+    /// Run the analytic test instead: plane waves on the sphere at a level 3 finer than TARGET,
+    /// our builder, stop-band and pass-band errors per latitude band at TARGET.
+    #[arg(long, value_name = "TARGET")]
+    pub test_signal: Option<u32>,
+    /// With --test-signal: also run `gdaladdo -r lanczos` and `-r average` on the same data.
+    #[arg(long)]
+    pub compare_gdal: bool,
+    /// How far from each pole the polar views reach, degrees.
+    #[arg(long, default_value_t = 30.0)]
+    pub polar_radius: f64,
+    /// Side of the polar views, pixels.
+    #[arg(long, default_value_t = 512)]
+    pub polar_size: u32,
+    /// Print report.json to standard output.
     #[arg(long)]
     pub json: bool,
 }

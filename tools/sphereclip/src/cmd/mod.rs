@@ -5,6 +5,7 @@ mod demo;
 mod export;
 mod info;
 mod ingest;
+mod inspect;
 
 use std::process::ExitCode;
 
@@ -23,7 +24,7 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::Demo(a) => demo::run(&a),
         Command::Ingest(a) => ingest::run(&a),
         Command::Build(a) => build::run(&a),
-        Command::Inspect(_) => pending("inspect"),
+        Command::Inspect(a) => inspect::run(&a),
         Command::View(_) => pending("view"),
         Command::Render(_) => pending("render"),
     }

@@ -1,0 +1,487 @@
+//! `sphereclip inspect`: pictures and numbers of pyramid quality near the poles, for our stores
+//! and for any global EPSG:4326 raster (so GDAL overviews can be compared with ours).
+//!
+//! The report folder holds `report.json` (every number; schema in `docs/inspect-schema.json`),
+//! `index.html`, per level polar views of both poles (azimuthal equidistant, PNG), a map and a
+//! coverage map, and SVG plots of each metric against latitude.
+
+pub mod metrics;
+pub mod pictures;
+pub mod plot;
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use metrics::{BandMetrics, Difference, LevelView, ValueStats};
+use pictures::Samples;
+use plot::Series;
+
+/// Version of the report's JSON layout.
+pub const REPORT_FORMAT: &str = "sphereclip-inspect/1";
+
+/// One level to report.
+#[derive(Debug, Clone)]
+pub struct LevelInput {
+    /// Its name (`3`, `3,1`, `full`, `overview 2`).
+    pub name: String,
+    /// Columns.
+    pub w: usize,
+    /// Rows.
+    pub h: usize,
+    /// Heights (NaN = nodata), or the luminance of colour, for the metrics.
+    pub values: Vec<f32>,
+    /// RGBA8 for colour levels (pictures in true colour).
+    pub rgba: Option<Vec<u8>>,
+    /// The same level from `--against`, for the weighted difference.
+    pub against: Option<Vec<f32>>,
+    /// Values at the ends of the pictures' colour ramp (default: the level's min..max).
+    pub range: Option<(f64, f64)>,
+}
+
+/// Settings of a report.
+#[derive(Debug, Clone)]
+pub struct ReportOptions {
+    /// Sphere radius, metres.
+    pub radius_m: f64,
+    /// How far from each pole the polar views reach, degrees.
+    pub polar_radius_deg: f64,
+    /// Side of the polar views, pixels.
+    pub polar_size: u32,
+    /// Latitude bands (|lat|, degrees).
+    pub bands: Vec<(f64, f64)>,
+}
+
+impl Default for ReportOptions {
+    fn default() -> Self {
+        Self {
+            radius_m: sc_core::EARTH_RADIUS_M,
+            polar_radius_deg: 30.0,
+            polar_size: 512,
+            bands: sc_core::signal::QUALITY_BANDS.to_vec(),
+        }
+    }
+}
+
+/// The numbers of one level.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct LevelReport {
+    /// Its name.
+    pub level: String,
+    /// Columns.
+    pub width: usize,
+    /// Rows.
+    pub height: usize,
+    /// Nominal isotropic spacing, metres.
+    pub nominal_m: f64,
+    /// Value statistics.
+    pub stats: ValueStats,
+    /// Per latitude band.
+    pub bands: Vec<BandMetrics>,
+    /// Weighted difference from `--against` (same level), when given and of the same size.
+    pub against: Option<Difference>,
+    /// Picture files, relative to the report folder.
+    pub pictures: Pictures,
+}
+
+/// Picture files of a level.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Pictures {
+    /// North pole, azimuthal equidistant.
+    pub north: String,
+    /// South pole.
+    pub south: String,
+    /// The whole level, plate carrée.
+    pub map: String,
+    /// Valid (grey) / nodata (magenta).
+    pub coverage: String,
+}
+
+/// One row of a test-signal table: per band, a value per method.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct SignalTable {
+    /// What the numbers are (e.g. "stop-band residual").
+    pub title: String,
+    /// Column names (methods).
+    pub methods: Vec<String>,
+    /// Per band: |lat| range and one relative RMS per method (NaN: not measured).
+    pub rows: Vec<((f64, f64), Vec<f64>)>,
+    /// The goal (values must stay below it).
+    pub limit: f64,
+}
+
+/// The whole report (what `report.json` holds).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Report {
+    /// [`REPORT_FORMAT`].
+    pub format: String,
+    /// What was inspected (path, kind, layer).
+    pub source: serde_json::Value,
+    /// Sphere radius, metres.
+    pub radius_m: f64,
+    /// The latitude bands.
+    pub bands: Vec<(f64, f64)>,
+    /// Per level.
+    pub levels: Vec<LevelReport>,
+    /// Analytic-signal tables (`--test-signal`), if run.
+    pub test_signal: Vec<SignalTable>,
+    /// Plot files, relative to the report folder.
+    pub plots: Vec<String>,
+    /// Seconds spent on the metrics and pictures.
+    pub seconds: f64,
+}
+
+fn slug(s: &str) -> String {
+    s.chars()
+        .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
+        .collect()
+}
+
+fn write(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    std::fs::write(path, bytes)
+        .map_err(|e| std::io::Error::new(e.kind(), format!("{e} ({})", path.display())))
+}
+
+fn save_png(img: &image::RgbImage, path: &Path) -> std::io::Result<()> {
+    img.save(path)
+        .map_err(|e| std::io::Error::other(format!("{e} ({})", path.display())))
+}
+
+/// Measures every level, writes pictures, plots, `report.json` and `index.html` into `out`
+/// (created; an existing file there is an error).
+pub fn write_report(
+    out: &Path,
+    source: serde_json::Value,
+    levels: &[LevelInput],
+    test_signal: Vec<SignalTable>,
+    opts: &ReportOptions,
+) -> std::io::Result<Report> {
+    let start = std::time::Instant::now();
+    if out.exists() && !out.is_dir() {
+        return Err(std::io::Error::other(format!(
+            "the output folder is a file: {}",
+            out.display()
+        )));
+    }
+    std::fs::create_dir_all(out)
+        .map_err(|e| std::io::Error::new(e.kind(), format!("{e} ({})", out.display())))?;
+    let mut reports = Vec::new();
+    for l in levels {
+        let view = LevelView {
+            w: l.w,
+            h: l.h,
+            data: &l.values,
+        };
+        let stats = metrics::value_stats(view);
+        let bands = metrics::band_metrics(view, opts.radius_m, &opts.bands);
+        let against = l.against.as_ref().and_then(|a| {
+            let peak = (stats.max - stats.min).abs().max(1e-9);
+            metrics::difference(
+                view,
+                LevelView {
+                    w: l.w,
+                    h: l.h,
+                    data: a,
+                },
+                peak,
+            )
+        });
+        let samples = match &l.rgba {
+            Some(rgba) => Samples::Color { data: rgba },
+            None => Samples::Height {
+                data: &l.values,
+                range: l.range.unwrap_or(if stats.min.is_finite() {
+                    (stats.min, stats.max)
+                } else {
+                    (0.0, 1.0)
+                }),
+            },
+        };
+        let base = format!("level-{}", slug(&l.name));
+        let pics = Pictures {
+            north: format!("{base}-north.png"),
+            south: format!("{base}-south.png"),
+            map: format!("{base}-map.png"),
+            coverage: format!("{base}-coverage.png"),
+        };
+        for (north, file) in [(true, &pics.north), (false, &pics.south)] {
+            let img = pictures::polar_view(
+                samples,
+                l.w,
+                l.h,
+                north,
+                opts.polar_radius_deg,
+                opts.polar_size,
+            );
+            save_png(&img, &out.join(file))?;
+        }
+        save_png(
+            &pictures::map_view(samples, l.w, l.h, 1024),
+            &out.join(&pics.map),
+        )?;
+        let valid = |k: usize| match &l.rgba {
+            Some(rgba) => rgba[k * 4 + 3] > 0,
+            None => !l.values[k].is_nan(),
+        };
+        save_png(
+            &pictures::coverage_view(&valid, l.w, l.h, 1024),
+            &out.join(&pics.coverage),
+        )?;
+        reports.push(LevelReport {
+            level: l.name.clone(),
+            width: l.w,
+            height: l.h,
+            nominal_m: view.nominal_m(opts.radius_m),
+            stats,
+            bands,
+            against,
+            pictures: pics,
+        });
+    }
+    let plots = write_plots(out, &reports, &test_signal)?;
+    let report = Report {
+        format: REPORT_FORMAT.into(),
+        source,
+        radius_m: opts.radius_m,
+        bands: opts.bands.clone(),
+        levels: reports,
+        test_signal,
+        plots,
+        seconds: start.elapsed().as_secs_f64(),
+    };
+    let json = serde_json::to_vec_pretty(&report).map_err(std::io::Error::other)?;
+    write(&out.join("report.json"), &json)?;
+    write(&out.join("index.html"), html(&report).as_bytes())?;
+    Ok(report)
+}
+
+fn mid(b: &BandMetrics) -> f64 {
+    (b.lat0 + b.lat1.min(90.0)) / 2.0
+}
+
+fn write_plots(
+    out: &Path,
+    levels: &[LevelReport],
+    tables: &[SignalTable],
+) -> std::io::Result<Vec<String>> {
+    let mut files = Vec::new();
+    let per_level = |f: &dyn Fn(&BandMetrics) -> f64| -> Vec<Series> {
+        levels
+            .iter()
+            .map(|l| Series {
+                name: format!("level {}", l.level),
+                points: l
+                    .bands
+                    .iter()
+                    .map(|b| (mid(b), if b.rows > 0 { f(b) } else { f64::NAN }))
+                    .collect(),
+            })
+            .collect()
+    };
+    let mut plots: Vec<(String, String)> = vec![
+        (
+            "lon-above-nyquist.svg".into(),
+            plot::svg(
+                "Energy above the sphere's Nyquist, along longitude",
+                "|latitude| (°)",
+                "fraction of row variance",
+                &per_level(&|b| b.lon_above_nyquist),
+            ),
+        ),
+        (
+            "top-octave.svg".into(),
+            plot::svg(
+                "Top-octave energy: along longitude / along latitude",
+                "|latitude| (°)",
+                "ratio",
+                &per_level(&|b| {
+                    if b.lat_top_octave > 0.0 {
+                        b.lon_top_octave / b.lat_top_octave
+                    } else {
+                        f64::NAN
+                    }
+                }),
+            ),
+        ),
+        (
+            "effective-resolution.svg".into(),
+            plot::svg(
+                "Effective resolution / nominal spacing (solid: longitude)",
+                "|latitude| (°)",
+                "ratio",
+                &levels
+                    .iter()
+                    .flat_map(|l| {
+                        [
+                            Series {
+                                name: format!("{} lon", l.level),
+                                points: l
+                                    .bands
+                                    .iter()
+                                    .map(|b| (mid(b), b.eff_res_lon_m / b.nominal_m))
+                                    .collect(),
+                            },
+                            Series {
+                                name: format!("{} lat", l.level),
+                                points: l
+                                    .bands
+                                    .iter()
+                                    .map(|b| (mid(b), b.eff_res_lat_m / b.nominal_m))
+                                    .collect(),
+                            },
+                        ]
+                    })
+                    .collect::<Vec<_>>(),
+            ),
+        ),
+        (
+            "coverage.svg".into(),
+            plot::svg(
+                "Valid samples",
+                "|latitude| (°)",
+                "fraction",
+                &per_level(&|b| b.valid_fraction),
+            ),
+        ),
+    ];
+    for (k, t) in tables.iter().enumerate() {
+        let series: Vec<Series> = t
+            .methods
+            .iter()
+            .enumerate()
+            .map(|(m, name)| Series {
+                name: name.clone(),
+                points: t
+                    .rows
+                    .iter()
+                    .map(|((a, b), v)| ((a + b.min(90.0)) / 2.0, v[m]))
+                    .collect(),
+            })
+            .collect();
+        plots.push((
+            format!("test-signal-{k}.svg"),
+            plot::svg(&t.title, "|latitude| (°)", "RMS / signal RMS", &series),
+        ));
+    }
+    for (name, svg) in plots {
+        write(&out.join(&name), svg.as_bytes())?;
+        files.push(name);
+    }
+    Ok(files)
+}
+
+fn pct(v: f64) -> String {
+    if v.is_finite() {
+        format!("{:.1} %", v * 100.0)
+    } else {
+        "–".into()
+    }
+}
+
+fn html(r: &Report) -> String {
+    let mut s = String::new();
+    let _ = write!(
+        s,
+        "<!doctype html><html><head><meta charset=\"utf-8\"><title>sphereclip inspect</title><style>body{{font-family:sans-serif;margin:2em;max-width:1400px}}table{{border-collapse:collapse;margin:1em 0}}td,th{{border:1px solid #ccc;padding:2px 6px;text-align:right}}img{{margin:4px;border:1px solid #ccc}}</style></head><body><h1>sphereclip inspect</h1><p>Source: <code>{}</code></p>",
+        r.source
+    );
+    if !r.test_signal.is_empty() {
+        s.push_str("<h2>Analytic signal</h2>");
+        for t in &r.test_signal {
+            let _ = write!(
+                s,
+                "<h3>{} (goal ≤ {})</h3><table><tr><th>|lat|</th>",
+                t.title,
+                pct(t.limit)
+            );
+            for m in &t.methods {
+                let _ = write!(s, "<th>{m}</th>");
+            }
+            s.push_str("</tr>");
+            for ((a, b), v) in &t.rows {
+                let _ = write!(s, "<tr><td>{a}–{}°</td>", b.min(90.0));
+                for x in v {
+                    let bad = x.is_finite() && *x > t.limit;
+                    let _ = write!(
+                        s,
+                        "<td{}>{}</td>",
+                        if bad {
+                            " style=\"background:#fcc\""
+                        } else {
+                            ""
+                        },
+                        pct(*x)
+                    );
+                }
+                s.push_str("</tr>");
+            }
+            s.push_str("</table>");
+        }
+    }
+    s.push_str("<h2>Plots</h2>");
+    for p in &r.plots {
+        let _ = write!(s, "<img src=\"{p}\" alt=\"{p}\">");
+    }
+    for l in &r.levels {
+        let _ = write!(
+            s,
+            "<h2>Level {} ({}×{}, nominal {:.0} m)</h2><p>values {:.1} .. {:.1}, mean {:.1}; valid {:.1} % of texels, {:.1} % of the area",
+            l.level,
+            l.width,
+            l.height,
+            l.nominal_m,
+            l.stats.min,
+            l.stats.max,
+            l.stats.mean,
+            l.stats.valid_fraction * 100.0,
+            l.stats.valid_area_fraction * 100.0
+        );
+        if let Some(d) = &l.against {
+            let _ = write!(
+                s,
+                "; against: WS-RMS {:.3}, WS-PSNR {:.1} dB, max |Δ| {:.3}",
+                d.ws_rms, d.ws_psnr_db, d.max_abs
+            );
+        }
+        let _ = write!(
+            s,
+            "</p><img src=\"{}\" width=\"300\" title=\"north pole\"><img src=\"{}\" width=\"300\" title=\"south pole\"><img src=\"{}\" width=\"600\" title=\"map\"><img src=\"{}\" width=\"300\" title=\"coverage\">",
+            l.pictures.north, l.pictures.south, l.pictures.map, l.pictures.coverage
+        );
+        s.push_str("<table><tr><th>|lat|</th><th>rows</th><th>lon energy above Nyquist</th><th>lon top octave</th><th>lat top octave</th><th>eff. res. lon (m)</th><th>eff. res. lat (m)</th><th>valid</th></tr>");
+        for b in &l.bands {
+            let _ = write!(
+                s,
+                "<tr><td>{}–{}°</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.0}</td><td>{:.0}</td><td>{}</td></tr>",
+                b.lat0,
+                b.lat1.min(90.0),
+                b.rows,
+                pct(b.lon_above_nyquist),
+                pct(b.lon_top_octave),
+                pct(b.lat_top_octave),
+                b.eff_res_lon_m,
+                b.eff_res_lat_m,
+                pct(b.valid_fraction)
+            );
+        }
+        s.push_str("</table>");
+    }
+    let _ = writeln!(s, "<p>{:.2} s</p></body></html>", r.seconds);
+    s
+}
+
+/// A report folder's files, for callers that list them.
+pub fn report_files(out: &Path, r: &Report) -> Vec<PathBuf> {
+    let mut v = vec![out.join("report.json"), out.join("index.html")];
+    for l in &r.levels {
+        for p in [
+            &l.pictures.north,
+            &l.pictures.south,
+            &l.pictures.map,
+            &l.pictures.coverage,
+        ] {
+            v.push(out.join(p));
+        }
+    }
+    v.extend(r.plots.iter().map(|p| out.join(p)));
+    v
+}
