@@ -197,7 +197,9 @@ mod tests {
         );
         // straight down from the centre is longitude 0 → the middle of the ramp
         let below = img.get_pixel(50, 90);
-        assert_eq!(*below, ramp(0.5, (-180.0, 180.0)));
+        // (a symmetric range draws with the diverging ramp)
+        assert_eq!(*below, diverging(0.5, (-180.0, 180.0)));
+        assert_ne!(*below, diverging(-90.0, (-180.0, 180.0)));
         assert_eq!(*img.get_pixel(0, 0), OUTSIDE);
     }
 }

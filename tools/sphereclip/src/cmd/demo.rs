@@ -1,6 +1,7 @@
 //! `sphereclip demo`: runs what exists so far on the bundled samples: ingest heights (ETOPO5 and
 //! two SRTM tiles) and colour (Blue Marble) into one store, build the pyramid, export levels for
-//! GDAL users. It grows with each capability (render/view next).
+//! GDAL users, inspect the pyramid's quality near the poles. It grows with each capability
+//! (render/view next).
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -126,6 +127,18 @@ pub fn run(a: &DemoArgs) -> Result<ExitCode> {
     );
     println!("geotiff: {}", height.display());
     println!("geotiff: {}", color.display());
+    // quality near the poles of the heights' global levels
+    let report = a.out.join("inspect");
+    let o = std::process::Command::new(std::env::current_exe()?)
+        .args(["inspect"])
+        .arg(&store)
+        .args(["--levels", "0", "1", "2", "3", "--out"])
+        .arg(&report)
+        .status()
+        .context("cannot run inspect")?;
+    if !o.success() {
+        bail!("inspect failed on {}", store.display());
+    }
     eprintln!(
         "demo: the viewer is not implemented yet; the pyramid is in the store and the GeoTIFFs"
     );
