@@ -1,0 +1,196 @@
+//! The static support geometry of spherical clipmaps (paper §3.4): the hemisphere around a viewer
+//! standing at the north pole of view space, in concentric rings, built once.
+//!
+//! ψ (the paper's φ̃) is split into `n` steps; θ̃ (angular distance from the viewer) into levels:
+//! level i spans θ̃ from `π/2 · 2^−i` inwards to `π/2 · 2^−(i+1)` in `m` rings
+//! `θ̃_{i,j} = θ̃_{i,0} · 2^(−j/m)`; the innermost level ends in a fill disc around the viewer.
+//! Two triangles per cell. ψ = ±π points to the world's north pole (see [`crate::transform`]):
+//! the vertices on that meridian exist twice, once flagged −1 (ψ = −π) and once +1 (ψ = +π), so
+//! that map coordinates beyond the pole interpolate without a seam (§4.4).
+
+use std::f64::consts::PI;
+
+/// One vertex: direction ψ, angular distance θ̃ from the viewer, and what the shader needs to
+/// evaluate the transform in f32 without cancellation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Vertex {
+    /// ψ in (−π, π]; ψ = 0 points south, ±π north.
+    pub psi: f32,
+    /// θ̃, radians.
+    pub theta: f32,
+    /// sin θ̃ · cos ψ (the view-space x, exact to f32).
+    pub px: f32,
+    /// sin θ̃ · sin ψ (view-space y).
+    pub py: f32,
+    /// 1 − cos θ̃ = 2 sin²(θ̃/2), exact to f32 even for tiny θ̃.
+    pub one_minus_cos: f32,
+    /// −1 or +1 on the duplicated ψ = ±π meridian, 0 elsewhere.
+    pub seam: f32,
+    /// Clipmap level whose ring this vertex lies on (the finer level at level borders).
+    pub level: u32,
+}
+
+/// Parameters of the hemisphere.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct HemisphereSpec {
+    /// Steps around (ψ).
+    pub n: u32,
+    /// Rings per level.
+    pub m: u32,
+    /// Levels (the last one ends in the fill disc).
+    pub levels: u32,
+}
+
+impl Default for HemisphereSpec {
+    /// 256 steps around, 16 rings per level, 26 levels (the finest ring ≈ 0.3 m on Earth).
+    fn default() -> Self {
+        Self {
+            n: 256,
+            m: 16,
+            levels: 26,
+        }
+    }
+}
+
+/// The static geometry: vertices, triangle indices, and per level the range of indices drawing it.
+#[derive(Debug, Clone)]
+pub struct Hemisphere {
+    /// The parameters.
+    pub spec: HemisphereSpec,
+    /// Vertices.
+    pub vertices: Vec<Vertex>,
+    /// Triangle list.
+    pub indices: Vec<u32>,
+    /// Per level: `indices[range]` draws its rings (the last level includes the fill disc).
+    pub level_ranges: Vec<std::ops::Range<u32>>,
+}
+
+/// Outer θ̃ of level `i`.
+pub fn level_outer(i: u32) -> f64 {
+    PI / 2.0 * 0.5f64.powi(i as i32)
+}
+
+impl Hemisphere {
+    /// Builds the geometry.
+    pub fn new(spec: HemisphereSpec) -> Self {
+        let n = spec.n.max(8);
+        let m = spec.m.max(1);
+        let levels = spec.levels.max(1);
+        let mut vertices = Vec::new();
+        // ring thetas from outside in, with the level each belongs to
+        let mut rings: Vec<(f64, u32)> = Vec::new();
+        for i in 0..levels {
+            for j in 0..m {
+                rings.push((level_outer(i) * 2f64.powf(-f64::from(j) / f64::from(m)), i));
+            }
+        }
+        rings.push((level_outer(levels), levels - 1));
+        let cols = n + 1; // ψ = −π … +π, the seam column twice
+        for &(theta, level) in &rings {
+            for c in 0..cols {
+                let psi = -PI + 2.0 * PI * f64::from(c) / f64::from(n);
+                let seam = if c == 0 {
+                    -1.0
+                } else if c == n {
+                    1.0
+                } else {
+                    0.0
+                };
+                vertices.push(vertex(psi, theta, seam, level));
+            }
+        }
+        // the viewer's own point, centre of the fill disc
+        let centre = vertices.len() as u32;
+        vertices.push(vertex(0.0, 0.0, 0.0, levels - 1));
+        // band r (between rings r and r+1) belongs to level r / m
+        let mut indices = Vec::new();
+        for r in 0..rings.len() as u32 - 1 {
+            for c in 0..n {
+                let a = r * cols + c;
+                let (b, d) = (a + 1, a + cols);
+                indices.extend_from_slice(&[a, d, b, b, d, d + 1]);
+            }
+        }
+        // fill disc: a fan from the innermost ring to the centre
+        let inner = (rings.len() as u32 - 1) * cols;
+        for c in 0..n {
+            indices.extend_from_slice(&[inner + c, centre, inner + c + 1]);
+        }
+        let per_level = m * n * 6;
+        let level_ranges = (0..levels)
+            .map(|i| {
+                let end = if i + 1 == levels {
+                    indices.len() as u32
+                } else {
+                    (i + 1) * per_level
+                };
+                i * per_level..end
+            })
+            .collect();
+        Self {
+            spec: HemisphereSpec { n, m, levels },
+            vertices,
+            indices,
+            level_ranges,
+        }
+    }
+
+    /// Triangles of levels `lo..=hi`.
+    pub fn triangles(&self, lo: u32, hi: u32) -> u32 {
+        (lo..=hi.min(self.spec.levels - 1))
+            .map(|i| self.level_ranges[i as usize].len() as u32 / 3)
+            .sum()
+    }
+}
+
+fn vertex(psi: f64, theta: f64, seam: f32, level: u32) -> Vertex {
+    let s = theta.sin();
+    Vertex {
+        psi: psi as f32,
+        theta: theta as f32,
+        px: (s * psi.cos()) as f32,
+        py: (s * psi.sin()) as f32,
+        one_minus_cos: (2.0 * (theta / 2.0).sin().powi(2)) as f32,
+        seam,
+        level,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rings_shrink_geometrically_and_every_level_has_its_own_index_range() {
+        let h = Hemisphere::new(HemisphereSpec {
+            n: 16,
+            m: 4,
+            levels: 5,
+        });
+        assert_eq!(h.level_ranges.len(), 5);
+        // ranges tile the index buffer in order
+        let mut at = 0;
+        for r in &h.level_ranges {
+            assert_eq!(r.start, at);
+            assert!(r.end > r.start);
+            at = r.end;
+        }
+        assert_eq!(at as usize, h.indices.len());
+        // every level but the last: m rings × n cells × 2 triangles
+        for i in 0..4 {
+            assert_eq!(h.level_ranges[i].len(), 4 * 16 * 6, "level {i}");
+        }
+        // the last adds the fill fan
+        assert_eq!(h.level_ranges[4].len(), 4 * 16 * 6 + 16 * 3);
+        // seam columns are the same point, flagged −1 and +1
+        let cols = 17;
+        for r in 0..(h.vertices.len() - 1) / cols {
+            let (a, b) = (h.vertices[r * cols], h.vertices[r * cols + 16]);
+            assert_eq!((a.seam, b.seam), (-1.0, 1.0));
+            assert!((a.px - b.px).abs() < 1e-6 && (a.py + b.py).abs() < 1e-6);
+        }
+        for v in &h.vertices {
+            assert!(v.theta as f64 <= PI / 2.0 + 1e-6);
+        }
+    }
+}

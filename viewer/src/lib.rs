@@ -1,0 +1,10 @@
+//! The core of the spherical-clipmap renderer (paper: `spherical-clipmaps.txt`), independent of
+//! any window or GPU: the static hemisphere geometry, the map transform with its f64 twin and
+//! the f32 viewer-relative form the shaders evaluate, and level visibility. The wgpu renderer,
+//! headless and windowed, builds on this (issue 6, in progress; see ARCHITECTURE.md).
+
+pub mod geometry;
+pub mod transform;
+
+/// The WGSL of the clipmap renderer, from `shaders/`.
+pub const CLIPMAP_WGSL: &str = include_str!("../../shaders/clipmap.wgsl");

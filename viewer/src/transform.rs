@@ -1,0 +1,267 @@
+//! The map transform (paper §3.3): from a vertex of the static hemisphere (direction ψ, angular
+//! distance θ̃ from the viewer) to map coordinates, as offsets from the viewer's own position.
+//!
+//! View space puts the viewer at its north pole; a rotation about y by the viewer's colatitude
+//! θ_v takes it to world space with the viewer on longitude 0. ψ = ±π then points to the world's
+//! north pole; for a viewer in the southern hemisphere the hemisphere is turned by π about z
+//! (`orient = −1`), so that the duplicated seam meridian always points to the nearer pole (§4.4).
+//!
+//! The GPU never sees absolute positions: [`offsets_f32`] (mirrored line by line in
+//! `shaders/clipmap.wgsl`) evaluates Δφ = φ − φ_v and Δθ = θ − θ_v without subtracting large
+//! numbers: with p = R_y(θ_v)·p̃ and ρ = |(p_x, p_y)|,
+//! `sin(θ − θ_v)·k = p̃_x + cos θ_v · q`, `cos(θ − θ_v)·k = p̃_z + sin θ_v · q` with
+//! `q = ρ − p_x = p_y² / (ρ + p_x)` (when p_x > 0), so Δθ = atan2 of two well-conditioned terms,
+//! and `1 − cos θ̃` comes precomputed per vertex. [`offsets_f64`] is the exact twin.
+
+/// The viewer's position as the transform needs it (f64 on the CPU).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Viewer {
+    /// Colatitude θ_v, radians (0 at the north pole).
+    pub colat: f64,
+    /// Longitude φ_v, radians.
+    pub lon: f64,
+}
+
+impl Viewer {
+    /// From latitude and longitude in degrees.
+    pub fn from_deg(lat: f64, lon: f64) -> Self {
+        Self {
+            colat: (90.0 - lat).to_radians(),
+            lon: lon.to_radians(),
+        }
+    }
+
+    /// +1 in the northern hemisphere (and on the equator), −1 in the southern.
+    pub fn orient(&self) -> f64 {
+        if self.colat <= std::f64::consts::FRAC_PI_2 {
+            1.0
+        } else {
+            -1.0
+        }
+    }
+
+    /// Colatitude from the nearer pole (≤ π/2).
+    pub fn polar_colat(&self) -> f64 {
+        if self.orient() > 0.0 {
+            self.colat
+        } else {
+            std::f64::consts::PI - self.colat
+        }
+    }
+
+    /// The per-frame constants of the f32 transform.
+    pub fn uniforms(&self) -> TransformUniforms {
+        let c = self.polar_colat();
+        TransformUniforms {
+            sin_v: c.sin() as f32,
+            cos_v: c.cos() as f32,
+            colat: c as f32,
+            orient: self.orient() as f32,
+        }
+    }
+}
+
+/// What the vertex shader gets per frame (all small or bounded numbers). The f32 transform works
+/// from the nearer pole (a southern viewer is mirrored to the north: colatitudes near π would lose
+/// half a metre to f32 rounding of π).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TransformUniforms {
+    /// sin of the colatitude from the nearer pole.
+    pub sin_v: f32,
+    /// cos of it.
+    pub cos_v: f32,
+    /// The colatitude from the nearer pole (only used beyond that pole, where it is small).
+    pub colat: f32,
+    /// +1 or −1 (see [`Viewer::orient`]).
+    pub orient: f32,
+}
+
+/// Map offsets of a vertex from the viewer: Δφ (longitude, radians, continuous across the seam
+/// beyond a pole: may exceed ±π there) and Δθ (colatitude, radians, + towards the south).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Offsets<T> {
+    /// φ − φ_v.
+    pub dlon: T,
+    /// θ − θ_v.
+    pub dcolat: T,
+}
+
+/// The exact transform in f64 from the same vertex attributes (`px = sin θ̃ cos ψ`,
+/// `py = sin θ̃ sin ψ`, `c = 1 − cos θ̃`, the seam flag).
+pub fn offsets_f64(v: &Viewer, px: f64, py: f64, c: f64, seam: f64) -> Offsets<f64> {
+    let o = v.orient();
+    let (tx, ty, tz) = (o * px, o * py, 1.0 - c);
+    let (s, k) = v.colat.sin_cos();
+    let wx = k * tx + s * tz;
+    let wy = ty;
+    let wz = -s * tx + k * tz;
+    let mut dlon = wy.atan2(wx);
+    if wx < 0.0 {
+        dlon = unwrap_seam(dlon, seam * o);
+    }
+    let colat = wx.hypot(wy).atan2(wz);
+    Offsets {
+        dlon,
+        dcolat: colat - v.colat,
+    }
+}
+
+fn unwrap_seam(dlon: f64, seam: f64) -> f64 {
+    use std::f64::consts::PI;
+    if seam < 0.0 && dlon > 0.0 {
+        dlon - 2.0 * PI
+    } else if seam > 0.0 && dlon < 0.0 {
+        dlon + 2.0 * PI
+    } else {
+        dlon
+    }
+}
+
+/// The shader's transform in f32 (the CPU twin of `shaders/clipmap.wgsl`, operation for
+/// operation).
+pub fn offsets_f32(u: &TransformUniforms, px: f32, py: f32, c: f32, seam: f32) -> Offsets<f32> {
+    // mirrored to the nearer pole: the geometry's ψ = ±π keeps pointing at that pole, longitude
+    // keeps its sense, colatitude offsets change sign
+    let tx = px;
+    let ty = u.orient * py;
+    let tz = 1.0 - c;
+    let wx = u.cos_v * tx + u.sin_v * tz;
+    let wy = ty;
+    let rho = (wx * wx + wy * wy).sqrt();
+    let dcolat = if wx > 0.0 {
+        let q = wy * wy / (rho + wx);
+        (tx + u.cos_v * q).atan2(tz + u.sin_v * q)
+    } else {
+        let wz = -u.sin_v * tx + u.cos_v * tz;
+        rho.atan2(wz) - u.colat
+    };
+    let dcolat = u.orient * dcolat;
+    let mut dlon = wy.atan2(wx);
+    if wx < 0.0 {
+        let s = seam * u.orient;
+        if s < 0.0 && dlon > 0.0 {
+            dlon -= std::f32::consts::TAU;
+        } else if s > 0.0 && dlon < 0.0 {
+            dlon += std::f32::consts::TAU;
+        }
+    }
+    Offsets { dlon, dcolat }
+}
+
+/// Levels of the hemisphere worth drawing (paper §4.5): rings beyond the horizon
+/// `θ̃_max = acos(R / (R + h + margin))` (margin: the highest terrain, so mountains beyond the
+/// smooth horizon still show) and rings finer than one pixel `θ̃_min = h·tan(fov/px) / R` are
+/// skipped. Returns the inclusive range of level indices (coarse first) among `levels`.
+pub fn visible_levels(
+    radius_m: f64,
+    height_m: f64,
+    terrain_max_m: f64,
+    fov_rad: f64,
+    pixels: u32,
+    levels: u32,
+) -> (u32, u32) {
+    let h = height_m.max(0.01);
+    let theta_max = (radius_m / (radius_m + h + terrain_max_m.max(0.0)))
+        .clamp(-1.0, 1.0)
+        .acos()
+        .min(std::f64::consts::FRAC_PI_2);
+    let pixel = h * (fov_rad / f64::from(pixels.max(1))).tan();
+    let theta_min = pixel / radius_m;
+    let level_of = |theta: f64| -> u32 {
+        // level i spans (π/2·2^−(i+1), π/2·2^−i]
+        let i = (std::f64::consts::FRAC_PI_2 / theta.max(1e-300))
+            .log2()
+            .floor();
+        (i.max(0.0) as u32).min(levels - 1)
+    };
+    let lo = level_of(theta_max);
+    let hi = level_of(theta_min).max(lo);
+    (lo, hi)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::PI;
+
+    fn attrs(psi: f64, theta: f64) -> (f64, f64, f64) {
+        let s = theta.sin();
+        (
+            s * psi.cos(),
+            s * psi.sin(),
+            2.0 * (theta / 2.0).sin().powi(2),
+        )
+    }
+
+    #[test]
+    fn the_viewer_maps_to_itself_and_psi_zero_goes_south() {
+        let v = Viewer::from_deg(45.0, 10.0);
+        let (px, py, c) = attrs(0.0, 0.0);
+        let o = offsets_f64(&v, px, py, c, 0.0);
+        assert!(o.dlon.abs() < 1e-15 && o.dcolat.abs() < 1e-15);
+        let (px, py, c) = attrs(0.0, 0.01);
+        let o = offsets_f64(&v, px, py, c, 0.0);
+        assert!(
+            (o.dcolat - 0.01).abs() < 1e-12 && o.dlon.abs() < 1e-12,
+            "{o:?}"
+        );
+        let (px, py, c) = attrs(PI, 0.01);
+        let o = offsets_f64(&v, px, py, c, 0.0);
+        assert!((o.dcolat + 0.01).abs() < 1e-12, "ψ = π goes north: {o:?}");
+    }
+
+    #[test]
+    fn beyond_the_pole_the_seam_pair_continues_its_neighbours() {
+        // 1° from the north pole, looking 3° towards it: the far side of the pole
+        let v = Viewer::from_deg(89.0, 0.0);
+        let theta = 3f64.to_radians();
+        let near = |psi: f64, seam: f64| {
+            let (px, py, c) = attrs(psi, theta);
+            offsets_f64(&v, px, py, c, seam).dlon
+        };
+        let left = near(PI - 0.01, 0.0);
+        let right = near(-PI + 0.01, 0.0);
+        assert!(
+            (near(PI, 1.0) - left).abs() < 0.05,
+            "{} vs {left}",
+            near(PI, 1.0)
+        );
+        assert!(
+            (near(-PI, -1.0) - right).abs() < 0.05,
+            "{} vs {right}",
+            near(-PI, -1.0)
+        );
+        // and the same in the south, where the hemisphere is turned
+        let v = Viewer::from_deg(-89.0, 0.0);
+        let far = |psi: f64, seam: f64| {
+            let (px, py, c) = attrs(psi, theta);
+            offsets_f64(&v, px, py, c, seam)
+        };
+        assert!(
+            far(PI, 1.0).dcolat < 0.0,
+            "ψ = π points to the south pole: colatitude grows… {:?}",
+            far(PI, 1.0)
+        );
+        assert!((far(PI, 1.0).dlon - far(PI - 0.01, 0.0).dlon).abs() < 0.05);
+    }
+
+    #[test]
+    fn visible_levels_follow_altitude() {
+        let r = sc_core::EARTH_RADIUS_M;
+        let fov = 60f64.to_radians();
+        let (lo_g, hi_g) = visible_levels(r, 1.7, 9000.0, fov, 1280, 26);
+        let (lo_s, hi_s) = visible_levels(r, 1.0e7, 9000.0, fov, 1280, 26);
+        assert!(
+            hi_g > hi_s && lo_g > lo_s,
+            "ground {lo_g}..{hi_g}, space {lo_s}..{hi_s}"
+        );
+        assert_eq!(
+            lo_s, 0,
+            "from space the whole visible hemisphere starts at level 0"
+        );
+        assert!(
+            hi_g >= 20,
+            "on the ground the finest rings are drawn: {hi_g}"
+        );
+    }
+}

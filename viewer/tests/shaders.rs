@@ -1,0 +1,19 @@
+//! The WGSL shaders parse and validate with naga (no GPU needed).
+
+#[test]
+fn clipmap_wgsl_validates() {
+    let module = naga::front::wgsl::parse_str(sc_viewer::CLIPMAP_WGSL)
+        .unwrap_or_else(|e| panic!("{}", e.emit_to_string(sc_viewer::CLIPMAP_WGSL)));
+    naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::default(),
+    )
+    .validate(&module)
+    .unwrap_or_else(|e| panic!("{e:?}"));
+    for entry in ["vs_main", "fs_main"] {
+        assert!(
+            module.entry_points.iter().any(|e| e.name == entry),
+            "{entry}"
+        );
+    }
+}
