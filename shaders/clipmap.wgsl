@@ -12,8 +12,15 @@ struct Frame {
     // camera: height above the sphere under the viewer, sphere radius (metres)
     cam_height: f32,
     radius: f32,
-    level_count: u32,
-    _pad: u32,
+    // the finest level drawn this frame: vertices of finer rings (the fill disc) sample it
+    level_hi: u32,
+    // the coarsest level drawn (nothing coarser to blend into)
+    level_lo: u32,
+    // 1 when the colour clipmap holds data
+    has_color: u32,
+    _p0: u32,
+    _p1: u32,
+    _p2: u32,
     // view-space (viewer at the north pole, metres, relative to the camera) to clip space
     view_proj: mat4x4<f32>,
 };
@@ -31,18 +38,29 @@ struct Level {
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<storage, read> levels: array<Level>;
 @group(0) @binding(2) var heights: texture_2d_array<f32>;
+@group(0) @binding(3) var colors: texture_2d_array<f32>;
 
 struct VertexIn {
     @location(0) pxy: vec2<f32>,
     @location(1) one_minus_cos: f32,
     @location(2) seam: f32,
     @location(3) level: u32,
+    // 0 on the level's outer ring … 1 at its inner edge
+    @location(4) depth: f32,
 };
 
 struct VertexOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) height: f32,
     @location(1) @interpolate(flat) level: u32,
+    // map offsets from the viewer and the continuous level coordinate (level + depth in it):
+    // the fragment picks its clipmap level and blend from them, the same on both sides of a
+    // level border
+    @location(2) off: vec2<f32>,
+    @location(3) lvl: f32,
+    // view-space position (relative to the camera) and the local up direction
+    @location(5) pos: vec3<f32>,
+    @location(6) up: vec3<f32>,
 };
 
 const TAU: f32 = 6.283185307179586;
@@ -94,34 +112,86 @@ fn height_at(l: u32, t: vec2<f32>) -> f32 {
     return mix(mix(h[0], h[1], f.x), mix(h[2], h[3], f.x), f.y);
 }
 
+fn texel_of(l: u32, off: vec2<f32>) -> vec2<f32> {
+    let lv = levels[l];
+    return lv.viewer_texel + off * lv.texels_per_rad;
+}
+
+// Towards its outer edge a level blends into the next coarser one, so that the rings shared by
+// two levels have the same height from both sides and detail fades in without popping.
+fn blend_of(l: u32, depth: f32) -> f32 {
+    if (l <= frame.level_lo) {
+        return 1.0;
+    }
+    return smoothstep(0.0, 0.5, depth);
+}
+
 @vertex
 fn vs_main(v: VertexIn) -> VertexOut {
     let off = map_offsets(v.pxy.x, v.pxy.y, v.one_minus_cos, v.seam);
-    let l = min(v.level, frame.level_count - 1u);
-    let lv = levels[l];
-    let texel = lv.viewer_texel + off * lv.texels_per_rad;
-    let h = height_at(l, texel);
+    let l = min(v.level, frame.level_hi);
+    let depth = select(v.depth, 1.0, v.level > frame.level_hi);
+    let t = texel_of(l, off);
+    let a = blend_of(l, depth);
+    var h = height_at(l, t);
+    var tc = t;
+    if (a < 1.0) {
+        tc = texel_of(l - 1u, off);
+        h = mix(height_at(l - 1u, tc), h, a);
+    }
     // view space relative to the camera: (R + h)·p̃ − (0, 0, R + h_cam), with
     // (R + h)(1 − c) − R − h_cam = h − h_cam − (R + h)·c (no large cancellation)
     let r = frame.radius + h;
-    let sin_t = length(v.pxy);
-    let rel = vec3<f32>(
-        r * v.pxy.x,
-        r * v.pxy.y,
-        h - frame.cam_height - r * v.one_minus_cos,
-    );
+    let rel = vec3<f32>(r * v.pxy.x, r * v.pxy.y, h - frame.cam_height - r * v.one_minus_cos);
     var out: VertexOut;
     out.clip = frame.view_proj * vec4<f32>(rel, 1.0);
-    out.height = h + 0.0 * sin_t;
+    out.height = h;
     out.level = l;
+    out.off = off;
+    out.lvl = f32(l) + depth;
+    out.pos = rel;
+    out.up = vec3<f32>(v.pxy.x, v.pxy.y, 1.0 - v.one_minus_cos);
     return out;
+}
+
+fn color_at(l: u32, t: vec2<f32>) -> vec4<f32> {
+    let lv = levels[l];
+    let base = floor(t - vec2<f32>(0.5));
+    let f = t - vec2<f32>(0.5) - base;
+    var c = array<vec4<f32>, 4>();
+    for (var k = 0u; k < 4u; k = k + 1u) {
+        let o = vec2<f32>(f32(k & 1u), f32(k >> 1u));
+        let p = vec2<i32>(base + o);
+        let size = vec2<i32>(lv.size);
+        let wrapped = ((p + vec2<i32>(lv.origin)) % size + size) % size;
+        c[k] = textureLoad(colors, wrapped, i32(l), 0);
+    }
+    return mix(mix(c[0], c[1], f.x), mix(c[2], c[3], f.x), f.y);
 }
 
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
-    // a simple height ramp until the colour clipmap is bound
+    var albedo: vec3<f32>;
     let t = clamp(in.height / 6000.0, -1.0, 1.0);
-    let land = vec3<f32>(0.3 + 0.5 * t, 0.5 + 0.3 * t, 0.2 + 0.6 * t);
-    let sea = vec3<f32>(0.1, 0.2 + 0.2 * (1.0 + t), 0.6);
-    return vec4<f32>(select(land, sea, t < 0.0), 1.0);
+    let land = vec3<f32>(0.12 + 0.5 * t, 0.25 + 0.35 * t, 0.05 + 0.6 * t);
+    let sea = vec3<f32>(0.02, 0.06 + 0.05 * (1.0 + t), 0.3);
+    albedo = select(land, sea, t < 0.0);
+    if (frame.has_color == 1u) {
+        let lf = clamp(floor(in.lvl), f32(frame.level_lo), f32(frame.level_hi));
+        let l = u32(lf);
+        let a = blend_of(l, in.lvl - lf);
+        var c = color_at(l, texel_of(l, in.off));
+        if (a < 1.0) {
+            c = mix(color_at(l - 1u, texel_of(l - 1u, in.off)), c, a);
+        }
+        albedo = mix(albedo, c.rgb, clamp(c.a, 0.0, 1.0));
+    }
+    // the facet normal of the displaced surface (heights shape the light)
+    var n = normalize(cross(dpdx(in.pos), dpdy(in.pos)));
+    if (dot(n, in.up) < 0.0) {
+        n = -n;
+    }
+    let sun = normalize(vec3<f32>(0.5, -0.4, 0.75));
+    let light = 0.3 + 0.7 * max(dot(n, sun), 0.0);
+    return vec4<f32>(albedo * light, 1.0);
 }

@@ -28,6 +28,9 @@ pub struct Vertex {
     pub seam: f32,
     /// Clipmap level whose ring this vertex lies on (the finer level at level borders).
     pub level: u32,
+    /// Where the vertex lies within its level: 0 on the level's outer ring, 1 at its inner
+    /// edge (and at the viewer); the shader blends towards the coarser level near 0.
+    pub depth: f32,
 }
 
 /// Parameters of the hemisphere.
@@ -61,8 +64,11 @@ pub struct Hemisphere {
     pub vertices: Vec<Vertex>,
     /// Triangle list.
     pub indices: Vec<u32>,
-    /// Per level: `indices[range]` draws its rings (the last level includes the fill disc).
+    /// Per level: `indices[range]` draws its rings.
     pub level_ranges: Vec<std::ops::Range<u32>>,
+    /// Per level: the fill disc closing it (a fan from its inner ring to the viewer), drawn
+    /// after the finest level of a frame.
+    pub fill_ranges: Vec<std::ops::Range<u32>>,
 }
 
 /// Outer θ̃ of level `i`.
@@ -111,41 +117,48 @@ impl Hemisphere {
                 indices.extend_from_slice(&[a, d, b, b, d, d + 1]);
             }
         }
-        // fill disc: a fan from the innermost ring to the centre
-        let inner = (rings.len() as u32 - 1) * cols;
-        for c in 0..n {
-            indices.extend_from_slice(&[inner + c, centre, inner + c + 1]);
-        }
         let per_level = m * n * 6;
         let level_ranges = (0..levels)
-            .map(|i| {
-                let end = if i + 1 == levels {
-                    indices.len() as u32
-                } else {
-                    (i + 1) * per_level
-                };
-                i * per_level..end
-            })
+            .map(|i| i * per_level..(i + 1) * per_level)
             .collect();
+        // per level, a fill disc: a fan from its inner ring (ring (i+1)·m) to the centre
+        let mut fill_ranges = Vec::new();
+        for i in 0..levels {
+            let start = indices.len() as u32;
+            let inner = (i + 1) * m * cols;
+            for c in 0..n {
+                indices.extend_from_slice(&[inner + c, centre, inner + c + 1]);
+            }
+            fill_ranges.push(start..indices.len() as u32);
+        }
         Self {
             spec: HemisphereSpec { n, m, levels },
             vertices,
             indices,
             level_ranges,
+            fill_ranges,
         }
     }
 
-    /// Triangles of levels `lo..=hi`.
+    /// Triangles of levels `lo..=hi` and the fill disc of `hi`.
     pub fn triangles(&self, lo: u32, hi: u32) -> u32 {
-        (lo..=hi.min(self.spec.levels - 1))
+        let hi = hi.min(self.spec.levels - 1);
+        (lo..=hi)
             .map(|i| self.level_ranges[i as usize].len() as u32 / 3)
-            .sum()
+            .sum::<u32>()
+            + self.fill_ranges[hi as usize].len() as u32 / 3
     }
 }
 
 fn vertex(psi: f64, theta: f64, seam: f32, level: u32) -> Vertex {
     let s = theta.sin();
+    let depth = if theta > 0.0 {
+        (level_outer(level) / theta).log2().clamp(0.0, 1.0)
+    } else {
+        1.0
+    };
     Vertex {
+        depth: depth as f32,
         psi: psi as f32,
         theta: theta as f32,
         px: (s * psi.cos()) as f32,
@@ -168,20 +181,23 @@ mod tests {
             levels: 5,
         });
         assert_eq!(h.level_ranges.len(), 5);
-        // ranges tile the index buffer in order
+        assert_eq!(h.fill_ranges.len(), 5);
+        // ranges tile the index buffer in order: the rings, then one fill disc per level
         let mut at = 0;
-        for r in &h.level_ranges {
+        for r in h.level_ranges.iter().chain(&h.fill_ranges) {
             assert_eq!(r.start, at);
             assert!(r.end > r.start);
             at = r.end;
         }
         assert_eq!(at as usize, h.indices.len());
-        // every level but the last: m rings × n cells × 2 triangles
-        for i in 0..4 {
+        for i in 0..5 {
+            // m rings × n cells × 2 triangles; a fan of n triangles
             assert_eq!(h.level_ranges[i].len(), 4 * 16 * 6, "level {i}");
+            assert_eq!(h.fill_ranges[i].len(), 16 * 3, "fill {i}");
+            // the fan of level i closes the ring at its inner edge
+            let ring = h.indices[h.fill_ranges[i].start as usize] as usize / 17;
+            assert_eq!(ring, (i + 1) * 4);
         }
-        // the last adds the fill fan
-        assert_eq!(h.level_ranges[4].len(), 4 * 16 * 6 + 16 * 3);
         // seam columns are the same point, flagged −1 and +1
         let cols = 17;
         for r in 0..(h.vertices.len() - 1) / cols {

@@ -3,7 +3,9 @@
 //! the f32 viewer-relative form the shaders evaluate, and level visibility. The wgpu renderer,
 //! headless and windowed, builds on this (issue 6, in progress; see ARCHITECTURE.md).
 
+pub mod clipmap;
 pub mod geometry;
+pub mod render;
 pub mod transform;
 
 /// The WGSL of the clipmap renderer, from `shaders/`.

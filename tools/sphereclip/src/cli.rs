@@ -25,8 +25,8 @@ pub enum Command {
     Inspect(InspectArgs),
     /// Open the planet viewer (not implemented yet).
     View(Pending),
-    /// Render a view headless to a PNG (not implemented yet).
-    Render(Pending),
+    /// Render a view headless to a PNG (any adapter, the CPU one included; no display needed).
+    Render(RenderArgs),
     /// Show a store's layers, levels, tiles, sizes and value ranges; --verify checks every checksum.
     Info(InfoArgs),
     /// Write one level of a store as a GeoTIFF (EPSG:4326) or an f32 OpenEXR heightmap.
@@ -148,6 +148,25 @@ pub struct InspectArgs {
     /// Print report.json to standard output.
     #[arg(long)]
     pub json: bool,
+}
+
+/// `sphereclip render`.
+#[derive(Debug, clap::Args)]
+pub struct RenderArgs {
+    /// The store folder (its height layer shapes the planet).
+    pub store: std::path::PathBuf,
+    /// LAT,LON,ALT[,HEADING,PITCH,FOV]: degrees, metres above the ground, degrees.
+    #[arg(long, allow_hyphen_values = true)]
+    pub camera: String,
+    /// Image size WxH.
+    #[arg(long, default_value = "1280x720")]
+    pub size: String,
+    /// Output PNG.
+    #[arg(long)]
+    pub out: std::path::PathBuf,
+    /// Clear colour as R,G,B in 0..1 (e.g. 1,0,1 to see cracks).
+    #[arg(long)]
+    pub clear: Option<String>,
 }
 
 /// `sphereclip info`.

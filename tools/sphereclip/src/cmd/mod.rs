@@ -6,6 +6,7 @@ mod export;
 mod info;
 mod ingest;
 mod inspect;
+mod render;
 
 use std::process::ExitCode;
 
@@ -26,7 +27,7 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::Build(a) => build::run(&a),
         Command::Inspect(a) => inspect::run(&a),
         Command::View(_) => pending("view"),
-        Command::Render(_) => pending("render"),
+        Command::Render(a) => render::run(&a),
     }
 }
 
