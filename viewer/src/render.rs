@@ -639,3 +639,14 @@ pub fn view_projection(viewer: &Viewer, camera: &Camera, w: u32, h: u32) -> Mat4
     let _ = PI;
     proj * view
 }
+
+/// The views the demo renders (and golden-image tests will compare): name and
+/// `LAT,LON,ALT,HEADING,PITCH,FOV`.
+pub const GOLDEN_VIEWS: [(&str, &str); 6] = [
+    ("space", "30,80,8000000,0,-90,40"),
+    ("aircraft-himalaya", "28.0,86.9,9000,200,-10,60"),
+    ("ground-alps", "46.5,8.0,1.7,30,-4,60"),
+    ("north-pole", "90,0,3000000,0,-90,50"),
+    ("south-pole", "-90,0,3000000,0,-90,50"),
+    ("antimeridian", "-17,179.9,20000,270,-15,60"),
+];
