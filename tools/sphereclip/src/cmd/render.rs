@@ -18,7 +18,11 @@ fn parse_size(s: &str) -> Result<(u32, u32)> {
             .parse::<u32>()
             .map_err(|_| anyhow::anyhow!("--size: expected WxH, found `{s}`"))
     };
-    Ok((p(w)?, p(h)?))
+    let (w, h) = (p(w)?, p(h)?);
+    if !(16..=8192).contains(&w) || !(16..=8192).contains(&h) {
+        bail!("image size {w}x{h} is outside 16..8192 a side");
+    }
+    Ok((w, h))
 }
 
 /// Runs `render`.
