@@ -650,3 +650,91 @@ pub const GOLDEN_VIEWS: [(&str, &str); 6] = [
     ("south-pole", "-90,0,3000000,0,-90,50"),
     ("antimeridian", "-17,179.9,20000,270,-15,60"),
 ];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The uniform structs match the WGSL structs member by member (naga's layout).
+    #[test]
+    fn rust_structs_match_the_wgsl_layout() {
+        let module = naga::front::wgsl::parse_str(crate::CLIPMAP_WGSL).expect("wgsl parses");
+        let wgsl = |name: &str| -> (u32, Vec<(String, u32)>) {
+            let (_, ty) = module
+                .types
+                .iter()
+                .find(|(_, t)| t.name.as_deref() == Some(name))
+                .unwrap_or_else(|| panic!("no struct {name} in clipmap.wgsl"));
+            match &ty.inner {
+                naga::TypeInner::Struct { members, span } => (
+                    *span,
+                    members
+                        .iter()
+                        .map(|m| (m.name.clone().unwrap_or_default(), m.offset))
+                        .collect(),
+                ),
+                _ => panic!("{name} is not a struct"),
+            }
+        };
+        let (span, members) = wgsl("Frame");
+        assert_eq!(span as usize, std::mem::size_of::<FrameUniform>());
+        let rust = [
+            ("sin_v", std::mem::offset_of!(FrameUniform, sin_v)),
+            ("cos_v", std::mem::offset_of!(FrameUniform, cos_v)),
+            ("colat", std::mem::offset_of!(FrameUniform, colat)),
+            ("orient", std::mem::offset_of!(FrameUniform, orient)),
+            ("cam_height", std::mem::offset_of!(FrameUniform, cam_height)),
+            ("radius", std::mem::offset_of!(FrameUniform, radius)),
+            ("level_hi", std::mem::offset_of!(FrameUniform, level_hi)),
+            ("level_lo", std::mem::offset_of!(FrameUniform, level_lo)),
+            ("has_color", std::mem::offset_of!(FrameUniform, has_color)),
+            ("view_proj", std::mem::offset_of!(FrameUniform, view_proj)),
+        ];
+        for (name, off) in rust {
+            let w = members
+                .iter()
+                .find(|m| m.0 == name)
+                .unwrap_or_else(|| panic!("Frame.{name}"));
+            assert_eq!(w.1 as usize, off, "Frame.{name}");
+        }
+        let (span, members) = wgsl("Level");
+        assert_eq!(span as usize, std::mem::size_of::<LevelUniform>());
+        let rust = [
+            (
+                "viewer_texel",
+                std::mem::offset_of!(LevelUniform, viewer_texel),
+            ),
+            (
+                "texels_per_rad",
+                std::mem::offset_of!(LevelUniform, texels_per_rad),
+            ),
+            ("size", std::mem::offset_of!(LevelUniform, size)),
+            ("origin", std::mem::offset_of!(LevelUniform, origin)),
+        ];
+        for (name, off) in rust {
+            let w = members
+                .iter()
+                .find(|m| m.0 == name)
+                .unwrap_or_else(|| panic!("Level.{name}"));
+            assert_eq!(w.1 as usize, off, "Level.{name}");
+        }
+    }
+
+    #[test]
+    fn cameras_parse_with_defaults_and_refuse_nonsense() {
+        let c = Camera::parse("46.5,8,1.7").expect("camera");
+        assert_eq!((c.heading, c.pitch, c.fov), (0.0, -20.0, 60.0));
+        assert_eq!(Camera::parse("0,0,8000000").expect("camera").pitch, -90.0);
+        for bad in [
+            "",
+            "1,2",
+            "a,b,c",
+            "95,0,1",
+            "0,0,-5",
+            "0,0,1,0,0,0",
+            "0,0,1,0,-100",
+        ] {
+            assert!(Camera::parse(bad).is_err(), "{bad}");
+        }
+    }
+}
