@@ -1,7 +1,7 @@
 // Spherical clipmaps: vertex stage maps the static hemisphere around the viewer onto the height
 // clipmap and displaces it; fragment stage colours it. Everything here is relative to the viewer:
-// absolute positions live on the CPU in f64 (see viewer/src/transform.rs, whose `offsets_f32` is
-// this file's `map_offsets`, operation for operation).
+// absolute positions live on the CPU in f64. The map transform is in map_transform.wgsl, which
+// the renderer prepends to this file.
 
 struct Frame {
     // map transform
@@ -63,38 +63,6 @@ struct VertexOut {
     @location(6) up: vec3<f32>,
 };
 
-const TAU: f32 = 6.283185307179586;
-
-// Δφ, Δθ of a vertex from the viewer (see transform.rs).
-fn map_offsets(px: f32, py: f32, c: f32, seam: f32) -> vec2<f32> {
-    // mirrored to the nearer pole (see transform.rs)
-    let tx = px;
-    let ty = frame.orient * py;
-    let tz = 1.0 - c;
-    let wx = frame.cos_v * tx + frame.sin_v * tz;
-    let wy = ty;
-    let rho = sqrt(wx * wx + wy * wy);
-    var dcolat: f32;
-    if (wx > 0.0) {
-        let q = wy * wy / (rho + wx);
-        dcolat = atan2(tx + frame.cos_v * q, tz + frame.sin_v * q);
-    } else {
-        let wz = -frame.sin_v * tx + frame.cos_v * tz;
-        dcolat = atan2(rho, wz) - frame.colat;
-    }
-    dcolat = frame.orient * dcolat;
-    var dlon = atan2(wy, wx);
-    if (wx < 0.0) {
-        let s = seam * frame.orient;
-        if (s < 0.0 && dlon > 0.0) {
-            dlon = dlon - TAU;
-        } else if (s > 0.0 && dlon < 0.0) {
-            dlon = dlon + TAU;
-        }
-    }
-    return vec2<f32>(dlon, dcolat);
-}
-
 // Height at fractional texel t of level l: bilinear from four textureLoads (GL cannot filter
 // R32Float), toroidal addressing.
 fn height_at(l: u32, t: vec2<f32>) -> f32 {
@@ -128,7 +96,8 @@ fn blend_of(l: u32, depth: f32) -> f32 {
 
 @vertex
 fn vs_main(v: VertexIn) -> VertexOut {
-    let off = map_offsets(v.pxy.x, v.pxy.y, v.one_minus_cos, v.seam);
+    let view = ViewerConsts(frame.sin_v, frame.cos_v, frame.colat, frame.orient);
+    let off = map_offsets(view, v.pxy.x, v.pxy.y, v.one_minus_cos, v.seam);
     let l = min(v.level, frame.level_hi);
     let depth = select(v.depth, 1.0, v.level > frame.level_hi);
     let t = texel_of(l, off);

@@ -5,8 +5,18 @@
 
 pub mod clipmap;
 pub mod geometry;
+pub mod probe;
 pub mod render;
 pub mod transform;
 
-/// The WGSL of the clipmap renderer, from `shaders/`.
-pub const CLIPMAP_WGSL: &str = include_str!("../../shaders/clipmap.wgsl");
+/// The WGSL of the clipmap renderer, from `shaders/` (the map transform first).
+pub const CLIPMAP_WGSL: &str = concat!(
+    include_str!("../../shaders/map_transform.wgsl"),
+    include_str!("../../shaders/clipmap.wgsl")
+);
+
+/// The WGSL of the map-transform probe (a compute pass over vertices).
+pub const PROBE_WGSL: &str = concat!(
+    include_str!("../../shaders/map_transform.wgsl"),
+    include_str!("../../shaders/transform_probe.wgsl")
+);

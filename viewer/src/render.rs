@@ -174,28 +174,8 @@ impl Renderer {
                 "image size {width}x{height} is outside 16..8192 a side"
             )));
         }
-        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle());
-        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
-            power_preference: wgpu::PowerPreference::HighPerformance,
-            force_fallback_adapter: false,
-            compatible_surface: None,
-        }))
-        .map_err(|_| RenderError::NoAdapter)?;
-        let info = adapter.get_info();
+        let (device, queue, adapter) = gpu_device()?;
         let levels = HemisphereSpec::default().levels;
-        let (device, queue) = pollster::block_on(
-            adapter.request_device(&wgpu::DeviceDescriptor {
-                label: Some("sphereclip"),
-                required_features: wgpu::Features::empty(),
-                required_limits: wgpu::Limits {
-                    max_texture_array_layers: levels.max(256),
-                    ..wgpu::Limits::downlevel_defaults()
-                }
-                .using_resolution(adapter.limits()),
-                ..Default::default()
-            }),
-        )
-        .map_err(|e| RenderError::Device(e.to_string()))?;
         let hemi = Hemisphere::new(HemisphereSpec::default());
         let verts: Vec<GpuVertex> = hemi
             .vertices
@@ -374,7 +354,7 @@ impl Renderer {
             depth,
             size: (width, height),
             radius: radius_m,
-            adapter: format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type),
+            adapter,
             clear: [0.02, 0.02, 0.06, 1.0],
         })
     }
@@ -612,6 +592,38 @@ impl Renderer {
             },
         ))
     }
+}
+
+/// A device on the first adapter wgpu finds (a real GPU if any, else the CPU one), and the
+/// adapter in words.
+pub fn gpu_device() -> Result<(wgpu::Device, wgpu::Queue, String), RenderError> {
+    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle());
+    let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+        power_preference: wgpu::PowerPreference::HighPerformance,
+        force_fallback_adapter: false,
+        compatible_surface: None,
+    }))
+    .map_err(|_| RenderError::NoAdapter)?;
+    let info = adapter.get_info();
+    let levels = HemisphereSpec::default().levels;
+    let (device, queue) = pollster::block_on(
+        adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("sphereclip"),
+            required_features: wgpu::Features::empty(),
+            required_limits: wgpu::Limits {
+                max_texture_array_layers: levels.max(256),
+                ..wgpu::Limits::downlevel_defaults()
+            }
+            .using_resolution(adapter.limits()),
+            ..Default::default()
+        }),
+    )
+    .map_err(|e| RenderError::Device(e.to_string()))?;
+    Ok((
+        device,
+        queue,
+        format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type),
+    ))
 }
 
 /// View-space (viewer at the north pole, camera at the origin, metres) to clip space: reversed-Z
