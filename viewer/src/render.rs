@@ -175,6 +175,12 @@ impl Renderer {
             )));
         }
         let (device, queue, adapter) = gpu_device()?;
+        let max = device.limits().max_texture_dimension_2d;
+        if width > max || height > max {
+            return Err(RenderError::Usage(format!(
+                "image size {width}x{height} exceeds what {adapter} renders ({max} a side)"
+            )));
+        }
         let levels = HemisphereSpec::default().levels;
         let hemi = Hemisphere::new(HemisphereSpec::default());
         let verts: Vec<GpuVertex> = hemi
