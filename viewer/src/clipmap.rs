@@ -11,7 +11,7 @@ use std::collections::HashMap;
 use std::f64::consts::PI;
 
 use sc_core::{GridSpec, LevelId, TileId};
-use sc_store::{LayerKind, StoreReader, TileRead};
+use sc_store::{StoreReader, TileRead, TileSample};
 
 use crate::geometry::level_outer;
 use crate::transform::Viewer;
@@ -67,24 +67,33 @@ impl HeightSource for Flat {
     }
 }
 
-/// Heights from a store's isotropic height levels, through a tile cache. Nodata and missing
-/// tiles read as sea level.
+/// One layer's isotropic levels of a store, read through a tile cache: the part heights and
+/// colours share (which level serves a clipmap texel, where a point falls in it, texel access).
 #[derive(Debug)]
-pub struct StoreHeights {
+struct StoreLevels<T: TileSample + ZeroedSample> {
     reader: StoreReader,
     grid: GridSpec,
     levels: Vec<u32>,
-    tiles: HashMap<TileId, Option<Vec<f32>>>,
-    /// Read errors seen (a damaged tile draws as sea level and is counted once).
-    pub errors: Vec<String>,
+    tiles: HashMap<TileId, Option<Vec<T>>>,
+    /// Read errors seen (a damaged tile reads as missing and is counted once).
+    errors: Vec<String>,
 }
 
-impl StoreHeights {
-    /// Over the isotropic height levels of `reader`; `None` if it has none.
-    pub fn new(reader: StoreReader) -> Option<Self> {
+/// Where a point falls in a level: the texel at the north-west of its bilinear footprint and the
+/// fractions towards the next column and row.
+struct Footprint {
+    id: LevelId,
+    x0: i64,
+    y0: i64,
+    fx: f64,
+    fy: f64,
+}
+
+impl<T: TileSample + ZeroedSample> StoreLevels<T> {
+    fn new(reader: StoreReader) -> Option<Self> {
         let mut levels: Vec<u32> = reader
             .meta()
-            .levels(LayerKind::Height)
+            .levels(T::KIND)
             .into_iter()
             .filter(|l| l.is_iso())
             .map(|l| l.level)
@@ -103,49 +112,19 @@ impl StoreHeights {
         })
     }
 
-    fn level_for(&self, texel: f64) -> u32 {
-        // the coarsest stored level whose spacing π/H is no coarser than the texel, else the finest
+    /// The coarsest stored level whose spacing π/H is no coarser than `texel`, else the finest;
+    /// and where (`lon`, `colat`) falls in it (beyond a pole: the other side, lon + 180°).
+    fn locate(&self, lon: f64, colat: f64, texel: f64) -> Footprint {
         let t = f64::from(self.grid.tile_size());
         let ideal = (PI / (t * texel)).log2().ceil().max(0.0) as u32;
-        self.levels
+        let level = self
+            .levels
             .iter()
             .copied()
             .find(|&l| l >= ideal)
-            .unwrap_or(self.levels[self.levels.len() - 1])
-    }
-
-    fn texel(&mut self, id: LevelId, i: u64, j: u64) -> f32 {
-        let t = u64::from(self.grid.tile_size());
-        let Ok(tile) = TileId::new(self.grid, id, i / t, j / t) else {
-            return 0.0;
-        };
-        let data = self.tiles.entry(tile).or_insert_with(|| {
-            let mut buf = vec![0f32; (t * t) as usize];
-            match self.reader.read_tile(tile, &mut buf) {
-                Ok(TileRead::Present) => Some(buf),
-                Ok(TileRead::Missing) => None,
-                Err(e) => {
-                    self.errors.push(e.to_string());
-                    None
-                }
-            }
-        });
-        match data {
-            Some(d) => {
-                let v = d[((j % t) * t + i % t) as usize];
-                if v.is_nan() { 0.0 } else { v }
-            }
-            None => 0.0,
-        }
-    }
-}
-
-impl HeightSource for StoreHeights {
-    fn height(&mut self, lon: f64, colat: f64, texel: f64) -> f32 {
-        let l = self.level_for(texel);
-        let id = LevelId { level: l, aniso: 0 };
-        let (w, h) = (self.grid.width(id) as i64, self.grid.height(id) as i64);
-        // fold the colatitude into 0..π (beyond a pole: the other side, lon + 180°)
+            .unwrap_or(self.levels[self.levels.len() - 1]);
+        let id = LevelId { level, aniso: 0 };
+        let (w, h) = (self.grid.width(id), self.grid.height(id));
         let mut c = colat.rem_euclid(2.0 * PI);
         let mut lo = lon;
         if c > PI {
@@ -155,15 +134,92 @@ impl HeightSource for StoreHeights {
         let x = (lo + PI).rem_euclid(2.0 * PI) / (2.0 * PI) * w as f64 - 0.5;
         let y = (c / PI * h as f64 - 0.5).clamp(0.0, (h - 1) as f64);
         let (x0, y0) = (x.floor(), y.floor());
-        let (fx, fy) = ((x - x0) as f32, (y - y0) as f32);
-        let xi = |k: i64| (x0 as i64 + k).rem_euclid(w) as u64;
-        let yi = |k: i64| (y0 as i64 + k).clamp(0, h - 1) as u64;
-        let a = self.texel(id, xi(0), yi(0));
-        let b = self.texel(id, xi(1), yi(0));
-        let c2 = self.texel(id, xi(0), yi(1));
-        let d = self.texel(id, xi(1), yi(1));
+        Footprint {
+            id,
+            x0: x0 as i64,
+            y0: y0 as i64,
+            fx: x - x0,
+            fy: y - y0,
+        }
+    }
+
+    /// The samples of texel (x0 + dx, y0 + dy) of the footprint's level (wrapped in longitude,
+    /// clamped in latitude); `None` where the store holds nothing.
+    fn texel(&mut self, f: &Footprint, dx: i64, dy: i64) -> Option<&[T]> {
+        let (w, h) = (self.grid.width(f.id) as i64, self.grid.height(f.id) as i64);
+        let i = (f.x0 + dx).rem_euclid(w) as u64;
+        let j = (f.y0 + dy).clamp(0, h - 1) as u64;
+        let t = u64::from(self.grid.tile_size());
+        let tile = TileId::new(self.grid, f.id, i / t, j / t).ok()?;
+        let ch = T::KIND.channels();
+        let (reader, errors) = (&self.reader, &mut self.errors);
+        let data = self.tiles.entry(tile).or_insert_with(|| {
+            let mut buf = vec![T::zeroed_sample(); (t * t) as usize * ch];
+            match reader.read_tile(tile, &mut buf) {
+                Ok(TileRead::Present) => Some(buf),
+                Ok(TileRead::Missing) => None,
+                Err(e) => {
+                    errors.push(e.to_string());
+                    None
+                }
+            }
+        });
+        let k = ((j % t) * t + i % t) as usize * ch;
+        data.as_deref().map(|d| &d[k..k + ch])
+    }
+}
+
+/// A zero sample of a store type (the buffer a tile is decoded into).
+trait ZeroedSample {
+    fn zeroed_sample() -> Self;
+}
+
+impl ZeroedSample for f32 {
+    fn zeroed_sample() -> Self {
+        0.0
+    }
+}
+
+impl ZeroedSample for u8 {
+    fn zeroed_sample() -> Self {
+        0
+    }
+}
+
+/// Heights from a store's isotropic height levels, through a tile cache. Nodata and missing
+/// tiles read as sea level.
+#[derive(Debug)]
+pub struct StoreHeights(StoreLevels<f32>);
+
+impl StoreHeights {
+    /// Over the isotropic height levels of `reader`; `None` if it has none.
+    pub fn new(reader: StoreReader) -> Option<Self> {
+        StoreLevels::new(reader).map(Self)
+    }
+
+    /// Read errors seen (a damaged tile draws as sea level and is counted once).
+    pub fn errors(&self) -> &[String] {
+        &self.0.errors
+    }
+
+    fn texel(&mut self, f: &Footprint, dx: i64, dy: i64) -> f32 {
+        match self.0.texel(f, dx, dy) {
+            Some([v]) if !v.is_nan() => *v,
+            _ => 0.0,
+        }
+    }
+}
+
+impl HeightSource for StoreHeights {
+    fn height(&mut self, lon: f64, colat: f64, texel: f64) -> f32 {
+        let f = self.0.locate(lon, colat, texel);
+        let (fx, fy) = (f.fx as f32, f.fy as f32);
+        let a = self.texel(&f, 0, 0);
+        let b = self.texel(&f, 1, 0);
+        let c = self.texel(&f, 0, 1);
+        let d = self.texel(&f, 1, 1);
         let top = a + (b - a) * fx;
-        let bottom = c2 + (d - c2) * fx;
+        let bottom = c + (d - c) * fx;
         top + (bottom - top) * fy
     }
 }
@@ -213,95 +269,35 @@ pub trait ColorSource {
     fn color(&mut self, lon: f64, colat: f64, texel: f64) -> [u8; 4];
 }
 
-/// A store's isotropic colour levels through a tile cache (nearest texel of the level matching
-/// the clipmap texel).
+/// A store's isotropic colour levels through a tile cache (bilinear in the level matching the
+/// clipmap texel).
 #[derive(Debug)]
-pub struct StoreColors {
-    reader: StoreReader,
-    grid: GridSpec,
-    levels: Vec<u32>,
-    tiles: HashMap<TileId, Option<Vec<u8>>>,
-}
+pub struct StoreColors(StoreLevels<u8>);
 
 impl StoreColors {
     /// Over the isotropic colour levels of `reader`; `None` if it has none.
     pub fn new(reader: StoreReader) -> Option<Self> {
-        let mut levels: Vec<u32> = reader
-            .meta()
-            .levels(LayerKind::Color)
-            .into_iter()
-            .filter(|l| l.is_iso())
-            .map(|l| l.level)
-            .collect();
-        levels.sort_unstable();
-        let grid = reader.meta().grid;
-        (!levels.is_empty()).then(|| Self {
-            reader,
-            grid,
-            levels,
-            tiles: HashMap::new(),
-        })
+        StoreLevels::new(reader).map(Self)
     }
 }
 
 impl ColorSource for StoreColors {
     fn color(&mut self, lon: f64, colat: f64, texel: f64) -> [u8; 4] {
-        let t = f64::from(self.grid.tile_size());
-        let ideal = (PI / (t * texel)).log2().ceil().max(0.0) as u32;
-        let l = self
-            .levels
-            .iter()
-            .copied()
-            .find(|&l| l >= ideal)
-            .unwrap_or(self.levels[self.levels.len() - 1]);
-        let id = LevelId { level: l, aniso: 0 };
-        let (w, h) = (self.grid.width(id), self.grid.height(id));
-        let mut c = colat.rem_euclid(2.0 * PI);
-        let mut lo = lon;
-        if c > PI {
-            c = 2.0 * PI - c;
-            lo += PI;
-        }
-        let x = (lo + PI).rem_euclid(2.0 * PI) / (2.0 * PI) * w as f64 - 0.5;
-        let y = (c / PI * h as f64 - 0.5).clamp(0.0, (h - 1) as f64);
-        let (x0, y0) = (x.floor(), y.floor());
-        let (fx, fy) = (x - x0, y - y0);
+        let f = self.0.locate(lon, colat, texel);
         let mut acc = [0.0f64; 4];
-        for (k, wgt) in [
-            (0, (1.0 - fx) * (1.0 - fy)),
-            (1, fx * (1.0 - fy)),
-            (2, (1.0 - fx) * fy),
-            (3, fx * fy),
+        for (dx, dy, wgt) in [
+            (0, 0, (1.0 - f.fx) * (1.0 - f.fy)),
+            (1, 0, f.fx * (1.0 - f.fy)),
+            (0, 1, (1.0 - f.fx) * f.fy),
+            (1, 1, f.fx * f.fy),
         ] {
-            let i = (x0 as i64 + (k & 1)).rem_euclid(w as i64) as u64;
-            let j = (y0 as i64 + (k >> 1)).clamp(0, h as i64 - 1) as u64;
-            let p = self.texel(id, i, j);
-            for q in 0..4 {
-                acc[q] += wgt * f64::from(p[q]);
+            if let Some(p) = self.0.texel(&f, dx, dy) {
+                for (a, &v) in acc.iter_mut().zip(p) {
+                    *a += wgt * f64::from(v);
+                }
             }
         }
         acc.map(|v| v.round().clamp(0.0, 255.0) as u8)
-    }
-}
-
-impl StoreColors {
-    fn texel(&mut self, id: LevelId, i: u64, j: u64) -> [u8; 4] {
-        let tt = u64::from(self.grid.tile_size());
-        let Ok(tile) = TileId::new(self.grid, id, i / tt, j / tt) else {
-            return [0; 4];
-        };
-        let reader = &self.reader;
-        let data = self.tiles.entry(tile).or_insert_with(|| {
-            let mut buf = vec![0u8; (tt * tt * 4) as usize];
-            matches!(reader.read_tile(tile, &mut buf), Ok(TileRead::Present)).then_some(buf)
-        });
-        match data {
-            Some(d) => {
-                let k = (((j % tt) * tt + i % tt) * 4) as usize;
-                [d[k], d[k + 1], d[k + 2], d[k + 3]]
-            }
-            None => [0; 4],
-        }
     }
 }
 
