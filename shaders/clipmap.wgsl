@@ -18,7 +18,8 @@ struct Frame {
     level_lo: u32,
     // 1 when the colour clipmap holds data
     has_color: u32,
-    _p0: u32,
+    // debug views: bit 0 tints each level
+    flags: u32,
     _p1: u32,
     _p2: u32,
     // view-space (viewer at the north pole, metres, relative to the camera) to clip space
@@ -58,9 +59,8 @@ struct VertexOut {
     // level border
     @location(2) off: vec2<f32>,
     @location(3) lvl: f32,
-    // view-space position (relative to the camera) and the local up direction
-    @location(5) pos: vec3<f32>,
-    @location(6) up: vec3<f32>,
+    // the local up direction (view space)
+    @location(5) up: vec3<f32>,
 };
 
 // Height at fractional texel t of level l: bilinear from four textureLoads (GL cannot filter
@@ -118,7 +118,6 @@ fn vs_main(v: VertexIn) -> VertexOut {
     out.level = l;
     out.off = off;
     out.lvl = f32(l) + depth;
-    out.pos = rel;
     out.up = vec3<f32>(v.pxy.x, v.pxy.y, 1.0 - v.one_minus_cos);
     return out;
 }
@@ -138,6 +137,40 @@ fn color_at(l: u32, t: vec2<f32>) -> vec4<f32> {
     return mix(mix(c[0], c[1], f.x), mix(c[2], c[3], f.x), f.y);
 }
 
+// The height gradient at fractional texel t of level l, metres per radian of (Δφ, Δθ): central
+// differences over one texel.
+fn slope_at(l: u32, t: vec2<f32>) -> vec2<f32> {
+    let dx = height_at(l, t + vec2<f32>(1.0, 0.0)) - height_at(l, t - vec2<f32>(1.0, 0.0));
+    let dy = height_at(l, t + vec2<f32>(0.0, 1.0)) - height_at(l, t - vec2<f32>(0.0, 1.0));
+    return 0.5 * vec2<f32>(dx, dy) * levels[l].texels_per_rad;
+}
+
+// The surface normal in view space from the height gradient (metres per radian of Δφ, Δθ) at the
+// point of the sphere in direction `up` (view space), height h. Worked in the viewer's frame
+// mirrored to the nearer pole (map_transform.wgsl): that pole lies at P = (−sin θv, 0, cos θv),
+// ∂u/∂φ = P × u and sin θ'·∂u/∂θ = orient·((u·P)u − P), θ' the angle from P.
+fn surface_normal(up: vec3<f32>, slope: vec2<f32>, h: f32) -> vec3<f32> {
+    let o = frame.orient;
+    let u = normalize(vec3<f32>(up.x, o * up.y, up.z));
+    let pole = vec3<f32>(-frame.sin_v, 0.0, frame.cos_v);
+    let e = cross(pole, u);
+    let s2 = dot(e, e);
+    if (s2 < 1e-12) {
+        return up;
+    }
+    let sc = o * (dot(u, pole) * u - pole);
+    // the tangent gradient: ∂h/∂(south)·ŝ + ∂h/∂(east)·ê, with ŝ = sc/sin θ', ê = e/sin θ'
+    let g = (slope.y * sc * sqrt(s2) + slope.x * e) / ((frame.radius + h) * s2);
+    let n = normalize(u - g);
+    return vec3<f32>(n.x, o * n.y, n.z);
+}
+
+// A colour per level for the level view.
+fn level_tint(l: u32) -> vec3<f32> {
+    let k = f32(l % 6u);
+    return vec3<f32>(0.5 + 0.5 * cos(1.05 * k), 0.5 + 0.5 * cos(1.05 * k + 2.1), 0.5 + 0.5 * cos(1.05 * k + 4.2));
+}
+
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     var albedo: vec3<f32>;
@@ -145,21 +178,27 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let land = vec3<f32>(0.12 + 0.5 * t, 0.25 + 0.35 * t, 0.05 + 0.6 * t);
     let sea = vec3<f32>(0.02, 0.06 + 0.05 * (1.0 + t), 0.3);
     albedo = select(land, sea, t < 0.0);
+    // the fragment's level and its blend into the next coarser one, as in the vertex stage
+    let lf = clamp(floor(in.lvl), f32(frame.level_lo), f32(frame.level_hi));
+    let l = u32(lf);
+    let a = blend_of(l, in.lvl - lf);
+    let tl = texel_of(l, in.off);
     if (frame.has_color == 1u) {
-        let lf = clamp(floor(in.lvl), f32(frame.level_lo), f32(frame.level_hi));
-        let l = u32(lf);
-        let a = blend_of(l, in.lvl - lf);
-        var c = color_at(l, texel_of(l, in.off));
+        var c = color_at(l, tl);
         if (a < 1.0) {
             c = mix(color_at(l - 1u, texel_of(l - 1u, in.off)), c, a);
         }
         albedo = mix(albedo, c.rgb, clamp(c.a, 0.0, 1.0));
     }
-    // the facet normal of the displaced surface (heights shape the light)
-    var n = normalize(cross(dpdx(in.pos), dpdy(in.pos)));
-    if (dot(n, in.up) < 0.0) {
-        n = -n;
+    if ((frame.flags & 1u) != 0u) {
+        albedo = mix(albedo, level_tint(l), 0.6);
     }
+    // smooth normals from the height clipmap (blended between levels like the heights)
+    var slope = slope_at(l, tl);
+    if (a < 1.0) {
+        slope = mix(slope_at(l - 1u, texel_of(l - 1u, in.off)), slope, a);
+    }
+    let n = surface_normal(in.up, slope, in.height);
     let sun = normalize(vec3<f32>(0.5, -0.4, 0.75));
     let light = 0.3 + 0.7 * max(dot(n, sun), 0.0);
     return vec4<f32>(albedo * light, 1.0);

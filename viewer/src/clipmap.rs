@@ -19,6 +19,9 @@ use crate::transform::Viewer;
 /// Texels per side of a clipmap level.
 pub const CLIPMAP_N: u32 = 256;
 
+/// Most bytes of decoded store tiles one layer's reader keeps.
+pub const TILE_CACHE_BYTES: usize = 192 << 20;
+
 /// Where a clipmap level lies in map space.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LevelWindow {
@@ -50,11 +53,82 @@ pub fn level_window(i: u32, colat: f64, n: u32) -> LevelWindow {
     }
 }
 
+/// Where clipmap level `i` lies for a viewer: its window, snapped to whole texels of the level's
+/// world grid (so a move of less than a texel changes nothing), and where the viewer falls in it.
+///
+/// World texel (u, v) of the level has its centre at longitude (u + ½)·texel_lon − π and
+/// colatitude (v + ½)·texel_colat (v < 0 or beyond π/texel_colat: past a pole). The window holds
+/// u0 … u0+n−1, v0 … v0+n−1; the texture stores world texel (u, v) at (u mod n, v mod n)
+/// (toroidal addressing: a window that moves keeps the texels both windows share in place).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Placement {
+    /// Texel size.
+    pub win: LevelWindow,
+    /// First world column and row of the window.
+    pub u0: i64,
+    /// See `u0`.
+    pub v0: i64,
+    /// The viewer in texel coordinates relative to (u0, v0) (within [n/2, n/2 + 1)).
+    pub viewer_texel: [f64; 2],
+}
+
+impl Placement {
+    /// Level `i`'s placement around `viewer`, `n` texels a side.
+    pub fn new(i: u32, viewer: &Viewer, n: u32) -> Self {
+        let win = level_window(i, viewer.colat, n);
+        let u = (viewer.lon + PI).rem_euclid(2.0 * PI) / win.texel_lon;
+        let v = viewer.colat / win.texel_colat;
+        let half = i64::from(n / 2);
+        let (u0, v0) = (u.floor() as i64 - half, v.floor() as i64 - half);
+        Self {
+            win,
+            u0,
+            v0,
+            viewer_texel: [u - u0 as f64, v - v0 as f64],
+        }
+    }
+
+    /// The texture's origin for toroidal addressing: (u0 mod n, v0 mod n).
+    pub fn origin(&self, n: u32) -> [u32; 2] {
+        let n = i64::from(n);
+        [self.u0.rem_euclid(n) as u32, self.v0.rem_euclid(n) as u32]
+    }
+
+    /// Longitude and colatitude of the centre of window texel (c, r).
+    pub fn texel_centre(&self, c: u32, r: u32) -> (f64, f64) {
+        (
+            (self.u0 as f64 + f64::from(c) + 0.5) * self.win.texel_lon - PI,
+            (self.v0 as f64 + f64::from(r) + 0.5) * self.win.texel_colat,
+        )
+    }
+}
+
+/// Fills a level's texture (`n × n` texels of `C` samples, toroidal order: see [`Placement`]) by
+/// evaluating `f(lon, colat)` at every texel centre of the window.
+pub fn fill_window<T: Copy + Default, const C: usize>(
+    p: &Placement,
+    n: u32,
+    mut f: impl FnMut(f64, f64) -> [T; C],
+) -> Vec<T> {
+    let [ox, oy] = p.origin(n);
+    let n = n as usize;
+    let mut out = vec![T::default(); n * n * C];
+    for r in 0..n {
+        let row = (r + oy as usize) % n;
+        for c in 0..n {
+            let (lon, colat) = p.texel_centre(c as u32, r as u32);
+            let k = (row * n + (c + ox as usize) % n) * C;
+            out[k..k + C].copy_from_slice(&f(lon, colat));
+        }
+    }
+    out
+}
+
 /// Heights at points of the sphere.
 pub trait HeightSource {
     /// Height (metres) at longitude `lon`, colatitude `colat` (radians, any value: wrapped),
-    /// filtered to about `texel` radians.
-    fn height(&mut self, lon: f64, colat: f64, texel: f64) -> f32;
+    /// filtered for a clipmap texel of size `texel` (radians of longitude and colatitude).
+    fn height(&mut self, lon: f64, colat: f64, texel: LevelWindow) -> f32;
 }
 
 /// A sphere with no relief (no store, or a store without heights).
@@ -62,7 +136,7 @@ pub trait HeightSource {
 pub struct Flat;
 
 impl HeightSource for Flat {
-    fn height(&mut self, _: f64, _: f64, _: f64) -> f32 {
+    fn height(&mut self, _: f64, _: f64, _: LevelWindow) -> f32 {
         0.0
     }
 }
@@ -73,8 +147,11 @@ impl HeightSource for Flat {
 struct StoreLevels<T: TileSample + ZeroedSample> {
     reader: StoreReader,
     grid: GridSpec,
-    levels: Vec<u32>,
+    /// Stored levels, coarse to fine, each with its stored anisotropies (0 first).
+    levels: Vec<(u32, Vec<u32>)>,
     tiles: HashMap<TileId, Option<Vec<T>>>,
+    /// Bytes held in `tiles` (bounded by [`TILE_CACHE_BYTES`]).
+    tile_bytes: usize,
     /// Read errors seen (a damaged tile reads as missing and is counted once).
     errors: Vec<String>,
 }
@@ -91,14 +168,17 @@ struct Footprint {
 
 impl<T: TileSample + ZeroedSample> StoreLevels<T> {
     fn new(reader: StoreReader) -> Option<Self> {
-        let mut levels: Vec<u32> = reader
-            .meta()
-            .levels(T::KIND)
-            .into_iter()
-            .filter(|l| l.is_iso())
-            .map(|l| l.level)
-            .collect();
-        levels.sort_unstable();
+        let mut levels: Vec<(u32, Vec<u32>)> = Vec::new();
+        let mut ids = reader.meta().levels(T::KIND);
+        ids.sort_unstable_by_key(|l| (l.level, l.aniso));
+        for id in ids {
+            match levels.last_mut() {
+                Some((l, anisos)) if *l == id.level => anisos.push(id.aniso),
+                _ if id.is_iso() => levels.push((id.level, vec![0])),
+                // an anisotropic level without its isotropic one is not used
+                _ => {}
+            }
+        }
         if levels.is_empty() {
             return None;
         }
@@ -108,31 +188,64 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
             grid,
             levels,
             tiles: HashMap::new(),
+            tile_bytes: 0,
             errors: Vec::new(),
         })
     }
 
-    /// The coarsest stored level whose spacing π/H is no coarser than `texel`, else the finest;
-    /// and where (`lon`, `colat`) falls in it (beyond a pole: the other side, lon + 180°).
-    fn locate(&self, lon: f64, colat: f64, texel: f64) -> Footprint {
+    /// Which stored level serves a clipmap texel of size `win` at (`lon`, `colat`), and where the
+    /// point falls in it (beyond a pole: the other side, lon + 180°).
+    ///
+    /// The level ℓ: the coarsest whose row spacing π/H is no coarser than the texel's colatitude
+    /// size, else the finest. Then the anisotropy (paper §4.1): near the poles a clipmap texel
+    /// spans more longitude than ℓ's columns, so the stored (ℓ, a) with the widest columns not
+    /// wider than the texel serves it — filtered on the sphere with ℓ's circular kernel, it holds
+    /// all of ℓ's detail there, with columns far enough apart that the clipmap's longitude
+    /// sampling does not alias (and fewer tiles to read).
+    fn locate(&self, lon: f64, colat: f64, win: LevelWindow) -> Footprint {
         let t = f64::from(self.grid.tile_size());
-        let ideal = (PI / (t * texel)).log2().ceil().max(0.0) as u32;
-        let level = self
+        let ideal = (PI / (t * win.texel_colat)).log2().ceil().max(0.0) as u32;
+        let (level, anisos) = self
             .levels
             .iter()
-            .copied()
-            .find(|&l| l >= ideal)
-            .unwrap_or(self.levels[self.levels.len() - 1]);
-        let id = LevelId { level, aniso: 0 };
-        let (w, h) = (self.grid.width(id), self.grid.height(id));
+            .find(|(l, _)| *l >= ideal)
+            .unwrap_or(&self.levels[self.levels.len() - 1]);
         let mut c = colat.rem_euclid(2.0 * PI);
         let mut lo = lon;
         if c > PI {
             c = 2.0 * PI - c;
             lo += PI;
         }
-        let x = (lo + PI).rem_euclid(2.0 * PI) / (2.0 * PI) * w as f64 - 0.5;
-        let y = (c / PI * h as f64 - 0.5).clamp(0.0, (h - 1) as f64);
+        let iso = LevelId {
+            level: *level,
+            aniso: 0,
+        };
+        let iso_lon = 2.0 * PI / self.grid.width(iso) as f64;
+        let mut best = (iso, 0.0, 0.0);
+        for &a in anisos {
+            let id = LevelId {
+                level: *level,
+                aniso: a,
+            };
+            if a > 0 && iso_lon * f64::from(1u32 << a) > win.texel_lon * (1.0 + 1e-9) {
+                break;
+            }
+            let (w, h) = (self.grid.width(id), self.grid.height(id));
+            let x = (lo + PI).rem_euclid(2.0 * PI) / (2.0 * PI) * w as f64 - 0.5;
+            let y = (c / PI * h as f64 - 0.5).clamp(0.0, (h - 1) as f64);
+            // both rows of the bilinear footprint must exist in an anisotropic level
+            let rows = [y.floor() as u64, (y.floor() as u64 + 1).min(h - 1)];
+            let tile = u64::from(self.grid.tile_size());
+            if a > 0
+                && !rows
+                    .iter()
+                    .all(|&r| self.grid.level_has_tile_row(id, r / tile))
+            {
+                break;
+            }
+            best = (id, x, y);
+        }
+        let (id, x, y) = best;
         let (x0, y0) = (x.floor(), y.floor());
         Footprint {
             id,
@@ -152,8 +265,15 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
         let t = u64::from(self.grid.tile_size());
         let tile = TileId::new(self.grid, f.id, i / t, j / t).ok()?;
         let ch = T::KIND.channels();
+        if !self.tiles.contains_key(&tile) && self.tile_bytes > TILE_CACHE_BYTES {
+            // a crude bound until the streaming cache (issue 7) prunes by distance
+            self.tiles.clear();
+            self.tile_bytes = 0;
+        }
         let (reader, errors) = (&self.reader, &mut self.errors);
+        let bytes = &mut self.tile_bytes;
         let data = self.tiles.entry(tile).or_insert_with(|| {
+            *bytes += (t * t) as usize * ch * std::mem::size_of::<T>();
             let mut buf = vec![T::zeroed_sample(); (t * t) as usize * ch];
             match reader.read_tile(tile, &mut buf) {
                 Ok(TileRead::Present) => Some(buf),
@@ -211,7 +331,7 @@ impl StoreHeights {
 }
 
 impl HeightSource for StoreHeights {
-    fn height(&mut self, lon: f64, colat: f64, texel: f64) -> f32 {
+    fn height(&mut self, lon: f64, colat: f64, texel: LevelWindow) -> f32 {
         let f = self.0.locate(lon, colat, texel);
         let (fx, fy) = (f.fx as f32, f.fy as f32);
         let a = self.texel(&f, 0, 0);
@@ -224,30 +344,50 @@ impl HeightSource for StoreHeights {
     }
 }
 
-/// Fills clipmap level `i` around `viewer`: `n × n` heights, row-major, row 0 at the north edge,
-/// the viewer at texel coordinate (n/2, n/2).
-pub fn fill_level(
-    src: &mut dyn HeightSource,
-    viewer: &Viewer,
-    i: u32,
-    n: u32,
-) -> (Vec<f32>, LevelWindow) {
-    let win = level_window(i, viewer.colat, n);
-    let half = f64::from(n) / 2.0;
-    let mut out = Vec::with_capacity((n * n) as usize);
-    for r in 0..n {
-        let colat = viewer.colat + (f64::from(r) + 0.5 - half) * win.texel_colat;
-        for c in 0..n {
-            let lon = viewer.lon + (f64::from(c) + 0.5 - half) * win.texel_lon;
-            out.push(src.height(lon, colat, win.texel_colat));
-        }
-    }
-    (out, win)
+/// Fills height clipmap level `i` around `viewer` (`n × n`, toroidal order).
+pub fn fill_level(src: &mut dyn HeightSource, p: &Placement, n: u32) -> Vec<f32> {
+    fill_window(p, n, |lon, colat| [src.height(lon, colat, p.win)])
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn windows_snap_to_texels_and_keep_shared_texels_in_place() {
+        let n = 64;
+        let v = Viewer::from_deg(46.5, 8.0);
+        let p = Placement::new(12, &v, n);
+        // less than a texel: nothing to refill
+        let nudged = Viewer {
+            lon: v.lon + 0.2 * p.win.texel_lon * (1.0 - p.viewer_texel[0].fract()),
+            ..v
+        };
+        assert_eq!(Placement::new(12, &nudged, n).u0, p.u0);
+        // three texels east, two south: the texels both windows hold sit at the same index
+        let moved = Viewer {
+            lon: v.lon + 3.0 * p.win.texel_lon,
+            colat: v.colat + 2.0 * p.win.texel_colat,
+        };
+        let q = Placement::new(12, &moved, n);
+        assert_eq!((q.u0 - p.u0, q.v0 - p.v0), (3, 2));
+        let at = |p: &Placement| fill_window(p, n, |lon, colat| [(lon, colat)]);
+        let (a, b) = (at(&p), at(&q));
+        let mut shared = 0;
+        for (k, (x, y)) in a.iter().zip(&b).enumerate() {
+            let (c, r) = ((k as u32 % n) as i64, (k as u32 / n) as i64);
+            // window column of texture column c in each placement
+            let in_p = (c - p.origin(n)[0] as i64).rem_euclid(n as i64) + p.u0;
+            let in_q = (c - q.origin(n)[0] as i64).rem_euclid(n as i64) + q.u0;
+            let row_p = (r - p.origin(n)[1] as i64).rem_euclid(n as i64) + p.v0;
+            let row_q = (r - q.origin(n)[1] as i64).rem_euclid(n as i64) + q.v0;
+            if in_p == in_q && row_p == row_q {
+                assert_eq!(x, y);
+                shared += 1;
+            }
+        }
+        assert_eq!(shared, (n as usize - 3) * (n as usize - 2));
+    }
 
     #[test]
     fn windows_widen_in_longitude_towards_the_poles_in_power_of_two_steps() {
@@ -265,8 +405,8 @@ mod tests {
 
 /// Colours at points of the sphere (sRGB RGBA8; alpha 0 = nothing there).
 pub trait ColorSource {
-    /// Colour at `lon`, `colat` (radians, wrapped), for a texel of about `texel` radians.
-    fn color(&mut self, lon: f64, colat: f64, texel: f64) -> [u8; 4];
+    /// Colour at `lon`, `colat` (radians, wrapped), for a clipmap texel of size `texel`.
+    fn color(&mut self, lon: f64, colat: f64, texel: LevelWindow) -> [u8; 4];
 }
 
 /// A store's isotropic colour levels through a tile cache (bilinear in the level matching the
@@ -282,7 +422,7 @@ impl StoreColors {
 }
 
 impl ColorSource for StoreColors {
-    fn color(&mut self, lon: f64, colat: f64, texel: f64) -> [u8; 4] {
+    fn color(&mut self, lon: f64, colat: f64, texel: LevelWindow) -> [u8; 4] {
         let f = self.0.locate(lon, colat, texel);
         let mut acc = [0.0f64; 4];
         for (dx, dy, wgt) in [
@@ -301,17 +441,7 @@ impl ColorSource for StoreColors {
     }
 }
 
-/// Fills colour clipmap level `i` (the same window as the heights').
-pub fn fill_color_level(src: &mut dyn ColorSource, viewer: &Viewer, i: u32, n: u32) -> Vec<u8> {
-    let win = level_window(i, viewer.colat, n);
-    let half = f64::from(n) / 2.0;
-    let mut out = Vec::with_capacity((n * n * 4) as usize);
-    for r in 0..n {
-        let colat = viewer.colat + (f64::from(r) + 0.5 - half) * win.texel_colat;
-        for c in 0..n {
-            let lon = viewer.lon + (f64::from(c) + 0.5 - half) * win.texel_lon;
-            out.extend_from_slice(&src.color(lon, colat, win.texel_colat));
-        }
-    }
-    out
+/// Fills colour clipmap level `i` (the same window as the heights', toroidal order).
+pub fn fill_color_level(src: &mut dyn ColorSource, p: &Placement, n: u32) -> Vec<u8> {
+    fill_window(p, n, |lon, colat| src.color(lon, colat, p.win))
 }

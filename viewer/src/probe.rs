@@ -3,7 +3,7 @@
 
 use wgpu::util::DeviceExt;
 
-use crate::render::{RenderError, gpu_device};
+use crate::render::{RenderError, gpu_device, read_back};
 use crate::transform::TransformUniforms;
 
 /// A device with the probe pipeline.
@@ -106,13 +106,7 @@ impl TransformProbe {
         }
         enc.copy_buffer_to_buffer(&obuf, 0, &readback, 0, size);
         self.queue.submit([enc.finish()]);
-        let slice = readback.slice(..);
-        slice.map_async(wgpu::MapMode::Read, |_| {});
-        self.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| RenderError::Device(e.to_string()))?;
-        let out: Vec<[f32; 2]> = bytemuck::cast_slice(&slice.get_mapped_range()).to_vec();
-        readback.unmap();
-        Ok(out)
+        let bytes = read_back(&self.device, &readback)?;
+        Ok(bytemuck::pod_collect_to_vec(&bytes))
     }
 }

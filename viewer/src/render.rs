@@ -2,13 +2,13 @@
 //! image (any adapter, the CPU one — lavapipe — included). Reversed-Z float depth with an
 //! infinite far plane serves orbit and the ground alike.
 
-use std::f64::consts::PI;
-
 use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec3};
 use wgpu::util::DeviceExt;
 
-use crate::clipmap::{CLIPMAP_N, ColorSource, HeightSource, fill_color_level, fill_level};
+use crate::clipmap::{
+    CLIPMAP_N, ColorSource, HeightSource, Placement, fill_color_level, fill_level,
+};
 use crate::geometry::{Hemisphere, HemisphereSpec};
 use crate::transform::{Viewer, visible_levels};
 
@@ -106,9 +106,13 @@ struct FrameUniform {
     level_hi: u32,
     level_lo: u32,
     has_color: u32,
-    _p: [u32; 3],
+    flags: u32,
+    _p: [u32; 2],
     view_proj: [[f32; 4]; 4],
 }
+
+/// `FrameUniform::flags`: tint each clipmap level (debug view).
+const FLAG_LEVEL_COLORS: u32 = 1;
 
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
@@ -130,7 +134,7 @@ struct GpuVertex {
 }
 
 /// What one frame drew.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct FrameStats {
     /// First (coarsest) level drawn.
     pub level_lo: u32,
@@ -138,51 +142,92 @@ pub struct FrameStats {
     pub level_hi: u32,
     /// Triangles drawn.
     pub triangles: u32,
+    /// Clipmap levels (height or colour) whose window moved by a texel or more and were refilled.
+    pub levels_filled: u32,
 }
 
-/// A headless renderer of one size.
+/// How to draw (the viewer's debug toggles).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct DrawOptions {
+    /// Triangle edges only (needs the adapter's line polygon mode; ignored without it).
+    pub wireframe: bool,
+    /// Tint each clipmap level.
+    pub level_colors: bool,
+}
+
+const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+/// The spherical-clipmap pass on a device, for any colour target format: static hemisphere
+/// geometry, height and colour clipmap texture arrays (toroidally addressed), pipelines. The
+/// headless [`Renderer`] and the windowed viewer both draw through it.
 #[derive(Debug)]
-pub struct Renderer {
-    device: wgpu::Device,
+pub struct ClipmapPass {
     queue: wgpu::Queue,
     pipeline: wgpu::RenderPipeline,
-    layout: wgpu::BindGroupLayout,
+    wire: Option<wgpu::RenderPipeline>,
     vertices: wgpu::Buffer,
     indices: wgpu::Buffer,
     hemi: Hemisphere,
     heights: wgpu::Texture,
     colors: wgpu::Texture,
-    color: wgpu::Texture,
-    depth: wgpu::Texture,
-    size: (u32, u32),
+    frame_buf: wgpu::Buffer,
+    level_buf: wgpu::Buffer,
+    bind: wgpu::BindGroup,
+    /// Per level, where its height data was last filled (None: never) …
+    placed: Vec<Option<Placement>>,
+    /// … and its colour data.
+    colored: Vec<Option<Placement>>,
+    level_uniforms: Vec<LevelUniform>,
     radius: f64,
-    /// The adapter, in words (e.g. "llvmpipe (Vulkan, Cpu)").
-    pub adapter: String,
-    /// The clear colour (magenta in crack tests).
-    pub clear: [f64; 4],
+    last: FrameStats,
+    /// Debug toggles.
+    pub options: DrawOptions,
 }
 
-const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
-const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+fn clipmap_array(device: &wgpu::Device, label: &str, format: wgpu::TextureFormat) -> wgpu::Texture {
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width: CLIPMAP_N,
+            height: CLIPMAP_N,
+            depth_or_array_layers: HemisphereSpec::default().levels,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    })
+}
 
-impl Renderer {
-    /// A renderer drawing `width × height` images of a sphere of `radius_m`, on the first adapter
-    /// wgpu finds (a real GPU if any, else the CPU one).
-    pub fn headless(width: u32, height: u32, radius_m: f64) -> Result<Self, RenderError> {
-        if !(16..=8192).contains(&width) || !(16..=8192).contains(&height) {
-            return Err(RenderError::Usage(format!(
-                "image size {width}x{height} is outside 16..8192 a side"
-            )));
-        }
-        let (device, queue, adapter) = gpu_device()?;
-        let max = device.limits().max_texture_dimension_2d;
-        if width > max || height > max {
-            return Err(RenderError::Usage(format!(
-                "image size {width}x{height} exceeds what {adapter} renders ({max} a side)"
-            )));
-        }
-        let levels = HemisphereSpec::default().levels;
+fn layout_entry(binding: u32, ty: wgpu::BindingType) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+        ty,
+        count: None,
+    }
+}
+
+fn array_view(t: &wgpu::Texture) -> wgpu::TextureView {
+    t.create_view(&wgpu::TextureViewDescriptor {
+        dimension: Some(wgpu::TextureViewDimension::D2Array),
+        ..Default::default()
+    })
+}
+
+impl ClipmapPass {
+    /// The pass on `device`, drawing into targets of `format` with a [`DEPTH_FORMAT`] depth
+    /// buffer (reversed Z: clear to 0), for a sphere of `radius_m`.
+    pub fn new(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        format: wgpu::TextureFormat,
+        radius_m: f64,
+    ) -> Self {
         let hemi = Hemisphere::new(HemisphereSpec::default());
+        let levels = hemi.spec.levels;
         let verts: Vec<GpuVertex> = hemi
             .vertices
             .iter()
@@ -204,102 +249,71 @@ impl Renderer {
             contents: bytemuck::cast_slice(&hemi.indices),
             usage: wgpu::BufferUsages::INDEX,
         });
-        let heights = device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("height clipmap"),
-            size: wgpu::Extent3d {
-                width: CLIPMAP_N,
-                height: CLIPMAP_N,
-                depth_or_array_layers: levels,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::R32Float,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-            view_formats: &[],
-        });
-        let colors = device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("colour clipmap"),
-            size: wgpu::Extent3d {
-                width: CLIPMAP_N,
-                height: CLIPMAP_N,
-                depth_or_array_layers: levels,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Rgba8UnormSrgb,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-            view_formats: &[],
-        });
-        let target = |format, usage, label| {
-            device.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size: wgpu::Extent3d {
-                    width,
-                    height,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage,
-                view_formats: &[],
-            })
+        let heights = clipmap_array(device, "height clipmap", wgpu::TextureFormat::R32Float);
+        let colors = clipmap_array(
+            device,
+            "colour clipmap",
+            wgpu::TextureFormat::Rgba8UnormSrgb,
+        );
+        let texture = wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Float { filterable: false },
+            view_dimension: wgpu::TextureViewDimension::D2Array,
+            multisampled: false,
         };
-        let color = target(
-            COLOR_FORMAT,
-            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-            "colour target",
-        );
-        let depth = target(
-            DEPTH_FORMAT,
-            wgpu::TextureUsages::RENDER_ATTACHMENT,
-            "depth target",
-        );
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("clipmap"),
             entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
-                    ty: wgpu::BindingType::Buffer {
+                layout_entry(
+                    0,
+                    wgpu::BindingType::Buffer {
                         ty: wgpu::BufferBindingType::Uniform,
                         has_dynamic_offset: false,
                         min_binding_size: None,
                     },
-                    count: None,
-                },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 1,
-                    visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
-                    ty: wgpu::BindingType::Buffer {
+                ),
+                layout_entry(
+                    1,
+                    wgpu::BindingType::Buffer {
                         ty: wgpu::BufferBindingType::Storage { read_only: true },
                         has_dynamic_offset: false,
                         min_binding_size: None,
                     },
-                    count: None,
+                ),
+                layout_entry(2, texture),
+                layout_entry(3, texture),
+            ],
+        });
+        let frame_buf = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("frame"),
+            size: std::mem::size_of::<FrameUniform>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let level_buf = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("levels"),
+            size: (std::mem::size_of::<LevelUniform>() * levels as usize) as u64,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("clipmap"),
+            layout: &layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: frame_buf.as_entire_binding(),
                 },
-                wgpu::BindGroupLayoutEntry {
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: level_buf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
                     binding: 2,
-                    visibility: wgpu::ShaderStages::VERTEX,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                        view_dimension: wgpu::TextureViewDimension::D2Array,
-                        multisampled: false,
-                    },
-                    count: None,
+                    resource: wgpu::BindingResource::TextureView(&array_view(&heights)),
                 },
-                wgpu::BindGroupLayoutEntry {
+                wgpu::BindGroupEntry {
                     binding: 3,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                        view_dimension: wgpu::TextureViewDimension::D2Array,
-                        multisampled: false,
-                    },
-                    count: None,
+                    resource: wgpu::BindingResource::TextureView(&array_view(&colors)),
                 },
             ],
         });
@@ -312,69 +326,91 @@ impl Renderer {
             bind_group_layouts: &[Some(&layout)],
             ..Default::default()
         });
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("clipmap"),
-            layout: Some(&pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &shader,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[wgpu::VertexBufferLayout {
-                    array_stride: std::mem::size_of::<GpuVertex>() as u64,
-                    step_mode: wgpu::VertexStepMode::Vertex,
-                    attributes: &wgpu::vertex_attr_array![0 => Float32x2, 1 => Float32, 2 => Float32, 3 => Uint32, 4 => Float32],
-                }],
-            },
-            primitive: wgpu::PrimitiveState {
-                cull_mode: None,
-                ..Default::default()
-            },
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: DEPTH_FORMAT,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Greater),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &shader,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[Some(COLOR_FORMAT.into())],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
-        Ok(Self {
-            device,
-            queue,
+        let make = |polygon_mode| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some("clipmap"),
+                layout: Some(&pipeline_layout),
+                vertex: wgpu::VertexState {
+                    module: &shader,
+                    entry_point: Some("vs_main"),
+                    compilation_options: Default::default(),
+                    buffers: &[wgpu::VertexBufferLayout {
+                        array_stride: std::mem::size_of::<GpuVertex>() as u64,
+                        step_mode: wgpu::VertexStepMode::Vertex,
+                        attributes: &wgpu::vertex_attr_array![0 => Float32x2, 1 => Float32, 2 => Float32, 3 => Uint32, 4 => Float32],
+                    }],
+                },
+                primitive: wgpu::PrimitiveState {
+                    cull_mode: None,
+                    polygon_mode,
+                    ..Default::default()
+                },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: DEPTH_FORMAT,
+                    depth_write_enabled: Some(true),
+                    depth_compare: Some(wgpu::CompareFunction::Greater),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &shader,
+                    entry_point: Some("fs_main"),
+                    compilation_options: Default::default(),
+                    targets: &[Some(format.into())],
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        let pipeline = make(wgpu::PolygonMode::Fill);
+        let wire = device
+            .features()
+            .contains(wgpu::Features::POLYGON_MODE_LINE)
+            .then(|| make(wgpu::PolygonMode::Line));
+        Self {
+            queue: queue.clone(),
             pipeline,
-            layout,
+            wire,
             vertices,
             indices,
             hemi,
             heights,
             colors,
-            color,
-            depth,
-            size: (width, height),
+            frame_buf,
+            level_buf,
+            bind,
+            placed: vec![None; levels as usize],
+            colored: vec![None; levels as usize],
+            level_uniforms: vec![LevelUniform::zeroed(); levels as usize],
             radius: radius_m,
-            adapter,
-            clear: [0.02, 0.02, 0.06, 1.0],
-        })
+            last: FrameStats::default(),
+            options: DrawOptions::default(),
+        }
     }
 
-    /// Renders one frame from `camera` over `heights` (and `colors` if given); returns the RGBA
-    /// image and what was drawn.
-    pub fn render(
+    /// Whether the device draws wireframes.
+    pub fn has_wireframe(&self) -> bool {
+        self.wire.is_some()
+    }
+
+    /// GPU memory of the height and colour clipmaps, bytes.
+    pub fn clipmap_bytes(&self) -> u64 {
+        u64::from(CLIPMAP_N * CLIPMAP_N * self.hemi.spec.levels) * (4 + 4)
+    }
+
+    /// Makes the clipmaps and uniforms ready for a frame from `camera` into a `w × h` target:
+    /// levels per §4.5; a level whose window moved by a texel or more is refilled from the
+    /// sources (synchronously; issue 7 moves this to worker threads). Returns the ground height
+    /// under the camera (metres) and what the frame will draw.
+    pub fn prepare(
         &mut self,
         heights: &mut dyn HeightSource,
         mut colors: Option<&mut dyn ColorSource>,
         camera: &Camera,
-    ) -> Result<(image::RgbaImage, FrameStats), RenderError> {
+        (w, h): (u32, u32),
+    ) -> (f64, FrameStats) {
         let viewer = Viewer::from_deg(camera.lat, camera.lon);
-        let (w, h) = self.size;
         let levels = self.hemi.spec.levels;
         let (lo, hi) = visible_levels(
             self.radius,
@@ -384,170 +420,275 @@ impl Renderer {
             h,
             levels,
         );
-        // clipmap levels, filled synchronously
-        let mut level_uniforms = vec![LevelUniform::zeroed(); levels as usize];
+        let mut filled = 0;
         for i in lo..=hi {
-            let (data, win) = fill_level(heights, &viewer, i, CLIPMAP_N);
-            self.queue.write_texture(
-                wgpu::TexelCopyTextureInfo {
-                    texture: &self.heights,
-                    mip_level: 0,
-                    origin: wgpu::Origin3d { x: 0, y: 0, z: i },
-                    aspect: wgpu::TextureAspect::All,
-                },
-                bytemuck::cast_slice(&data),
-                wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(CLIPMAP_N * 4),
-                    rows_per_image: Some(CLIPMAP_N),
-                },
-                wgpu::Extent3d {
-                    width: CLIPMAP_N,
-                    height: CLIPMAP_N,
-                    depth_or_array_layers: 1,
-                },
-            );
-            if let Some(c) = colors.as_deref_mut() {
-                let rgba = fill_color_level(c, &viewer, i, CLIPMAP_N);
-                self.queue.write_texture(
-                    wgpu::TexelCopyTextureInfo {
-                        texture: &self.colors,
-                        mip_level: 0,
-                        origin: wgpu::Origin3d { x: 0, y: 0, z: i },
-                        aspect: wgpu::TextureAspect::All,
-                    },
-                    &rgba,
-                    wgpu::TexelCopyBufferLayout {
-                        offset: 0,
-                        bytes_per_row: Some(CLIPMAP_N * 4),
-                        rows_per_image: Some(CLIPMAP_N),
-                    },
-                    wgpu::Extent3d {
-                        width: CLIPMAP_N,
-                        height: CLIPMAP_N,
-                        depth_or_array_layers: 1,
-                    },
-                );
+            let p = Placement::new(i, &viewer, CLIPMAP_N);
+            let k = i as usize;
+            if self.placed[k] != Some(p) {
+                let data = fill_level(heights, &p, CLIPMAP_N);
+                self.write_layer(true, i, bytemuck::cast_slice(&data));
+                self.placed[k] = Some(p);
+                filled += 1;
             }
-            let half = CLIPMAP_N as f32 / 2.0;
-            level_uniforms[i as usize] = LevelUniform {
-                viewer_texel: [half, half],
-                texels_per_rad: [(1.0 / win.texel_lon) as f32, (1.0 / win.texel_colat) as f32],
+            if let Some(c) = colors.as_deref_mut()
+                && self.colored[k] != Some(p)
+            {
+                let rgba = fill_color_level(c, &p, CLIPMAP_N);
+                self.write_layer(false, i, &rgba);
+                self.colored[k] = Some(p);
+                filled += 1;
+            }
+            self.level_uniforms[k] = LevelUniform {
+                viewer_texel: p.viewer_texel.map(|v| v as f32),
+                texels_per_rad: [
+                    (1.0 / p.win.texel_lon) as f32,
+                    (1.0 / p.win.texel_colat) as f32,
+                ],
                 size: [CLIPMAP_N, CLIPMAP_N],
-                origin: [0, 0],
+                origin: p.origin(CLIPMAP_N),
             };
         }
         // the ground under the camera, from the finest level drawn
         let ground = f64::from(heights.height(
             viewer.lon,
             viewer.colat,
-            crate::clipmap::level_window(hi, viewer.colat, CLIPMAP_N).texel_colat,
+            crate::clipmap::level_window(hi, viewer.colat, CLIPMAP_N),
         ));
-        let cam_height = ground + camera.alt;
         let u = viewer.uniforms();
-        let view_proj = view_projection(&viewer, camera, w, h);
         let frame = FrameUniform {
             sin_v: u.sin_v,
             cos_v: u.cos_v,
             colat: u.colat,
             orient: u.orient,
-            cam_height: cam_height as f32,
+            cam_height: (ground + camera.alt) as f32,
             radius: self.radius as f32,
             level_hi: hi,
             level_lo: lo,
             has_color: u32::from(colors.is_some()),
-            _p: [0; 3],
-            view_proj: view_proj.to_cols_array_2d(),
+            flags: if self.options.level_colors {
+                FLAG_LEVEL_COLORS
+            } else {
+                0
+            },
+            _p: [0; 2],
+            view_proj: view_projection(&viewer, camera, w, h).to_cols_array_2d(),
         };
-        let frame_buf = self
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("frame"),
-                contents: bytemuck::bytes_of(&frame),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
-        let level_buf = self
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("levels"),
-                contents: bytemuck::cast_slice(&level_uniforms),
-                usage: wgpu::BufferUsages::STORAGE,
-            });
-        let heights_view = self.heights.create_view(&wgpu::TextureViewDescriptor {
-            dimension: Some(wgpu::TextureViewDimension::D2Array),
-            ..Default::default()
+        self.queue
+            .write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&frame));
+        self.queue.write_buffer(
+            &self.level_buf,
+            0,
+            bytemuck::cast_slice(&self.level_uniforms),
+        );
+        self.last = FrameStats {
+            level_lo: lo,
+            level_hi: hi,
+            triangles: self.hemi.triangles(lo, hi),
+            levels_filled: filled,
+        };
+        (ground, self.last)
+    }
+
+    fn write_layer(&self, height: bool, layer: u32, bytes: &[u8]) {
+        self.queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture: if height { &self.heights } else { &self.colors },
+                mip_level: 0,
+                origin: wgpu::Origin3d {
+                    x: 0,
+                    y: 0,
+                    z: layer,
+                },
+                aspect: wgpu::TextureAspect::All,
+            },
+            bytes,
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(CLIPMAP_N * 4),
+                rows_per_image: Some(CLIPMAP_N),
+            },
+            wgpu::Extent3d {
+                width: CLIPMAP_N,
+                height: CLIPMAP_N,
+                depth_or_array_layers: 1,
+            },
+        );
+    }
+
+    /// Records the draw of the last prepared frame into `pass`: the rings of the visible levels,
+    /// then the fill disc closing the finest one.
+    pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>) {
+        let (lo, hi) = (self.last.level_lo as usize, self.last.level_hi as usize);
+        let pipeline = match (&self.wire, self.options.wireframe) {
+            (Some(w), true) => w,
+            _ => &self.pipeline,
+        };
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, &self.bind, &[]);
+        pass.set_vertex_buffer(0, self.vertices.slice(..));
+        pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
+        pass.draw_indexed(
+            self.hemi.level_ranges[lo].start..self.hemi.level_ranges[hi].end,
+            0,
+            0..1,
+        );
+        pass.draw_indexed(self.hemi.fill_ranges[hi].clone(), 0, 0..1);
+    }
+}
+
+/// A depth target for the pass.
+pub fn depth_target(device: &wgpu::Device, w: u32, h: u32) -> wgpu::TextureView {
+    device
+        .create_texture(&wgpu::TextureDescriptor {
+            label: Some("depth target"),
+            size: wgpu::Extent3d {
+                width: w,
+                height: h,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: DEPTH_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+            view_formats: &[],
+        })
+        .create_view(&Default::default())
+}
+
+/// Begins a render pass clearing `color` to `clear` and `depth` to the far plane (0).
+pub fn begin_pass<'a>(
+    enc: &'a mut wgpu::CommandEncoder,
+    color: &wgpu::TextureView,
+    depth: &wgpu::TextureView,
+    clear: [f64; 4],
+) -> wgpu::RenderPass<'a> {
+    enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some("clipmap"),
+        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+            view: color,
+            depth_slice: None,
+            resolve_target: None,
+            ops: wgpu::Operations {
+                load: wgpu::LoadOp::Clear(wgpu::Color {
+                    r: clear[0],
+                    g: clear[1],
+                    b: clear[2],
+                    a: clear[3],
+                }),
+                store: wgpu::StoreOp::Store,
+            },
+        })],
+        depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+            view: depth,
+            depth_ops: Some(wgpu::Operations {
+                load: wgpu::LoadOp::Clear(0.0),
+                store: wgpu::StoreOp::Store,
+            }),
+            stencil_ops: None,
+        }),
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    })
+}
+
+/// Copies `buffer` (made with `MAP_READ`) back to the CPU, waiting for the GPU.
+pub fn read_back(device: &wgpu::Device, buffer: &wgpu::Buffer) -> Result<Vec<u8>, RenderError> {
+    let slice = buffer.slice(..);
+    slice.map_async(wgpu::MapMode::Read, |_| {});
+    device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| RenderError::Device(e.to_string()))?;
+    let out = slice.get_mapped_range().to_vec();
+    buffer.unmap();
+    Ok(out)
+}
+
+/// A headless renderer of one size: the clipmap pass into an offscreen image.
+#[derive(Debug)]
+pub struct Renderer {
+    pass: ClipmapPass,
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    color: wgpu::Texture,
+    depth: wgpu::TextureView,
+    size: (u32, u32),
+    /// The adapter, in words (e.g. "llvmpipe (Vulkan, Cpu)").
+    pub adapter: String,
+    /// The clear colour (magenta in crack tests).
+    pub clear: [f64; 4],
+}
+
+const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+
+/// The default background: near-black blue.
+pub const SPACE: [f64; 4] = [0.02, 0.02, 0.06, 1.0];
+
+impl Renderer {
+    /// A renderer drawing `width × height` images of a sphere of `radius_m`, on the first adapter
+    /// wgpu finds (a real GPU if any, else the CPU one).
+    pub fn headless(width: u32, height: u32, radius_m: f64) -> Result<Self, RenderError> {
+        if !(16..=8192).contains(&width) || !(16..=8192).contains(&height) {
+            return Err(RenderError::Usage(format!(
+                "image size {width}x{height} is outside 16..8192 a side"
+            )));
+        }
+        let (device, queue, adapter) = gpu_device()?;
+        let max = device.limits().max_texture_dimension_2d;
+        if width > max || height > max {
+            return Err(RenderError::Usage(format!(
+                "image size {width}x{height} exceeds what {adapter} renders ({max} a side)"
+            )));
+        }
+        let color = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("colour target"),
+            size: wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: COLOR_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
         });
-        let colors_view = self.colors.create_view(&wgpu::TextureViewDescriptor {
-            dimension: Some(wgpu::TextureViewDimension::D2Array),
-            ..Default::default()
-        });
-        let bind = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("clipmap"),
-            layout: &self.layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: frame_buf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: level_buf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: wgpu::BindingResource::TextureView(&heights_view),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 3,
-                    resource: wgpu::BindingResource::TextureView(&colors_view),
-                },
-            ],
-        });
+        Ok(Self {
+            pass: ClipmapPass::new(&device, &queue, COLOR_FORMAT, radius_m),
+            depth: depth_target(&device, width, height),
+            device,
+            queue,
+            color,
+            size: (width, height),
+            adapter,
+            clear: SPACE,
+        })
+    }
+
+    /// The clipmap pass (debug toggles, memory).
+    pub fn pass_mut(&mut self) -> &mut ClipmapPass {
+        &mut self.pass
+    }
+
+    /// Renders one frame from `camera` over `heights` (and `colors` if given); returns the RGBA
+    /// image and what was drawn.
+    pub fn render(
+        &mut self,
+        heights: &mut dyn HeightSource,
+        colors: Option<&mut dyn ColorSource>,
+        camera: &Camera,
+    ) -> Result<(image::RgbaImage, FrameStats), RenderError> {
+        let (w, h) = self.size;
+        let (_, stats) = self.pass.prepare(heights, colors, camera, self.size);
         let color_view = self.color.create_view(&Default::default());
-        let depth_view = self.depth.create_view(&Default::default());
         let mut enc = self
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
         {
-            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("clipmap"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &color_view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color {
-                            r: self.clear[0],
-                            g: self.clear[1],
-                            b: self.clear[2],
-                            a: self.clear[3],
-                        }),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &depth_view,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(0.0),
-                        store: wgpu::StoreOp::Store,
-                    }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &bind, &[]);
-            pass.set_vertex_buffer(0, self.vertices.slice(..));
-            pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
-            // the rings of the visible levels, then the fill disc closing the finest one
-            pass.draw_indexed(
-                self.hemi.level_ranges[lo as usize].start..self.hemi.level_ranges[hi as usize].end,
-                0,
-                0..1,
-            );
-            pass.draw_indexed(self.hemi.fill_ranges[hi as usize].clone(), 0, 0..1);
+            let mut pass = begin_pass(&mut enc, &color_view, &self.depth, self.clear);
+            self.pass.draw(&mut pass);
         }
         let bytes_per_row = (w * 4).div_ceil(256) * 256;
         let readback = self.device.create_buffer(&wgpu::BufferDescriptor {
@@ -573,30 +714,17 @@ impl Renderer {
             },
         );
         self.queue.submit([enc.finish()]);
-        let slice = readback.slice(..);
-        slice.map_async(wgpu::MapMode::Read, |_| {});
-        self.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| RenderError::Device(e.to_string()))?;
-        let data = slice.get_mapped_range();
+        let data = read_back(&self.device, &readback)?;
         let mut img = image::RgbaImage::new(w, h);
-        for y in 0..h {
-            let row = &data[(y * bytes_per_row) as usize..(y * bytes_per_row + w * 4) as usize];
-            for x in 0..w {
-                let p = &row[(x * 4) as usize..(x * 4 + 4) as usize];
-                img.put_pixel(x, y, image::Rgba([p[0], p[1], p[2], p[3]]));
-            }
+        for (y, row) in data
+            .chunks(bytes_per_row as usize)
+            .take(h as usize)
+            .enumerate()
+        {
+            img.as_mut()[y * (w as usize) * 4..(y + 1) * (w as usize) * 4]
+                .copy_from_slice(&row[..(w * 4) as usize]);
         }
-        drop(data);
-        readback.unmap();
-        Ok((
-            img,
-            FrameStats {
-                level_lo: lo,
-                level_hi: hi,
-                triangles: self.hemi.triangles(lo, hi),
-            },
-        ))
+        Ok((img, stats))
     }
 }
 
@@ -615,7 +743,8 @@ pub fn gpu_device() -> Result<(wgpu::Device, wgpu::Queue, String), RenderError> 
     let (device, queue) = pollster::block_on(
         adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("sphereclip"),
-            required_features: wgpu::Features::empty(),
+            // wireframe where the adapter has it (lavapipe does)
+            required_features: adapter.features() & wgpu::Features::POLYGON_MODE_LINE,
             required_limits: wgpu::Limits {
                 max_texture_array_layers: levels.max(256),
                 ..wgpu::Limits::downlevel_defaults()
@@ -654,7 +783,6 @@ pub fn view_projection(viewer: &Viewer, camera: &Camera, w: u32, h: u32) -> Mat4
         w as f32 / h as f32,
         near,
     );
-    let _ = PI;
     proj * view
 }
 
@@ -706,6 +834,7 @@ mod tests {
             ("level_hi", std::mem::offset_of!(FrameUniform, level_hi)),
             ("level_lo", std::mem::offset_of!(FrameUniform, level_lo)),
             ("has_color", std::mem::offset_of!(FrameUniform, has_color)),
+            ("flags", std::mem::offset_of!(FrameUniform, flags)),
             ("view_proj", std::mem::offset_of!(FrameUniform, view_proj)),
         ];
         for (name, off) in rust {

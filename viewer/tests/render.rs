@@ -2,7 +2,7 @@
 //! the ground to orbit, over both poles and across the antimeridian; no seam beyond a pole.
 
 use glam::{Vec3, Vec4};
-use sc_viewer::clipmap::{ColorSource, HeightSource};
+use sc_viewer::clipmap::{ColorSource, HeightSource, LevelWindow};
 use sc_viewer::render::{Camera, Renderer, view_projection};
 use sc_viewer::transform::Viewer;
 
@@ -20,7 +20,7 @@ fn unit(lon: f64, colat: f64) -> [f64; 3] {
 struct Mountains;
 
 impl HeightSource for Mountains {
-    fn height(&mut self, lon: f64, colat: f64, _: f64) -> f32 {
+    fn height(&mut self, lon: f64, colat: f64, _: LevelWindow) -> f32 {
         let [x, y, z] = unit(lon, colat);
         (2000.0 * ((3.0 * x).sin() + (4.0 * y).cos() + (5.0 * z).sin())) as f32
     }
@@ -29,7 +29,7 @@ impl HeightSource for Mountains {
 struct FlatSea;
 
 impl HeightSource for FlatSea {
-    fn height(&mut self, _: f64, _: f64, _: f64) -> f32 {
+    fn height(&mut self, _: f64, _: f64, _: LevelWindow) -> f32 {
         0.0
     }
 }
@@ -39,7 +39,7 @@ impl HeightSource for FlatSea {
 struct ByLongitude;
 
 impl ColorSource for ByLongitude {
-    fn color(&mut self, lon: f64, _: f64, _: f64) -> [u8; 4] {
+    fn color(&mut self, lon: f64, _: f64, _: LevelWindow) -> [u8; 4] {
         [
             (128.0 + 100.0 * lon.cos()) as u8,
             (128.0 + 100.0 * lon.sin()) as u8,
@@ -116,7 +116,11 @@ fn no_cracks_below_the_horizon_from_the_ground_to_orbit() {
         let cam = cam.expect("camera");
         let (img, stats) = r.render(&mut Mountains, None, &cam).expect("render");
         let v = Viewer::from_deg(cam.lat, cam.lon);
-        let ground = f64::from(Mountains.height(v.lon, v.colat, 0.0));
+        let ground = f64::from(Mountains.height(
+            v.lon,
+            v.colat,
+            sc_viewer::clipmap::level_window(20, v.colat, 256),
+        ));
         let must = hits(&cam, ground + cam.alt, w, h, R - 6500.0);
         let mut holes = Vec::new();
         let mut covered = 0;
