@@ -3,11 +3,13 @@
 //! the f32 viewer-relative form the shaders evaluate, and level visibility. The wgpu renderer,
 //! headless and windowed, builds on this (issue 6, in progress; see ARCHITECTURE.md).
 
+pub mod camera;
 pub mod clipmap;
 pub mod geometry;
 pub mod probe;
 pub mod render;
 pub mod transform;
+pub mod window;
 
 /// The WGSL of the clipmap renderer, from `shaders/` (the map transform first).
 pub const CLIPMAP_WGSL: &str = concat!(

@@ -680,6 +680,19 @@ impl Renderer {
         colors: Option<&mut dyn ColorSource>,
         camera: &Camera,
     ) -> Result<(image::RgbaImage, FrameStats), RenderError> {
+        let (img, stats, _) = self.render_timed(heights, colors, camera)?;
+        Ok((img, stats))
+    }
+
+    /// [`Self::render`], also returning the CPU seconds spent before the GPU is waited for
+    /// (clipmap update, uniforms, command encoding and submission).
+    pub fn render_timed(
+        &mut self,
+        heights: &mut dyn HeightSource,
+        colors: Option<&mut dyn ColorSource>,
+        camera: &Camera,
+    ) -> Result<(image::RgbaImage, FrameStats, f64), RenderError> {
+        let start = std::time::Instant::now();
         let (w, h) = self.size;
         let (_, stats) = self.pass.prepare(heights, colors, camera, self.size);
         let color_view = self.color.create_view(&Default::default());
@@ -714,6 +727,7 @@ impl Renderer {
             },
         );
         self.queue.submit([enc.finish()]);
+        let cpu = start.elapsed().as_secs_f64();
         let data = read_back(&self.device, &readback)?;
         let mut img = image::RgbaImage::new(w, h);
         for (y, row) in data
@@ -724,7 +738,7 @@ impl Renderer {
             img.as_mut()[y * (w as usize) * 4..(y + 1) * (w as usize) * 4]
                 .copy_from_slice(&row[..(w * 4) as usize]);
         }
-        Ok((img, stats))
+        Ok((img, stats, cpu))
     }
 }
 
@@ -732,10 +746,19 @@ impl Renderer {
 /// adapter in words.
 pub fn gpu_device() -> Result<(wgpu::Device, wgpu::Queue, String), RenderError> {
     let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle());
+    let (_, device, queue, name) = device_for(&instance, None)?;
+    Ok((device, queue, name))
+}
+
+/// A device on the first adapter of `instance` that can present to `surface` (if given).
+pub fn device_for(
+    instance: &wgpu::Instance,
+    surface: Option<&wgpu::Surface<'_>>,
+) -> Result<(wgpu::Adapter, wgpu::Device, wgpu::Queue, String), RenderError> {
     let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
         power_preference: wgpu::PowerPreference::HighPerformance,
         force_fallback_adapter: false,
-        compatible_surface: None,
+        compatible_surface: surface,
     }))
     .map_err(|_| RenderError::NoAdapter)?;
     let info = adapter.get_info();
@@ -754,11 +777,8 @@ pub fn gpu_device() -> Result<(wgpu::Device, wgpu::Queue, String), RenderError> 
         }),
     )
     .map_err(|e| RenderError::Device(e.to_string()))?;
-    Ok((
-        device,
-        queue,
-        format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type),
-    ))
+    let name = format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type);
+    Ok((adapter, device, queue, name))
 }
 
 /// View-space (viewer at the north pole, camera at the origin, metres) to clip space: reversed-Z

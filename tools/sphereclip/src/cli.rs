@@ -14,7 +14,7 @@ pub struct Cli {
     pub command: Command,
 }
 
-/// Subcommands. Those marked "(not implemented yet)" exit with status 2.
+/// Subcommands.
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Reproject rasters (any GDAL format and CRS, or EXR heightmaps) onto the store's global grid.
@@ -23,8 +23,8 @@ pub enum Command {
     Build(BuildArgs),
     /// Measure and picture pyramid quality near the poles, of a store or a global EPSG:4326 raster.
     Inspect(InspectArgs),
-    /// Open the planet viewer (not implemented yet).
-    View(Pending),
+    /// Open the planet viewer in a window (orbit, fly, walk; a panel with statistics and toggles).
+    View(ViewArgs),
     /// Render a view headless to a PNG (any adapter, the CPU one included; no display needed).
     Render(RenderArgs),
     /// Show a store's layers, levels, tiles, sizes and value ranges; --verify checks every checksum.
@@ -33,14 +33,6 @@ pub enum Command {
     Export(ExportArgs),
     /// Run the demo on the bundled samples (what exists so far).
     Demo(DemoArgs),
-}
-
-/// Arguments of a subcommand that is not implemented yet (accepted and ignored).
-#[derive(Debug, clap::Args)]
-pub struct Pending {
-    /// Arguments, ignored.
-    #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
-    pub args: Vec<String>,
 }
 
 /// `sphereclip ingest`.
@@ -167,6 +159,29 @@ pub struct RenderArgs {
     /// Clear colour as R,G,B in 0..1 (e.g. 1,0,1 to see cracks).
     #[arg(long)]
     pub clear: Option<String>,
+    /// Render the view this many times and report first-frame and steady-state times (the
+    /// image is the last frame).
+    #[arg(long, default_value_t = 1)]
+    pub frames: u32,
+}
+
+/// `sphereclip view`.
+#[derive(Debug, clap::Args)]
+pub struct ViewArgs {
+    /// The store folder (its height layer shapes the planet, its colour layer paints it).
+    pub store: std::path::PathBuf,
+    /// Start at LAT,LON,ALT[,HEADING,PITCH,FOV]: degrees, metres above the ground, degrees.
+    #[arg(long, allow_hyphen_values = true, default_value = "30,10,12000000")]
+    pub camera: String,
+    /// Window size WxH.
+    #[arg(long, default_value = "1280x720")]
+    pub size: String,
+    /// Close after N frames and print frame statistics (tests, benchmarks).
+    #[arg(long)]
+    pub frames: Option<u64>,
+    /// With --frames: save the last frame (panel included) to this PNG.
+    #[arg(long, requires = "frames")]
+    pub screenshot: Option<std::path::PathBuf>,
 }
 
 /// `sphereclip info`.

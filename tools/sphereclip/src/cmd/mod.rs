@@ -7,15 +7,13 @@ mod info;
 mod ingest;
 mod inspect;
 mod render;
+mod view;
 
 use std::process::ExitCode;
 
 use anyhow::Result;
 
 use crate::cli::{Cli, Command};
-
-/// Exit status of a subcommand that is not implemented yet.
-const NOT_IMPLEMENTED: u8 = 2;
 
 /// Runs the parsed command line.
 pub fn run(cli: Cli) -> Result<ExitCode> {
@@ -26,14 +24,9 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::Ingest(a) => ingest::run(&a),
         Command::Build(a) => build::run(&a),
         Command::Inspect(a) => inspect::run(&a),
-        Command::View(_) => pending("view"),
+        Command::View(a) => view::run(&a),
         Command::Render(a) => render::run(&a),
     }
-}
-
-fn pending(name: &str) -> Result<ExitCode> {
-    eprintln!("sphereclip {name}: not implemented yet");
-    Ok(ExitCode::from(NOT_IMPLEMENTED))
 }
 
 /// Parses a layer name into its kind, with the list of valid names in the error.

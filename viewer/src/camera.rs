@@ -1,0 +1,290 @@
+//! Camera control for the window (no window needed: input arrives as numbers, so the motion is
+//! tested headless). Positions stay f64 (degrees, metres above the ground); the camera moves
+//! along great circles, so it flies straight over a pole.
+//!
+//! - **orbit**: from space; drag moves the planet under the camera, the wheel changes altitude
+//!   (×1.2 a notch), W/A/S/D move over the ground.
+//! - **fly**: drag looks around; W/S forward/back along the view, A/D sideways, E/Q up/down; the
+//!   wheel changes speed.
+//! - **walk**: eye height 1.7 m above the terrain (the renderer reads the ground under the camera
+//!   every frame); W/A/S/D walk at 1.4 m/s (Shift: run ×5), drag looks around.
+//!
+//! Speed scales with altitude (one altitude per second in fly and orbit), so the same keys serve
+//! 1.7 m and 10 000 km.
+
+use glam::DVec3;
+
+use crate::render::Camera;
+
+/// How the camera moves.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Mode {
+    /// From space: drag turns the planet, the wheel zooms.
+    Orbit,
+    /// Free flight at altitude-scaled speed.
+    Fly,
+    /// On foot at eye height.
+    Walk,
+}
+
+/// Eye height when walking, metres.
+pub const EYE_HEIGHT_M: f64 = 1.7;
+/// Lowest and highest camera above the ground, metres.
+pub const ALT_RANGE_M: (f64, f64) = (0.5, 5.0e7);
+
+/// One frame's input, already reduced to numbers.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Input {
+    /// Seconds since the last frame.
+    pub dt: f64,
+    /// −1 … 1: back/forward (S/W).
+    pub forward: f64,
+    /// −1 … 1: left/right (A/D).
+    pub right: f64,
+    /// −1 … 1: down/up (Q/E).
+    pub up: f64,
+    /// Mouse drag this frame, pixels (x right, y down).
+    pub drag: (f64, f64),
+    /// Wheel notches this frame (+ away from the user).
+    pub scroll: f64,
+    /// Shift held: ×5.
+    pub fast: bool,
+}
+
+/// The camera and how it moves.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Controller {
+    /// Where the camera is and looks.
+    pub camera: Camera,
+    /// Orbit, fly or walk.
+    pub mode: Mode,
+    /// Speed factor (the wheel in fly mode; the panel's slider).
+    pub speed: f64,
+    /// Sphere radius, metres.
+    pub radius: f64,
+}
+
+impl Controller {
+    /// Starts at `camera`: orbit from above 100 km, walk at eye height, fly otherwise.
+    pub fn new(camera: Camera, radius: f64) -> Self {
+        let mode = if camera.alt > 1.0e5 {
+            Mode::Orbit
+        } else if camera.alt <= EYE_HEIGHT_M + 1e-9 {
+            Mode::Walk
+        } else {
+            Mode::Fly
+        };
+        Self {
+            camera,
+            mode,
+            speed: 1.0,
+            radius,
+        }
+    }
+
+    /// Switches mode; walking puts the eye at [`EYE_HEIGHT_M`] and looks ahead, orbiting looks
+    /// down.
+    pub fn set_mode(&mut self, mode: Mode) {
+        self.mode = mode;
+        match mode {
+            Mode::Walk => {
+                self.camera.alt = EYE_HEIGHT_M;
+                self.camera.pitch = self.camera.pitch.clamp(-30.0, 10.0);
+            }
+            Mode::Orbit => self.camera.pitch = -90.0,
+            Mode::Fly => {}
+        }
+    }
+
+    /// Ground speed, metres per second.
+    pub fn ground_speed(&self, fast: bool) -> f64 {
+        let base = match self.mode {
+            Mode::Walk => 1.4,
+            Mode::Fly | Mode::Orbit => self.camera.alt.max(EYE_HEIGHT_M),
+        };
+        base * self.speed * if fast { 5.0 } else { 1.0 }
+    }
+
+    /// Advances one frame.
+    pub fn update(&mut self, input: &Input) {
+        let c = &mut self.camera;
+        let (dx, dy) = input.drag;
+        match self.mode {
+            Mode::Orbit => {
+                // drag: the ground under the cursor follows it (a screen height ≈ the view's
+                // footprint, 2·alt·tan(fov/2), over ~700 px)
+                let per_px = 2.0 * c.alt * (c.fov.to_radians() / 2.0).tan() / 700.0;
+                let h = c.heading;
+                move_along(c, h, dy * per_px, self.radius);
+                let h = c.heading;
+                move_along(c, h + 90.0, -dx * per_px, self.radius);
+                c.heading = h;
+                c.alt = (c.alt * 1.2f64.powf(-input.scroll)).clamp(ALT_RANGE_M.0, ALT_RANGE_M.1);
+            }
+            Mode::Fly | Mode::Walk => {
+                c.heading = (c.heading + dx * 0.15).rem_euclid(360.0);
+                c.pitch = (c.pitch - dy * 0.15).clamp(-89.0, 89.0);
+                if self.mode == Mode::Fly && input.scroll != 0.0 {
+                    self.speed = (self.speed * 1.25f64.powf(input.scroll)).clamp(0.01, 100.0);
+                }
+            }
+        }
+        let v = self.ground_speed(input.fast) * input.dt;
+        let c = &mut self.camera;
+        let h = c.heading;
+        if input.forward != 0.0 {
+            move_along(c, h, input.forward * v, self.radius);
+        }
+        if input.right != 0.0 {
+            let h = c.heading;
+            move_along(c, h + 90.0, input.right * v, self.radius);
+            c.heading = h;
+        }
+        match self.mode {
+            Mode::Walk => c.alt = EYE_HEIGHT_M,
+            Mode::Fly | Mode::Orbit => {
+                c.alt = (c.alt + input.up * v).clamp(ALT_RANGE_M.0, ALT_RANGE_M.1);
+            }
+        }
+    }
+}
+
+/// Unit vectors at (lat, lon): position, north, east (at a pole "north" is the direction of
+/// longitude lon + 180°, so headings stay continuous through it).
+fn frame(lat: f64, lon: f64) -> (DVec3, DVec3, DVec3) {
+    let (la, lo) = (lat.to_radians(), lon.to_radians());
+    let p = DVec3::new(la.cos() * lo.cos(), la.cos() * lo.sin(), la.sin());
+    let east = DVec3::new(-lo.sin(), lo.cos(), 0.0);
+    let north = DVec3::new(-la.sin() * lo.cos(), -la.sin() * lo.sin(), la.cos());
+    (p, north, east)
+}
+
+/// Moves the camera `dist` metres along the great circle leaving at `bearing` (degrees); the
+/// heading keeps its angle to the path (straight flight over a pole comes out heading the other
+/// way).
+fn move_along(c: &mut Camera, bearing: f64, dist: f64, radius: f64) {
+    if dist == 0.0 || !dist.is_finite() {
+        return;
+    }
+    let (p, n, e) = frame(c.lat, c.lon);
+    let b = bearing.to_radians();
+    let t = n * b.cos() + e * b.sin();
+    let d = dist / radius;
+    let p2 = (p * d.cos() + t * d.sin()).normalize();
+    let t2 = (t * d.cos() - p * d.sin()).normalize();
+    let lat = p2.z.clamp(-1.0, 1.0).asin().to_degrees();
+    let lon = if p2.x.abs() + p2.y.abs() < 1e-12 {
+        c.lon
+    } else {
+        p2.y.atan2(p2.x).to_degrees()
+    };
+    let (_, n2, e2) = frame(lat, lon);
+    let bearing2 = t2.dot(e2).atan2(t2.dot(n2)).to_degrees();
+    let turned = bearing2 - bearing;
+    c.lat = lat;
+    c.lon = lon;
+    c.heading = (c.heading + turned).rem_euclid(360.0);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const R: f64 = sc_core::EARTH_RADIUS_M;
+
+    fn cam(lat: f64, lon: f64, alt: f64, heading: f64) -> Camera {
+        Camera {
+            lat,
+            lon,
+            alt,
+            heading,
+            pitch: -10.0,
+            fov: 60.0,
+        }
+    }
+
+    fn distance(a: &Camera, b: &Camera) -> f64 {
+        let (p, _, _) = frame(a.lat, a.lon);
+        let (q, _, _) = frame(b.lat, b.lon);
+        p.cross(q).length().atan2(p.dot(q)) * R
+    }
+
+    #[test]
+    fn speed_scales_with_altitude() {
+        let step = |alt: f64| {
+            let mut c = Controller::new(cam(10.0, 20.0, alt, 90.0), R);
+            c.set_mode(Mode::Fly);
+            let start = c.camera;
+            c.update(&Input {
+                dt: 0.5,
+                forward: 1.0,
+                ..Input::default()
+            });
+            distance(&start, &c.camera)
+        };
+        let (low, high) = (step(100.0), step(10_000.0));
+        assert!((low - 50.0).abs() < 0.01, "{low}");
+        assert!((high / low - 100.0).abs() < 0.01, "{high} vs {low}");
+    }
+
+    #[test]
+    fn walking_keeps_eye_height_and_walking_pace() {
+        let mut c = Controller::new(cam(46.5, 8.0, 3000.0, 0.0), R);
+        c.set_mode(Mode::Walk);
+        let start = c.camera;
+        for _ in 0..10 {
+            c.update(&Input {
+                dt: 0.1,
+                forward: 1.0,
+                up: 1.0,
+                ..Input::default()
+            });
+        }
+        assert_eq!(c.camera.alt, EYE_HEIGHT_M);
+        let d = distance(&start, &c.camera);
+        assert!((d - 1.4).abs() < 1e-3, "walked {d} m");
+        // due north: latitude grows, longitude stays
+        assert!(c.camera.lat > start.lat && (c.camera.lon - start.lon).abs() < 1e-9);
+    }
+
+    #[test]
+    fn flying_north_crosses_the_pole_and_comes_out_heading_south() {
+        let mut c = Controller::new(cam(89.9, 10.0, 1000.0, 0.0), R);
+        c.set_mode(Mode::Fly);
+        // 0.2° of arc ≈ 22 km: 22 s at 1 km/s
+        for _ in 0..220 {
+            c.update(&Input {
+                dt: 0.1,
+                forward: 1.0,
+                ..Input::default()
+            });
+        }
+        assert!((c.camera.lat - 89.9).abs() < 0.01, "{:?}", c.camera);
+        assert!((c.camera.lon - (-170.0)).abs() < 1e-6, "{:?}", c.camera);
+        assert!((c.camera.heading - 180.0).abs() < 1e-6, "{:?}", c.camera);
+    }
+
+    #[test]
+    fn the_wheel_zooms_in_orbit_within_limits() {
+        let mut c = Controller::new(cam(0.0, 0.0, 8.0e6, 0.0), R);
+        assert_eq!(c.mode, Mode::Orbit);
+        c.update(&Input {
+            scroll: 2.0,
+            ..Input::default()
+        });
+        assert!((c.camera.alt - 8.0e6 / 1.44).abs() < 1.0);
+        c.update(&Input {
+            scroll: -100.0,
+            ..Input::default()
+        });
+        assert_eq!(c.camera.alt, ALT_RANGE_M.1);
+        // dragging down moves the camera north (the ground follows the cursor)
+        let lat = c.camera.lat;
+        c.camera.alt = 1.0e6;
+        c.update(&Input {
+            drag: (0.0, 50.0),
+            ..Input::default()
+        });
+        assert!(c.camera.lat > lat);
+    }
+}
