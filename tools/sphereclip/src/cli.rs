@@ -221,4 +221,7 @@ pub struct DemoArgs {
     /// Where the demo writes its store and pictures.
     #[arg(long, default_value = "out")]
     pub out: PathBuf,
+    /// Do not open the viewer at the end even when a display is there.
+    #[arg(long)]
+    pub no_view: bool,
 }

@@ -1,5 +1,6 @@
-//! `sphereclip render` end to end on the CPU adapter: a store renders to a PNG, a colour-only
-//! store renders a smooth sphere with a warning, bad input gets one-line errors.
+//! `sphereclip render` and `sphereclip view` end to end on the CPU adapter: a store renders to a
+//! PNG, a colour-only store renders a smooth sphere with a warning, the window (under Xvfb) shows
+//! the planet and the panel, bad input gets one-line errors.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -26,11 +27,9 @@ fn s(p: &Path) -> &str {
     p.to_str().expect("utf8")
 }
 
-#[test]
-fn renders_a_store_and_refuses_bad_input() {
-    let dir = tempfile::tempdir().expect("tempdir");
-    // colour only: a smooth sphere, with a warning
-    let store = dir.path().join("c.zarr");
+/// A colour-only store of the Blue Marble at level 1.
+fn color_store(dir: &Path) -> PathBuf {
+    let store = dir.join("c.zarr");
     let o = run(&[
         "ingest",
         s(&store),
@@ -43,6 +42,14 @@ fn renders_a_store_and_refuses_bad_input() {
         "-180,-90,180,90",
     ]);
     assert!(o.status.success(), "{}", text(&o.stderr));
+    store
+}
+
+#[test]
+fn renders_a_store_and_refuses_bad_input() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    // colour only: a smooth sphere, with a warning
+    let store = color_store(dir.path());
     let png = dir.path().join("space.png");
     let o = run(&[
         "render",
@@ -118,4 +125,96 @@ fn renders_a_store_and_refuses_bad_input() {
         assert_eq!(e.trim().lines().count(), 1, "{e}");
         assert!(e.contains(want), "{args:?}: {e}");
     }
+}
+
+#[test]
+fn the_window_shows_the_planet_and_the_panel() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    // Blue Marble colours over ETOPO20 heights
+    let store = color_store(dir.path());
+    let o = run(&[
+        "ingest",
+        s(&store),
+        s(&sample("etopo20.cdf")),
+        "--level",
+        "1",
+    ]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    // without a display: a one-line error that points to `render`
+    let o = bin()
+        .args(["view", s(&store), "--frames", "2"])
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .expect("runs");
+    assert_eq!(o.status.code(), Some(1));
+    let e = text(&o.stderr);
+    assert_eq!(e.trim().lines().count(), 1, "{e}");
+    assert!(
+        e.contains("window") && e.contains("sphereclip render"),
+        "{e}"
+    );
+    // bad input is refused before any window opens
+    for (args, want) in [
+        (
+            vec!["view", s(&dir.path().join("none"))],
+            "cannot read store",
+        ),
+        (vec!["view", s(&store), "--camera", "0,0"], "--camera"),
+        (vec!["view", s(&store), "--frames", "0"], "--frames"),
+    ] {
+        let o = run(&args);
+        assert_eq!(o.status.code(), Some(1), "{args:?}");
+        let e = text(&o.stderr);
+        assert_eq!(e.trim().lines().count(), 1, "{e}");
+        assert!(e.contains(want), "{args:?}: {e}");
+    }
+    // in a window on a virtual display (scripts/deps.sh installs Xvfb)
+    if Command::new("xvfb-run").arg("--help").output().is_err() {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "xvfb-run is missing (scripts/deps.sh installs it)"
+        );
+        eprintln!("skipped the window part: no xvfb-run");
+        return;
+    }
+    let shot = dir.path().join("window.png");
+    let o = Command::new("xvfb-run")
+        .args(["-a", "-s", "-screen 0 800x600x24"])
+        .arg(env!("CARGO_BIN_EXE_sphereclip"))
+        .args([
+            "view",
+            s(&store),
+            "--camera",
+            "0,20,9000000",
+            "--size",
+            "480x360",
+            "--frames",
+            "4",
+            "--screenshot",
+            s(&shot),
+        ])
+        .output()
+        .expect("runs");
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let out = text(&o.stdout);
+    assert!(out.contains("4 frames on"), "{out}");
+    let img = image::open(&shot).expect("a PNG").to_rgba8();
+    assert_eq!(img.dimensions(), (480, 360));
+    // the planet (Blue Marble over Africa) in the middle: not the dark-blue space
+    let centre = img.get_pixel(300, 200).0;
+    let corner = img.get_pixel(470, 350).0;
+    assert!(
+        centre[..3]
+            .iter()
+            .zip(&corner[..3])
+            .any(|(a, b)| a.abs_diff(*b) > 30),
+        "centre {centre:?} vs space {corner:?}"
+    );
+    // the egui panel in the top-left corner: neutral grey, where space is blue
+    let p = img.get_pixel(60, 70).0;
+    assert!(
+        p[2].abs_diff(p[0]) < 10 && corner[2] > corner[0] + 15,
+        "panel {p:?}, space {corner:?}"
+    );
 }

@@ -238,10 +238,3 @@ fn exported_geotiff_opens_in_gdalinfo_with_the_right_corners() {
         serde_json::json!([180.0, -90.0])
     );
 }
-
-#[test]
-fn pending_subcommands_exit_2() {
-    let o = run(&["view"]);
-    assert_eq!(o.status.code(), Some(2), "view");
-    assert!(text(&o.stderr).contains("not implemented yet"));
-}

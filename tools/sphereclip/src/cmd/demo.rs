@@ -139,7 +139,7 @@ pub fn run(a: &DemoArgs) -> Result<ExitCode> {
     if !o.success() {
         bail!("inspect failed on {}", store.display());
     }
-    // the golden views, headless (the windowed viewer is not there yet)
+    // the golden views, headless
     let views = a.out.join("views");
     std::fs::create_dir_all(&views)
         .with_context(|| format!("cannot create {}", views.display()))?;
@@ -155,10 +155,27 @@ pub fn run(a: &DemoArgs) -> Result<ExitCode> {
         if !o.success() {
             bail!("render failed for the {name} view of {}", store.display());
         }
+        println!("view:    {}", out.display());
     }
-    eprintln!(
-        "demo: the windowed viewer is not implemented yet; headless renders of the golden views are in {}",
-        views.display()
-    );
+    let display = ["DISPLAY", "WAYLAND_DISPLAY"]
+        .iter()
+        .any(|v| std::env::var_os(v).is_some_and(|x| !x.is_empty()));
+    if a.no_view || !display {
+        eprintln!(
+            "demo: no display{}; the six golden views above are headless renders (open the viewer with: sphereclip view {})",
+            if a.no_view { " wanted (--no-view)" } else { "" },
+            store.display()
+        );
+        return Ok(ExitCode::SUCCESS);
+    }
+    eprintln!("demo: opening the viewer (drag, W/A/S/D, wheel; 1/2/3 orbit/fly/walk; Esc quits)");
+    let o = std::process::Command::new(std::env::current_exe()?)
+        .arg("view")
+        .arg(&store)
+        .status()
+        .context("cannot run view")?;
+    if !o.success() {
+        bail!("the viewer failed on {}", store.display());
+    }
     Ok(ExitCode::SUCCESS)
 }

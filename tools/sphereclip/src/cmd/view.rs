@@ -24,6 +24,14 @@ pub fn run(a: &ViewArgs) -> Result<ExitCode> {
         anyhow::bail!("--screenshot is a folder, not a PNG file: {}", p.display());
     }
     let mut planet = Planet::open(&a.store)?;
+    if !["DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET"]
+        .iter()
+        .any(|v| std::env::var_os(v).is_some_and(|x| !x.is_empty()))
+    {
+        anyhow::bail!(
+            "no display to open a window on (DISPLAY and WAYLAND_DISPLAY are unset); use `sphereclip render` for images, or run under xvfb-run"
+        );
+    }
     let title = format!("sphereclip — {}", a.store.display());
     let radius = planet.radius;
     let colors = planet
