@@ -124,6 +124,89 @@ pub fn fill_window<T: Copy + Default, const C: usize>(
     out
 }
 
+/// A rectangle of a clipmap texture, in texture texels: `x .. x + w`, `y .. y + h`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Region {
+    /// First texture column.
+    pub x: u32,
+    /// First texture row.
+    pub y: u32,
+    /// Columns.
+    pub w: u32,
+    /// Rows.
+    pub h: u32,
+}
+
+/// Along one axis: the texture intervals (start, length, changed) between the old and new wrap
+/// positions, for a window moving from `old` to `new` (first world texel), `n` texels.
+fn axis_intervals(old: i64, new: i64, n: u32) -> Vec<(u32, u32, bool)> {
+    let nn = i64::from(n);
+    let shift = new - old;
+    if shift.abs() >= nn {
+        return vec![(0, n, true)];
+    }
+    let mut cuts = vec![0, old.rem_euclid(nn) as u32, new.rem_euclid(nn) as u32, n];
+    cuts.sort_unstable();
+    cuts.dedup();
+    cuts.windows(2)
+        .map(|w| {
+            // texture texel t holds world texel w ≡ t (mod n) inside the window: the same world
+            // texel before and after iff it lies in both windows
+            let t = i64::from(w[0]);
+            let world_old = old + (t - old).rem_euclid(nn);
+            let world_new = new + (t - new).rem_euclid(nn);
+            (w[0], w[1] - w[0], world_old != world_new)
+        })
+        .collect()
+}
+
+/// The texture regions whose texels change when a level's window moves from `old` to `new`
+/// (paper §5: the texture split by the old and new wrap positions into up to 9 regions; only those
+/// whose content changed are refilled). Empty for a move of less than a texel; the whole texture
+/// when the texel size changes or the move is a window or more.
+pub fn changed_regions(old: &Placement, new: &Placement, n: u32) -> Vec<Region> {
+    if old.win != new.win {
+        return vec![Region {
+            x: 0,
+            y: 0,
+            w: n,
+            h: n,
+        }];
+    }
+    let xs = axis_intervals(old.u0, new.u0, n);
+    let ys = axis_intervals(old.v0, new.v0, n);
+    let mut out = Vec::new();
+    for &(y, h, cy) in &ys {
+        for &(x, w, cx) in &xs {
+            if cx || cy {
+                out.push(Region { x, y, w, h });
+            }
+        }
+    }
+    out
+}
+
+/// Fills one texture region of a level placed at `p` (`C` samples a texel, row-major within the
+/// region) by evaluating `f(lon, colat)` at the centres of the world texels it holds.
+pub fn fill_region<T: Copy + Default, const C: usize>(
+    p: &Placement,
+    n: u32,
+    region: Region,
+    mut f: impl FnMut(f64, f64) -> [T; C],
+) -> Vec<T> {
+    let [ox, oy] = p.origin(n);
+    let mut out = Vec::with_capacity((region.w * region.h) as usize * C);
+    for ty in region.y..region.y + region.h {
+        let r = (ty + n - oy) % n;
+        for tx in region.x..region.x + region.w {
+            let c = (tx + n - ox) % n;
+            let (lon, colat) = p.texel_centre(c, r);
+            out.extend_from_slice(&f(lon, colat));
+        }
+    }
+    out
+}
+
 /// Heights at points of the sphere.
 pub trait HeightSource {
     /// Height (metres) at longitude `lon`, colatitude `colat` (radians, any value: wrapped),
@@ -387,6 +470,60 @@ mod tests {
             }
         }
         assert_eq!(shared, (n as usize - 3) * (n as usize - 2));
+    }
+
+    #[test]
+    fn moved_windows_refill_exactly_the_changed_regions() {
+        let n = 32;
+        let f = |lon: f64, colat: f64| [(lon * 1e6).round() as i64, (colat * 1e6).round() as i64];
+        let base = Viewer::from_deg(60.0, 170.0);
+        let p0 = Placement::new(9, &base, n);
+        let mut seed = 7u64;
+        let mut rnd = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((seed >> 33) % 1000) as f64 / 1000.0
+        };
+        let mut cur = p0;
+        let mut tex = fill_window(&cur, n, f);
+        for step in 0..200 {
+            // moves of a fraction of a texel up to more than a window, in any direction (and
+            // across the antimeridian: the viewer starts at 170°E)
+            let scale = [0.3, 2.0, 9.0, 40.0][step % 4];
+            let v = Viewer {
+                lon: base.lon + (rnd() - 0.3) * scale * cur.win.texel_lon * (step as f64).sqrt(),
+                colat: base.colat + (rnd() - 0.5) * scale * cur.win.texel_colat,
+            };
+            let next = Placement::new(9, &v, n);
+            let regions = changed_regions(&cur, &next, n);
+            assert!(regions.len() <= 9);
+            let mut touched = 0;
+            for r in &regions {
+                let data = fill_region(&next, n, *r, f);
+                for (k, v) in data.chunks(2).enumerate() {
+                    let (x, y) = (r.x + k as u32 % r.w, r.y + k as u32 / r.w);
+                    let i = ((y * n + x) * 2) as usize;
+                    tex[i..i + 2].copy_from_slice(v);
+                }
+                touched += r.w * r.h;
+            }
+            // the partial update equals a full rebuild, and touched only what changed
+            assert_eq!(tex, fill_window(&next, n, f), "step {step}");
+            let (du, dv) = (
+                (next.u0 - cur.u0).unsigned_abs(),
+                (next.v0 - cur.v0).unsigned_abs(),
+            );
+            let keep = u64::from(n).saturating_sub(du) * u64::from(n).saturating_sub(dv);
+            assert_eq!(u64::from(touched), u64::from(n * n) - keep, "step {step}");
+            cur = next;
+        }
+        // less than a texel: nothing
+        let nudge = Viewer {
+            lon: base.lon + 0.01 * p0.win.texel_lon * (1.0 - p0.viewer_texel[0].fract()),
+            ..base
+        };
+        assert!(changed_regions(&p0, &Placement::new(9, &nudge, n), n).is_empty());
     }
 
     #[test]

@@ -7,7 +7,7 @@ use glam::{Mat4, Vec3};
 use wgpu::util::DeviceExt;
 
 use crate::clipmap::{
-    CLIPMAP_N, ColorSource, HeightSource, Placement, fill_color_level, fill_level,
+    CLIPMAP_N, ColorSource, HeightSource, Placement, Region, changed_regions, fill_region,
 };
 use crate::geometry::{Hemisphere, HemisphereSpec};
 use crate::transform::{Viewer, visible_levels};
@@ -142,7 +142,8 @@ pub struct FrameStats {
     pub level_hi: u32,
     /// Triangles drawn.
     pub triangles: u32,
-    /// Clipmap levels (height or colour) whose window moved by a texel or more and were refilled.
+    /// Clipmap levels (height or colour) whose window moved by a texel or more: their changed
+    /// regions were refilled.
     pub levels_filled: u32,
 }
 
@@ -400,8 +401,9 @@ impl ClipmapPass {
     }
 
     /// Makes the clipmaps and uniforms ready for a frame from `camera` into a `w × h` target:
-    /// levels per §4.5; a level whose window moved by a texel or more is refilled from the
-    /// sources (synchronously; issue 7 moves this to worker threads). Returns the ground height
+    /// levels per §4.5; where a level's window moved by a texel or more, the texture regions
+    /// whose world texels changed are refilled from the sources (synchronously, on this thread;
+    /// issue 7 moves the filling to worker threads). Returns the ground height
     /// under the camera (metres) and what the frame will draw.
     pub fn prepare(
         &mut self,
@@ -424,19 +426,34 @@ impl ClipmapPass {
         for i in lo..=hi {
             let p = Placement::new(i, &viewer, CLIPMAP_N);
             let k = i as usize;
-            if self.placed[k] != Some(p) {
-                let data = fill_level(heights, &p, CLIPMAP_N);
-                self.write_layer(true, i, bytemuck::cast_slice(&data));
-                self.placed[k] = Some(p);
-                filled += 1;
+            // only the regions whose world texels changed since the last fill (§5)
+            let regions = |old: Option<Placement>| match old {
+                Some(old) => changed_regions(&old, &p, CLIPMAP_N),
+                None => vec![Region {
+                    x: 0,
+                    y: 0,
+                    w: CLIPMAP_N,
+                    h: CLIPMAP_N,
+                }],
+            };
+            let todo = regions(self.placed[k]);
+            for r in &todo {
+                let data = fill_region(&p, CLIPMAP_N, *r, |lon, colat| {
+                    [heights.height(lon, colat, p.win)]
+                });
+                self.write_region(true, i, *r, bytemuck::cast_slice(&data));
             }
-            if let Some(c) = colors.as_deref_mut()
-                && self.colored[k] != Some(p)
-            {
-                let rgba = fill_color_level(c, &p, CLIPMAP_N);
-                self.write_layer(false, i, &rgba);
+            filled += u32::from(!todo.is_empty());
+            self.placed[k] = Some(p);
+            if let Some(c) = colors.as_deref_mut() {
+                let todo = regions(self.colored[k]);
+                for r in &todo {
+                    let rgba =
+                        fill_region(&p, CLIPMAP_N, *r, |lon, colat| c.color(lon, colat, p.win));
+                    self.write_region(false, i, *r, &rgba);
+                }
+                filled += u32::from(!todo.is_empty());
                 self.colored[k] = Some(p);
-                filled += 1;
             }
             self.level_uniforms[k] = LevelUniform {
                 viewer_texel: p.viewer_texel.map(|v| v as f32),
@@ -489,14 +506,14 @@ impl ClipmapPass {
         (ground, self.last)
     }
 
-    fn write_layer(&self, height: bool, layer: u32, bytes: &[u8]) {
+    fn write_region(&self, height: bool, layer: u32, r: Region, bytes: &[u8]) {
         self.queue.write_texture(
             wgpu::TexelCopyTextureInfo {
                 texture: if height { &self.heights } else { &self.colors },
                 mip_level: 0,
                 origin: wgpu::Origin3d {
-                    x: 0,
-                    y: 0,
+                    x: r.x,
+                    y: r.y,
                     z: layer,
                 },
                 aspect: wgpu::TextureAspect::All,
@@ -504,12 +521,12 @@ impl ClipmapPass {
             bytes,
             wgpu::TexelCopyBufferLayout {
                 offset: 0,
-                bytes_per_row: Some(CLIPMAP_N * 4),
-                rows_per_image: Some(CLIPMAP_N),
+                bytes_per_row: Some(r.w * 4),
+                rows_per_image: Some(r.h),
             },
             wgpu::Extent3d {
-                width: CLIPMAP_N,
-                height: CLIPMAP_N,
+                width: r.w,
+                height: r.h,
                 depth_or_array_layers: 1,
             },
         );

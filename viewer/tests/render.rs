@@ -202,3 +202,44 @@ fn no_stripe_along_the_meridian_beyond_the_pole() {
         }
     }
 }
+
+/// A camera flying over the terrain, its clipmaps updated region by region as their windows
+/// move, draws exactly what a renderer filling every level afresh draws at the same place.
+#[test]
+fn partial_clipmap_updates_draw_the_same_as_a_fresh_fill() {
+    let (w, h) = (96, 64);
+    let mut moving = renderer(w, h);
+    let start = Camera {
+        lat: 89.2,
+        lon: 179.0,
+        alt: 3000.0,
+        heading: 20.0,
+        pitch: -25.0,
+        fov: 60.0,
+    };
+    let mut filled = Vec::new();
+    let mut cam = start;
+    for step in 0..6 {
+        // north over the pole region and east across the antimeridian, by growing steps
+        cam.lat = (start.lat + 0.05 * f64::from(step)).min(89.99);
+        cam.lon = start.lon + 0.3 * f64::from(step * step);
+        let (a, stats) = moving
+            .render(&mut Mountains, Some(&mut ByLongitude), &cam)
+            .expect("render");
+        filled.push(stats.levels_filled);
+        let mut fresh = renderer(w, h);
+        let (b, _) = fresh
+            .render(&mut Mountains, Some(&mut ByLongitude), &cam)
+            .expect("render");
+        assert!(
+            a.as_raw() == b.as_raw(),
+            "step {step}: the partially updated clipmaps draw differently"
+        );
+    }
+    // the moves did refill something after the first frame, and a still camera refills nothing
+    assert!(filled[1..].iter().any(|&n| n > 0), "{filled:?}");
+    let (_, stats) = moving
+        .render(&mut Mountains, Some(&mut ByLongitude), &cam)
+        .expect("render");
+    assert_eq!(stats.levels_filled, 0);
+}
