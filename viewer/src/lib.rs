@@ -8,6 +8,7 @@ pub mod clipmap;
 pub mod geometry;
 pub mod probe;
 pub mod render;
+pub mod stream;
 pub mod transform;
 pub mod window;
 

@@ -1,0 +1,922 @@
+//! Streaming clipmap data off the render thread (paper: `clipmap-data-synthesis.txt`, §4–§7).
+//!
+//! - **Tiles** are the size of a clipmap texture (N × N texels) in a clipmap level's own grid
+//!   ([`GridId`]: level i sets the colatitude texel, k the longitude texel 2π/(N·2^k) — the
+//!   paper's anisotropic grids of 2^m × 2^n tiles). A clipmap update needs the quad of four tiles
+//!   its window overlaps; each changed region comes from exactly one of them, copied without
+//!   translation (toroidal addressing).
+//! - **Sources** make tiles ([`TileSource`]); a source may derive its tiles from other sources'
+//!   tiles of the same locator (its inputs), which the manager makes first (depth-first).
+//! - **Cache** ([`TileCache`]): tiles by locator, immutable once made (`Arc`), one mutex; pruned
+//!   to a memory budget by distance to the focus, never dropping the quad and the ring of tiles
+//!   adjacent to it (no thrashing when the camera goes back and forth over a tile border).
+//! - **Threads** ([`Streamer`]): the render thread posts the frame's task list into a one-slot
+//!   mailbox (a newer list replaces an older one: queued tasks are cancelled; running ones
+//!   finish, their tiles are likely useful); the manager thread sorts by priority (visible before
+//!   prefetch, coarse before fine), resolves inputs, and hands a task to a worker only when one is
+//!   idle, through a bounded channel; N workers make tiles and put them in the cache. Nothing in
+//!   here is unbounded: the mailbox holds one list, the pending list is at most one frame's
+//!   tasks and their inputs, the channel holds at most one task per worker.
+
+use std::collections::{HashMap, HashSet};
+use std::f64::consts::PI;
+use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::thread::JoinHandle;
+
+use sc_store::StoreReader;
+
+use crate::clipmap::{
+    ColorSource, HeightSource, LevelWindow, Placement, StoreColors, StoreHeights,
+};
+use crate::geometry::level_outer;
+
+/// A clipmap level's texel grid: level `level` (colatitude texel 2·outer(level)/N) and longitude
+/// texel 2π/(N·2^k).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct GridId {
+    /// Hemisphere (clipmap) level.
+    pub level: u32,
+    /// Longitude subdivision: 2^k tiles around the circle.
+    pub k: u32,
+}
+
+impl GridId {
+    /// The grid of clipmap level `level` placed at `p`.
+    pub fn of(level: u32, p: &Placement, n: u32) -> Self {
+        let k = (2.0 * PI / (f64::from(n) * p.win.texel_lon)).log2().round();
+        Self {
+            level,
+            k: k.max(0.0) as u32,
+        }
+    }
+
+    /// Its texel size.
+    pub fn window(self, n: u32) -> LevelWindow {
+        LevelWindow {
+            texel_colat: 2.0 * level_outer(self.level) / f64::from(n),
+            texel_lon: 2.0 * PI / (f64::from(n) * f64::from(1u32 << self.k.min(31))),
+        }
+    }
+
+    /// Tiles around the circle of latitude.
+    pub fn tiles_around(self) -> i64 {
+        1i64 << self.k.min(40)
+    }
+}
+
+/// Names one tile: which source made it, in which grid, where (x wraps around the circle; y may
+/// lie beyond a pole, where the source reads the other side).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct TileKey {
+    /// Index of the source in the streamer.
+    pub source: u32,
+    /// The grid.
+    pub grid: GridId,
+    /// Tile column, 0 … 2^k − 1.
+    pub x: i64,
+    /// Tile row (tile y covers grid rows y·N … y·N + N − 1).
+    pub y: i64,
+}
+
+impl TileKey {
+    /// The tile of `source` holding world texel (u, v) of `grid`.
+    pub fn at(source: u32, grid: GridId, u: i64, v: i64, n: u32) -> Self {
+        let n = i64::from(n);
+        Self {
+            source,
+            grid,
+            x: u.div_euclid(n).rem_euclid(grid.tiles_around()),
+            y: v.div_euclid(n),
+        }
+    }
+
+    /// The same place from another source.
+    pub fn with_source(self, source: u32) -> Self {
+        Self { source, ..self }
+    }
+
+    /// The placement-like frame of this tile: its texel (c, r) centres.
+    pub fn texel_centre(&self, c: u32, r: u32, n: u32) -> (f64, f64) {
+        let w = self.grid.window(n);
+        let n = i64::from(n);
+        (
+            ((self.x * n + i64::from(c)) as f64 + 0.5) * w.texel_lon - PI,
+            ((self.y * n + i64::from(r)) as f64 + 0.5) * w.texel_colat,
+        )
+    }
+}
+
+/// A tile's texels, row-major, N × N.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TileData {
+    /// Heights, metres (NaN: no data).
+    Height(Vec<f32>),
+    /// sRGB RGBA8.
+    Color(Vec<u8>),
+}
+
+impl TileData {
+    /// Bytes held.
+    pub fn bytes(&self) -> usize {
+        match self {
+            TileData::Height(v) => v.len() * 4,
+            TileData::Color(v) => v.len(),
+        }
+    }
+
+    /// The texel bytes as the clipmap texture stores them (f32 or RGBA8, 4 bytes a texel).
+    pub fn texel_bytes(&self) -> &[u8] {
+        match self {
+            TileData::Height(v) => bytemuck::cast_slice(v),
+            TileData::Color(v) => v,
+        }
+    }
+}
+
+/// An immutable tile, shared.
+pub type Tile = Arc<TileData>;
+
+/// Makes tiles.
+pub trait TileSource: Send + Sync + std::fmt::Debug {
+    /// Sources whose tile at the same place this one derives from (made first).
+    fn inputs(&self) -> Vec<u32> {
+        Vec::new()
+    }
+
+    /// Makes the tile `key` (`n × n`), given its inputs' tiles in the order of [`Self::inputs`].
+    fn make(&self, key: &TileKey, n: u32, inputs: &[Tile]) -> Result<TileData, String>;
+}
+
+/// Evaluates a height or colour function at every texel centre of a tile.
+fn sample_tile<T: Copy, const C: usize>(
+    key: &TileKey,
+    n: u32,
+    mut f: impl FnMut(f64, f64) -> [T; C],
+) -> Vec<T> {
+    let mut out = Vec::with_capacity((n * n) as usize * C);
+    for r in 0..n {
+        for c in 0..n {
+            let (lon, colat) = key.texel_centre(c, r, n);
+            out.extend_from_slice(&f(lon, colat));
+        }
+    }
+    out
+}
+
+/// Heights from a store's height layer (bilinear from the store level matching the grid, the
+/// anisotropic ones near the poles; see [`StoreHeights`]).
+#[derive(Debug, Clone)]
+pub struct StoreHeightTiles(pub StoreReader);
+
+impl TileSource for StoreHeightTiles {
+    fn make(&self, key: &TileKey, n: u32, _: &[Tile]) -> Result<TileData, String> {
+        let mut src = StoreHeights::new(self.0.clone())
+            .ok_or_else(|| "the store has no height levels".to_string())?;
+        let win = key.grid.window(n);
+        let data = sample_tile(key, n, |lon, colat| [src.height(lon, colat, win)]);
+        match src.errors().first() {
+            Some(e) => Err(e.clone()),
+            None => Ok(TileData::Height(data)),
+        }
+    }
+}
+
+/// Colours from a store's colour layer.
+#[derive(Debug, Clone)]
+pub struct StoreColorTiles(pub StoreReader);
+
+impl TileSource for StoreColorTiles {
+    fn make(&self, key: &TileKey, n: u32, _: &[Tile]) -> Result<TileData, String> {
+        let mut src = StoreColors::new(self.0.clone())
+            .ok_or_else(|| "the store has no colour levels".to_string())?;
+        let win = key.grid.window(n);
+        Ok(TileData::Color(sample_tile(key, n, |lon, colat| {
+            src.color(lon, colat, win)
+        })))
+    }
+}
+
+/// Heights from a function of (lon, colat) (tests, synthetic planets).
+pub struct FnHeightTiles<F>(pub F);
+
+impl<F> std::fmt::Debug for FnHeightTiles<F> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("FnHeightTiles")
+    }
+}
+
+impl<F: Fn(f64, f64) -> f32 + Send + Sync> TileSource for FnHeightTiles<F> {
+    fn make(&self, key: &TileKey, n: u32, _: &[Tile]) -> Result<TileData, String> {
+        Ok(TileData::Height(sample_tile(key, n, |lon, colat| {
+            [(self.0)(lon, colat)]
+        })))
+    }
+}
+
+/// Colours from a function of (lon, colat).
+pub struct FnColorTiles<F>(pub F);
+
+impl<F> std::fmt::Debug for FnColorTiles<F> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("FnColorTiles")
+    }
+}
+
+impl<F: Fn(f64, f64) -> [u8; 4] + Send + Sync> TileSource for FnColorTiles<F> {
+    fn make(&self, key: &TileKey, n: u32, _: &[Tile]) -> Result<TileData, String> {
+        Ok(TileData::Color(sample_tile(key, n, |lon, colat| {
+            (self.0)(lon, colat)
+        })))
+    }
+}
+
+/// Where a grid's clipmap window is: the quad's first tile (x, y).
+pub type Focus = HashMap<(u32, GridId), (i64, i64)>;
+
+#[derive(Debug, Default)]
+struct CacheInner {
+    tiles: HashMap<TileKey, Tile>,
+    failed: HashSet<TileKey>,
+    bytes: usize,
+}
+
+/// Tiles by locator (see the module documentation).
+#[derive(Debug)]
+pub struct TileCache {
+    inner: Mutex<CacheInner>,
+    budget: usize,
+}
+
+impl TileCache {
+    /// An empty cache that prunes down to `budget` bytes.
+    pub fn new(budget: usize) -> Self {
+        Self {
+            inner: Mutex::new(CacheInner::default()),
+            budget,
+        }
+    }
+
+    fn lock(&self) -> MutexGuard<'_, CacheInner> {
+        self.inner.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// The tile, if made.
+    pub fn get(&self, key: &TileKey) -> Option<Tile> {
+        self.lock().tiles.get(key).cloned()
+    }
+
+    /// Whether the tile is made.
+    pub fn contains(&self, key: &TileKey) -> bool {
+        self.lock().tiles.contains_key(key)
+    }
+
+    /// Stores a made tile.
+    pub fn insert(&self, key: TileKey, tile: TileData) {
+        let mut c = self.lock();
+        let bytes = tile.bytes();
+        if let Some(old) = c.tiles.insert(key, Arc::new(tile)) {
+            c.bytes -= old.bytes();
+        }
+        c.bytes += bytes;
+    }
+
+    /// Records that the tile cannot be made; true the first time (log it once).
+    pub fn fail(&self, key: TileKey) -> bool {
+        self.lock().failed.insert(key)
+    }
+
+    /// Whether making the tile failed.
+    pub fn is_failed(&self, key: &TileKey) -> bool {
+        self.lock().failed.contains(key)
+    }
+
+    /// Bytes held.
+    pub fn bytes(&self) -> usize {
+        self.lock().bytes
+    }
+
+    /// Tiles held.
+    pub fn len(&self) -> usize {
+        self.lock().tiles.len()
+    }
+
+    /// Whether no tile is held.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Drops every tile of the given sources (their parameters changed).
+    pub fn invalidate(&self, sources: &[u32]) {
+        let mut c = self.lock();
+        let CacheInner {
+            tiles,
+            failed,
+            bytes,
+        } = &mut *c;
+        tiles.retain(|k, t| {
+            let keep = !sources.contains(&k.source);
+            if !keep {
+                *bytes -= t.bytes();
+            }
+            keep
+        });
+        failed.retain(|k| !sources.contains(&k.source));
+    }
+
+    /// Prunes to the budget: tiles farthest from their grid's focus go first (tiles of grids
+    /// out of focus before all others); the quad and the ring adjacent to it are always kept.
+    pub fn prune(&self, focus: &Focus) {
+        let mut c = self.lock();
+        if c.bytes <= self.budget {
+            return;
+        }
+        let mut far: Vec<(i64, TileKey)> = c
+            .tiles
+            .keys()
+            .filter_map(|k| {
+                let d = match focus.get(&(k.source, k.grid)) {
+                    None => i64::MAX,
+                    Some(&(x0, y0)) => {
+                        let around = k.grid.tiles_around();
+                        // circular distance in x from the quad's columns x0, x0 + 1
+                        let dx = [x0, x0 + 1]
+                            .iter()
+                            .map(|&q| {
+                                let d = (k.x - q).rem_euclid(around);
+                                d.min(around - d)
+                            })
+                            .min()
+                            .unwrap_or(0);
+                        let dy = if k.y < y0 {
+                            y0 - k.y
+                        } else {
+                            (k.y - (y0 + 1)).max(0)
+                        };
+                        dx.max(dy)
+                    }
+                };
+                (d > 1).then_some((d, *k))
+            })
+            .collect();
+        far.sort_unstable_by(|a, b| b.cmp(a));
+        for (_, k) in far {
+            if c.bytes <= self.budget {
+                break;
+            }
+            if let Some(t) = c.tiles.remove(&k) {
+                c.bytes -= t.bytes();
+            }
+        }
+    }
+}
+
+/// A tile to make, and whether it is for a level being drawn or a prefetch.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Task {
+    /// The tile.
+    pub key: TileKey,
+    /// False: a level being drawn needs it.
+    pub prefetch: bool,
+}
+
+#[derive(Debug, Default)]
+struct State {
+    /// The newest task list from the render thread (one slot).
+    mailbox: Option<Vec<Task>>,
+    in_flight: HashSet<TileKey>,
+    idle: usize,
+    shutdown: bool,
+    /// Tiles made (or failed) so far.
+    made: u64,
+}
+
+#[derive(Debug)]
+struct Shared {
+    sources: Vec<Box<dyn TileSource>>,
+    cache: TileCache,
+    n: u32,
+    state: Mutex<State>,
+    wake: Condvar,
+    errors: Mutex<Vec<String>>,
+}
+
+impl Shared {
+    fn state(&self) -> MutexGuard<'_, State> {
+        self.state.lock().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+/// Manager and worker threads over a set of sources and one tile cache.
+#[derive(Debug)]
+pub struct Streamer {
+    shared: Arc<Shared>,
+    threads: Vec<JoinHandle<()>>,
+}
+
+/// Most errors kept for display (each failing tile is logged once; beyond this they are counted
+/// in the log's last line only).
+const MAX_ERRORS: usize = 64;
+
+impl Streamer {
+    /// Starts `workers` worker threads (at least one) and the manager for `sources`, tiles of
+    /// `n × n`, a cache pruned to `budget` bytes.
+    pub fn new(sources: Vec<Box<dyn TileSource>>, n: u32, workers: usize, budget: usize) -> Self {
+        let workers = workers.max(1);
+        let shared = Arc::new(Shared {
+            sources,
+            cache: TileCache::new(budget),
+            n,
+            state: Mutex::new(State {
+                idle: workers,
+                ..State::default()
+            }),
+            wake: Condvar::new(),
+            errors: Mutex::new(Vec::new()),
+        });
+        let (tx, rx) = sync_channel::<Task>(workers);
+        let rx = Arc::new(Mutex::new(rx));
+        let mut threads = Vec::new();
+        for i in 0..workers {
+            let (shared, rx) = (shared.clone(), rx.clone());
+            threads.push(
+                std::thread::Builder::new()
+                    .name(format!("sc-tile-worker-{i}"))
+                    .spawn(move || worker(&shared, &rx))
+                    .unwrap_or_else(|e| panic!("cannot start a worker thread: {e}")),
+            );
+        }
+        let m = shared.clone();
+        threads.push(
+            std::thread::Builder::new()
+                .name("sc-tile-manager".into())
+                .spawn(move || manager(&m, &tx))
+                .unwrap_or_else(|e| panic!("cannot start the manager thread: {e}")),
+        );
+        Self { shared, threads }
+    }
+
+    /// Tiles a side.
+    pub fn tile_size(&self) -> u32 {
+        self.shared.n
+    }
+
+    /// The cache.
+    pub fn cache(&self) -> &TileCache {
+        &self.shared.cache
+    }
+
+    /// Replaces the task list (tasks of the previous list not yet started are cancelled).
+    pub fn request(&self, tasks: Vec<Task>) {
+        self.shared.state().mailbox = Some(tasks);
+        self.shared.wake.notify_all();
+    }
+
+    /// Tiles made or failed since the start.
+    pub fn made(&self) -> u64 {
+        self.shared.state().made
+    }
+
+    /// Whether nothing is queued or being made.
+    pub fn idle(&self) -> bool {
+        let s = self.shared.state();
+        s.mailbox.is_none() && s.in_flight.is_empty()
+    }
+
+    /// Blocks until `key` is made or failed, or `timeout` passes; the tile if made.
+    pub fn wait_for(&self, key: &TileKey, timeout: std::time::Duration) -> Option<Tile> {
+        let end = std::time::Instant::now() + timeout;
+        let mut s = self.shared.state();
+        loop {
+            if let Some(t) = self.shared.cache.get(key) {
+                return Some(t);
+            }
+            if self.shared.cache.is_failed(key) {
+                return None;
+            }
+            let now = std::time::Instant::now();
+            if now >= end {
+                return None;
+            }
+            s = self
+                .shared
+                .wake
+                .wait_timeout(s, end - now)
+                .unwrap_or_else(|e| e.into_inner())
+                .0;
+        }
+    }
+
+    /// Failures so far (one line per tile, the first [`MAX_ERRORS`]).
+    pub fn errors(&self) -> Vec<String> {
+        self.shared
+            .errors
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone()
+    }
+
+    /// The sources that derive from `source`, directly or not (to invalidate with it).
+    pub fn dependents(&self, source: u32) -> Vec<u32> {
+        let mut out = vec![source];
+        let mut i = 0;
+        while i < out.len() {
+            for (j, s) in self.shared.sources.iter().enumerate() {
+                let j = j as u32;
+                if s.inputs().contains(&out[i]) && !out.contains(&j) {
+                    out.push(j);
+                }
+            }
+            i += 1;
+        }
+        out
+    }
+}
+
+impl Drop for Streamer {
+    fn drop(&mut self) {
+        self.shared.state().shutdown = true;
+        self.shared.wake.notify_all();
+        for t in self.threads.drain(..) {
+            let _ = t.join();
+        }
+    }
+}
+
+/// Priority order (visible before prefetch, coarse before fine; stable within a class), then
+/// each task preceded by its inputs, depth-first; duplicates dropped.
+fn expand(sources: &[Box<dyn TileSource>], mut tasks: Vec<Task>) -> Vec<Task> {
+    tasks.sort_by_key(|t| (t.prefetch, t.key.grid.level));
+    let mut out = Vec::with_capacity(tasks.len());
+    let mut seen = HashSet::new();
+    fn visit(
+        sources: &[Box<dyn TileSource>],
+        t: Task,
+        out: &mut Vec<Task>,
+        seen: &mut HashSet<TileKey>,
+        depth: usize,
+    ) {
+        if depth > 16 || seen.contains(&t.key) {
+            return;
+        }
+        if let Some(s) = sources.get(t.key.source as usize) {
+            for i in s.inputs() {
+                visit(
+                    sources,
+                    Task {
+                        key: t.key.with_source(i),
+                        ..t
+                    },
+                    out,
+                    seen,
+                    depth + 1,
+                );
+            }
+        }
+        if seen.insert(t.key) {
+            out.push(t);
+        }
+    }
+    for t in tasks {
+        visit(sources, t, &mut out, &mut seen, 0);
+    }
+    out
+}
+
+fn manager(shared: &Shared, tx: &SyncSender<Task>) {
+    let mut pending: Vec<Task> = Vec::new();
+    let mut s = shared.state();
+    loop {
+        if s.shutdown {
+            return;
+        }
+        if let Some(list) = s.mailbox.take() {
+            // the new list replaces what was queued: cancellation
+            pending = expand(&shared.sources, list);
+        }
+        let cache = &shared.cache;
+        pending.retain(|t| !cache.contains(&t.key) && !cache.is_failed(&t.key));
+        let ready = |t: &Task| {
+            !s.in_flight.contains(&t.key)
+                && shared
+                    .sources
+                    .get(t.key.source as usize)
+                    .is_some_and(|src| {
+                        src.inputs()
+                            .iter()
+                            .all(|&i| cache.contains(&t.key.with_source(i)))
+                    })
+        };
+        let pick = if s.idle > 0 {
+            pending.iter().position(ready)
+        } else {
+            None
+        };
+        match pick {
+            Some(i) => {
+                let t = pending.remove(i);
+                s.in_flight.insert(t.key);
+                s.idle -= 1;
+                // an idle worker is waiting on the channel: this does not block for long
+                drop(s);
+                if tx.send(t).is_err() {
+                    return;
+                }
+                s = shared.state();
+            }
+            None => {
+                s = shared.wake.wait(s).unwrap_or_else(|e| e.into_inner());
+            }
+        }
+    }
+}
+
+fn worker(shared: &Shared, rx: &Mutex<Receiver<Task>>) {
+    loop {
+        let task = {
+            let rx = rx.lock().unwrap_or_else(|e| e.into_inner());
+            match rx.recv() {
+                Ok(t) => t,
+                Err(_) => return,
+            }
+        };
+        let key = task.key;
+        let result = shared.sources.get(key.source as usize).map(|src| {
+            let inputs: Option<Vec<Tile>> = src
+                .inputs()
+                .iter()
+                .map(|&i| shared.cache.get(&key.with_source(i)))
+                .collect();
+            // inputs pruned meanwhile: not made now (asked again while needed)
+            inputs.map(|inputs| src.make(&key, shared.n, &inputs))
+        });
+        match result {
+            Some(Some(Ok(tile))) => shared.cache.insert(key, tile),
+            Some(Some(Err(e))) => {
+                if shared.cache.fail(key) {
+                    let mut log = shared.errors.lock().unwrap_or_else(|e| e.into_inner());
+                    if log.len() < MAX_ERRORS {
+                        log.push(format!(
+                            "tile {key:?}: {e} (the coarser level shows instead)"
+                        ));
+                    }
+                }
+            }
+            Some(None) => {}
+            None => {
+                shared.cache.fail(key);
+            }
+        }
+        let mut s = shared.state();
+        s.in_flight.remove(&key);
+        s.idle += 1;
+        s.made += 1;
+        drop(s);
+        shared.wake.notify_all();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::mpsc::{Receiver, Sender, channel};
+    use std::time::Duration;
+
+    /// A source that records each tile it starts and then waits to be released (one message per
+    /// tile): the test decides when work finishes, so orders are deterministic.
+    #[derive(Debug)]
+    struct Gated {
+        started: Mutex<Sender<TileKey>>,
+        release: Mutex<Receiver<()>>,
+    }
+
+    impl TileSource for Gated {
+        fn make(&self, key: &TileKey, n: u32, _: &[Tile]) -> Result<TileData, String> {
+            let _ = self.started.lock().expect("lock").send(*key);
+            self.release
+                .lock()
+                .expect("lock")
+                .recv()
+                .map_err(|e| e.to_string())?;
+            Ok(TileData::Height(vec![key.x as f32; (n * n) as usize]))
+        }
+    }
+
+    fn gated(workers: usize) -> (Streamer, Receiver<TileKey>, Sender<()>) {
+        let (stx, srx) = channel();
+        let (rtx, rrx) = channel();
+        let s = Streamer::new(
+            vec![Box::new(Gated {
+                started: Mutex::new(stx),
+                release: Mutex::new(rrx),
+            })],
+            4,
+            workers,
+            1 << 20,
+        );
+        (s, srx, rtx)
+    }
+
+    fn key(level: u32, x: i64) -> TileKey {
+        TileKey {
+            source: 0,
+            grid: GridId { level, k: 8 },
+            x,
+            y: 0,
+        }
+    }
+
+    fn next(rx: &Receiver<TileKey>) -> TileKey {
+        rx.recv_timeout(Duration::from_secs(10))
+            .expect("a tile started")
+    }
+
+    #[test]
+    fn visible_before_prefetch_and_coarse_before_fine() {
+        let (s, started, release) = gated(1);
+        // occupy the only worker, then queue the rest behind it
+        s.request(vec![Task {
+            key: key(0, 99),
+            prefetch: false,
+        }]);
+        assert_eq!(next(&started), key(0, 99));
+        let tasks = vec![
+            Task {
+                key: key(5, 1),
+                prefetch: true,
+            },
+            Task {
+                key: key(7, 2),
+                prefetch: false,
+            },
+            Task {
+                key: key(2, 3),
+                prefetch: true,
+            },
+            Task {
+                key: key(3, 4),
+                prefetch: false,
+            },
+            Task {
+                key: key(7, 5),
+                prefetch: false,
+            },
+        ];
+        s.request(tasks);
+        let mut order = Vec::new();
+        for _ in 0..5 {
+            release.send(()).expect("release");
+            order.push(next(&started));
+        }
+        assert_eq!(
+            order,
+            [key(3, 4), key(7, 2), key(7, 5), key(2, 3), key(5, 1)]
+        );
+        release.send(()).expect("release");
+    }
+
+    #[test]
+    fn a_new_list_cancels_queued_tasks_but_lets_running_ones_finish() {
+        let (s, started, release) = gated(1);
+        s.request(
+            (0..4)
+                .map(|x| Task {
+                    key: key(1, x),
+                    prefetch: false,
+                })
+                .collect(),
+        );
+        assert_eq!(next(&started), key(1, 0));
+        // the focus moved: tiles 1..3 are no longer wanted
+        s.request(vec![Task {
+            key: key(1, 10),
+            prefetch: false,
+        }]);
+        release.send(()).expect("release");
+        assert_eq!(next(&started), key(1, 10));
+        release.send(()).expect("release");
+        assert!(s.wait_for(&key(1, 10), Duration::from_secs(10)).is_some());
+        // the running tile finished and is kept; the cancelled ones never started
+        assert!(s.cache().contains(&key(1, 0)));
+        assert!(started.recv_timeout(Duration::from_millis(200)).is_err());
+        for x in 1..4 {
+            assert!(!s.cache().contains(&key(1, x)));
+        }
+    }
+
+    /// Doubles its input (a derived source).
+    #[derive(Debug)]
+    struct Double;
+
+    impl TileSource for Double {
+        fn inputs(&self) -> Vec<u32> {
+            vec![0]
+        }
+        fn make(&self, _: &TileKey, _: u32, inputs: &[Tile]) -> Result<TileData, String> {
+            match &*inputs[0] {
+                TileData::Height(v) => Ok(TileData::Height(v.iter().map(|x| 2.0 * x).collect())),
+                TileData::Color(_) => Err("not heights".into()),
+            }
+        }
+    }
+
+    #[test]
+    fn derived_tiles_have_their_inputs_made_first_and_failures_are_logged_once() {
+        let s = Streamer::new(
+            vec![
+                Box::new(FnHeightTiles(|lon: f64, _: f64| lon as f32)),
+                Box::new(Double),
+                Box::new(FnColorTiles(|_: f64, _: f64| [1, 2, 3, 4])),
+                // a derived source over colours fails
+                Box::new(Double2),
+            ],
+            8,
+            2,
+            1 << 20,
+        );
+        let k = key(3, 5).with_source(1);
+        s.request(vec![
+            Task {
+                key: k,
+                prefetch: false,
+            },
+            Task {
+                key: k.with_source(3),
+                prefetch: false,
+            },
+        ]);
+        let t = s.wait_for(&k, Duration::from_secs(10)).expect("made");
+        let base = s.cache().get(&k.with_source(0)).expect("input made too");
+        match (&*t, &*base) {
+            (TileData::Height(a), TileData::Height(b)) => {
+                assert!(a.iter().zip(b).all(|(a, b)| *a == 2.0 * b));
+            }
+            _ => panic!("heights expected"),
+        }
+        assert!(
+            s.wait_for(&k.with_source(3), Duration::from_secs(10))
+                .is_none()
+        );
+        // asked again: not retried, logged once
+        s.request(vec![Task {
+            key: k.with_source(3),
+            prefetch: false,
+        }]);
+        std::thread::sleep(Duration::from_millis(50));
+        assert_eq!(s.errors().len(), 1, "{:?}", s.errors());
+        assert_eq!(s.dependents(0), [0, 1]);
+    }
+
+    /// Derives from source 2 (colours) and fails on them.
+    #[derive(Debug)]
+    struct Double2;
+
+    impl TileSource for Double2 {
+        fn inputs(&self) -> Vec<u32> {
+            vec![2]
+        }
+        fn make(&self, k: &TileKey, n: u32, i: &[Tile]) -> Result<TileData, String> {
+            Double.make(k, n, i)
+        }
+    }
+
+    #[test]
+    fn pruning_keeps_the_quad_and_its_adjacent_ring() {
+        let cache = TileCache::new(0);
+        let grid = GridId { level: 4, k: 3 };
+        let tile = |x: i64, y: i64| TileKey {
+            source: 0,
+            grid,
+            x,
+            y,
+        };
+        for x in 0..8 {
+            for y in -2..6 {
+                cache.insert(tile(x, y), TileData::Height(vec![0.0; 16]));
+            }
+        }
+        let other = TileKey {
+            grid: GridId { level: 9, k: 3 },
+            ..tile(0, 0)
+        };
+        cache.insert(other, TileData::Height(vec![0.0; 16]));
+        // quad at columns 7, 0 (across the wrap), rows 1, 2
+        let focus: Focus = [((0, grid), (7, 1))].into_iter().collect();
+        // the camera going back and forth over the border between columns 7 and 0: both sides
+        // and their neighbours stay
+        for _ in 0..3 {
+            cache.prune(&focus);
+        }
+        let kept: HashSet<(i64, i64)> = (0..8)
+            .flat_map(|x| (-2..6).map(move |y| (x, y)))
+            .filter(|&(x, y)| cache.contains(&tile(x, y)))
+            .collect();
+        let want: HashSet<(i64, i64)> = [6, 7, 0, 1]
+            .into_iter()
+            .flat_map(|x| (0..4).map(move |y| (x, y)))
+            .collect();
+        assert_eq!(kept, want);
+        assert!(!cache.contains(&other), "a grid out of focus goes first");
+        assert_eq!(cache.bytes(), want.len() * 64);
+    }
+}
