@@ -141,10 +141,6 @@ pub struct Region {
 /// positions, for a window moving from `old` to `new` (first world texel), `n` texels.
 fn axis_intervals(old: i64, new: i64, n: u32) -> Vec<(u32, u32, bool)> {
     let nn = i64::from(n);
-    let shift = new - old;
-    if shift.abs() >= nn {
-        return vec![(0, n, true)];
-    }
     let mut cuts = vec![0, old.rem_euclid(nn) as u32, new.rem_euclid(nn) as u32, n];
     cuts.sort_unstable();
     cuts.dedup();
@@ -166,12 +162,7 @@ fn axis_intervals(old: i64, new: i64, n: u32) -> Vec<(u32, u32, bool)> {
 /// when the texel size changes or the move is a window or more.
 pub fn changed_regions(old: &Placement, new: &Placement, n: u32) -> Vec<Region> {
     if old.win != new.win {
-        return vec![Region {
-            x: 0,
-            y: 0,
-            w: n,
-            h: n,
-        }];
+        return all_regions(new, n);
     }
     let xs = axis_intervals(old.u0, new.u0, n);
     let ys = axis_intervals(old.v0, new.v0, n);
@@ -181,6 +172,26 @@ pub fn changed_regions(old: &Placement, new: &Placement, n: u32) -> Vec<Region> 
             if cx || cy {
                 out.push(Region { x, y, w, h });
             }
+        }
+    }
+    out
+}
+
+/// The whole texture of a level placed at `p`, as the ≤ 4 regions its wrap position cuts it into
+/// (each holds texels of one tile of the level's grid: see `stream`).
+pub fn all_regions(p: &Placement, n: u32) -> Vec<Region> {
+    let [ox, oy] = p.origin(n);
+    let cuts = |o: u32| {
+        if o == 0 {
+            vec![(0, n)]
+        } else {
+            vec![(0, o), (o, n - o)]
+        }
+    };
+    let mut out = Vec::new();
+    for (y, h) in cuts(oy) {
+        for &(x, w) in &cuts(ox) {
+            out.push(Region { x, y, w, h });
         }
     }
     out
@@ -498,6 +509,21 @@ mod tests {
             let next = Placement::new(9, &v, n);
             let regions = changed_regions(&cur, &next, n);
             assert!(regions.len() <= 9);
+            // each region holds texels of one tile of the grid (so it copies from one tile)
+            let [ox, oy] = next.origin(n);
+            let n64 = i64::from(n);
+            for r in &regions {
+                let tile = |tx: u32, ty: u32| {
+                    let c = i64::from((tx + n - ox) % n);
+                    let row = i64::from((ty + n - oy) % n);
+                    (
+                        (next.u0 + c).div_euclid(n64),
+                        (next.v0 + row).div_euclid(n64),
+                    )
+                };
+                let t0 = tile(r.x, r.y);
+                assert_eq!(tile(r.x + r.w - 1, r.y + r.h - 1), t0, "{r:?}");
+            }
             let mut touched = 0;
             for r in &regions {
                 let data = fill_region(&next, n, *r, f);

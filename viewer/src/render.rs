@@ -7,10 +7,13 @@ use glam::{Mat4, Vec3};
 use wgpu::util::DeviceExt;
 
 use crate::clipmap::{
-    CLIPMAP_N, ColorSource, HeightSource, Placement, Region, changed_regions, fill_region,
+    CLIPMAP_N, ColorSource, HeightSource, Placement, Region, all_regions, changed_regions,
+    fill_region,
 };
 use crate::geometry::{Hemisphere, HemisphereSpec};
+use crate::stream::{Focus, GridId, Streamer, Task, Tile, TileData, TileKey};
 use crate::transform::{Viewer, visible_levels};
+use std::time::{Duration, Instant};
 
 /// Errors of the renderer.
 #[derive(Debug, thiserror::Error)]
@@ -140,6 +143,8 @@ pub struct FrameStats {
     pub level_lo: u32,
     /// Last (finest) level drawn.
     pub level_hi: u32,
+    /// The finest level visibility asks for (above `level_hi` while tiles are being made).
+    pub level_wanted: u32,
     /// Triangles drawn.
     pub triangles: u32,
     /// Clipmap levels (height or colour) whose window moved by a texel or more: their changed
@@ -181,6 +186,8 @@ pub struct ClipmapPass {
     level_uniforms: Vec<LevelUniform>,
     radius: f64,
     last: FrameStats,
+    /// The tasks last posted to a streamer (posted again only when they change).
+    last_tasks: Vec<Task>,
     /// Debug toggles.
     pub options: DrawOptions,
 }
@@ -386,6 +393,7 @@ impl ClipmapPass {
             level_uniforms: vec![LevelUniform::zeroed(); levels as usize],
             radius: radius_m,
             last: FrameStats::default(),
+            last_tasks: Vec::new(),
             options: DrawOptions::default(),
         }
     }
@@ -429,12 +437,7 @@ impl ClipmapPass {
             // only the regions whose world texels changed since the last fill (§5)
             let regions = |old: Option<Placement>| match old {
                 Some(old) => changed_regions(&old, &p, CLIPMAP_N),
-                None => vec![Region {
-                    x: 0,
-                    y: 0,
-                    w: CLIPMAP_N,
-                    h: CLIPMAP_N,
-                }],
+                None => all_regions(&p, CLIPMAP_N),
             };
             let todo = regions(self.placed[k]);
             for r in &todo {
@@ -455,22 +458,36 @@ impl ClipmapPass {
                 filled += u32::from(!todo.is_empty());
                 self.colored[k] = Some(p);
             }
-            self.level_uniforms[k] = LevelUniform {
-                viewer_texel: p.viewer_texel.map(|v| v as f32),
-                texels_per_rad: [
-                    (1.0 / p.win.texel_lon) as f32,
-                    (1.0 / p.win.texel_colat) as f32,
-                ],
-                size: [CLIPMAP_N, CLIPMAP_N],
-                origin: p.origin(CLIPMAP_N),
-            };
+            self.level_uniforms[k] = level_uniform(&p);
         }
-        // the ground under the camera, from the finest level drawn
-        let ground = f64::from(heights.height(
-            viewer.lon,
-            viewer.colat,
-            crate::clipmap::level_window(hi, viewer.colat, CLIPMAP_N),
-        ));
+        // the ground under the camera: the finest level drawn, as drawn
+        let p = Placement::new(hi, &viewer, CLIPMAP_N);
+        let ground = at_viewer(&p, |c, r| {
+            let (lon, colat) = p.texel_centre(c.max(0) as u32, r.max(0) as u32);
+            f64::from(heights.height(lon, colat, p.win))
+        });
+        let stats = FrameStats {
+            level_lo: lo,
+            level_hi: hi,
+            level_wanted: hi,
+            triangles: self.hemi.triangles(lo, hi),
+            levels_filled: filled,
+        };
+        self.finish(&viewer, camera, (w, h), ground, colors.is_some(), stats);
+        (ground, stats)
+    }
+
+    /// Writes the frame's uniforms and remembers what to draw.
+    fn finish(
+        &mut self,
+        viewer: &Viewer,
+        camera: &Camera,
+        (w, h): (u32, u32),
+        ground: f64,
+        has_color: bool,
+        stats: FrameStats,
+    ) {
+        let (lo, hi) = (stats.level_lo, stats.level_hi);
         let u = viewer.uniforms();
         let frame = FrameUniform {
             sin_v: u.sin_v,
@@ -481,14 +498,14 @@ impl ClipmapPass {
             radius: self.radius as f32,
             level_hi: hi,
             level_lo: lo,
-            has_color: u32::from(colors.is_some()),
+            has_color: u32::from(has_color),
             flags: if self.options.level_colors {
                 FLAG_LEVEL_COLORS
             } else {
                 0
             },
             _p: [0; 2],
-            view_proj: view_projection(&viewer, camera, w, h).to_cols_array_2d(),
+            view_proj: view_projection(viewer, camera, w, h).to_cols_array_2d(),
         };
         self.queue
             .write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&frame));
@@ -497,13 +514,135 @@ impl ClipmapPass {
             0,
             bytemuck::cast_slice(&self.level_uniforms),
         );
-        self.last = FrameStats {
+        self.last = stats;
+    }
+
+    /// The frame of Alg. 1 (clipmap-data-synthesis §7) with tiles made by `streamer`'s worker
+    /// threads: posts the tiles of the visible levels' quads (and, as prefetch, of the next finer
+    /// level) when the focus moved, prunes the cache, then goes through the levels coarse to
+    /// fine, updating each from its quad; a level whose tiles are not ready (or failed) is not
+    /// waited for — the previous level is drawn as a full disc — and past `deadline` no further
+    /// level is updated. Only the coarsest visible level is waited for (up to `wait`), so that
+    /// something shows. Returns the ground height under the camera and what the frame draws.
+    pub fn prepare_streamed(
+        &mut self,
+        streamer: &Streamer,
+        sources: StreamSources,
+        camera: &Camera,
+        (w, h): (u32, u32),
+        deadline: Option<Instant>,
+        wait: Duration,
+    ) -> (f64, FrameStats) {
+        let n = CLIPMAP_N;
+        debug_assert_eq!(streamer.tile_size(), n);
+        let viewer = Viewer::from_deg(camera.lat, camera.lon);
+        let levels = self.hemi.spec.levels;
+        let (lo, wanted) = visible_levels(
+            self.radius,
+            camera.alt,
+            9000.0,
+            camera.fov.to_radians(),
+            h,
+            levels,
+        );
+        let layers: Vec<(bool, u32)> = std::iter::once((true, sources.height))
+            .chain(sources.color.map(|c| (false, c)))
+            .collect();
+        // 1. the tasks of this focus (visible levels, then the next finer one as prefetch)
+        let mut tasks = Vec::new();
+        let mut focus = Focus::new();
+        let mut placed = Vec::new();
+        for i in lo..=(wanted + 1).min(levels - 1) {
+            let p = Placement::new(i, &viewer, n);
+            let grid = GridId::of(i, &p, n);
+            let nn = i64::from(n);
+            let (x0, y0) = (p.u0.div_euclid(nn), p.v0.div_euclid(nn));
+            for &(_, src) in &layers {
+                for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                    tasks.push(Task {
+                        key: TileKey::at(src, grid, (x0 + dx) * nn, (y0 + dy) * nn, n),
+                        prefetch: i > wanted,
+                    });
+                }
+                focus.insert((src, grid), (x0.rem_euclid(grid.tiles_around()), y0));
+            }
+            placed.push((i, p, grid));
+        }
+        if tasks != self.last_tasks {
+            streamer.request(tasks.clone());
+            self.last_tasks = tasks;
+        }
+        streamer.cache().prune(&focus);
+        // 2. levels coarse to fine, as far as their tiles are ready
+        let mut drawn = None;
+        let mut filled = 0;
+        for &(i, p, grid) in placed.iter().filter(|(i, ..)| *i <= wanted) {
+            let quad: Option<Vec<Vec<Tile>>> = layers
+                .iter()
+                .map(|&(_, src)| {
+                    quad_keys(src, grid, &p, n)
+                        .iter()
+                        .map(|k| match streamer.cache().get(k) {
+                            Some(t) => Some(t),
+                            None if i == lo && drawn.is_none() => streamer.wait_for(k, wait),
+                            None => None,
+                        })
+                        .collect()
+                })
+                .collect();
+            let Some(quad) = quad else {
+                break;
+            };
+            for (&(height, _), tiles) in layers.iter().zip(&quad) {
+                let old = if height {
+                    self.placed[i as usize]
+                } else {
+                    self.colored[i as usize]
+                };
+                let todo = match old {
+                    Some(old) => changed_regions(&old, &p, n),
+                    None => all_regions(&p, n),
+                };
+                for r in &todo {
+                    let bytes = region_from_quad(tiles, &p, *r, n);
+                    self.write_region(height, i, *r, &bytes);
+                }
+                filled += u32::from(!todo.is_empty());
+                if height {
+                    self.placed[i as usize] = Some(p);
+                } else {
+                    self.colored[i as usize] = Some(p);
+                }
+            }
+            self.level_uniforms[i as usize] = level_uniform(&p);
+            drawn = Some((i, quad));
+            if deadline.is_some_and(|d| Instant::now() >= d) {
+                break;
+            }
+        }
+        let (hi, ground) = match &drawn {
+            Some((i, quad)) => {
+                let p = Placement::new(*i, &viewer, n);
+                (*i, ground_from_quad(&quad[0], &p, n))
+            }
+            None => (lo, 0.0),
+        };
+        let stats = FrameStats {
             level_lo: lo,
             level_hi: hi,
+            level_wanted: wanted,
             triangles: self.hemi.triangles(lo, hi),
             levels_filled: filled,
         };
-        (ground, self.last)
+        self.finish(
+            &viewer,
+            camera,
+            (w, h),
+            ground,
+            sources.color.is_some(),
+            stats,
+        );
+        (ground, stats)
     }
 
     fn write_region(&self, height: bool, layer: u32, r: Region, bytes: &[u8]) {
@@ -551,6 +690,92 @@ impl ClipmapPass {
         );
         pass.draw_indexed(self.hemi.fill_ranges[hi].clone(), 0, 0..1);
     }
+}
+
+/// Which sources of a [`Streamer`] feed the clipmaps.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StreamSources {
+    /// The height source.
+    pub height: u32,
+    /// The colour source, if any.
+    pub color: Option<u32>,
+}
+
+fn level_uniform(p: &Placement) -> LevelUniform {
+    LevelUniform {
+        viewer_texel: p.viewer_texel.map(|v| v as f32),
+        texels_per_rad: [
+            (1.0 / p.win.texel_lon) as f32,
+            (1.0 / p.win.texel_colat) as f32,
+        ],
+        size: [CLIPMAP_N, CLIPMAP_N],
+        origin: p.origin(CLIPMAP_N),
+    }
+}
+
+/// The quad: the four tiles a window at `p` overlaps (x, x+1) × (y, y+1), row-major.
+fn quad_keys(source: u32, grid: GridId, p: &Placement, n: u32) -> [TileKey; 4] {
+    let nn = i64::from(n);
+    let (u, v) = (p.u0.div_euclid(nn) * nn, p.v0.div_euclid(nn) * nn);
+    [
+        TileKey::at(source, grid, u, v, n),
+        TileKey::at(source, grid, u + nn, v, n),
+        TileKey::at(source, grid, u, v + nn, n),
+        TileKey::at(source, grid, u + nn, v + nn, n),
+    ]
+}
+
+/// Which quad tile (0..4) holds window texel (c, r) of a window at `p`.
+fn quad_index(p: &Placement, c: u32, r: u32, n: u32) -> usize {
+    let nn = i64::from(n);
+    let dx = (p.u0 + i64::from(c)).div_euclid(nn) - p.u0.div_euclid(nn);
+    let dy = (p.v0 + i64::from(r)).div_euclid(nn) - p.v0.div_euclid(nn);
+    (dy * 2 + dx) as usize
+}
+
+/// The texture bytes of region `r` from the quad: a region lies within one tile, at the same
+/// offsets (toroidal addressing), so its rows are copied as they are.
+fn region_from_quad(quad: &[Tile], p: &Placement, r: Region, n: u32) -> Vec<u8> {
+    let [ox, oy] = p.origin(n);
+    let c = (r.x + n - ox) % n;
+    let row = (r.y + n - oy) % n;
+    let tile = quad[quad_index(p, c, row, n)].texel_bytes();
+    let mut out = Vec::with_capacity((r.w * r.h * 4) as usize);
+    for y in r.y..r.y + r.h {
+        let start = ((y * n + r.x) * 4) as usize;
+        out.extend_from_slice(&tile[start..start + (r.w * 4) as usize]);
+    }
+    out
+}
+
+/// Height under the viewer, bilinear from the height quad of its finest drawn level.
+fn ground_from_quad(quad: &[Tile], p: &Placement, n: u32) -> f64 {
+    let at = |c: i64, r: i64| -> f64 {
+        let (c, r) = (
+            c.clamp(0, i64::from(n) - 1) as u32,
+            r.clamp(0, i64::from(n) - 1) as u32,
+        );
+        let nn = i64::from(n);
+        let (u, v) = (p.u0 + i64::from(c), p.v0 + i64::from(r));
+        let k = (v.rem_euclid(nn) * nn + u.rem_euclid(nn)) as usize;
+        match &*quad[quad_index(p, c, r, n)] {
+            TileData::Height(h) => f64::from(h[k]),
+            TileData::Color(_) => 0.0,
+        }
+    };
+    at_viewer(p, at)
+}
+
+/// Bilinear interpolation at the viewer of a level placed at `p`, from its window texels
+/// `at(c, r)`: the surface as drawn (the shader interpolates the same four texels).
+fn at_viewer(p: &Placement, mut at: impl FnMut(i64, i64) -> f64) -> f64 {
+    let (x, y) = (p.viewer_texel[0] - 0.5, p.viewer_texel[1] - 0.5);
+    let (x0, y0) = (x.floor(), y.floor());
+    let (fx, fy) = (x - x0, y - y0);
+    let (c, r) = (x0 as i64, y0 as i64);
+    let top = at(c, r) * (1.0 - fx) + at(c + 1, r) * fx;
+    let bottom = at(c, r + 1) * (1.0 - fx) + at(c + 1, r + 1) * fx;
+    top * (1.0 - fy) + bottom * fy
 }
 
 /// A depth target for the pass.
@@ -710,8 +935,38 @@ impl Renderer {
         camera: &Camera,
     ) -> Result<(image::RgbaImage, FrameStats, f64), RenderError> {
         let start = std::time::Instant::now();
-        let (w, h) = self.size;
         let (_, stats) = self.pass.prepare(heights, colors, camera, self.size);
+        self.draw_and_read(stats, start)
+    }
+
+    /// One frame from `camera` with clipmap tiles from `streamer` (Alg. 1: levels whose tiles are
+    /// not made yet are not waited for; see [`ClipmapPass::prepare_streamed`]); the image, what
+    /// was drawn, and the CPU seconds before the GPU is waited for.
+    pub fn render_streamed(
+        &mut self,
+        streamer: &Streamer,
+        sources: StreamSources,
+        camera: &Camera,
+        deadline: Option<Instant>,
+    ) -> Result<(image::RgbaImage, FrameStats, f64), RenderError> {
+        let start = Instant::now();
+        let (_, stats) = self.pass.prepare_streamed(
+            streamer,
+            sources,
+            camera,
+            self.size,
+            deadline,
+            Duration::from_secs(10),
+        );
+        self.draw_and_read(stats, start)
+    }
+
+    fn draw_and_read(
+        &mut self,
+        stats: FrameStats,
+        start: Instant,
+    ) -> Result<(image::RgbaImage, FrameStats, f64), RenderError> {
+        let (w, h) = self.size;
         let color_view = self.color.create_view(&Default::default());
         let mut enc = self
             .device

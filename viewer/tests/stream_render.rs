@@ -1,0 +1,226 @@
+//! Streamed frames (Alg. 1 of clipmap-data-synthesis, tiles made by worker threads) on the CPU
+//! adapter: they converge to exactly the synchronous render when the camera stops, draw the
+//! coarser level as a full disc while a finer level's tiles are missing, and never wait for a
+//! slow source beyond the coarsest level.
+
+use std::sync::Mutex;
+use std::sync::mpsc::{Receiver, channel};
+use std::time::Duration;
+
+use sc_viewer::clipmap::{CLIPMAP_N, ColorSource, HeightSource, LevelWindow};
+use sc_viewer::render::{Camera, Renderer, StreamSources};
+use sc_viewer::stream::{
+    FnColorTiles, FnHeightTiles, Streamer, Tile, TileData, TileKey, TileSource,
+};
+
+const R: f64 = sc_core::EARTH_RADIUS_M;
+
+fn mountains(lon: f64, colat: f64) -> f32 {
+    let (x, y, z) = (
+        colat.sin() * lon.cos(),
+        colat.sin() * lon.sin(),
+        colat.cos(),
+    );
+    (2000.0 * ((3.0 * x).sin() + (4.0 * y).cos() + (5.0 * z).sin())) as f32
+}
+
+fn by_longitude(lon: f64, colat: f64) -> [u8; 4] {
+    [
+        (128.0 + 100.0 * lon.cos()) as u8,
+        (128.0 + 100.0 * lon.sin()) as u8,
+        (128.0 + 100.0 * colat.cos()) as u8,
+        255,
+    ]
+}
+
+struct Sync;
+
+impl HeightSource for Sync {
+    fn height(&mut self, lon: f64, colat: f64, _: LevelWindow) -> f32 {
+        mountains(lon, colat)
+    }
+}
+
+impl ColorSource for Sync {
+    fn color(&mut self, lon: f64, colat: f64, _: LevelWindow) -> [u8; 4] {
+        by_longitude(lon, colat)
+    }
+}
+
+fn renderer() -> Renderer {
+    Renderer::headless(96, 64, R).unwrap_or_else(|e| {
+        panic!("{e} (the CPU adapter comes with mesa-vulkan-drivers; scripts/deps.sh installs it)")
+    })
+}
+
+const SOURCES: StreamSources = StreamSources {
+    height: 0,
+    color: Some(1),
+};
+
+fn settle(s: &Streamer) {
+    for _ in 0..20_000 {
+        if s.idle() {
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    panic!("the streamer never went idle");
+}
+
+#[test]
+fn a_still_camera_converges_to_the_synchronous_render() {
+    let streamer = Streamer::new(
+        vec![
+            Box::new(FnHeightTiles(mountains)),
+            Box::new(FnColorTiles(by_longitude)),
+        ],
+        CLIPMAP_N,
+        2,
+        256 << 20,
+    );
+    for camera in [
+        Camera::parse("46.5,8.0,300,30,-10,60").expect("camera"),
+        Camera::parse("-89.5,170,20000,0,-30,60").expect("camera"),
+    ] {
+        let mut r = renderer();
+        let mut frames = 0;
+        let (img, stats) = loop {
+            let (img, stats, _) = r
+                .render_streamed(&streamer, SOURCES, &camera, None)
+                .expect("render");
+            frames += 1;
+            if stats.level_hi == stats.level_wanted {
+                break (img, stats);
+            }
+            assert!(frames < 50, "no convergence: {stats:?}");
+            settle(&streamer);
+        };
+        let (want, want_stats) = renderer()
+            .render(&mut Sync, Some(&mut Sync), &camera)
+            .expect("render");
+        assert_eq!(stats.level_hi, want_stats.level_hi);
+        let diff: Vec<(usize, u8)> = img
+            .as_raw()
+            .iter()
+            .zip(want.as_raw())
+            .enumerate()
+            .filter(|(_, (a, b))| a != b)
+            .map(|(i, (a, b))| (i, a.abs_diff(*b)))
+            .collect();
+        assert!(
+            diff.is_empty(),
+            "streamed and synchronous frames differ at {camera:?}: {} bytes, first {:?}",
+            diff.len(),
+            &diff[..diff.len().min(10)]
+        );
+    }
+}
+
+/// Heights that fail for grids finer than `max_level` (a corrupt store below some level).
+#[derive(Debug)]
+struct FailsBelow(u32);
+
+impl TileSource for FailsBelow {
+    fn make(&self, key: &TileKey, n: u32, i: &[Tile]) -> Result<TileData, String> {
+        if key.grid.level > self.0 {
+            return Err("checksum mismatch".into());
+        }
+        FnHeightTiles(mountains).make(key, n, i)
+    }
+}
+
+#[test]
+fn missing_fine_tiles_leave_the_coarser_level_drawn_as_a_full_disc() {
+    let streamer = Streamer::new(vec![Box::new(FailsBelow(9))], CLIPMAP_N, 2, 256 << 20);
+    let camera = Camera::parse("28.0,86.9,2000,200,-10,60").expect("camera");
+    let mut r = renderer();
+    let only_heights = StreamSources {
+        height: 0,
+        color: None,
+    };
+    let mut last = None;
+    for _ in 0..10 {
+        let (_, stats, _) = r
+            .render_streamed(&streamer, only_heights, &camera, None)
+            .expect("render");
+        last = Some(stats);
+        settle(&streamer);
+    }
+    let stats = last.expect("frames");
+    assert!(stats.level_wanted > 9, "{stats:?}");
+    assert_eq!(stats.level_hi, 9, "{stats:?}");
+    // each failed tile logged once, however often it is asked for again
+    let errors = streamer.errors();
+    assert!(!errors.is_empty());
+    let mut unique = errors.clone();
+    unique.sort();
+    unique.dedup();
+    assert_eq!(unique.len(), errors.len(), "{errors:?}");
+    assert!(errors[0].contains("checksum mismatch") && errors[0].contains("coarser level"));
+}
+
+/// Heights whose fine tiles wait for the test to release them (a store that is slow).
+#[derive(Debug)]
+struct Slow {
+    coarse_below: u32,
+    release: Mutex<Receiver<()>>,
+}
+
+impl TileSource for Slow {
+    fn make(&self, key: &TileKey, n: u32, i: &[Tile]) -> Result<TileData, String> {
+        if key.grid.level >= self.coarse_below {
+            self.release
+                .lock()
+                .map_err(|e| e.to_string())?
+                .recv()
+                .map_err(|e| e.to_string())?;
+        }
+        FnHeightTiles(mountains).make(key, n, i)
+    }
+}
+
+#[test]
+fn a_slow_source_lowers_detail_but_frames_do_not_wait() {
+    let (tx, rx) = channel();
+    let streamer = Streamer::new(
+        vec![Box::new(Slow {
+            coarse_below: 8,
+            release: Mutex::new(rx),
+        })],
+        CLIPMAP_N,
+        2,
+        256 << 20,
+    );
+    let camera = Camera::parse("28.0,86.9,2000,200,-10,60").expect("camera");
+    let only_heights = StreamSources {
+        height: 0,
+        color: None,
+    };
+    let mut r = renderer();
+    // the fine tiles are held back: frames still come, at the coarser levels (a frame that
+    // waited would never return here, since nothing releases the tiles meanwhile)
+    for _ in 0..3 {
+        let (_, stats, _) = r
+            .render_streamed(&streamer, only_heights, &camera, None)
+            .expect("render");
+        assert!(stats.level_hi < 8, "{stats:?}");
+        assert!(stats.level_wanted > 8, "{stats:?}");
+    }
+    // released: detail arrives within a few frames
+    let mut converged = false;
+    for _ in 0..30 {
+        while tx.send(()).is_ok() && !streamer.idle() {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        let (_, stats, _) = r
+            .render_streamed(&streamer, only_heights, &camera, None)
+            .expect("render");
+        if stats.level_hi == stats.level_wanted {
+            converged = true;
+            break;
+        }
+    }
+    assert!(converged);
+    drop(tx);
+}
