@@ -15,11 +15,14 @@ use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::{Window, WindowId};
 
 use crate::camera::{Controller, Input, Mode};
-use crate::clipmap::{ColorSource, HeightSource};
 use crate::render::{
-    Camera, ClipmapPass, FrameStats, RenderError, SPACE, begin_pass, depth_target, device_for,
-    read_back,
+    Camera, ClipmapPass, FrameStats, RenderError, SPACE, StreamSources, begin_pass, depth_target,
+    device_for, read_back,
 };
+use crate::stream::Streamer;
+
+/// How long a frame may spend updating clipmap levels before it draws what it has (Alg. 1).
+const UPDATE_BUDGET: std::time::Duration = std::time::Duration::from_millis(12);
 
 /// What `sphereclip view` asks for.
 #[derive(Debug, Clone)]
@@ -104,8 +107,8 @@ impl InputState {
 }
 
 struct App<'a> {
-    heights: &'a mut dyn HeightSource,
-    colors: Option<&'a mut dyn ColorSource>,
+    streamer: &'a Streamer,
+    sources: StreamSources,
     radius: f64,
     opts: ViewOptions,
     controller: Controller,
@@ -118,11 +121,11 @@ struct App<'a> {
     error: Option<RenderError>,
 }
 
-/// Opens a window on the planet given by `heights` (and `colors`) of radius `radius`, and runs
-/// until it is closed (or for `opts.frames`).
-pub fn view<'a>(
-    heights: &'a mut dyn HeightSource,
-    colors: Option<&'a mut dyn ColorSource>,
+/// Opens a window on the planet whose tiles `streamer` makes (`sources`: which of its sources are
+/// heights and colours), of radius `radius`, and runs until it is closed (or for `opts.frames`).
+pub fn view(
+    streamer: &Streamer,
+    sources: StreamSources,
     radius: f64,
     opts: ViewOptions,
 ) -> Result<ViewReport, RenderError> {
@@ -132,8 +135,8 @@ pub fn view<'a>(
         ))
     })?;
     let mut app = App {
-        heights,
-        colors,
+        streamer,
+        sources,
         radius,
         controller: Controller::new(opts.camera, radius),
         opts,
@@ -262,13 +265,13 @@ impl App<'_> {
         let cpu_start = Instant::now();
         let (w, h) = (gpu.config.width, gpu.config.height);
         let camera = self.controller.camera;
-        let (_, stats) = gpu.pass.prepare(
-            self.heights,
-            self.colors
-                .as_mut()
-                .map(|c| &mut **c as &mut dyn ColorSource),
+        let (_, stats) = gpu.pass.prepare_streamed(
+            self.streamer,
+            self.sources,
             &camera,
             (w, h),
+            Some(cpu_start + UPDATE_BUDGET),
+            std::time::Duration::from_secs(10),
         );
         self.report.last = stats;
         // the panel
@@ -278,6 +281,9 @@ impl App<'_> {
         let mut options = gpu.pass.options;
         let has_wire = gpu.pass.has_wireframe();
         let memory_mb = gpu.pass.clipmap_bytes() as f64 / (1u64 << 20) as f64;
+        let cache_mb = self.streamer.cache().bytes() as f64 / (1u64 << 20) as f64;
+        let tiles = self.streamer.cache().len();
+        let errors = self.streamer.errors();
         let (fps, cpu_avg, adapter) = (self.fps, self.cpu_avg, self.report.adapter.clone());
         let out = gpu.egui_ctx.run_ui(raw, |ui| {
             egui::Window::new("sphereclip")
@@ -285,13 +291,24 @@ impl App<'_> {
                 .show(ui.ctx(), |ui| {
                     ui.label(format!("{fps:.1} fps · CPU {cpu_avg:.1} ms/frame"));
                     ui.label(format!(
-                        "levels {}..{} · {} triangles",
-                        stats.level_lo, stats.level_hi, stats.triangles
+                        "levels {}..{} of {}..{} · {} triangles",
+                        stats.level_lo,
+                        stats.level_hi,
+                        stats.level_lo,
+                        stats.level_wanted,
+                        stats.triangles
                     ));
                     ui.label(format!(
-                        "clipmaps {memory_mb:.1} MiB · {} refilled this frame",
+                        "clipmaps {memory_mb:.1} MiB · {} updated this frame",
                         stats.levels_filled
                     ));
+                    ui.label(format!("tile cache {cache_mb:.0} MiB, {tiles} tiles"));
+                    if let Some(e) = errors.last() {
+                        ui.colored_label(
+                            egui::Color32::LIGHT_RED,
+                            format!("{} tile errors; last: {e}", errors.len()),
+                        );
+                    }
                     ui.label(format!(
                         "{:.5}°, {:.5}° · {:.1} m above ground · heading {:.0}°",
                         camera.lat, camera.lon, camera.alt, camera.heading

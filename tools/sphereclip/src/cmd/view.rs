@@ -2,11 +2,50 @@
 
 use std::process::ExitCode;
 
-use anyhow::Result;
-use sc_viewer::render::Camera;
+use anyhow::{Context, Result};
+use sc_store::StoreReader;
+use sc_viewer::clipmap::CLIPMAP_N;
+use sc_viewer::render::{Camera, StreamSources};
+use sc_viewer::stream::{FnHeightTiles, StoreColorTiles, StoreHeightTiles, Streamer, TileSource};
 use sc_viewer::window::{ViewOptions, view};
 
-use super::render::{Planet, median, parse_size, percentile};
+use super::render::{median, parse_size, percentile};
+
+/// Memory the viewer's tile cache is pruned to.
+pub const TILE_CACHE_BUDGET: usize = 256 << 20;
+
+/// Worker threads: one per core but one (the render thread's).
+pub fn default_workers() -> usize {
+    std::thread::available_parallelism()
+        .map(|n| n.get().saturating_sub(1))
+        .unwrap_or(1)
+        .max(1)
+}
+
+/// A streamer over a store's layers: heights (a smooth sphere, with a warning, without a height
+/// layer) and colours if it has them; and the store's radius.
+pub fn store_streamer(store: &std::path::Path) -> Result<(Streamer, StreamSources, f64)> {
+    let reader = StoreReader::open(store).context("cannot read store")?;
+    let meta = reader.meta();
+    let radius = meta.radius_m;
+    let has = |k| !meta.levels(k).is_empty();
+    let mut sources: Vec<Box<dyn TileSource>> = Vec::new();
+    if has(sc_store::LayerKind::Height) {
+        sources.push(Box::new(StoreHeightTiles(reader.clone())));
+    } else {
+        eprintln!(
+            "warning: {} has no height layer; rendering a smooth sphere",
+            store.display()
+        );
+        sources.push(Box::new(FnHeightTiles(|_: f64, _: f64| 0.0f32)));
+    }
+    let color = has(sc_store::LayerKind::Color).then(|| {
+        sources.push(Box::new(StoreColorTiles(reader.clone())));
+        1
+    });
+    let streamer = Streamer::new(sources, CLIPMAP_N, default_workers(), TILE_CACHE_BUDGET);
+    Ok((streamer, StreamSources { height: 0, color }, radius))
+}
 use crate::cli::ViewArgs;
 
 /// Runs `view`.
@@ -23,7 +62,7 @@ pub fn run(a: &ViewArgs) -> Result<ExitCode> {
     {
         anyhow::bail!("--screenshot is a folder, not a PNG file: {}", p.display());
     }
-    let mut planet = Planet::open(&a.store)?;
+    let (streamer, sources, radius) = store_streamer(&a.store)?;
     if !["DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET"]
         .iter()
         .any(|v| std::env::var_os(v).is_some_and(|x| !x.is_empty()))
@@ -33,14 +72,9 @@ pub fn run(a: &ViewArgs) -> Result<ExitCode> {
         );
     }
     let title = format!("sphereclip — {}", a.store.display());
-    let radius = planet.radius;
-    let colors = planet
-        .colors
-        .as_mut()
-        .map(|c| c as &mut dyn sc_viewer::clipmap::ColorSource);
     let report = view(
-        planet.heights.as_mut(),
-        colors,
+        &streamer,
+        sources,
         radius,
         ViewOptions {
             camera,
