@@ -162,7 +162,7 @@ fn frame(lat: f64, lon: f64) -> (DVec3, DVec3, DVec3) {
 /// Moves the camera `dist` metres along the great circle leaving at `bearing` (degrees); the
 /// heading keeps its angle to the path (straight flight over a pole comes out heading the other
 /// way).
-fn move_along(c: &mut Camera, bearing: f64, dist: f64, radius: f64) {
+pub fn move_along(c: &mut Camera, bearing: f64, dist: f64, radius: f64) {
     if dist == 0.0 || !dist.is_finite() {
         return;
     }

@@ -350,38 +350,146 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
         }
     }
 
-    /// The samples of texel (x0 + dx, y0 + dy) of the footprint's level (wrapped in longitude,
-    /// clamped in latitude); `None` where the store holds nothing.
-    fn texel(&mut self, f: &Footprint, dx: i64, dy: i64) -> Option<&[T]> {
-        let (w, h) = (self.grid.width(f.id) as i64, self.grid.height(f.id) as i64);
-        let i = (f.x0 + dx).rem_euclid(w) as u64;
-        let j = (f.y0 + dy).clamp(0, h - 1) as u64;
+    /// Loads `tile` into the cache (once; a damaged tile is recorded and reads as missing).
+    fn load(&mut self, tile: TileId) {
+        if self.tiles.contains_key(&tile) {
+            return;
+        }
         let t = u64::from(self.grid.tile_size());
-        let tile = TileId::new(self.grid, f.id, i / t, j / t).ok()?;
         let ch = T::KIND.channels();
-        if !self.tiles.contains_key(&tile) && self.tile_bytes > TILE_CACHE_BYTES {
-            // a crude bound until the streaming cache (issue 7) prunes by distance
+        self.tile_bytes += (t * t) as usize * ch * std::mem::size_of::<T>();
+        let mut buf = vec![T::zeroed_sample(); (t * t) as usize * ch];
+        let data = match self.reader.read_tile(tile, &mut buf) {
+            Ok(TileRead::Present) => Some(buf),
+            Ok(TileRead::Missing) => None,
+            Err(e) => {
+                self.errors.push(e.to_string());
+                None
+            }
+        };
+        self.tiles.insert(tile, data);
+    }
+
+    /// A crude bound until the streaming cache prunes by distance: over budget, start afresh.
+    fn bound_cache(&mut self) {
+        if self.tile_bytes > TILE_CACHE_BYTES {
             self.tiles.clear();
             self.tile_bytes = 0;
         }
-        let (reader, errors) = (&self.reader, &mut self.errors);
-        let bytes = &mut self.tile_bytes;
-        let data = self.tiles.entry(tile).or_insert_with(|| {
-            *bytes += (t * t) as usize * ch * std::mem::size_of::<T>();
-            let mut buf = vec![T::zeroed_sample(); (t * t) as usize * ch];
-            match reader.read_tile(tile, &mut buf) {
-                Ok(TileRead::Present) => Some(buf),
-                Ok(TileRead::Missing) => None,
-                Err(e) => {
-                    errors.push(e.to_string());
-                    None
+    }
+
+    /// The tile holding texel (i, j) of level `id` (i wrapped, j clamped), and the texel's
+    /// offset in it.
+    fn tile_of(&self, id: LevelId, i: i64, j: i64) -> Option<(TileId, usize)> {
+        let (w, h) = (self.grid.width(id) as i64, self.grid.height(id) as i64);
+        let i = i.rem_euclid(w) as u64;
+        let j = j.clamp(0, h - 1) as u64;
+        let t = u64::from(self.grid.tile_size());
+        let tile = TileId::new(self.grid, id, i / t, j / t).ok()?;
+        Some((tile, ((j % t) * t + i % t) as usize * T::KIND.channels()))
+    }
+
+    /// The samples of texel (x0 + dx, y0 + dy) of the footprint's level (wrapped in longitude,
+    /// clamped in latitude); `None` where the store holds nothing.
+    fn texel(&mut self, f: &Footprint, dx: i64, dy: i64) -> Option<&[T]> {
+        let (tile, k) = self.tile_of(f.id, f.x0 + dx, f.y0 + dy)?;
+        if !self.tiles.contains_key(&tile) {
+            self.bound_cache();
+        }
+        self.load(tile);
+        let ch = T::KIND.channels();
+        self.tiles
+            .get(&tile)
+            .and_then(|d| d.as_deref())
+            .map(|d| &d[k..k + ch])
+    }
+
+    /// Samples one row of points (longitudes `lons`, all at `colat`) as [`Self::locate`] and
+    /// [`Self::texel`] would point by point, with the same arithmetic, but choosing the level
+    /// once and looking tiles up once per store tile: `emit(corners, fx, fy)` per point, corners
+    /// in the order (x0, y0), (x0+1, y0), (x0, y0+1), (x0+1, y0+1).
+    fn sample_row(
+        &mut self,
+        lons: &[f64],
+        colat: f64,
+        win: LevelWindow,
+        mut emit: impl FnMut([Option<&[T]>; 4], f64, f64),
+    ) {
+        let Some(&first) = lons.first() else {
+            return;
+        };
+        let f = self.locate(first, colat, win);
+        let w = self.grid.width(f.id);
+        let flip = colat.rem_euclid(2.0 * PI) > PI;
+        let xs: Vec<(i64, f64)> = lons
+            .iter()
+            .map(|&lon| {
+                let lo = if flip { lon + PI } else { lon };
+                let x = (lo + PI).rem_euclid(2.0 * PI) / (2.0 * PI) * w as f64 - 0.5;
+                let x0 = x.floor();
+                (x0 as i64, x - x0)
+            })
+            .collect();
+        // every tile the row touches, loaded before any is borrowed
+        self.bound_cache();
+        let (wi, h) = (w as i64, self.grid.height(f.id) as i64);
+        let t = u64::from(self.grid.tile_size());
+        let rows = [
+            f.y0.clamp(0, h - 1) as u64,
+            (f.y0 + 1).clamp(0, h - 1) as u64,
+        ];
+        let mut cols: Vec<u64> = Vec::new();
+        for &(x0, _) in &xs {
+            for i in [x0.rem_euclid(wi) as u64, (x0 + 1).rem_euclid(wi) as u64] {
+                if !cols.contains(&(i / t)) {
+                    cols.push(i / t);
                 }
             }
-        });
-        let k = ((j % t) * t + i % t) as usize * ch;
-        data.as_deref().map(|d| &d[k..k + ch])
+        }
+        let mut ids = Vec::with_capacity(cols.len() * 2);
+        for &j in &rows {
+            for &tx in &cols {
+                let id = TileId::new(self.grid, f.id, tx, j / t).ok();
+                if let Some(id) = id {
+                    self.load(id);
+                }
+                ids.push(id);
+            }
+        }
+        let ch = T::KIND.channels();
+        let tiles = &self.tiles;
+        // per row of the footprint, the touched tiles by column (a handful: found by a scan)
+        let row_tiles: Vec<Vec<RowTile<'_, T>>> = (0..2)
+            .map(|r| {
+                cols.iter()
+                    .zip(&ids[r * cols.len()..(r + 1) * cols.len()])
+                    .map(|(&tx, id)| {
+                        (
+                            tx,
+                            id.and_then(|id| tiles.get(&id)).and_then(|d| d.as_deref()),
+                        )
+                    })
+                    .collect()
+            })
+            .collect();
+        let get = |x: i64, r: usize| -> Option<&[T]> {
+            let i = x.rem_euclid(wi) as u64;
+            let (_, data) = row_tiles[r].iter().find(|(tx, _)| *tx == i / t)?;
+            let k = ((rows[r] % t) * t + i % t) as usize * ch;
+            data.map(|d| &d[k..k + ch])
+        };
+        for &(x0, fx) in &xs {
+            emit(
+                [get(x0, 0), get(x0 + 1, 0), get(x0, 1), get(x0 + 1, 1)],
+                fx,
+                f.fy,
+            );
+        }
     }
 }
+
+/// A store tile touched by a row: its column and data (None: missing).
+type RowTile<'a, T> = (u64, Option<&'a [T]>);
 
 /// A zero sample of a store type (the buffer a tile is decoded into).
 trait ZeroedSample {
@@ -421,6 +529,25 @@ impl StoreHeights {
             Some([v]) if !v.is_nan() => *v,
             _ => 0.0,
         }
+    }
+}
+
+impl StoreHeights {
+    /// Heights at `lons` along the circle of colatitude `colat`, appended to `out`: the same
+    /// values as [`HeightSource::height`] point by point, faster (tiles looked up per row).
+    pub fn fill_row(&mut self, lons: &[f64], colat: f64, texel: LevelWindow, out: &mut Vec<f32>) {
+        let v = |s: Option<&[f32]>| match s {
+            Some([v]) if !v.is_nan() => *v,
+            _ => 0.0,
+        };
+        self.0
+            .sample_row(lons, colat, texel, |[a, b, c, d], fx, fy| {
+                let (fx, fy) = (fx as f32, fy as f32);
+                let (a, b, c, d) = (v(a), v(b), v(c), v(d));
+                let top = a + (b - a) * fx;
+                let bottom = c + (d - c) * fx;
+                out.push(top + (bottom - top) * fy);
+            });
     }
 }
 
@@ -581,6 +708,29 @@ impl StoreColors {
     /// Over the isotropic colour levels of `reader`; `None` if it has none.
     pub fn new(reader: StoreReader) -> Option<Self> {
         StoreLevels::new(reader).map(Self)
+    }
+}
+
+impl StoreColors {
+    /// Colours at `lons` along the circle of colatitude `colat`, appended to `out` (RGBA): the
+    /// same values as [`ColorSource::color`] point by point, faster.
+    pub fn fill_row(&mut self, lons: &[f64], colat: f64, texel: LevelWindow, out: &mut Vec<u8>) {
+        self.0.sample_row(lons, colat, texel, |corners, fx, fy| {
+            let mut acc = [0.0f64; 4];
+            for (p, wgt) in corners.into_iter().zip([
+                (1.0 - fx) * (1.0 - fy),
+                fx * (1.0 - fy),
+                (1.0 - fx) * fy,
+                fx * fy,
+            ]) {
+                if let Some(p) = p {
+                    for (a, &v) in acc.iter_mut().zip(p) {
+                        *a += wgt * f64::from(v);
+                    }
+                }
+            }
+            out.extend(acc.map(|v| v.round().clamp(0.0, 255.0) as u8));
+        });
     }
 }
 

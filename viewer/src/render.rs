@@ -2,6 +2,8 @@
 //! image (any adapter, the CPU one — lavapipe — included). Reversed-Z float depth with an
 //! infinite far plane serves orbit and the ground alike.
 
+use std::f64::consts::PI;
+
 use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec3};
 use wgpu::util::DeviceExt;
@@ -188,6 +190,8 @@ pub struct ClipmapPass {
     last: FrameStats,
     /// The tasks last posted to a streamer (posted again only when they change).
     last_tasks: Vec<Task>,
+    /// Where the viewer was last frame (to prefetch along its motion).
+    prev_viewer: Option<Viewer>,
     /// Debug toggles.
     pub options: DrawOptions,
 }
@@ -394,6 +398,7 @@ impl ClipmapPass {
             radius: radius_m,
             last: FrameStats::default(),
             last_tasks: Vec::new(),
+            prev_viewer: None,
             options: DrawOptions::default(),
         }
     }
@@ -428,6 +433,7 @@ impl ClipmapPass {
             9000.0,
             camera.fov.to_radians(),
             h,
+            self.hemi.spec.n,
             levels,
         );
         let mut filled = 0;
@@ -543,6 +549,7 @@ impl ClipmapPass {
             9000.0,
             camera.fov.to_radians(),
             h,
+            self.hemi.spec.n,
             levels,
         );
         let layers: Vec<(bool, u32)> = std::iter::once((true, sources.height))
@@ -568,6 +575,33 @@ impl ClipmapPass {
             }
             placed.push((i, p, grid));
         }
+        // prefetch along the motion: the quads where the viewer will be in a few frames if it
+        // keeps going (so a level's next tiles are made before its window reaches them)
+        if let Some(prev) = self.prev_viewer {
+            let dlon = (viewer.lon - prev.lon + PI).rem_euclid(2.0 * PI) - PI;
+            let dcolat = viewer.colat - prev.colat;
+            if dlon != 0.0 || dcolat != 0.0 {
+                for frames in [3.0, 10.0, 30.0] {
+                    let ahead = Viewer {
+                        lon: viewer.lon + dlon * frames,
+                        colat: (viewer.colat + dcolat * frames).clamp(1e-9, PI - 1e-9),
+                    };
+                    for i in lo..=wanted {
+                        let p = Placement::new(i, &ahead, n);
+                        let grid = GridId::of(i, &p, n);
+                        for &(_, src) in &layers {
+                            for key in quad_keys(src, grid, &p, n) {
+                                tasks.push(Task {
+                                    key,
+                                    prefetch: true,
+                                });
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        self.prev_viewer = Some(viewer);
         if tasks != self.last_tasks {
             streamer.request(tasks.clone());
             self.last_tasks = tasks;

@@ -26,9 +26,7 @@ use std::thread::JoinHandle;
 
 use sc_store::StoreReader;
 
-use crate::clipmap::{
-    ColorSource, HeightSource, LevelWindow, Placement, StoreColors, StoreHeights,
-};
+use crate::clipmap::{LevelWindow, Placement, StoreColors, StoreHeights};
 use crate::geometry::level_outer;
 
 /// A clipmap level's texel grid: level `level` (colatitude texel 2·outer(level)/N) and longitude
@@ -174,7 +172,13 @@ impl TileSource for StoreHeightTiles {
         let mut src = StoreHeights::new(self.0.clone())
             .ok_or_else(|| "the store has no height levels".to_string())?;
         let win = key.grid.window(n);
-        let data = sample_tile(key, n, |lon, colat| [src.height(lon, colat, win)]);
+        let mut data = Vec::with_capacity((n * n) as usize);
+        let mut lons = Vec::with_capacity(n as usize);
+        for r in 0..n {
+            lons.clear();
+            lons.extend((0..n).map(|c| key.texel_centre(c, r, n).0));
+            src.fill_row(&lons, key.texel_centre(0, r, n).1, win, &mut data);
+        }
         match src.errors().first() {
             Some(e) => Err(e.clone()),
             None => Ok(TileData::Height(data)),
@@ -191,9 +195,14 @@ impl TileSource for StoreColorTiles {
         let mut src = StoreColors::new(self.0.clone())
             .ok_or_else(|| "the store has no colour levels".to_string())?;
         let win = key.grid.window(n);
-        Ok(TileData::Color(sample_tile(key, n, |lon, colat| {
-            src.color(lon, colat, win)
-        })))
+        let mut data = Vec::with_capacity((n * n * 4) as usize);
+        let mut lons = Vec::with_capacity(n as usize);
+        for r in 0..n {
+            lons.clear();
+            lons.extend((0..n).map(|c| key.texel_centre(c, r, n).0));
+            src.fill_row(&lons, key.texel_centre(0, r, n).1, win, &mut data);
+        }
+        Ok(TileData::Color(data))
     }
 }
 

@@ -184,14 +184,19 @@ pub fn offsets_f32(u: &TransformUniforms, px: f32, py: f32, c: f32, seam: f32) -
 
 /// Levels of the hemisphere worth drawing (paper §4.5): rings beyond the horizon
 /// `θ̃_max = acos(R / (R + h + margin))` (margin: the highest terrain, so mountains beyond the
-/// smooth horizon still show) and rings finer than one pixel `θ̃_min = h·tan(fov/px) / R` are
-/// skipped. Returns the inclusive range of level indices (coarse first) among `levels`.
+/// smooth horizon still show) and levels whose triangles would be smaller than a pixel are
+/// skipped. The paper's eq. 8 (`θ̃_min = s / R`, s the pixel size on the ground under the
+/// viewer) read literally compares a *level's radius* with a pixel, which keeps levels whose
+/// triangles (θ̃·2π/n across, n = `steps` around) are ~n/2π = 40× smaller than a pixel; its stated
+/// requirement — triangles cover at least one pixel — gives `θ̃_min = s·n / (2π·R)`, used here.
+/// Returns the inclusive range of level indices (coarse first) among `levels`.
 pub fn visible_levels(
     radius_m: f64,
     height_m: f64,
     terrain_max_m: f64,
     fov_rad: f64,
     pixels: u32,
+    steps: u32,
     levels: u32,
 ) -> (u32, u32) {
     let h = height_m.max(0.01);
@@ -200,7 +205,7 @@ pub fn visible_levels(
         .acos()
         .min(std::f64::consts::FRAC_PI_2);
     let pixel = h * (fov_rad / f64::from(pixels.max(1))).tan();
-    let theta_min = pixel / radius_m;
+    let theta_min = pixel * f64::from(steps.max(1)) / (2.0 * std::f64::consts::PI) / radius_m;
     let level_of = |theta: f64| -> u32 {
         // level i spans (π/2·2^−(i+1), π/2·2^−i]
         let i = (std::f64::consts::FRAC_PI_2 / theta.max(1e-300))
@@ -283,8 +288,8 @@ mod tests {
     fn visible_levels_follow_altitude() {
         let r = sc_core::EARTH_RADIUS_M;
         let fov = 60f64.to_radians();
-        let (lo_g, hi_g) = visible_levels(r, 1.7, 9000.0, fov, 1280, 26);
-        let (lo_s, hi_s) = visible_levels(r, 1.0e7, 9000.0, fov, 1280, 26);
+        let (lo_g, hi_g) = visible_levels(r, 1.7, 9000.0, fov, 1280, 256, 26);
+        let (lo_s, hi_s) = visible_levels(r, 1.0e7, 9000.0, fov, 1280, 256, 26);
         assert!(
             hi_g > hi_s && lo_g > lo_s,
             "ground {lo_g}..{hi_g}, space {lo_s}..{hi_s}"
@@ -297,6 +302,15 @@ mod tests {
             hi_g >= 20,
             "on the ground the finest rings are drawn: {hi_g}"
         );
+        // the finest level drawn has triangles of about a pixel under the viewer, not smaller
+        for h in [1.7, 50.0, 2000.0, 80_000.0] {
+            let (_, hi) = visible_levels(r, h, 9000.0, fov, 1280, 256, 26);
+            let pixel = h * (fov / 1280.0).tan();
+            let triangle = |i: u32| crate::geometry::level_outer(i) * r * 2.0 * PI / 256.0;
+            assert!(triangle(hi) >= pixel, "{h} m: level {hi}");
+            // … unless the hemisphere has no finer level
+            assert!(hi == 25 || triangle(hi + 1) < pixel, "{h} m: level {hi}");
+        }
     }
 }
 

@@ -18,6 +18,16 @@ fn marker(id: LevelId) -> f32 {
 
 /// Levels 0–3 and every anisotropic level of 3 the grid has, each filled with its marker.
 fn marker_store(root: &Path) -> GridSpec {
+    store_of(root, |id, _, _| marker(id), false)
+}
+
+/// Levels 0–3 and the anisotropic levels of 3, texel values from `value(level, tile, texel)`;
+/// with `colors`, a colour layer of levels 0–3 too; some tiles are left out (missing).
+fn store_of(
+    root: &Path,
+    value: impl Fn(LevelId, (u64, u64), usize) -> f32,
+    colors: bool,
+) -> GridSpec {
     let grid = GridSpec::new(T).expect("grid");
     let w = StoreWriter::create(
         root,
@@ -40,17 +50,115 @@ fn marker_store(root: &Path) -> GridSpec {
                 let tiles: Vec<_> = sw
                     .tiles()
                     .filter(|t| grid.level_has_tile_row(id, t.y))
+                    .filter(|t| !colors || (t.x + 3 * t.y) % 7 != 3)
                     .collect();
                 for t in tiles {
-                    sw.put_tile(t, &vec![marker(id); (T * T) as usize])
-                        .expect("put");
+                    let v: Vec<f32> = (0..(T * T) as usize)
+                        .map(|k| value(id, (t.x, t.y), k))
+                        .collect();
+                    sw.put_tile(t, &v).expect("put");
                 }
                 sw.finish().expect("finish");
             }
         }
     }
+    if colors {
+        for l in 0..4 {
+            let id = LevelId::iso(l).expect("level");
+            let (sx, sy) = ShardId::counts(grid, id, 4);
+            for y in 0..sy {
+                for x in 0..sx {
+                    let mut sw = w
+                        .shard_writer::<u8>(ShardId { level: id, x, y })
+                        .expect("shard");
+                    let tiles: Vec<_> = sw.tiles().filter(|t| (t.x + t.y) % 5 != 2).collect();
+                    for t in tiles {
+                        let v: Vec<u8> = (0..(T * T * 4) as usize)
+                            .map(|k| ((k * 7 + t.x as usize * 13 + t.y as usize * 29) % 256) as u8)
+                            .collect();
+                        sw.put_tile(t, &v).expect("put");
+                    }
+                    sw.finish().expect("finish");
+                }
+            }
+        }
+    }
     w.commit(None).expect("commit");
     grid
+}
+
+#[test]
+fn tiles_from_the_row_sampler_equal_point_by_point_sampling() {
+    use sc_viewer::clipmap::{ColorSource, HeightSource, StoreColors};
+    use sc_viewer::stream::{
+        GridId, StoreColorTiles, StoreHeightTiles, TileData, TileKey, TileSource,
+    };
+    let dir = tempfile::tempdir().expect("tempdir");
+    let root = dir.path().join("v.zarr");
+    store_of(
+        &root,
+        |id, (x, y), k| {
+            if k % 89 == 7 {
+                f32::NAN
+            } else {
+                (id.level * 1000 + id.aniso * 100) as f32
+                    + ((k * 31 + x as usize * 7 + y as usize * 3) % 97) as f32
+            }
+        },
+        true,
+    );
+    let reader = StoreReader::open(&root).expect("open");
+    let n = 64;
+    for (level, k, y) in [
+        (0, 0, 0),
+        (2, 1, -1),
+        (3, 3, 0),
+        (5, 5, 3),
+        (6, 4, 0),
+        (6, 6, 37),
+        (9, 9, 0),
+    ] {
+        let grid = GridId { level, k };
+        for x in [0i64, 1, (1i64 << k) - 1] {
+            let key = TileKey {
+                source: 0,
+                grid,
+                x: x.max(0),
+                y,
+            };
+            let win = grid.window(n);
+            let TileData::Height(fast) = StoreHeightTiles(reader.clone())
+                .make(&key, n, &[])
+                .expect("tile")
+            else {
+                panic!("heights")
+            };
+            let TileData::Color(cfast) = StoreColorTiles(reader.clone())
+                .make(&key, n, &[])
+                .expect("tile")
+            else {
+                panic!("colours")
+            };
+            let mut h = StoreHeights::new(reader.clone()).expect("heights");
+            let mut c = StoreColors::new(reader.clone()).expect("colours");
+            for r in 0..n {
+                for col in 0..n {
+                    let (lon, colat) = key.texel_centre(col, r, n);
+                    let i = (r * n + col) as usize;
+                    assert_eq!(
+                        fast[i].to_bits(),
+                        h.height(lon, colat, win).to_bits(),
+                        "{key:?} ({col}, {r})"
+                    );
+                    assert_eq!(
+                        cfast[i * 4..i * 4 + 4],
+                        c.color(lon, colat, win),
+                        "{key:?} ({col}, {r})"
+                    );
+                }
+            }
+        }
+    }
 }
 
 #[test]

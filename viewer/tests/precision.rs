@@ -16,7 +16,15 @@ fn errors(
     near: f64,
     gpu: Option<&TransformProbe>,
 ) -> ((f64, f64), (f64, f64)) {
-    let (lo, hi) = visible_levels(R, h, 9000.0, 60f64.to_radians(), 1280, hemi.spec.levels);
+    let (lo, hi) = visible_levels(
+        R,
+        h,
+        9000.0,
+        60f64.to_radians(),
+        1280,
+        hemi.spec.n,
+        hemi.spec.levels,
+    );
     let u = v.uniforms();
     let m = f64::from(hemi.spec.m);
     let (mut near_max, mut all_max) = ((0.0f64, 0.0f64), (0.0f64, 0.0f64));

@@ -148,14 +148,21 @@ pub struct RenderArgs {
     /// The store folder (its height layer shapes the planet).
     pub store: std::path::PathBuf,
     /// LAT,LON,ALT[,HEADING,PITCH,FOV]: degrees, metres above the ground, degrees.
-    #[arg(long, allow_hyphen_values = true)]
-    pub camera: String,
+    #[arg(long, allow_hyphen_values = true, required_unless_present = "flight")]
+    pub camera: Option<String>,
     /// Image size WxH.
     #[arg(long, default_value = "1280x720")]
     pub size: String,
     /// Output PNG.
-    #[arg(long)]
-    pub out: std::path::PathBuf,
+    #[arg(long, required_unless_present = "flight")]
+    pub out: Option<std::path::PathBuf>,
+    /// Fly the scripted flight of this TOML file (altitudes × speeds, streamed tiles) instead of
+    /// rendering one view; needs --stats.
+    #[arg(long, requires = "stats", conflicts_with_all = ["camera", "out"])]
+    pub flight: Option<std::path::PathBuf>,
+    /// With --flight: where to write the statistics (JSON).
+    #[arg(long, requires = "flight")]
+    pub stats: Option<std::path::PathBuf>,
     /// Clear colour as R,G,B in 0..1 (e.g. 1,0,1 to see cracks).
     #[arg(long)]
     pub clear: Option<String>,

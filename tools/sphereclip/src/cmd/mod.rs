@@ -3,6 +3,7 @@
 mod build;
 mod demo;
 mod export;
+mod flight;
 mod info;
 mod ingest;
 mod inspect;

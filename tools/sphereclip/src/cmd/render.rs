@@ -80,10 +80,28 @@ pub fn percentile(v: &[f64], q: f64) -> f64 {
 
 /// Runs `render`.
 pub fn run(a: &RenderArgs) -> Result<ExitCode> {
-    let camera = Camera::parse(&a.camera)?;
     let (w, h) = parse_size(&a.size)?;
-    if a.out.is_dir() {
-        bail!("--out is a folder, not a PNG file: {}", a.out.display());
+    if let (Some(flight), Some(stats)) = (&a.flight, &a.stats) {
+        let s = super::flight::run(&a.store, flight, (w, h), stats)?;
+        for alt in &s.altitudes {
+            println!(
+                "{:>10} m: best {} altitudes/s",
+                alt.altitude_m,
+                alt.best_speed_alt_per_s.map_or(
+                    "— (finest level < 95 % of frames at every speed)".into(),
+                    |v| format!("{v}")
+                )
+            );
+        }
+        println!("stats: {}", stats.display());
+        return Ok(ExitCode::SUCCESS);
+    }
+    let (Some(camera), Some(out)) = (&a.camera, &a.out) else {
+        bail!("render needs --camera and --out (or --flight and --stats)");
+    };
+    let camera = Camera::parse(camera)?;
+    if out.is_dir() {
+        bail!("--out is a folder, not a PNG file: {}", out.display());
     }
     if !(1..=10_000).contains(&a.frames) {
         bail!("--frames must be 1..10000, found {}", a.frames);
@@ -116,13 +134,13 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
     let Some((img, stats)) = last else {
         bail!("nothing rendered");
     };
-    let tmp = a.out.with_extension("png.tmp");
+    let tmp = out.with_extension("png.tmp");
     img.save_with_format(&tmp, image::ImageFormat::Png)
         .with_context(|| format!("cannot write {}", tmp.display()))?;
-    std::fs::rename(&tmp, &a.out).with_context(|| format!("cannot write {}", a.out.display()))?;
+    std::fs::rename(&tmp, out).with_context(|| format!("cannot write {}", out.display()))?;
     println!(
         "rendered {} ({w}x{h}) on {}: levels {}..{}, {} triangles, {:.0} ms",
-        a.out.display(),
+        out.display(),
         r.adapter,
         stats.level_lo,
         stats.level_hi,
