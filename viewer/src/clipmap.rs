@@ -508,15 +508,21 @@ impl ZeroedSample for u8 {
     }
 }
 
-/// Heights from a store's isotropic height levels, through a tile cache. Nodata and missing
-/// tiles read as sea level.
+/// Heights from a store's height levels, through a tile cache. Nodata and missing tiles read as
+/// sea level (or, with [`StoreHeights::keep_nodata`], make the texel NaN).
 #[derive(Debug)]
-pub struct StoreHeights(StoreLevels<f32>);
+pub struct StoreHeights(StoreLevels<f32>, bool);
 
 impl StoreHeights {
-    /// Over the isotropic height levels of `reader`; `None` if it has none.
+    /// Over the height levels of `reader`; `None` if it has none.
     pub fn new(reader: StoreReader) -> Option<Self> {
-        StoreLevels::new(reader).map(Self)
+        StoreLevels::new(reader).map(|l| Self(l, false))
+    }
+
+    /// With `keep`, a texel any of whose bilinear corners is nodata or missing is NaN (an
+    /// overlay shows what lies below there).
+    pub fn keep_nodata(self, keep: bool) -> Self {
+        Self(self.0, keep)
     }
 
     /// Read errors seen (a damaged tile draws as sea level and is counted once).
@@ -525,8 +531,10 @@ impl StoreHeights {
     }
 
     fn texel(&mut self, f: &Footprint, dx: i64, dy: i64) -> f32 {
+        let keep = self.1;
         match self.0.texel(f, dx, dy) {
             Some([v]) if !v.is_nan() => *v,
+            _ if keep => f32::NAN,
             _ => 0.0,
         }
     }

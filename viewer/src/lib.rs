@@ -6,6 +6,7 @@
 pub mod camera;
 pub mod clipmap;
 pub mod geometry;
+pub mod graph;
 pub mod probe;
 pub mod render;
 pub mod stream;

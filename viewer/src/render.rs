@@ -403,6 +403,19 @@ impl ClipmapPass {
         }
     }
 
+    /// Forgets what the clipmaps hold (a source's parameters changed and its tiles were dropped
+    /// from the cache): the next streamed frames ask for the visible tiles again and re-upload
+    /// each level as its new tiles arrive.
+    pub fn invalidate(&mut self, heights: bool, colors: bool) {
+        if heights {
+            self.placed.iter_mut().for_each(|p| *p = None);
+        }
+        if colors {
+            self.colored.iter_mut().for_each(|p| *p = None);
+        }
+        self.last_tasks.clear();
+    }
+
     /// Whether the device draws wireframes.
     pub fn has_wireframe(&self) -> bool {
         self.wire.is_some()
@@ -773,11 +786,20 @@ fn region_from_quad(quad: &[Tile], p: &Placement, r: Region, n: u32) -> Vec<u8> 
     let [ox, oy] = p.origin(n);
     let c = (r.x + n - ox) % n;
     let row = (r.y + n - oy) % n;
-    let tile = quad[quad_index(p, c, row, n)].texel_bytes();
+    let tile = &quad[quad_index(p, c, row, n)];
+    let bytes = tile.texel_bytes();
     let mut out = Vec::with_capacity((r.w * r.h * 4) as usize);
     for y in r.y..r.y + r.h {
         let start = ((y * n + r.x) * 4) as usize;
-        out.extend_from_slice(&tile[start..start + (r.w * 4) as usize]);
+        out.extend_from_slice(&bytes[start..start + (r.w * 4) as usize]);
+    }
+    if let TileData::Height(_) = **tile {
+        // nodata that no overlay filled is drawn at sea level
+        for v in out.chunks_exact_mut(4) {
+            if f32::from_ne_bytes([v[0], v[1], v[2], v[3]]).is_nan() {
+                v.copy_from_slice(&0f32.to_ne_bytes());
+            }
+        }
     }
     out
 }
@@ -793,8 +815,8 @@ fn ground_from_quad(quad: &[Tile], p: &Placement, n: u32) -> f64 {
         let (u, v) = (p.u0 + i64::from(c), p.v0 + i64::from(r));
         let k = (v.rem_euclid(nn) * nn + u.rem_euclid(nn)) as usize;
         match &*quad[quad_index(p, c, r, n)] {
-            TileData::Height(h) => f64::from(h[k]),
-            TileData::Color(_) => 0.0,
+            TileData::Height(h) if !h[k].is_nan() => f64::from(h[k]),
+            _ => 0.0,
         }
     };
     at_viewer(p, at)

@@ -165,12 +165,28 @@ fn sample_tile<T: Copy, const C: usize>(
 /// Heights from a store's height layer (bilinear from the store level matching the grid, the
 /// anisotropic ones near the poles; see [`StoreHeights`]).
 #[derive(Debug, Clone)]
-pub struct StoreHeightTiles(pub StoreReader);
+pub struct StoreHeightTiles {
+    /// The store.
+    pub reader: StoreReader,
+    /// Keep nodata as NaN (for an overlay to see through) instead of sea level.
+    pub keep_nodata: bool,
+}
+
+impl StoreHeightTiles {
+    /// Over `reader`'s heights, nodata as sea level.
+    pub fn new(reader: StoreReader) -> Self {
+        Self {
+            reader,
+            keep_nodata: false,
+        }
+    }
+}
 
 impl TileSource for StoreHeightTiles {
     fn make(&self, key: &TileKey, n: u32, _: &[Tile]) -> Result<TileData, String> {
-        let mut src = StoreHeights::new(self.0.clone())
-            .ok_or_else(|| "the store has no height levels".to_string())?;
+        let mut src = StoreHeights::new(self.reader.clone())
+            .ok_or_else(|| "the store has no height levels".to_string())?
+            .keep_nodata(self.keep_nodata);
         let win = key.grid.window(n);
         let mut data = Vec::with_capacity((n * n) as usize);
         let mut lons = Vec::with_capacity(n as usize);
@@ -308,6 +324,15 @@ impl TileCache {
     /// Tiles held.
     pub fn len(&self) -> usize {
         self.lock().tiles.len()
+    }
+
+    /// Tiles held of one source.
+    pub fn tiles_of(&self, source: u32) -> usize {
+        self.lock()
+            .tiles
+            .keys()
+            .filter(|k| k.source == source)
+            .count()
     }
 
     /// Whether no tile is held.

@@ -15,6 +15,7 @@ use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::{Window, WindowId};
 
 use crate::camera::{Controller, Input, Mode};
+use crate::graph::{FilterHandle, FilterParams};
 use crate::render::{
     Camera, ClipmapPass, FrameStats, RenderError, SPACE, StreamSources, begin_pass, depth_target,
     device_for, read_back,
@@ -37,6 +38,8 @@ pub struct ViewOptions {
     pub screenshot: Option<PathBuf>,
     /// Window title.
     pub title: String,
+    /// The graph's colour filters, edited live from the panel.
+    pub filters: Vec<FilterHandle>,
 }
 
 /// What a viewing session did.
@@ -284,6 +287,16 @@ impl App<'_> {
         let cache_mb = self.streamer.cache().bytes() as f64 / (1u64 << 20) as f64;
         let tiles = self.streamer.cache().len();
         let errors = self.streamer.errors();
+        let mut filters: Vec<(String, FilterParams)> = self
+            .opts
+            .filters
+            .iter()
+            .map(|f| {
+                let p = f.params.read().map(|p| *p).unwrap_or_default();
+                (f.name.clone(), p)
+            })
+            .collect();
+        let before: Vec<FilterParams> = filters.iter().map(|f| f.1).collect();
         let (fps, cpu_avg, adapter) = (self.fps, self.cpu_avg, self.report.adapter.clone());
         let out = gpu.egui_ctx.run_ui(raw, |ui| {
             egui::Window::new("sphereclip")
@@ -328,6 +341,25 @@ impl App<'_> {
                         egui::Checkbox::new(&mut options.wireframe, "wireframe (F)"),
                     );
                     ui.checkbox(&mut options.level_colors, "level colours (L)");
+                    for (name, p) in &mut filters {
+                        ui.collapsing(name.as_str(), |ui| {
+                            ui.add(
+                                egui::Slider::new(&mut p.brightness, -1.0..=1.0).text("brightness"),
+                            );
+                            ui.add(egui::Slider::new(&mut p.contrast, 0.0..=4.0).text("contrast"));
+                            ui.add(
+                                egui::Slider::new(&mut p.gamma, 0.1..=10.0)
+                                    .logarithmic(true)
+                                    .text("gamma"),
+                            );
+                            ui.add(
+                                egui::Slider::new(&mut p.saturation, 0.0..=4.0).text("saturation"),
+                            );
+                            if ui.button("reset").clicked() {
+                                *p = FilterParams::default();
+                            }
+                        });
+                    }
                     ui.small(adapter.as_str());
                 });
         });
@@ -336,6 +368,20 @@ impl App<'_> {
         }
         self.controller.speed = speed;
         gpu.pass.options = options;
+        // an edited filter: drop its tiles and what derives from them; only the visible ones
+        // are made again (the next frames ask for them)
+        for (f, ((_, new), old)) in self.opts.filters.iter().zip(filters.iter().zip(&before)) {
+            if new != old {
+                if let Ok(mut p) = f.params.write() {
+                    *p = *new;
+                }
+                let stale = self.streamer.dependents(f.source);
+                self.streamer.cache().invalidate(&stale);
+                let height = stale.contains(&self.sources.height);
+                let color = self.sources.color.is_some_and(|c| stale.contains(&c));
+                gpu.pass.invalidate(height, color);
+            }
+        }
         gpu.egui_state
             .handle_platform_output(&gpu.window, out.platform_output);
         let prims = gpu.egui_ctx.tessellate(out.shapes, out.pixels_per_point);

@@ -127,7 +127,7 @@ fn tiles_from_the_row_sampler_equal_point_by_point_sampling() {
                 y,
             };
             let win = grid.window(n);
-            let TileData::Height(fast) = StoreHeightTiles(reader.clone())
+            let TileData::Height(fast) = StoreHeightTiles::new(reader.clone())
                 .make(&key, n, &[])
                 .expect("tile")
             else {

@@ -224,3 +224,92 @@ fn a_slow_source_lowers_detail_but_frames_do_not_wait() {
     assert!(converged);
     drop(tx);
 }
+
+/// Counts the tiles a source makes.
+#[derive(Debug)]
+struct Counting<S>(S, std::sync::Arc<std::sync::atomic::AtomicUsize>);
+
+impl<S: TileSource> TileSource for Counting<S> {
+    fn inputs(&self) -> Vec<u32> {
+        self.0.inputs()
+    }
+    fn make(&self, key: &TileKey, n: u32, i: &[Tile]) -> Result<TileData, String> {
+        self.1.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+        self.0.make(key, n, i)
+    }
+}
+
+fn converge(r: &mut Renderer, s: &Streamer, camera: &Camera) -> image::RgbaImage {
+    for _ in 0..60 {
+        let (img, stats, _) = r
+            .render_streamed(s, SOURCES_FILTERED, camera, None)
+            .expect("render");
+        if stats.level_hi == stats.level_wanted && s.idle() {
+            return img;
+        }
+        settle(s);
+    }
+    panic!("no convergence at {camera:?}");
+}
+
+const SOURCES_FILTERED: StreamSources = StreamSources {
+    height: 0,
+    color: Some(2),
+};
+
+#[test]
+fn a_filter_edit_remakes_only_the_visible_tiles() {
+    use sc_viewer::graph::{ColorFilter, FilterParams};
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    use std::sync::{Arc, RwLock};
+    let made = Arc::new(AtomicUsize::new(0));
+    let params = Arc::new(RwLock::new(FilterParams::default()));
+    let streamer = Streamer::new(
+        vec![
+            Box::new(FnHeightTiles(mountains)),
+            Box::new(FnColorTiles(by_longitude)),
+            Box::new(Counting(
+                ColorFilter {
+                    input: 1,
+                    params: params.clone(),
+                },
+                made.clone(),
+            )),
+        ],
+        CLIPMAP_N,
+        2,
+        1 << 30,
+    );
+    let mut r = renderer();
+    // two places: the cache holds the filter's tiles of both
+    let a = Camera::parse("46.5,8.0,300,30,-10,60").expect("camera");
+    let b = Camera::parse("-30,120,300,30,-10,60").expect("camera");
+    converge(&mut r, &streamer, &a);
+    let before_edit = converge(&mut r, &streamer, &b);
+    let cached = streamer.cache().tiles_of(2);
+    let count = made.load(Ordering::SeqCst);
+    // the panel's edit: new settings, the filter's tiles (and what derives from them) dropped
+    params.write().expect("lock").brightness = 0.3;
+    streamer.cache().invalidate(&streamer.dependents(2));
+    r.pass_mut().invalidate(false, true);
+    let after_edit = converge(&mut r, &streamer, &b);
+    let remade = made.load(Ordering::SeqCst) - count;
+    let visible = streamer.cache().tiles_of(2);
+    assert!(
+        remade > 0 && remade == visible,
+        "remade {remade}, now cached {visible}"
+    );
+    assert!(
+        remade < cached,
+        "remade {remade} of {cached}: tiles of the other place too"
+    );
+    let mean = |img: &image::RgbaImage| {
+        img.pixels()
+            .map(|p| f64::from(p.0[0]) + f64::from(p.0[1]) + f64::from(p.0[2]))
+            .sum::<f64>()
+    };
+    assert!(
+        mean(&after_edit) > mean(&before_edit) * 1.05,
+        "the edit shows"
+    );
+}

@@ -189,6 +189,10 @@ pub struct ViewArgs {
     /// With --frames: save the last frame (panel included) to this PNG.
     #[arg(long, requires = "frames")]
     pub screenshot: Option<std::path::PathBuf>,
+    /// The image-source graph (TOML; see the README); default: STEM.sources.toml beside the
+    /// store if there is one, else the store's layers with a neutral colour filter.
+    #[arg(long)]
+    pub sources: Option<std::path::PathBuf>,
 }
 
 /// `sphereclip info`.

@@ -148,7 +148,7 @@ pub fn run(store: &Path, flight_path: &Path, (w, h): (u32, u32), out: &Path) -> 
     if out.is_dir() {
         bail!("--stats is a folder, not a JSON file: {}", out.display());
     }
-    let (streamer, sources, radius) = store_streamer(store)?;
+    let (streamer, sources, radius, _) = store_streamer(store, None)?;
     let mut r = Renderer::headless(w, h, radius)?;
     let mut camera = Camera {
         lat: flight.start[0],

@@ -2,14 +2,15 @@
 
 use std::process::ExitCode;
 
-use anyhow::{Context, Result};
-use sc_store::StoreReader;
+use anyhow::Result;
 use sc_viewer::clipmap::CLIPMAP_N;
+use sc_viewer::graph::{self, FilterHandle, Graph};
 use sc_viewer::render::{Camera, StreamSources};
-use sc_viewer::stream::{FnHeightTiles, StoreColorTiles, StoreHeightTiles, Streamer, TileSource};
+use sc_viewer::stream::Streamer;
 use sc_viewer::window::{ViewOptions, view};
 
 use super::render::{median, parse_size, percentile};
+use crate::cli::ViewArgs;
 
 /// Memory the viewer's tile cache is pruned to.
 pub const TILE_CACHE_BUDGET: usize = 256 << 20;
@@ -22,31 +23,32 @@ pub fn default_workers() -> usize {
         .max(1)
 }
 
-/// A streamer over a store's layers: heights (a smooth sphere, with a warning, without a height
-/// layer) and colours if it has them; and the store's radius.
-pub fn store_streamer(store: &std::path::Path) -> Result<(Streamer, StreamSources, f64)> {
-    let reader = StoreReader::open(store).context("cannot read store")?;
-    let meta = reader.meta();
-    let radius = meta.radius_m;
-    let has = |k| !meta.levels(k).is_empty();
-    let mut sources: Vec<Box<dyn TileSource>> = Vec::new();
-    if has(sc_store::LayerKind::Height) {
-        sources.push(Box::new(StoreHeightTiles(reader.clone())));
-    } else {
-        eprintln!(
-            "warning: {} has no height layer; rendering a smooth sphere",
-            store.display()
-        );
-        sources.push(Box::new(FnHeightTiles(|_: f64, _: f64| 0.0f32)));
+/// A streamer over the image-source graph of `store`: the one in `sources` (TOML), else the
+/// `STEM.sources.toml` beside the store, else the default (heights, colours through a neutral
+/// filter); and the planet's radius and the graph's filters.
+pub fn store_streamer(
+    store: &std::path::Path,
+    sources: Option<&std::path::Path>,
+) -> Result<(Streamer, StreamSources, f64, Vec<FilterHandle>)> {
+    let graph = match sources
+        .map(std::path::PathBuf::from)
+        .or_else(|| graph::beside(store))
+    {
+        Some(file) => Graph::load(&file).map_err(|e| anyhow::anyhow!(e))?,
+        None => Graph::for_store(store).map_err(|e| anyhow::anyhow!(e))?,
+    };
+    for w in &graph.warnings {
+        eprintln!("warning: {w}");
     }
-    let color = has(sc_store::LayerKind::Color).then(|| {
-        sources.push(Box::new(StoreColorTiles(reader.clone())));
-        1
-    });
-    let streamer = Streamer::new(sources, CLIPMAP_N, default_workers(), TILE_CACHE_BUDGET);
-    Ok((streamer, StreamSources { height: 0, color }, radius))
+    let (clipmaps, radius, filters) = (graph.clipmaps, graph.radius, graph.filters);
+    let streamer = Streamer::new(
+        graph.sources,
+        CLIPMAP_N,
+        default_workers(),
+        TILE_CACHE_BUDGET,
+    );
+    Ok((streamer, clipmaps, radius, filters))
 }
-use crate::cli::ViewArgs;
 
 /// Runs `view`.
 pub fn run(a: &ViewArgs) -> Result<ExitCode> {
@@ -62,7 +64,7 @@ pub fn run(a: &ViewArgs) -> Result<ExitCode> {
     {
         anyhow::bail!("--screenshot is a folder, not a PNG file: {}", p.display());
     }
-    let (streamer, sources, radius) = store_streamer(&a.store)?;
+    let (streamer, sources, radius, filters) = store_streamer(&a.store, a.sources.as_deref())?;
     if !["DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET"]
         .iter()
         .any(|v| std::env::var_os(v).is_some_and(|x| !x.is_empty()))
@@ -82,6 +84,7 @@ pub fn run(a: &ViewArgs) -> Result<ExitCode> {
             frames: a.frames,
             screenshot: a.screenshot.clone(),
             title,
+            filters,
         },
     )?;
     if a.frames.is_some() {

@@ -1,0 +1,507 @@
+//! The image-source graph (clipmap-data-synthesis §4.1): which sources make the tiles of the
+//! height and colour clipmaps, declared in a TOML file next to the store, or the default one.
+//!
+//! ```toml
+//! [[source]]
+//! name = "world"            # a store layer
+//! kind = "store"
+//! path = "planet.zarr"      # relative to this file
+//! layer = "height"
+//!
+//! [[source]]
+//! name = "alps"
+//! kind = "store"
+//! path = "alps.zarr"
+//! layer = "height"
+//!
+//! [[source]]
+//! name = "heights"          # later inputs over earlier ones, where they have data
+//! kind = "overlay"
+//! inputs = ["world", "alps"]
+//!
+//! [[source]]
+//! name = "colour"
+//! kind = "store"
+//! path = "planet.zarr"
+//! layer = "color"
+//!
+//! [[source]]
+//! name = "graded"           # per-texel filter, editable live from the viewer's panel
+//! kind = "filter"
+//! input = "colour"
+//! brightness = 0.0          # added, −1 … 1
+//! contrast = 1.0            # around mid-grey, 0 … 4
+//! gamma = 1.0               # 0.1 … 10
+//! saturation = 1.0          # 0 grey … 4
+//!
+//! [clipmaps]
+//! height = "heights"
+//! color = "graded"
+//! ```
+//!
+//! A source may only take inputs declared before it, so the graph has no cycles; the streamer
+//! makes inputs first (depth-first). Normals are not a source: the fragment shader derives them
+//! from the height clipmap on the fly (no normal map is stored or streamed).
+//! The default graph of a store: its height layer (or a smooth sphere) and its colour layer
+//! through a neutral filter.
+
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, RwLock};
+
+use sc_store::{LayerKind, StoreReader};
+use serde::Deserialize;
+
+use crate::render::StreamSources;
+use crate::stream::{
+    FnHeightTiles, StoreColorTiles, StoreHeightTiles, Tile, TileData, TileKey, TileSource,
+};
+
+/// The settings of a colour filter.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FilterParams {
+    /// Added to each channel (0..1 scale), −1 … 1.
+    #[serde(default)]
+    pub brightness: f32,
+    /// Scales each channel around 0.5, 0 … 4.
+    #[serde(default = "one")]
+    pub contrast: f32,
+    /// Channel^(1/gamma), 0.1 … 10.
+    #[serde(default = "one")]
+    pub gamma: f32,
+    /// 0 grey … 1 unchanged … 4.
+    #[serde(default = "one")]
+    pub saturation: f32,
+}
+
+fn one() -> f32 {
+    1.0
+}
+
+impl Default for FilterParams {
+    fn default() -> Self {
+        Self {
+            brightness: 0.0,
+            contrast: 1.0,
+            gamma: 1.0,
+            saturation: 1.0,
+        }
+    }
+}
+
+impl FilterParams {
+    /// Out-of-range settings, in words.
+    pub fn check(&self) -> Result<(), String> {
+        let ok = (-1.0..=1.0).contains(&self.brightness)
+            && (0.0..=4.0).contains(&self.contrast)
+            && (0.1..=10.0).contains(&self.gamma)
+            && (0.0..=4.0).contains(&self.saturation);
+        if ok {
+            Ok(())
+        } else {
+            Err(format!(
+                "filter settings out of range (brightness −1..1, contrast 0..4, gamma 0.1..10, saturation 0..4): {self:?}"
+            ))
+        }
+    }
+
+    /// Applies the filter to one sRGB RGBA8 texel (alpha kept).
+    pub fn apply(&self, p: [u8; 4]) -> [u8; 4] {
+        let mut c = [p[0], p[1], p[2]].map(|v| {
+            let x = (f32::from(v) / 255.0 - 0.5) * self.contrast + 0.5 + self.brightness;
+            x.clamp(0.0, 1.0).powf(1.0 / self.gamma)
+        });
+        let luma = 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+        for v in &mut c {
+            *v = (luma + (*v - luma) * self.saturation).clamp(0.0, 1.0);
+        }
+        let [r, g, b] = c.map(|v| (v * 255.0).round() as u8);
+        [r, g, b, p[3]]
+    }
+}
+
+/// A per-texel colour filter over another source.
+#[derive(Debug)]
+pub struct ColorFilter {
+    /// The input source.
+    pub input: u32,
+    /// Its settings (the panel edits them; the graph's owner invalidates the tiles after).
+    pub params: Arc<RwLock<FilterParams>>,
+}
+
+impl TileSource for ColorFilter {
+    fn inputs(&self) -> Vec<u32> {
+        vec![self.input]
+    }
+
+    fn make(&self, _: &TileKey, _: u32, inputs: &[Tile]) -> Result<TileData, String> {
+        let p = *self.params.read().map_err(|e| e.to_string())?;
+        match inputs.first().map(|t| &**t) {
+            Some(TileData::Color(c)) => Ok(TileData::Color(
+                c.chunks_exact(4)
+                    .flat_map(|px| p.apply([px[0], px[1], px[2], px[3]]))
+                    .collect(),
+            )),
+            _ => Err("a colour filter needs a colour input".into()),
+        }
+    }
+}
+
+/// Later inputs over earlier ones where they have data (heights: not NaN; colours: by alpha).
+#[derive(Debug)]
+pub struct Overlay {
+    /// Inputs, bottom first.
+    pub inputs: Vec<u32>,
+}
+
+impl TileSource for Overlay {
+    fn inputs(&self) -> Vec<u32> {
+        self.inputs.clone()
+    }
+
+    fn make(&self, _: &TileKey, _: u32, inputs: &[Tile]) -> Result<TileData, String> {
+        let mut out: Option<TileData> = None;
+        for t in inputs {
+            out = Some(match (out, &**t) {
+                (None, t) => t.clone(),
+                (Some(TileData::Height(mut below)), TileData::Height(top)) => {
+                    for (b, &v) in below.iter_mut().zip(top) {
+                        if !v.is_nan() {
+                            *b = v;
+                        }
+                    }
+                    TileData::Height(below)
+                }
+                (Some(TileData::Color(mut below)), TileData::Color(top)) => {
+                    for (b, t) in below.chunks_exact_mut(4).zip(top.chunks_exact(4)) {
+                        let a = f32::from(t[3]) / 255.0;
+                        for k in 0..3 {
+                            b[k] =
+                                (f32::from(t[k]) * a + f32::from(b[k]) * (1.0 - a)).round() as u8;
+                        }
+                        b[3] = b[3].max(t[3]);
+                    }
+                    TileData::Color(below)
+                }
+                _ => return Err("an overlay's inputs must all be heights or all colours".into()),
+            });
+        }
+        out.ok_or_else(|| "an overlay needs inputs".into())
+    }
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct File {
+    #[serde(rename = "source", default)]
+    sources: Vec<Decl>,
+    clipmaps: Clipmaps,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+enum Decl {
+    Store {
+        name: String,
+        path: PathBuf,
+        layer: String,
+    },
+    Overlay {
+        name: String,
+        inputs: Vec<String>,
+    },
+    Filter {
+        name: String,
+        input: String,
+        #[serde(default)]
+        brightness: Option<f32>,
+        #[serde(default)]
+        contrast: Option<f32>,
+        #[serde(default)]
+        gamma: Option<f32>,
+        #[serde(default)]
+        saturation: Option<f32>,
+    },
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Clipmaps {
+    height: String,
+    color: Option<String>,
+}
+
+/// A filter of the graph, to edit live.
+#[derive(Debug, Clone)]
+pub struct FilterHandle {
+    /// Its name in the graph.
+    pub name: String,
+    /// Its source index.
+    pub source: u32,
+    /// Its settings.
+    pub params: Arc<RwLock<FilterParams>>,
+}
+
+/// A graph ready for a [`crate::stream::Streamer`].
+#[derive(Debug)]
+pub struct Graph {
+    /// The sources, in declaration order (a source's inputs come before it).
+    pub sources: Vec<Box<dyn TileSource>>,
+    /// Their names.
+    pub names: Vec<String>,
+    /// Which feed the clipmaps.
+    pub clipmaps: StreamSources,
+    /// The filters, for the panel.
+    pub filters: Vec<FilterHandle>,
+    /// The planet's radius (of the first store), metres.
+    pub radius: f64,
+    /// Warnings (e.g. a store without heights: a smooth sphere).
+    pub warnings: Vec<String>,
+}
+
+/// Most sources a graph may declare.
+pub const MAX_SOURCES: usize = 64;
+
+fn open(path: &Path) -> Result<StoreReader, String> {
+    StoreReader::open(path).map_err(|e| format!("cannot read store {}: {e}", path.display()))
+}
+
+impl Graph {
+    /// The default graph of `store`: its heights (a smooth sphere if it has none) and its
+    /// colours through a neutral filter.
+    pub fn for_store(store: &Path) -> Result<Self, String> {
+        let reader = open(store)?;
+        let meta = reader.meta();
+        let radius = meta.radius_m;
+        let has = |k| !meta.levels(k).is_empty();
+        let mut g = Graph {
+            sources: Vec::new(),
+            names: Vec::new(),
+            clipmaps: StreamSources {
+                height: 0,
+                color: None,
+            },
+            filters: Vec::new(),
+            radius,
+            warnings: Vec::new(),
+        };
+        if has(LayerKind::Height) {
+            g.sources
+                .push(Box::new(StoreHeightTiles::new(reader.clone())));
+        } else {
+            g.warnings.push(format!(
+                "{} has no height layer; rendering a smooth sphere",
+                store.display()
+            ));
+            g.sources
+                .push(Box::new(FnHeightTiles(|_: f64, _: f64| 0.0f32)));
+        }
+        g.names.push("height".into());
+        if has(LayerKind::Color) {
+            g.sources.push(Box::new(StoreColorTiles(reader)));
+            g.names.push("color".into());
+            let params = Arc::new(RwLock::new(FilterParams::default()));
+            g.sources.push(Box::new(ColorFilter {
+                input: 1,
+                params: params.clone(),
+            }));
+            g.names.push("color filter".into());
+            g.filters.push(FilterHandle {
+                name: "color filter".into(),
+                source: 2,
+                params,
+            });
+            g.clipmaps.color = Some(2);
+        }
+        Ok(g)
+    }
+
+    /// The graph declared in the TOML file `path` (store paths relative to it).
+    pub fn load(path: &Path) -> Result<Self, String> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+        let file: File = toml::from_str(&text)
+            .map_err(|e| format!("{}: {}", path.display(), e.message().trim()))?;
+        let here = path.parent().unwrap_or(Path::new("."));
+        Self::build(file, here).map_err(|e| format!("{}: {e}", path.display()))
+    }
+
+    fn build(file: File, here: &Path) -> Result<Self, String> {
+        if file.sources.is_empty() || file.sources.len() > MAX_SOURCES {
+            return Err(format!("declare 1..{MAX_SOURCES} [[source]] tables"));
+        }
+        let mut g = Graph {
+            sources: Vec::new(),
+            names: Vec::new(),
+            clipmaps: StreamSources {
+                height: 0,
+                color: None,
+            },
+            filters: Vec::new(),
+            radius: 0.0,
+            warnings: Vec::new(),
+        };
+        // what each source makes
+        let mut kinds: Vec<LayerKind> = Vec::new();
+        let find = |g: &Graph, name: &str, who: &str| -> Result<u32, String> {
+            g.names
+                .iter()
+                .position(|n| n == name)
+                .map(|i| i as u32)
+                .ok_or_else(|| {
+                    format!("source `{who}` takes `{name}`, which is not declared before it")
+                })
+        };
+        for d in file.sources {
+            let name = match &d {
+                Decl::Store { name, .. }
+                | Decl::Overlay { name, .. }
+                | Decl::Filter { name, .. } => name.clone(),
+            };
+            if g.names.contains(&name) {
+                return Err(format!("source `{name}` is declared twice"));
+            }
+            match d {
+                Decl::Store { path, layer, .. } => {
+                    let full = here.join(&path);
+                    let reader = open(&full)?;
+                    let kind = LayerKind::from_name(&layer).ok_or_else(|| {
+                        format!("source `{name}`: unknown layer `{layer}` (height or color)")
+                    })?;
+                    if reader.meta().levels(kind).is_empty() {
+                        return Err(format!(
+                            "source `{name}`: {} has no {layer} layer",
+                            full.display()
+                        ));
+                    }
+                    if g.radius == 0.0 {
+                        g.radius = reader.meta().radius_m;
+                    }
+                    match kind {
+                        LayerKind::Height => g.sources.push(Box::new(StoreHeightTiles {
+                            reader,
+                            keep_nodata: true,
+                        })),
+                        LayerKind::Color => g.sources.push(Box::new(StoreColorTiles(reader))),
+                    }
+                    kinds.push(kind);
+                }
+                Decl::Overlay { inputs, .. } => {
+                    if inputs.is_empty() {
+                        return Err(format!("overlay `{name}` has no inputs"));
+                    }
+                    let idx: Vec<u32> = inputs
+                        .iter()
+                        .map(|i| find(&g, i, &name))
+                        .collect::<Result<_, _>>()?;
+                    let kind = kinds[idx[0] as usize];
+                    if idx.iter().any(|&i| kinds[i as usize] != kind) {
+                        return Err(format!("overlay `{name}` mixes heights and colours"));
+                    }
+                    g.sources.push(Box::new(Overlay { inputs: idx }));
+                    kinds.push(kind);
+                }
+                Decl::Filter {
+                    input,
+                    brightness,
+                    contrast,
+                    gamma,
+                    saturation,
+                    ..
+                } => {
+                    let i = find(&g, &input, &name)?;
+                    if kinds[i as usize] != LayerKind::Color {
+                        return Err(format!(
+                            "filter `{name}` needs a colour input, `{input}` makes heights"
+                        ));
+                    }
+                    let d = FilterParams::default();
+                    let p = FilterParams {
+                        brightness: brightness.unwrap_or(d.brightness),
+                        contrast: contrast.unwrap_or(d.contrast),
+                        gamma: gamma.unwrap_or(d.gamma),
+                        saturation: saturation.unwrap_or(d.saturation),
+                    };
+                    p.check().map_err(|e| format!("filter `{name}`: {e}"))?;
+                    let params = Arc::new(RwLock::new(p));
+                    g.filters.push(FilterHandle {
+                        name: name.clone(),
+                        source: g.sources.len() as u32,
+                        params: params.clone(),
+                    });
+                    g.sources.push(Box::new(ColorFilter { input: i, params }));
+                    kinds.push(LayerKind::Color);
+                }
+            }
+            g.names.push(name);
+        }
+        let h = find(&g, &file.clipmaps.height, "[clipmaps] height")?;
+        if kinds[h as usize] != LayerKind::Height {
+            return Err(format!(
+                "[clipmaps] height = `{}` makes colours",
+                file.clipmaps.height
+            ));
+        }
+        g.clipmaps.height = h;
+        if let Some(c) = &file.clipmaps.color {
+            let c = find(&g, c, "[clipmaps] color")?;
+            if kinds[c as usize] != LayerKind::Color {
+                return Err("[clipmaps] color names a height source".into());
+            }
+            g.clipmaps.color = Some(c);
+        }
+        if g.radius == 0.0 {
+            return Err("no store declared".into());
+        }
+        Ok(g)
+    }
+}
+
+/// The graph file next to `store` (`planet.zarr` → `planet.sources.toml`), if there is one.
+pub fn beside(store: &Path) -> Option<PathBuf> {
+    let stem = store.file_stem()?.to_string_lossy().into_owned();
+    let p = store.with_file_name(format!("{stem}.sources.toml"));
+    p.is_file().then_some(p)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_neutral_filter_changes_nothing_and_saturation_zero_is_grey() {
+        let n = FilterParams::default();
+        for p in [[0, 0, 0, 255], [12, 200, 77, 128], [255, 255, 255, 0]] {
+            assert_eq!(n.apply(p), p);
+        }
+        let grey = FilterParams {
+            saturation: 0.0,
+            ..n
+        }
+        .apply([200, 40, 90, 255]);
+        assert!(grey[0] == grey[1] && grey[1] == grey[2]);
+        let brighter = FilterParams {
+            brightness: 0.2,
+            ..n
+        }
+        .apply([100, 100, 100, 7]);
+        assert_eq!(brighter, [151, 151, 151, 7]);
+    }
+
+    #[test]
+    fn overlays_show_the_top_where_it_has_data() {
+        let top = Arc::new(TileData::Height(vec![f32::NAN, 5.0, f32::NAN, 7.0]));
+        let base = Arc::new(TileData::Height(vec![1.0, 2.0, 3.0, 4.0]));
+        let o = Overlay { inputs: vec![0, 1] };
+        let k = TileKey {
+            source: 2,
+            grid: crate::stream::GridId { level: 0, k: 0 },
+            x: 0,
+            y: 0,
+        };
+        assert_eq!(
+            o.make(&k, 2, &[base, top]).expect("overlay"),
+            TileData::Height(vec![1.0, 5.0, 3.0, 7.0])
+        );
+    }
+}
