@@ -471,8 +471,10 @@ mod tests {
     #[test]
     fn a_neutral_filter_changes_nothing_and_saturation_zero_is_grey() {
         let n = FilterParams::default();
-        for p in [[0, 0, 0, 255], [12, 200, 77, 128], [255, 255, 255, 0]] {
-            assert_eq!(n.apply(p), p);
+        for v in 0..=255u8 {
+            for p in [[v, 0, 255, 255], [v, v, v, 7], [255 - v, v, v / 2, 0]] {
+                assert_eq!(n.apply(p), p);
+            }
         }
         let grey = FilterParams {
             saturation: 0.0,

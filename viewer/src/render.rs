@@ -916,6 +916,8 @@ pub struct Renderer {
     pub adapter: String,
     /// The clear colour (magenta in crack tests).
     pub clear: [f64; 4],
+    /// The height of the ground under the camera in the last streamed frame, metres.
+    pub ground: f64,
 }
 
 const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
@@ -962,6 +964,7 @@ impl Renderer {
             size: (width, height),
             adapter,
             clear: SPACE,
+            ground: 0.0,
         })
     }
 
@@ -1006,7 +1009,7 @@ impl Renderer {
         deadline: Option<Instant>,
     ) -> Result<(image::RgbaImage, FrameStats, f64), RenderError> {
         let start = Instant::now();
-        let (_, stats) = self.pass.prepare_streamed(
+        let (ground, stats) = self.pass.prepare_streamed(
             streamer,
             sources,
             camera,
@@ -1014,6 +1017,7 @@ impl Renderer {
             deadline,
             Duration::from_secs(10),
         );
+        self.ground = ground;
         self.draw_and_read(stats, start)
     }
 

@@ -166,10 +166,14 @@ pub struct RenderArgs {
     /// Clear colour as R,G,B in 0..1 (e.g. 1,0,1 to see cracks).
     #[arg(long)]
     pub clear: Option<String>,
-    /// Render the view this many times and report first-frame and steady-state times (the
-    /// image is the last frame).
+    /// Render the complete view this many times and report steady-state frame and CPU times
+    /// (the image is the last frame).
     #[arg(long, default_value_t = 1)]
     pub frames: u32,
+    /// The image-source graph (TOML; see the README); default: STEM.sources.toml beside the
+    /// store if there is one, else the store's layers with a neutral colour filter.
+    #[arg(long)]
+    pub sources: Option<std::path::PathBuf>,
 }
 
 /// `sphereclip view`.

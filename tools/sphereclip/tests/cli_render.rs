@@ -218,3 +218,146 @@ fn the_window_shows_the_planet_and_the_panel() {
         "panel {p:?}, space {corner:?}"
     );
 }
+
+/// The number in "ground under the camera X m" of render's output.
+fn ground(out: &str) -> f64 {
+    out.split("ground under the camera ")
+        .nth(1)
+        .and_then(|s| s.split(' ').next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no ground in {out}"))
+}
+
+#[test]
+fn a_source_graph_overlays_a_regional_store_and_filters_colours() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    // the world: Blue Marble over ETOPO20 at level 1; the Alps: the Swiss 200 m DEM (LV95)
+    let world = color_store(dir.path());
+    let o = run(&[
+        "ingest",
+        s(&world),
+        s(&sample("etopo20.cdf")),
+        "--level",
+        "1",
+    ]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let alps = dir.path().join("alps.zarr");
+    let o = run(&["ingest", s(&alps), s(&sample("aletsch_dhm200_lv95.tif"))]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let o = run(&["build", s(&alps)]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let graph = dir.path().join("alps.sources.toml");
+    std::fs::write(
+        &graph,
+        r#"
+[[source]]
+name = "world"
+kind = "store"
+path = "c.zarr"
+layer = "height"
+
+[[source]]
+name = "alps"
+kind = "store"
+path = "alps.zarr"
+layer = "height"
+
+[[source]]
+name = "heights"
+kind = "overlay"
+inputs = ["world", "alps"]
+
+[[source]]
+name = "colour"
+kind = "store"
+path = "c.zarr"
+layer = "color"
+
+[[source]]
+name = "grey"
+kind = "filter"
+input = "colour"
+saturation = 0.0
+
+[clipmaps]
+height = "heights"
+color = "grey"
+"#,
+    )
+    .expect("write graph");
+    // standing in the Aletsch region at eye height
+    let camera = "46.45,7.95,1.7,0,-5,60";
+    let shot = |extra: &[&str], name: &str| {
+        let png = dir.path().join(name);
+        let mut args = vec![
+            "render",
+            s(&world),
+            "--camera",
+            camera,
+            "--size",
+            "64x48",
+            "--out",
+            s(&png),
+        ];
+        args.extend_from_slice(extra);
+        let o = run(&args);
+        assert!(o.status.success(), "{}", text(&o.stderr));
+        (
+            ground(&text(&o.stdout)),
+            image::open(&png).expect("png").to_rgba8(),
+        )
+    };
+    let (g_world, _) = shot(&[], "world.png");
+    let (g_alps, img) = shot(&["--sources", s(&graph)], "alps.png");
+    // the regional heights show through the overlay: the valley floor and peaks there lie
+    // between 500 and 4300 m, and differ from the 20′ world grid's smooth value
+    assert!((500.0..4300.0).contains(&g_alps), "ground {g_alps} m");
+    assert!(
+        (g_alps - g_world).abs() > 50.0,
+        "overlay {g_alps} vs world {g_world}"
+    );
+    // the filter greys every pixel of the terrain (the sky keeps its blue)
+    let sky = img.get_pixel(32, 0).0;
+    let mut terrain = 0;
+    for p in img.pixels().filter(|p| p.0 != sky) {
+        let [r, g, b, _] = p.0;
+        assert!(r.abs_diff(g) <= 1 && g.abs_diff(b) <= 1, "{p:?}");
+        terrain += 1;
+    }
+    assert!(terrain > 64 * 48 / 3, "{terrain} terrain pixels");
+    // bad graphs: one line naming the problem
+    for (toml, want) in [
+        (
+            "[[source]]\nname = \"a\"\nkind = \"overlay\"\ninputs = [\"b\"]\n[clipmaps]\nheight = \"a\"\n",
+            "not declared before",
+        ),
+        (
+            "[[source]]\nname = \"a\"\nkind = \"store\"\npath = \"c.zarr\"\nlayer = \"height\"\n[[source]]\nname = \"f\"\nkind = \"filter\"\ninput = \"a\"\n[clipmaps]\nheight = \"a\"\n",
+            "needs a colour input",
+        ),
+        (
+            "[[source]]\nname = \"a\"\nkind = \"store\"\npath = \"nowhere.zarr\"\nlayer = \"height\"\n[clipmaps]\nheight = \"a\"\n",
+            "cannot read store",
+        ),
+        (
+            "[[source]]\nname = \"a\"\nkind = \"pyramid\"\n[clipmaps]\nheight = \"a\"\n",
+            "unknown variant",
+        ),
+    ] {
+        std::fs::write(&graph, toml).expect("write");
+        let o = run(&[
+            "render",
+            s(&world),
+            "--camera",
+            camera,
+            "--out",
+            s(&dir.path().join("x.png")),
+            "--sources",
+            s(&graph),
+        ]);
+        assert_eq!(o.status.code(), Some(1), "{toml}");
+        let e = text(&o.stderr);
+        assert_eq!(e.trim().lines().count(), 1, "{e}");
+        assert!(e.contains(want) && e.contains("alps.sources.toml"), "{e}");
+    }
+}

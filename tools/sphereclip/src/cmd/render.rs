@@ -1,13 +1,12 @@
 //! `sphereclip render STORE --camera LAT,LON,ALT[,HEADING,PITCH,FOV] --size WxH --out shot.png`.
 
-use std::path::Path;
 use std::process::ExitCode;
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
-use sc_store::StoreReader;
-use sc_viewer::clipmap::{ColorSource, Flat, HeightSource, StoreColors, StoreHeights};
 use sc_viewer::render::{Camera, Renderer};
+
+use super::view::store_streamer;
 
 use crate::cli::RenderArgs;
 
@@ -26,41 +25,6 @@ pub fn parse_size(s: &str) -> Result<(u32, u32)> {
         bail!("image size {w}x{h} is outside 16..8192 a side");
     }
     Ok((w, h))
-}
-
-/// A store's planet: heights (a smooth sphere, with a warning, if it has none), colours if it
-/// has them, and its radius.
-pub struct Planet {
-    /// Heights.
-    pub heights: Box<dyn HeightSource>,
-    /// Colours.
-    pub colors: Option<StoreColors>,
-    /// Sphere radius, metres.
-    pub radius: f64,
-}
-
-impl Planet {
-    /// Opens `store`.
-    pub fn open(store: &Path) -> Result<Self> {
-        let reader = StoreReader::open(store).context("cannot read store")?;
-        let radius = reader.meta().radius_m;
-        let colors = StoreColors::new(reader.clone());
-        let heights: Box<dyn HeightSource> = match StoreHeights::new(reader) {
-            Some(s) => Box::new(s),
-            None => {
-                eprintln!(
-                    "warning: {} has no height layer; rendering a smooth sphere",
-                    store.display()
-                );
-                Box::new(Flat)
-            }
-        };
-        Ok(Self {
-            heights,
-            colors,
-            radius,
-        })
-    }
 }
 
 /// Median of `v` (0 when empty).
@@ -106,8 +70,8 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
     if !(1..=10_000).contains(&a.frames) {
         bail!("--frames must be 1..10000, found {}", a.frames);
     }
-    let mut planet = Planet::open(&a.store)?;
-    let mut r = Renderer::headless(w, h, planet.radius)?;
+    let (streamer, sources, radius, _) = store_streamer(&a.store, a.sources.as_deref())?;
+    let mut r = Renderer::headless(w, h, radius)?;
     if let Some(c) = &a.clear {
         let v: Vec<f64> = c
             .split(',')
@@ -119,45 +83,54 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
         };
         r.clear = [r0, g0, b0, 1.0];
     }
-    // frame times: wall time of a whole frame (clipmap update, draw, read-back of the image);
-    // CPU time: the part before the GPU is waited for (clipmap update, uniforms, encoding)
-    let (mut frame_ms, mut cpu_ms) = (Vec::new(), Vec::new());
-    let mut last = None;
-    for _ in 0..a.frames {
-        let start = Instant::now();
-        let colors = planet.colors.as_mut().map(|c| c as &mut dyn ColorSource);
-        let (img, stats, cpu) = r.render_timed(planet.heights.as_mut(), colors, &camera)?;
-        frame_ms.push(start.elapsed().as_secs_f64() * 1e3);
-        cpu_ms.push(cpu * 1e3);
-        last = Some((img, stats));
-    }
-    let Some((img, stats)) = last else {
-        bail!("nothing rendered");
+    // the complete view: frames until every visible level is there (the tiles are made by the
+    // worker threads meanwhile); then --frames − 1 more of the still view for timing
+    let start = Instant::now();
+    let mut frames = 0;
+    let (mut img, mut stats) = loop {
+        let (img, stats, _) = r.render_streamed(&streamer, sources, &camera, None)?;
+        frames += 1;
+        if stats.level_hi == stats.level_wanted && streamer.idle() {
+            break (img, stats);
+        }
+        if frames >= 10_000 {
+            bail!("the view did not complete in 10000 frames");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
     };
+    let complete_ms = start.elapsed().as_secs_f64() * 1e3;
+    for e in streamer.errors() {
+        eprintln!("warning: {e}");
+    }
+    let (mut frame_ms, mut cpu_ms) = (Vec::new(), Vec::new());
+    for _ in 1..a.frames {
+        let t = Instant::now();
+        let (i, s, cpu) = r.render_streamed(&streamer, sources, &camera, None)?;
+        frame_ms.push(t.elapsed().as_secs_f64() * 1e3);
+        cpu_ms.push(cpu * 1e3);
+        (img, stats) = (i, s);
+    }
     let tmp = out.with_extension("png.tmp");
     img.save_with_format(&tmp, image::ImageFormat::Png)
         .with_context(|| format!("cannot write {}", tmp.display()))?;
     std::fs::rename(&tmp, out).with_context(|| format!("cannot write {}", out.display()))?;
     println!(
-        "rendered {} ({w}x{h}) on {}: levels {}..{}, {} triangles, {:.0} ms",
+        "rendered {} ({w}x{h}) on {}: levels {}..{}, {} triangles, complete after {complete_ms:.0} ms ({frames} frames); ground under the camera {:.1} m",
         out.display(),
         r.adapter,
         stats.level_lo,
         stats.level_hi,
         stats.triangles,
-        frame_ms[0]
+        r.ground,
     );
     if a.frames > 1 {
-        let (f, c) = (&frame_ms[1..], &cpu_ms[1..]);
         println!(
-            "frames 2..{}: frame median {:.1} ms (p95 {:.1}), CPU median {:.2} ms (p95 {:.2}); first frame {:.0} ms (CPU {:.0} ms)",
-            a.frames,
-            median(f),
-            percentile(f, 0.95),
-            median(c),
-            percentile(c, 0.95),
-            frame_ms[0],
-            cpu_ms[0]
+            "{} more frames of the complete view: frame median {:.1} ms (p95 {:.1}), CPU median {:.2} ms (p95 {:.2})",
+            a.frames - 1,
+            median(&frame_ms),
+            percentile(&frame_ms, 0.95),
+            median(&cpu_ms),
+            percentile(&cpu_ms, 0.95),
         );
     }
     Ok(ExitCode::SUCCESS)
