@@ -136,14 +136,33 @@ impl TileSource for ColorFilter {
 
     fn make(&self, _: &TileKey, _: u32, inputs: &[Tile]) -> Result<TileData, String> {
         let p = *self.params.read().map_err(|e| e.to_string())?;
-        match inputs.first().map(|t| &**t) {
-            Some(TileData::Color(c)) => Ok(TileData::Color(
-                c.chunks_exact(4)
-                    .flat_map(|px| p.apply([px[0], px[1], px[2], px[3]]))
-                    .collect(),
-            )),
-            _ => Err("a colour filter needs a colour input".into()),
+        let Some(TileData::Color(c)) = inputs.first().map(|t| &**t) else {
+            return Err("a colour filter needs a colour input".into());
+        };
+        if p == FilterParams::default() {
+            return Ok(TileData::Color(c.clone()));
         }
+        if p.saturation == 1.0 {
+            // per channel only: one table for all texels
+            let lut: Vec<u8> = (0..=255u8).map(|v| p.apply([v, v, v, 0])[0]).collect();
+            return Ok(TileData::Color(
+                c.chunks_exact(4)
+                    .flat_map(|px| {
+                        [
+                            lut[usize::from(px[0])],
+                            lut[usize::from(px[1])],
+                            lut[usize::from(px[2])],
+                            px[3],
+                        ]
+                    })
+                    .collect(),
+            ));
+        }
+        Ok(TileData::Color(
+            c.chunks_exact(4)
+                .flat_map(|px| p.apply([px[0], px[1], px[2], px[3]]))
+                .collect(),
+        ))
     }
 }
 

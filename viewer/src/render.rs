@@ -619,7 +619,7 @@ impl ClipmapPass {
             streamer.request(tasks.clone());
             self.last_tasks = tasks;
         }
-        streamer.cache().prune(&focus);
+        streamer.prune(&focus, &self.last_tasks);
         // 2. levels coarse to fine, as far as their tiles are ready
         let mut drawn = None;
         let mut filled = 0;

@@ -359,8 +359,14 @@ impl TileCache {
     }
 
     /// Prunes to the budget: tiles farthest from their grid's focus go first (tiles of grids
-    /// out of focus before all others); the quad and the ring adjacent to it are always kept.
+    /// out of focus before all others); the quad and the ring adjacent to it are always kept,
+    /// and so are the tiles in `keep` (those asked for, prefetches included).
     pub fn prune(&self, focus: &Focus) {
+        self.prune_keeping(focus, &HashSet::new());
+    }
+
+    /// [`Self::prune`], never dropping the tiles in `keep`.
+    pub fn prune_keeping(&self, focus: &Focus, keep: &HashSet<TileKey>) {
         let mut c = self.lock();
         if c.bytes <= self.budget {
             return;
@@ -390,7 +396,7 @@ impl TileCache {
                         dx.max(dy)
                     }
                 };
-                (d > 1).then_some((d, *k))
+                (d > 1 && !keep.contains(k)).then_some((d, *k))
             })
             .collect();
         far.sort_unstable_by(|a, b| b.cmp(a));
@@ -541,6 +547,16 @@ impl Streamer {
         }
     }
 
+    /// Prunes the cache (see [`TileCache::prune`]) keeping every tile of `tasks` and their
+    /// inputs.
+    pub fn prune(&self, focus: &Focus, tasks: &[Task]) {
+        let keep: HashSet<TileKey> = expand(&self.shared.sources, tasks.to_vec())
+            .into_iter()
+            .map(|t| t.key)
+            .collect();
+        self.shared.cache.prune_keeping(focus, &keep);
+    }
+
     /// Failures so far (one line per tile, the first [`MAX_ERRORS`]).
     pub fn errors(&self) -> Vec<String> {
         self.shared
@@ -665,6 +681,35 @@ fn manager(shared: &Shared, tx: &SyncSender<Task>) {
     }
 }
 
+/// Makes a tile from its inputs in the cache; an input that is not there (pruned since the
+/// manager saw it) is made here first, so a task always completes.
+fn make(shared: &Shared, key: TileKey, depth: usize) -> Result<TileData, String> {
+    let src = shared
+        .sources
+        .get(key.source as usize)
+        .ok_or_else(|| format!("no source {}", key.source))?;
+    if depth > 16 {
+        return Err("source inputs nested too deeply".into());
+    }
+    let mut inputs = Vec::new();
+    for i in src.inputs() {
+        let k = key.with_source(i);
+        let t = match shared.cache.get(&k) {
+            Some(t) => t,
+            None => {
+                let t = make(shared, k, depth + 1)?;
+                shared.cache.insert(k, t);
+                shared
+                    .cache
+                    .get(&k)
+                    .ok_or_else(|| "an input vanished".to_string())?
+            }
+        };
+        inputs.push(t);
+    }
+    src.make(&key, shared.n, &inputs)
+}
+
 fn worker(shared: &Shared, rx: &Mutex<Receiver<Task>>) {
     loop {
         let task = {
@@ -675,18 +720,9 @@ fn worker(shared: &Shared, rx: &Mutex<Receiver<Task>>) {
             }
         };
         let key = task.key;
-        let result = shared.sources.get(key.source as usize).map(|src| {
-            let inputs: Option<Vec<Tile>> = src
-                .inputs()
-                .iter()
-                .map(|&i| shared.cache.get(&key.with_source(i)))
-                .collect();
-            // inputs pruned meanwhile: not made now (asked again while needed)
-            inputs.map(|inputs| src.make(&key, shared.n, &inputs))
-        });
-        match result {
-            Some(Some(Ok(tile))) => shared.cache.insert(key, tile),
-            Some(Some(Err(e))) => {
+        match make(shared, key, 0) {
+            Ok(tile) => shared.cache.insert(key, tile),
+            Err(e) => {
                 if shared.cache.fail(key) {
                     let mut log = shared.errors.lock().unwrap_or_else(|e| e.into_inner());
                     if log.len() < MAX_ERRORS {
@@ -695,10 +731,6 @@ fn worker(shared: &Shared, rx: &Mutex<Receiver<Task>>) {
                         ));
                     }
                 }
-            }
-            Some(None) => {}
-            None => {
-                shared.cache.fail(key);
             }
         }
         let mut s = shared.state();
@@ -952,5 +984,11 @@ mod tests {
         assert_eq!(kept, want);
         assert!(!cache.contains(&other), "a grid out of focus goes first");
         assert_eq!(cache.bytes(), want.len() * 64);
+        // a tile asked for (a prefetch ahead of the motion) survives however far it lies
+        cache.insert(tile(3, 5), TileData::Height(vec![0.0; 16]));
+        cache.prune_keeping(&focus, &[tile(3, 5)].into_iter().collect());
+        assert!(cache.contains(&tile(3, 5)));
+        cache.prune(&focus);
+        assert!(!cache.contains(&tile(3, 5)));
     }
 }

@@ -13,10 +13,18 @@ use super::render::{median, parse_size, percentile};
 use crate::cli::ViewArgs;
 
 /// Memory the viewer's tile cache is pruned to.
-pub const TILE_CACHE_BUDGET: usize = 256 << 20;
+pub const TILE_CACHE_BUDGET: usize = 192 << 20;
 
-/// Worker threads: one per core but one (the render thread's).
+/// Worker threads: one per core but one (the render thread's); `SPHERECLIP_WORKERS=N` (1..64)
+/// overrides it.
 pub fn default_workers() -> usize {
+    if let Some(n) = std::env::var("SPHERECLIP_WORKERS")
+        .ok()
+        .and_then(|v| v.parse::<usize>().ok())
+        .filter(|n| (1..=64).contains(n))
+    {
+        return n;
+    }
     std::thread::available_parallelism()
         .map(|n| n.get().saturating_sub(1))
         .unwrap_or(1)
