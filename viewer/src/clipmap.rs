@@ -296,14 +296,19 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
     /// wider than the texel serves it — filtered on the sphere with ℓ's circular kernel, it holds
     /// all of ℓ's detail there, with columns far enough apart that the clipmap's longitude
     /// sampling does not alias (and fewer tiles to read).
-    fn locate(&self, lon: f64, colat: f64, win: LevelWindow) -> Footprint {
+    ///
+    /// Only the levels up to index `cap` of `self.levels` are considered (a finer level without
+    /// data there falls back to the next coarser one: see [`Self::locate_present`]). Returns the
+    /// footprint and the index of its level.
+    fn locate_in(&self, lon: f64, colat: f64, win: LevelWindow, cap: usize) -> (Footprint, usize) {
         let t = f64::from(self.grid.tile_size());
         let ideal = (PI / (t * win.texel_colat)).log2().ceil().max(0.0) as u32;
-        let (level, anisos) = self
-            .levels
+        let cap = cap.min(self.levels.len() - 1);
+        let idx = self.levels[..=cap]
             .iter()
-            .find(|(l, _)| *l >= ideal)
-            .unwrap_or(&self.levels[self.levels.len() - 1]);
+            .position(|(l, _)| *l >= ideal)
+            .unwrap_or(cap);
+        let (level, anisos) = &self.levels[idx];
         let mut c = colat.rem_euclid(2.0 * PI);
         let mut lo = lon;
         if c > PI {
@@ -341,13 +346,46 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
         }
         let (id, x, y) = best;
         let (x0, y0) = (x.floor(), y.floor());
-        Footprint {
-            id,
-            x0: x0 as i64,
-            y0: y0 as i64,
-            fx: x - x0,
-            fy: y - y0,
+        (
+            Footprint {
+                id,
+                x0: x0 as i64,
+                y0: y0 as i64,
+                fx: x - x0,
+                fy: y - y0,
+            },
+            idx,
+        )
+    }
+
+    /// [`Self::locate_in`] over all levels, falling back level by level to coarser ones until the
+    /// four tiles of the bilinear footprint hold data (a regional fine level, e.g. SRTM at level
+    /// 10 over a global level 3, serves only where it has tiles).
+    fn locate_present(&mut self, lon: f64, colat: f64, win: LevelWindow) -> Footprint {
+        let mut cap = self.levels.len() - 1;
+        loop {
+            let (f, idx) = self.locate_in(lon, colat, win, cap);
+            if idx == 0 || self.present(&f) {
+                return f;
+            }
+            cap = idx - 1;
         }
+    }
+
+    /// Whether the four tiles of a footprint hold data.
+    fn present(&mut self, f: &Footprint) -> bool {
+        [(0, 0), (1, 0), (0, 1), (1, 1)].iter().all(|&(dx, dy)| {
+            match self.tile_of(f.id, f.x0 + dx, f.y0 + dy) {
+                Some((tile, _)) => {
+                    if !self.tiles.contains_key(&tile) {
+                        self.bound_cache();
+                    }
+                    self.load(tile);
+                    self.tiles.get(&tile).is_some_and(|d| d.is_some())
+                }
+                None => false,
+            }
+        })
     }
 
     /// Loads `tile` into the cache (once; a damaged tile is recorded and reads as missing).
@@ -404,26 +442,42 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
             .map(|d| &d[k..k + ch])
     }
 
-    /// Samples one row of points (longitudes `lons`, all at `colat`) as [`Self::locate`] and
-    /// [`Self::texel`] would point by point, with the same arithmetic, but choosing the level
-    /// once and looking tiles up once per store tile: `emit(corners, fx, fy)` per point, corners
-    /// in the order (x0, y0), (x0+1, y0), (x0, y0+1), (x0+1, y0+1).
+    /// Samples one row of points (longitudes `lons`, all at `colat`) as [`Self::locate_present`]
+    /// and [`Self::texel`] would point by point, with the same arithmetic and the same choice of
+    /// level, but choosing the level once per row and looking tiles up once per store tile:
+    /// `emit(k, corners, fx, fy)` for point `k`, corners in the order (x0, y0), (x0+1, y0),
+    /// (x0, y0+1), (x0+1, y0+1). Points whose footprint lacks data in the row's level are
+    /// sampled again from the next coarser level.
     fn sample_row(
         &mut self,
         lons: &[f64],
         colat: f64,
         win: LevelWindow,
-        mut emit: impl FnMut([Option<&[T]>; 4], f64, f64),
+        emit: &mut dyn FnMut(usize, [Option<&[T]>; 4], f64, f64),
     ) {
-        let Some(&first) = lons.first() else {
+        let all: Vec<usize> = (0..lons.len()).collect();
+        self.sample_points(lons, &all, colat, win, self.levels.len() - 1, emit);
+    }
+
+    fn sample_points(
+        &mut self,
+        lons: &[f64],
+        which: &[usize],
+        colat: f64,
+        win: LevelWindow,
+        cap: usize,
+        emit: &mut dyn FnMut(usize, [Option<&[T]>; 4], f64, f64),
+    ) {
+        let Some(&first) = which.first() else {
             return;
         };
-        let f = self.locate(first, colat, win);
+        let (f, idx) = self.locate_in(lons[first], colat, win, cap);
         let w = self.grid.width(f.id);
         let flip = colat.rem_euclid(2.0 * PI) > PI;
-        let xs: Vec<(i64, f64)> = lons
+        let xs: Vec<(i64, f64)> = which
             .iter()
-            .map(|&lon| {
+            .map(|&k| {
+                let lon = lons[k];
                 let lo = if flip { lon + PI } else { lon };
                 let x = (lo + PI).rem_euclid(2.0 * PI) / (2.0 * PI) * w as f64 - 0.5;
                 let x0 = x.floor();
@@ -457,33 +511,41 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
             }
         }
         let ch = T::KIND.channels();
-        let tiles = &self.tiles;
-        // per row of the footprint, the touched tiles by column (a handful: found by a scan)
-        let row_tiles: Vec<Vec<RowTile<'_, T>>> = (0..2)
-            .map(|r| {
-                cols.iter()
-                    .zip(&ids[r * cols.len()..(r + 1) * cols.len()])
-                    .map(|(&tx, id)| {
-                        (
-                            tx,
-                            id.and_then(|id| tiles.get(&id)).and_then(|d| d.as_deref()),
-                        )
-                    })
-                    .collect()
-            })
-            .collect();
-        let get = |x: i64, r: usize| -> Option<&[T]> {
-            let i = x.rem_euclid(wi) as u64;
-            let (_, data) = row_tiles[r].iter().find(|(tx, _)| *tx == i / t)?;
-            let k = ((rows[r] % t) * t + i % t) as usize * ch;
-            data.map(|d| &d[k..k + ch])
-        };
-        for &(x0, fx) in &xs {
-            emit(
-                [get(x0, 0), get(x0 + 1, 0), get(x0, 1), get(x0 + 1, 1)],
-                fx,
-                f.fy,
-            );
+        let mut missing = Vec::new();
+        {
+            let tiles = &self.tiles;
+            // per row of the footprint, the touched tiles by column (a handful: found by a scan)
+            let row_tiles: Vec<Vec<RowTile<'_, T>>> = (0..2)
+                .map(|r| {
+                    cols.iter()
+                        .zip(&ids[r * cols.len()..(r + 1) * cols.len()])
+                        .map(|(&tx, id)| {
+                            (
+                                tx,
+                                id.and_then(|id| tiles.get(&id)).and_then(|d| d.as_deref()),
+                            )
+                        })
+                        .collect()
+                })
+                .collect();
+            // a corner: Err when its tile holds no data
+            let get = |x: i64, r: usize| -> Result<&[T], ()> {
+                let i = x.rem_euclid(wi) as u64;
+                let (_, data) = row_tiles[r].iter().find(|(tx, _)| *tx == i / t).ok_or(())?;
+                let k = ((rows[r] % t) * t + i % t) as usize * ch;
+                data.map(|d| &d[k..k + ch]).ok_or(())
+            };
+            for (&k, &(x0, fx)) in which.iter().zip(&xs) {
+                let c = [get(x0, 0), get(x0 + 1, 0), get(x0, 1), get(x0 + 1, 1)];
+                if idx > 0 && c.iter().any(|c| c.is_err()) {
+                    missing.push(k);
+                } else {
+                    emit(k, c.map(|c| c.ok()), fx, f.fy);
+                }
+            }
+        }
+        if !missing.is_empty() {
+            self.sample_points(lons, &missing, colat, win, idx - 1, emit);
         }
     }
 }
@@ -544,24 +606,29 @@ impl StoreHeights {
     /// Heights at `lons` along the circle of colatitude `colat`, appended to `out`: the same
     /// values as [`HeightSource::height`] point by point, faster (tiles looked up per row).
     pub fn fill_row(&mut self, lons: &[f64], colat: f64, texel: LevelWindow, out: &mut Vec<f32>) {
+        let keep = self.1;
         let v = |s: Option<&[f32]>| match s {
             Some([v]) if !v.is_nan() => *v,
+            _ if keep => f32::NAN,
             _ => 0.0,
         };
+        let start = out.len();
+        out.resize(start + lons.len(), 0.0);
+        let row = &mut out[start..];
         self.0
-            .sample_row(lons, colat, texel, |[a, b, c, d], fx, fy| {
+            .sample_row(lons, colat, texel, &mut |k, [a, b, c, d], fx, fy| {
                 let (fx, fy) = (fx as f32, fy as f32);
                 let (a, b, c, d) = (v(a), v(b), v(c), v(d));
                 let top = a + (b - a) * fx;
                 let bottom = c + (d - c) * fx;
-                out.push(top + (bottom - top) * fy);
+                row[k] = top + (bottom - top) * fy;
             });
     }
 }
 
 impl HeightSource for StoreHeights {
     fn height(&mut self, lon: f64, colat: f64, texel: LevelWindow) -> f32 {
-        let f = self.0.locate(lon, colat, texel);
+        let f = self.0.locate_present(lon, colat, texel);
         let (fx, fy) = (f.fx as f32, f.fy as f32);
         let a = self.texel(&f, 0, 0);
         let b = self.texel(&f, 1, 0);
@@ -723,28 +790,33 @@ impl StoreColors {
     /// Colours at `lons` along the circle of colatitude `colat`, appended to `out` (RGBA): the
     /// same values as [`ColorSource::color`] point by point, faster.
     pub fn fill_row(&mut self, lons: &[f64], colat: f64, texel: LevelWindow, out: &mut Vec<u8>) {
-        self.0.sample_row(lons, colat, texel, |corners, fx, fy| {
-            let mut acc = [0.0f64; 4];
-            for (p, wgt) in corners.into_iter().zip([
-                (1.0 - fx) * (1.0 - fy),
-                fx * (1.0 - fy),
-                (1.0 - fx) * fy,
-                fx * fy,
-            ]) {
-                if let Some(p) = p {
-                    for (a, &v) in acc.iter_mut().zip(p) {
-                        *a += wgt * f64::from(v);
+        let start = out.len();
+        out.resize(start + lons.len() * 4, 0);
+        let row = &mut out[start..];
+        self.0
+            .sample_row(lons, colat, texel, &mut |k, corners, fx, fy| {
+                let mut acc = [0.0f64; 4];
+                for (p, wgt) in corners.into_iter().zip([
+                    (1.0 - fx) * (1.0 - fy),
+                    fx * (1.0 - fy),
+                    (1.0 - fx) * fy,
+                    fx * fy,
+                ]) {
+                    if let Some(p) = p {
+                        for (a, &v) in acc.iter_mut().zip(p) {
+                            *a += wgt * f64::from(v);
+                        }
                     }
                 }
-            }
-            out.extend(acc.map(|v| v.round().clamp(0.0, 255.0) as u8));
-        });
+                row[k * 4..k * 4 + 4]
+                    .copy_from_slice(&acc.map(|v| v.round().clamp(0.0, 255.0) as u8));
+            });
     }
 }
 
 impl ColorSource for StoreColors {
     fn color(&mut self, lon: f64, colat: f64, texel: LevelWindow) -> [u8; 4] {
-        let f = self.0.locate(lon, colat, texel);
+        let f = self.0.locate_present(lon, colat, texel);
         let mut acc = [0.0f64; 4];
         for (dx, dy, wgt) in [
             (0, 0, (1.0 - f.fx) * (1.0 - f.fy)),

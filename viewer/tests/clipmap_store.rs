@@ -208,3 +208,67 @@ fn polar_texels_come_from_the_anisotropic_levels_and_never_from_a_missing_row() 
     }
     assert!(heights.errors().is_empty(), "{:?}", heights.errors());
 }
+
+#[test]
+fn where_a_fine_level_has_no_tiles_the_next_coarser_one_serves() {
+    // levels 0–2 everywhere, level 3 only in one tile (a regional high-resolution patch)
+    let dir = tempfile::tempdir().expect("tempdir");
+    let root = dir.path().join("r.zarr");
+    let grid = GridSpec::new(T).expect("grid");
+    let w = StoreWriter::create(
+        &root,
+        StoreConfig {
+            grid,
+            shard_tiles: 4,
+            ..StoreConfig::default()
+        },
+    )
+    .expect("create");
+    for l in 0..4 {
+        let id = LevelId::iso(l).expect("level");
+        let (sx, sy) = ShardId::counts(grid, id, 4);
+        for y in 0..sy {
+            for x in 0..sx {
+                let mut sw = w
+                    .shard_writer::<f32>(ShardId { level: id, x, y })
+                    .expect("shard");
+                let tiles: Vec<_> = sw
+                    .tiles()
+                    .filter(|t| l < 3 || (t.x, t.y) == (1, 1))
+                    .collect();
+                for t in tiles {
+                    sw.put_tile(t, &vec![marker(id); (T * T) as usize])
+                        .expect("put");
+                }
+                sw.finish().expect("finish");
+            }
+        }
+    }
+    w.commit(None).expect("commit");
+    let mut heights =
+        StoreHeights::new(StoreReader::open(&root).expect("open")).expect("height levels");
+    // a fine clipmap level far from the patch: level 2's marker, never 0 (sea level)
+    let viewer = Viewer::from_deg(-40.0, 120.0);
+    let p = Placement::new(8, &viewer, CLIPMAP_N);
+    let data = fill_level(&mut heights, &p, CLIPMAP_N);
+    assert!(
+        data.iter()
+            .all(|&v| v == marker(LevelId::iso(2).expect("level"))),
+        "{:?}",
+        &data[..4]
+    );
+    // the streamed tiles (row sampler) agree
+    use sc_viewer::stream::{GridId, StoreHeightTiles, TileData, TileKey, TileSource};
+    let grid_id = GridId::of(8, &p, CLIPMAP_N);
+    let key = TileKey::at(0, grid_id, p.u0, p.v0, CLIPMAP_N);
+    let TileData::Height(t) = StoreHeightTiles::new(StoreReader::open(&root).expect("open"))
+        .make(&key, CLIPMAP_N, &[])
+        .expect("tile")
+    else {
+        panic!("heights")
+    };
+    assert!(
+        t.iter()
+            .all(|&v| v == marker(LevelId::iso(2).expect("level")))
+    );
+}

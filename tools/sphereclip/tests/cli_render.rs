@@ -316,6 +316,29 @@ color = "grey"
         (g_alps - g_world).abs() > 50.0,
         "overlay {g_alps} vs world {g_world}"
     );
+    // outside the Swiss DEM the overlay shows the world below (its nodata is transparent)
+    let outside = |extra: &[&str]| {
+        let png = dir.path().join("outside.png");
+        let mut args = vec![
+            "render",
+            s(&world),
+            "--camera",
+            "45.9,6.9,1.7,0,-5,60",
+            "--size",
+            "32x24",
+            "--out",
+            s(&png),
+        ];
+        args.extend_from_slice(extra);
+        let o = run(&args);
+        assert!(o.status.success(), "{}", text(&o.stderr));
+        ground(&text(&o.stdout))
+    };
+    let (a, b) = (outside(&[]), outside(&["--sources", s(&graph)]));
+    assert!(
+        a > 100.0 && (a - b).abs() < 1e-3,
+        "world {a} m, overlay {b} m"
+    );
     // the filter greys every pixel of the terrain (the sky keeps its blue)
     let sky = img.get_pixel(32, 0).0;
     let mut terrain = 0;
