@@ -453,7 +453,7 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
         lons: &[f64],
         colat: f64,
         win: LevelWindow,
-        emit: &mut dyn FnMut(usize, [Option<&[T]>; 4], f64, f64),
+        emit: &mut dyn FnMut(usize, Corners<'_, T>, f64, f64),
     ) {
         let all: Vec<usize> = (0..lons.len()).collect();
         self.sample_points(lons, &all, colat, win, self.levels.len() - 1, emit);
@@ -466,7 +466,7 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
         colat: f64,
         win: LevelWindow,
         cap: usize,
-        emit: &mut dyn FnMut(usize, [Option<&[T]>; 4], f64, f64),
+        emit: &mut dyn FnMut(usize, Corners<'_, T>, f64, f64),
     ) {
         let Some(&first) = which.first() else {
             return;
@@ -549,6 +549,9 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
         }
     }
 }
+
+/// The four corner samples of a bilinear footprint (None: no data).
+type Corners<'a, T> = [Option<&'a [T]>; 4];
 
 /// A store tile touched by a row: its column and data (None: missing).
 type RowTile<'a, T> = (u64, Option<&'a [T]>);
