@@ -448,13 +448,7 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
     /// `emit(k, corners, fx, fy)` for point `k`, corners in the order (x0, y0), (x0+1, y0),
     /// (x0, y0+1), (x0+1, y0+1). Points whose footprint lacks data in the row's level are
     /// sampled again from the next coarser level.
-    fn sample_row(
-        &mut self,
-        lons: &[f64],
-        colat: f64,
-        win: LevelWindow,
-        emit: &mut dyn FnMut(usize, Corners<'_, T>, f64, f64),
-    ) {
+    fn sample_row(&mut self, lons: &[f64], colat: f64, win: LevelWindow, emit: &mut EmitFn<'_, T>) {
         let all: Vec<usize> = (0..lons.len()).collect();
         self.sample_points(lons, &all, colat, win, self.levels.len() - 1, emit);
     }
@@ -466,7 +460,7 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
         colat: f64,
         win: LevelWindow,
         cap: usize,
-        emit: &mut dyn FnMut(usize, Corners<'_, T>, f64, f64),
+        emit: &mut EmitFn<'_, T>,
     ) {
         let Some(&first) = which.first() else {
             return;
@@ -552,6 +546,9 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
 
 /// The four corner samples of a bilinear footprint (None: no data).
 type Corners<'a, T> = [Option<&'a [T]>; 4];
+
+/// What receives the samples of a row: point index, corners, fx, fy.
+type EmitFn<'e, T> = dyn for<'a> FnMut(usize, Corners<'a, T>, f64, f64) + 'e;
 
 /// A store tile touched by a row: its column and data (None: missing).
 type RowTile<'a, T> = (u64, Option<&'a [T]>);
