@@ -244,8 +244,9 @@ struct StoreLevels<T: TileSample + ZeroedSample> {
     /// Stored levels, coarse to fine, each with its stored anisotropies (0 first).
     levels: Vec<(u32, Vec<u32>)>,
     tiles: HashMap<TileId, Option<Vec<T>>>,
-    /// Bytes held in `tiles` (bounded by [`TILE_CACHE_BYTES`]).
+    /// Bytes held in `tiles` (bounded by `budget`, [`TILE_CACHE_BYTES`] by default).
     tile_bytes: usize,
+    budget: usize,
     /// Read errors seen (a damaged tile reads as missing and is counted once).
     errors: Vec<String>,
 }
@@ -283,6 +284,7 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
             levels,
             tiles: HashMap::new(),
             tile_bytes: 0,
+            budget: TILE_CACHE_BYTES,
             errors: Vec::new(),
         })
     }
@@ -410,7 +412,7 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
 
     /// A crude bound until the streaming cache prunes by distance: over budget, start afresh.
     fn bound_cache(&mut self) {
-        if self.tile_bytes > TILE_CACHE_BYTES {
+        if self.tile_bytes > self.budget {
             self.tiles.clear();
             self.tile_bytes = 0;
         }
@@ -585,6 +587,17 @@ impl StoreHeights {
     /// overlay shows what lies below there).
     pub fn keep_nodata(self, keep: bool) -> Self {
         Self(self.0, keep)
+    }
+
+    /// Keeps at most `bytes` of decoded store tiles.
+    pub fn with_cache_budget(mut self, bytes: usize) -> Self {
+        self.0.budget = bytes;
+        self
+    }
+
+    /// The read errors seen since the last call (each damaged tile once).
+    pub fn take_errors(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.0.errors)
     }
 
     /// Read errors seen (a damaged tile draws as sea level and is counted once).
@@ -783,6 +796,17 @@ impl StoreColors {
     /// Over the isotropic colour levels of `reader`; `None` if it has none.
     pub fn new(reader: StoreReader) -> Option<Self> {
         StoreLevels::new(reader).map(Self)
+    }
+
+    /// Keeps at most `bytes` of decoded store tiles.
+    pub fn with_cache_budget(mut self, bytes: usize) -> Self {
+        self.0.budget = bytes;
+        self
+    }
+
+    /// The read errors seen since the last call (each damaged tile once).
+    pub fn take_errors(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.0.errors)
     }
 }
 

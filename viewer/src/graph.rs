@@ -317,7 +317,7 @@ impl Graph {
         }
         g.names.push("height".into());
         if has(LayerKind::Color) {
-            g.sources.push(Box::new(StoreColorTiles(reader)));
+            g.sources.push(Box::new(StoreColorTiles::new(reader)));
             g.names.push("color".into());
             let params = Arc::new(RwLock::new(FilterParams::default()));
             g.sources.push(Box::new(ColorFilter {
@@ -397,11 +397,10 @@ impl Graph {
                         g.radius = reader.meta().radius_m;
                     }
                     match kind {
-                        LayerKind::Height => g.sources.push(Box::new(StoreHeightTiles {
-                            reader,
-                            keep_nodata: true,
-                        })),
-                        LayerKind::Color => g.sources.push(Box::new(StoreColorTiles(reader))),
+                        LayerKind::Height => g
+                            .sources
+                            .push(Box::new(StoreHeightTiles::keeping_nodata(reader, true))),
+                        LayerKind::Color => g.sources.push(Box::new(StoreColorTiles::new(reader))),
                     }
                     kinds.push(kind);
                 }

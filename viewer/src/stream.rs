@@ -162,31 +162,62 @@ fn sample_tile<T: Copy, const C: usize>(
     out
 }
 
+/// Decoded store tiles each pooled reader keeps (a worker reuses one between tiles: a clipmap
+/// tile usually reads the store tiles its neighbours read).
+const POOLED_STORE_CACHE: usize = 24 << 20;
+
+/// Readers lent to workers one at a time.
+#[derive(Debug)]
+struct Pool<S>(Mutex<Vec<S>>);
+
+impl<S> Pool<S> {
+    fn new() -> Self {
+        Self(Mutex::new(Vec::new()))
+    }
+
+    fn take(&self) -> Option<S> {
+        self.0.lock().unwrap_or_else(|e| e.into_inner()).pop()
+    }
+    fn give(&self, s: S) {
+        self.0.lock().unwrap_or_else(|e| e.into_inner()).push(s);
+    }
+}
+
 /// Heights from a store's height layer (bilinear from the store level matching the grid, the
-/// anisotropic ones near the poles; see [`StoreHeights`]).
-#[derive(Debug, Clone)]
+/// anisotropic ones near the poles, coarser where a finer level has no tiles; see
+/// [`StoreHeights`]).
+#[derive(Debug)]
 pub struct StoreHeightTiles {
-    /// The store.
-    pub reader: StoreReader,
-    /// Keep nodata as NaN (for an overlay to see through) instead of sea level.
-    pub keep_nodata: bool,
+    reader: StoreReader,
+    keep_nodata: bool,
+    pool: Pool<StoreHeights>,
 }
 
 impl StoreHeightTiles {
     /// Over `reader`'s heights, nodata as sea level.
     pub fn new(reader: StoreReader) -> Self {
+        Self::keeping_nodata(reader, false)
+    }
+
+    /// With `keep`, nodata stays NaN (for an overlay to see through) instead of sea level.
+    pub fn keeping_nodata(reader: StoreReader, keep: bool) -> Self {
         Self {
             reader,
-            keep_nodata: false,
+            keep_nodata: keep,
+            pool: Pool::new(),
         }
     }
 }
 
 impl TileSource for StoreHeightTiles {
     fn make(&self, key: &TileKey, n: u32, _: &[Tile]) -> Result<TileData, String> {
-        let mut src = StoreHeights::new(self.reader.clone())
-            .ok_or_else(|| "the store has no height levels".to_string())?
-            .keep_nodata(self.keep_nodata);
+        let mut src = match self.pool.take() {
+            Some(s) => s,
+            None => StoreHeights::new(self.reader.clone())
+                .ok_or_else(|| "the store has no height levels".to_string())?
+                .keep_nodata(self.keep_nodata)
+                .with_cache_budget(POOLED_STORE_CACHE),
+        };
         let win = key.grid.window(n);
         let mut data = Vec::with_capacity((n * n) as usize);
         let mut lons = Vec::with_capacity(n as usize);
@@ -195,7 +226,9 @@ impl TileSource for StoreHeightTiles {
             lons.extend((0..n).map(|c| key.texel_centre(c, r, n).0));
             src.fill_row(&lons, key.texel_centre(0, r, n).1, win, &mut data);
         }
-        match src.errors().first() {
+        let errors = src.take_errors();
+        self.pool.give(src);
+        match errors.first() {
             Some(e) => Err(e.clone()),
             None => Ok(TileData::Height(data)),
         }
@@ -203,13 +236,30 @@ impl TileSource for StoreHeightTiles {
 }
 
 /// Colours from a store's colour layer.
-#[derive(Debug, Clone)]
-pub struct StoreColorTiles(pub StoreReader);
+#[derive(Debug)]
+pub struct StoreColorTiles {
+    reader: StoreReader,
+    pool: Pool<StoreColors>,
+}
+
+impl StoreColorTiles {
+    /// Over `reader`'s colours.
+    pub fn new(reader: StoreReader) -> Self {
+        Self {
+            reader,
+            pool: Pool::new(),
+        }
+    }
+}
 
 impl TileSource for StoreColorTiles {
     fn make(&self, key: &TileKey, n: u32, _: &[Tile]) -> Result<TileData, String> {
-        let mut src = StoreColors::new(self.0.clone())
-            .ok_or_else(|| "the store has no colour levels".to_string())?;
+        let mut src = match self.pool.take() {
+            Some(s) => s,
+            None => StoreColors::new(self.reader.clone())
+                .ok_or_else(|| "the store has no colour levels".to_string())?
+                .with_cache_budget(POOLED_STORE_CACHE),
+        };
         let win = key.grid.window(n);
         let mut data = Vec::with_capacity((n * n * 4) as usize);
         let mut lons = Vec::with_capacity(n as usize);
@@ -218,7 +268,12 @@ impl TileSource for StoreColorTiles {
             lons.extend((0..n).map(|c| key.texel_centre(c, r, n).0));
             src.fill_row(&lons, key.texel_centre(0, r, n).1, win, &mut data);
         }
-        Ok(TileData::Color(data))
+        let errors = src.take_errors();
+        self.pool.give(src);
+        match errors.first() {
+            Some(e) => Err(e.clone()),
+            None => Ok(TileData::Color(data)),
+        }
     }
 }
 

@@ -133,7 +133,7 @@ fn tiles_from_the_row_sampler_equal_point_by_point_sampling() {
             else {
                 panic!("heights")
             };
-            let TileData::Color(cfast) = StoreColorTiles(reader.clone())
+            let TileData::Color(cfast) = StoreColorTiles::new(reader.clone())
                 .make(&key, n, &[])
                 .expect("tile")
             else {
