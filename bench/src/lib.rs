@@ -1,4 +1,4 @@
-//! Shared helpers of the benchmarks: percentiles and raw-raster loading.
+//! Shared helpers of the benchmarks: percentiles, raw-raster loading, writing a height level.
 
 use std::path::Path;
 
@@ -43,6 +43,69 @@ impl RawRaster {
             data,
         })
     }
+}
+
+/// The number after `--name` in `args`, or `default`.
+pub fn opt_u64(args: &[String], name: &str, default: u64) -> u64 {
+    args.iter()
+        .position(|a| a == name)
+        .and_then(|i| args.get(i + 1))
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(default)
+}
+
+/// Writes every tile of height level `level` from `workers` threads, one shard per thread at a
+/// time; `value(i, j)` gives texel (i, j) of the level.
+pub fn write_height_level(
+    writer: &sc_store::StoreWriter,
+    level: sc_core::LevelId,
+    workers: usize,
+    value: impl Fn(u64, u64) -> f32 + Sync,
+) -> Result<(), String> {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    let grid = writer.meta().grid;
+    let t = grid.tile_size() as usize;
+    writer
+        .ensure_level(sc_store::LayerKind::Height, level)
+        .map_err(|e| e.to_string())?;
+    let (sx, sy) = sc_core::ShardId::counts(grid, level, writer.meta().shard_tiles);
+    let next = AtomicU64::new(0);
+    std::thread::scope(|s| -> Result<(), String> {
+        let handles: Vec<_> = (0..workers.max(1))
+            .map(|_| {
+                s.spawn(|| -> Result<(), String> {
+                    let mut buf = vec![0f32; t * t];
+                    loop {
+                        let k = next.fetch_add(1, Ordering::Relaxed);
+                        if k >= sx * sy {
+                            return Ok(());
+                        }
+                        let shard = sc_core::ShardId {
+                            level,
+                            x: k % sx,
+                            y: k / sx,
+                        };
+                        let mut sw = writer
+                            .shard_writer::<f32>(shard)
+                            .map_err(|e| e.to_string())?;
+                        for tile in sw.tiles().collect::<Vec<_>>() {
+                            let (ox, oy) = tile.origin_texel(grid);
+                            for (n, v) in buf.iter_mut().enumerate() {
+                                *v = value(ox + (n % t) as u64, oy + (n / t) as u64);
+                            }
+                            sw.put_tile(tile, &buf).map_err(|e| e.to_string())?;
+                        }
+                        sw.finish().map_err(|e| e.to_string())?;
+                    }
+                })
+            })
+            .collect();
+        for h in handles {
+            h.join()
+                .map_err(|_| "a writer thread panicked".to_string())??;
+        }
+        Ok(())
+    })
 }
 
 #[cfg(test)]

@@ -5,11 +5,11 @@
 //! Usage: big_store OUT.zarr [--level L] [--workers N]
 
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
-use sc_core::{GridSpec, LevelId, ShardId};
-use sc_store::{LayerKind, StoreConfig, StoreWriter};
+use sc_bench::write_height_level;
+use sc_core::{GridSpec, LevelId};
+use sc_store::{StoreConfig, StoreWriter};
 
 /// A cheap, deterministic hash of a texel to −1 … 1.
 fn noise(i: u64, j: u64, level: u32) -> f32 {
@@ -24,13 +24,7 @@ fn noise(i: u64, j: u64, level: u32) -> f32 {
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let opt = |name: &str, default: u64| -> u64 {
-        args.iter()
-            .position(|a| a == name)
-            .and_then(|i| args.get(i + 1))
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(default)
-    };
+    let opt = |name: &str, default: u64| sc_bench::opt_u64(&args, name, default);
     let out = PathBuf::from(
         args.first()
             .ok_or("usage: big_store OUT.zarr [--level L]")?,
@@ -38,54 +32,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let top = opt("--level", 6) as u32;
     let workers = opt("--workers", 2) as usize;
     let grid = GridSpec::default();
-    let t = grid.tile_size() as usize;
     let writer = StoreWriter::create(&out, StoreConfig::default())?;
     let start = Instant::now();
     for l in 0..=top {
         let level = LevelId::iso(l)?;
-        writer.ensure_level(LayerKind::Height, level)?;
-        let (sx, sy) = ShardId::counts(grid, level, writer.meta().shard_tiles);
-        let next = AtomicU64::new(0);
-        std::thread::scope(|s| -> Result<(), String> {
-            let handles: Vec<_> = (0..workers)
-                .map(|_| {
-                    s.spawn(|| -> Result<(), String> {
-                        let mut buf = vec![0f32; t * t];
-                        loop {
-                            let k = next.fetch_add(1, Ordering::Relaxed);
-                            if k >= sx * sy {
-                                return Ok(());
-                            }
-                            let shard = ShardId {
-                                level,
-                                x: k % sx,
-                                y: k / sx,
-                            };
-                            let mut sw = writer
-                                .shard_writer::<f32>(shard)
-                                .map_err(|e| e.to_string())?;
-                            for tile in sw.tiles().collect::<Vec<_>>() {
-                                let (ox, oy) = tile.origin_texel(grid);
-                                for (n, v) in buf.iter_mut().enumerate() {
-                                    let (i, j) = (ox + (n % t) as u64, oy + (n / t) as u64);
-                                    let c = grid.texel_centre(level, i, j);
-                                    let smooth = 3000.0
-                                        * (c.lat_deg.to_radians() * 7.0).sin()
-                                        * (c.lon_deg.to_radians() * 5.0).cos();
-                                    *v = smooth as f32 + 400.0 * noise(i, j, l);
-                                }
-                                sw.put_tile(tile, &buf).map_err(|e| e.to_string())?;
-                            }
-                            sw.finish().map_err(|e| e.to_string())?;
-                        }
-                    })
-                })
-                .collect();
-            for h in handles {
-                h.join()
-                    .map_err(|_| "a writer thread panicked".to_string())??;
-            }
-            Ok(())
+        write_height_level(&writer, level, workers, |i, j| {
+            let c = grid.texel_centre(level, i, j);
+            let smooth = 3000.0
+                * (c.lat_deg.to_radians() * 7.0).sin()
+                * (c.lon_deg.to_radians() * 5.0).cos();
+            smooth as f32 + 400.0 * noise(i, j, l)
         })?;
         println!(
             "level {l}: {}x{} written, {:.0} s",
