@@ -225,16 +225,6 @@ pub trait HeightSource {
     fn height(&mut self, lon: f64, colat: f64, texel: LevelWindow) -> f32;
 }
 
-/// A sphere with no relief (no store, or a store without heights).
-#[derive(Debug, Clone, Copy, Default)]
-pub struct Flat;
-
-impl HeightSource for Flat {
-    fn height(&mut self, _: f64, _: f64, _: LevelWindow) -> f32 {
-        0.0
-    }
-}
-
 /// One layer's isotropic levels of a store, read through a tile cache: the part heights and
 /// colours share (which level serves a clipmap texel, where a point falls in it, texel access).
 #[derive(Debug)]
@@ -856,9 +846,4 @@ impl ColorSource for StoreColors {
         }
         acc.map(|v| v.round().clamp(0.0, 255.0) as u8)
     }
-}
-
-/// Fills colour clipmap level `i` (the same window as the heights', toroidal order).
-pub fn fill_color_level(src: &mut dyn ColorSource, p: &Placement, n: u32) -> Vec<u8> {
-    fill_window(p, n, |lon, colat| src.color(lon, colat, p.win))
 }

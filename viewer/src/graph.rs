@@ -286,14 +286,9 @@ fn open(path: &Path) -> Result<StoreReader, String> {
 }
 
 impl Graph {
-    /// The default graph of `store`: its heights (a smooth sphere if it has none) and its
-    /// colours through a neutral filter.
-    pub fn for_store(store: &Path) -> Result<Self, String> {
-        let reader = open(store)?;
-        let meta = reader.meta();
-        let radius = meta.radius_m;
-        let has = |k| !meta.levels(k).is_empty();
-        let mut g = Graph {
+    /// No sources yet (clipmaps pointing at source 0) on a planet of `radius` metres.
+    fn empty(radius: f64) -> Self {
+        Graph {
             sources: Vec::new(),
             names: Vec::new(),
             clipmaps: StreamSources {
@@ -303,7 +298,17 @@ impl Graph {
             filters: Vec::new(),
             radius,
             warnings: Vec::new(),
-        };
+        }
+    }
+
+    /// The default graph of `store`: its heights (a smooth sphere if it has none) and its
+    /// colours through a neutral filter.
+    pub fn for_store(store: &Path) -> Result<Self, String> {
+        let reader = open(store)?;
+        let meta = reader.meta();
+        let radius = meta.radius_m;
+        let has = |k| !meta.levels(k).is_empty();
+        let mut g = Graph::empty(radius);
         if has(LayerKind::Height) {
             g.sources
                 .push(Box::new(StoreHeightTiles::new(reader.clone())));
@@ -349,17 +354,7 @@ impl Graph {
         if file.sources.is_empty() || file.sources.len() > MAX_SOURCES {
             return Err(format!("declare 1..{MAX_SOURCES} [[source]] tables"));
         }
-        let mut g = Graph {
-            sources: Vec::new(),
-            names: Vec::new(),
-            clipmaps: StreamSources {
-                height: 0,
-                color: None,
-            },
-            filters: Vec::new(),
-            radius: 0.0,
-            warnings: Vec::new(),
-        };
+        let mut g = Graph::empty(0.0);
         // what each source makes
         let mut kinds: Vec<LayerKind> = Vec::new();
         let find = |g: &Graph, name: &str, who: &str| -> Result<u32, String> {

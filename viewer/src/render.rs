@@ -181,10 +181,8 @@ pub struct ClipmapPass {
     frame_buf: wgpu::Buffer,
     level_buf: wgpu::Buffer,
     bind: wgpu::BindGroup,
-    /// Per level, where its height data was last filled (None: never) …
-    placed: Vec<Option<Placement>>,
-    /// … and its colour data.
-    colored: Vec<Option<Placement>>,
+    /// Per layer (heights, colours) and level, where its data was last filled (None: never).
+    held: [Vec<Option<Placement>>; 2],
     level_uniforms: Vec<LevelUniform>,
     radius: f64,
     last: FrameStats,
@@ -392,8 +390,7 @@ impl ClipmapPass {
             frame_buf,
             level_buf,
             bind,
-            placed: vec![None; levels as usize],
-            colored: vec![None; levels as usize],
+            held: [vec![None; levels as usize], vec![None; levels as usize]],
             level_uniforms: vec![LevelUniform::zeroed(); levels as usize],
             radius: radius_m,
             last: FrameStats::default(),
@@ -407,13 +404,38 @@ impl ClipmapPass {
     /// from the cache): the next streamed frames ask for the visible tiles again and re-upload
     /// each level as its new tiles arrive.
     pub fn invalidate(&mut self, heights: bool, colors: bool) {
-        if heights {
-            self.placed.iter_mut().for_each(|p| *p = None);
-        }
-        if colors {
-            self.colored.iter_mut().for_each(|p| *p = None);
+        for (layer, forget) in self.held.iter_mut().zip([heights, colors]) {
+            if forget {
+                layer.fill(None);
+            }
         }
         self.last_tasks.clear();
+    }
+
+    /// The texture regions of level `i` (heights or colours) to write for placement `p`: those
+    /// whose world texels changed since the level was last filled (all at first; §5). Records
+    /// `p` as what the level holds once they are written.
+    fn stale_regions(&mut self, height: bool, i: u32, p: &Placement) -> Vec<Region> {
+        let held = &mut self.held[usize::from(!height)][i as usize];
+        let todo = match *held {
+            Some(old) => changed_regions(&old, p, CLIPMAP_N),
+            None => all_regions(p, CLIPMAP_N),
+        };
+        *held = Some(*p);
+        todo
+    }
+
+    /// Levels to draw for `camera` into a target `h` pixels high (§4.5).
+    fn visible(&self, camera: &Camera, h: u32) -> (u32, u32) {
+        visible_levels(
+            self.radius,
+            camera.alt,
+            9000.0,
+            camera.fov.to_radians(),
+            h,
+            self.hemi.spec.n,
+            self.hemi.spec.levels,
+        )
     }
 
     /// Whether the device draws wireframes.
@@ -439,26 +461,11 @@ impl ClipmapPass {
         (w, h): (u32, u32),
     ) -> (f64, FrameStats) {
         let viewer = Viewer::from_deg(camera.lat, camera.lon);
-        let levels = self.hemi.spec.levels;
-        let (lo, hi) = visible_levels(
-            self.radius,
-            camera.alt,
-            9000.0,
-            camera.fov.to_radians(),
-            h,
-            self.hemi.spec.n,
-            levels,
-        );
+        let (lo, hi) = self.visible(camera, h);
         let mut filled = 0;
         for i in lo..=hi {
             let p = Placement::new(i, &viewer, CLIPMAP_N);
-            let k = i as usize;
-            // only the regions whose world texels changed since the last fill (§5)
-            let regions = |old: Option<Placement>| match old {
-                Some(old) => changed_regions(&old, &p, CLIPMAP_N),
-                None => all_regions(&p, CLIPMAP_N),
-            };
-            let todo = regions(self.placed[k]);
+            let todo = self.stale_regions(true, i, &p);
             for r in &todo {
                 let data = fill_region(&p, CLIPMAP_N, *r, |lon, colat| {
                     [heights.height(lon, colat, p.win)]
@@ -466,18 +473,16 @@ impl ClipmapPass {
                 self.write_region(true, i, *r, bytemuck::cast_slice(&data));
             }
             filled += u32::from(!todo.is_empty());
-            self.placed[k] = Some(p);
             if let Some(c) = colors.as_deref_mut() {
-                let todo = regions(self.colored[k]);
+                let todo = self.stale_regions(false, i, &p);
                 for r in &todo {
                     let rgba =
                         fill_region(&p, CLIPMAP_N, *r, |lon, colat| c.color(lon, colat, p.win));
                     self.write_region(false, i, *r, &rgba);
                 }
                 filled += u32::from(!todo.is_empty());
-                self.colored[k] = Some(p);
             }
-            self.level_uniforms[k] = level_uniform(&p);
+            self.level_uniforms[i as usize] = level_uniform(&p);
         }
         // the ground under the camera: the finest level drawn, as drawn
         let p = Placement::new(hi, &viewer, CLIPMAP_N);
@@ -556,37 +561,26 @@ impl ClipmapPass {
         debug_assert_eq!(streamer.tile_size(), n);
         let viewer = Viewer::from_deg(camera.lat, camera.lon);
         let levels = self.hemi.spec.levels;
-        let (lo, wanted) = visible_levels(
-            self.radius,
-            camera.alt,
-            9000.0,
-            camera.fov.to_radians(),
-            h,
-            self.hemi.spec.n,
-            levels,
-        );
+        let (lo, wanted) = self.visible(camera, h);
         let layers: Vec<(bool, u32)> = std::iter::once((true, sources.height))
             .chain(sources.color.map(|c| (false, c)))
             .collect();
         // 1. the tasks of this focus (visible levels, then the next finer one as prefetch)
         let mut tasks = Vec::new();
         let mut focus = Focus::new();
-        let mut placed = Vec::new();
+        let mut windows = Vec::new();
         for i in lo..=(wanted + 1).min(levels - 1) {
             let p = Placement::new(i, &viewer, n);
             let grid = GridId::of(i, &p, n);
-            let nn = i64::from(n);
-            let (x0, y0) = (p.u0.div_euclid(nn), p.v0.div_euclid(nn));
             for &(_, src) in &layers {
-                for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-                    tasks.push(Task {
-                        key: TileKey::at(src, grid, (x0 + dx) * nn, (y0 + dy) * nn, n),
-                        prefetch: i > wanted,
-                    });
-                }
-                focus.insert((src, grid), (x0.rem_euclid(grid.tiles_around()), y0));
+                let quad = quad_keys(src, grid, &p, n);
+                tasks.extend(quad.map(|key| Task {
+                    key,
+                    prefetch: i > wanted,
+                }));
+                focus.insert((src, grid), (quad[0].x, quad[0].y));
             }
-            placed.push((i, p, grid));
+            windows.push((i, p, grid));
         }
         // prefetch along the motion: the quads where the viewer will be in a few frames if it
         // keeps going (so a level's next tiles are made before its window reaches them)
@@ -623,7 +617,7 @@ impl ClipmapPass {
         // 2. levels coarse to fine, as far as their tiles are ready
         let mut drawn = None;
         let mut filled = 0;
-        for &(i, p, grid) in placed.iter().filter(|(i, ..)| *i <= wanted) {
+        for &(i, p, grid) in windows.iter().filter(|(i, ..)| *i <= wanted) {
             let quad: Option<Vec<Vec<Tile>>> = layers
                 .iter()
                 .map(|&(_, src)| {
@@ -641,37 +635,21 @@ impl ClipmapPass {
                 break;
             };
             for (&(height, _), tiles) in layers.iter().zip(&quad) {
-                let old = if height {
-                    self.placed[i as usize]
-                } else {
-                    self.colored[i as usize]
-                };
-                let todo = match old {
-                    Some(old) => changed_regions(&old, &p, n),
-                    None => all_regions(&p, n),
-                };
+                let todo = self.stale_regions(height, i, &p);
                 for r in &todo {
                     let bytes = region_from_quad(tiles, &p, *r, n);
                     self.write_region(height, i, *r, &bytes);
                 }
                 filled += u32::from(!todo.is_empty());
-                if height {
-                    self.placed[i as usize] = Some(p);
-                } else {
-                    self.colored[i as usize] = Some(p);
-                }
             }
             self.level_uniforms[i as usize] = level_uniform(&p);
-            drawn = Some((i, quad));
+            drawn = Some((i, p, quad));
             if deadline.is_some_and(|d| Instant::now() >= d) {
                 break;
             }
         }
         let (hi, ground) = match &drawn {
-            Some((i, quad)) => {
-                let p = Placement::new(*i, &viewer, n);
-                (*i, ground_from_quad(&quad[0], &p, n))
-            }
+            Some((i, p, quad)) => (*i, ground_from_quad(&quad[0], p, n)),
             None => (lo, 0.0),
         };
         let stats = FrameStats {
@@ -903,6 +881,76 @@ pub fn read_back(device: &wgpu::Device, buffer: &wgpu::Buffer) -> Result<Vec<u8>
     Ok(out)
 }
 
+/// A `w × h` 8-bit RGBA or BGRA texture's copy on its way back to the CPU (rows padded to
+/// wgpu's 256-byte alignment).
+#[derive(Debug)]
+pub struct ImageReadback {
+    buffer: wgpu::Buffer,
+    bytes_per_row: u32,
+    width: u32,
+    height: u32,
+}
+
+impl ImageReadback {
+    /// Records the copy of `texture` (made with `COPY_SRC`) into `enc`.
+    pub fn record(
+        device: &wgpu::Device,
+        enc: &mut wgpu::CommandEncoder,
+        texture: &wgpu::Texture,
+        (width, height): (u32, u32),
+    ) -> Self {
+        let bytes_per_row = (width * 4).div_ceil(256) * 256;
+        let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("readback"),
+            size: u64::from(bytes_per_row) * u64::from(height),
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        enc.copy_texture_to_buffer(
+            texture.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &buffer,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(bytes_per_row),
+                    rows_per_image: Some(height),
+                },
+            },
+            wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+        );
+        Self {
+            buffer,
+            bytes_per_row,
+            width,
+            height,
+        }
+    }
+
+    /// Waits for the GPU (after the submission of the recorded copy) and returns the image;
+    /// `bgra`: the texture's channels are B, G, R, A.
+    pub fn image(
+        &self,
+        device: &wgpu::Device,
+        bgra: bool,
+    ) -> Result<image::RgbaImage, RenderError> {
+        let data = read_back(device, &self.buffer)?;
+        let (w, h) = (self.width as usize, self.height as usize);
+        let mut img = image::RgbaImage::new(self.width, self.height);
+        for (y, row) in data.chunks(self.bytes_per_row as usize).take(h).enumerate() {
+            let out = &mut img.as_mut()[y * w * 4..(y + 1) * w * 4];
+            out.copy_from_slice(&row[..w * 4]);
+            if bgra {
+                out.chunks_exact_mut(4).for_each(|p| p.swap(0, 2));
+            }
+        }
+        Ok(img)
+    }
+}
+
 /// A headless renderer of one size: the clipmap pass into an offscreen image.
 #[derive(Debug)]
 pub struct Renderer {
@@ -1035,41 +1083,10 @@ impl Renderer {
             let mut pass = begin_pass(&mut enc, &color_view, &self.depth, self.clear);
             self.pass.draw(&mut pass);
         }
-        let bytes_per_row = (w * 4).div_ceil(256) * 256;
-        let readback = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("readback"),
-            size: u64::from(bytes_per_row) * u64::from(h),
-            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-            mapped_at_creation: false,
-        });
-        enc.copy_texture_to_buffer(
-            self.color.as_image_copy(),
-            wgpu::TexelCopyBufferInfo {
-                buffer: &readback,
-                layout: wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(bytes_per_row),
-                    rows_per_image: Some(h),
-                },
-            },
-            wgpu::Extent3d {
-                width: w,
-                height: h,
-                depth_or_array_layers: 1,
-            },
-        );
+        let readback = ImageReadback::record(&self.device, &mut enc, &self.color, (w, h));
         self.queue.submit([enc.finish()]);
         let cpu = start.elapsed().as_secs_f64();
-        let data = read_back(&self.device, &readback)?;
-        let mut img = image::RgbaImage::new(w, h);
-        for (y, row) in data
-            .chunks(bytes_per_row as usize)
-            .take(h as usize)
-            .enumerate()
-        {
-            img.as_mut()[y * (w as usize) * 4..(y + 1) * (w as usize) * 4]
-                .copy_from_slice(&row[..(w * 4) as usize]);
-        }
+        let img = readback.image(&self.device, false)?;
         Ok((img, stats, cpu))
     }
 }

@@ -175,11 +175,46 @@ impl<S> Pool<S> {
         Self(Mutex::new(Vec::new()))
     }
 
-    fn take(&self) -> Option<S> {
-        self.0.lock().unwrap_or_else(|e| e.into_inner()).pop()
-    }
-    fn give(&self, s: S) {
+    /// Runs `f` with a pooled reader (or a new one from `create`), then returns it to the pool.
+    fn with<R>(
+        &self,
+        create: impl FnOnce() -> Result<S, String>,
+        f: impl FnOnce(&mut S) -> R,
+    ) -> Result<R, String> {
+        let pooled = self.0.lock().unwrap_or_else(|e| e.into_inner()).pop();
+        let mut s = match pooled {
+            Some(s) => s,
+            None => create()?,
+        };
+        let r = f(&mut s);
         self.0.lock().unwrap_or_else(|e| e.into_inner()).push(s);
+        Ok(r)
+    }
+}
+
+/// A tile's samples row by row: `fill(lons, colat, texel size, out)` appends one row.
+fn sample_rows<T>(
+    key: &TileKey,
+    n: u32,
+    channels: usize,
+    mut fill: impl FnMut(&[f64], f64, LevelWindow, &mut Vec<T>),
+) -> Vec<T> {
+    let win = key.grid.window(n);
+    let mut data = Vec::with_capacity((n * n) as usize * channels);
+    let mut lons = Vec::with_capacity(n as usize);
+    for r in 0..n {
+        lons.clear();
+        lons.extend((0..n).map(|c| key.texel_centre(c, r, n).0));
+        fill(&lons, key.texel_centre(0, r, n).1, win, &mut data);
+    }
+    data
+}
+
+/// The tile, or the first read error met while making it.
+fn first_error<T>(data: T, errors: Vec<String>) -> Result<T, String> {
+    match errors.into_iter().next() {
+        Some(e) => Err(e),
+        None => Ok(data),
     }
 }
 
@@ -211,27 +246,18 @@ impl StoreHeightTiles {
 
 impl TileSource for StoreHeightTiles {
     fn make(&self, key: &TileKey, n: u32, _: &[Tile]) -> Result<TileData, String> {
-        let mut src = match self.pool.take() {
-            Some(s) => s,
-            None => StoreHeights::new(self.reader.clone())
-                .ok_or_else(|| "the store has no height levels".to_string())?
-                .keep_nodata(self.keep_nodata)
-                .with_cache_budget(POOLED_STORE_CACHE),
+        let create = || {
+            StoreHeights::new(self.reader.clone())
+                .map(|s| {
+                    s.keep_nodata(self.keep_nodata)
+                        .with_cache_budget(POOLED_STORE_CACHE)
+                })
+                .ok_or_else(|| "the store has no height levels".to_string())
         };
-        let win = key.grid.window(n);
-        let mut data = Vec::with_capacity((n * n) as usize);
-        let mut lons = Vec::with_capacity(n as usize);
-        for r in 0..n {
-            lons.clear();
-            lons.extend((0..n).map(|c| key.texel_centre(c, r, n).0));
-            src.fill_row(&lons, key.texel_centre(0, r, n).1, win, &mut data);
-        }
-        let errors = src.take_errors();
-        self.pool.give(src);
-        match errors.first() {
-            Some(e) => Err(e.clone()),
-            None => Ok(TileData::Height(data)),
-        }
+        self.pool.with(create, |src| {
+            let data = sample_rows(key, n, 1, |l, c, w, out| src.fill_row(l, c, w, out));
+            first_error(TileData::Height(data), src.take_errors())
+        })?
     }
 }
 
@@ -254,26 +280,15 @@ impl StoreColorTiles {
 
 impl TileSource for StoreColorTiles {
     fn make(&self, key: &TileKey, n: u32, _: &[Tile]) -> Result<TileData, String> {
-        let mut src = match self.pool.take() {
-            Some(s) => s,
-            None => StoreColors::new(self.reader.clone())
-                .ok_or_else(|| "the store has no colour levels".to_string())?
-                .with_cache_budget(POOLED_STORE_CACHE),
+        let create = || {
+            StoreColors::new(self.reader.clone())
+                .map(|s| s.with_cache_budget(POOLED_STORE_CACHE))
+                .ok_or_else(|| "the store has no colour levels".to_string())
         };
-        let win = key.grid.window(n);
-        let mut data = Vec::with_capacity((n * n * 4) as usize);
-        let mut lons = Vec::with_capacity(n as usize);
-        for r in 0..n {
-            lons.clear();
-            lons.extend((0..n).map(|c| key.texel_centre(c, r, n).0));
-            src.fill_row(&lons, key.texel_centre(0, r, n).1, win, &mut data);
-        }
-        let errors = src.take_errors();
-        self.pool.give(src);
-        match errors.first() {
-            Some(e) => Err(e.clone()),
-            None => Ok(TileData::Color(data)),
-        }
+        self.pool.with(create, |src| {
+            let data = sample_rows(key, n, 4, |l, c, w, out| src.fill_row(l, c, w, out));
+            first_error(TileData::Color(data), src.take_errors())
+        })?
     }
 }
 
@@ -482,8 +497,6 @@ struct State {
     in_flight: HashSet<TileKey>,
     idle: usize,
     shutdown: bool,
-    /// Tiles made (or failed) so far.
-    made: u64,
 }
 
 #[derive(Debug)]
@@ -565,11 +578,6 @@ impl Streamer {
     pub fn request(&self, tasks: Vec<Task>) {
         self.shared.state().mailbox = Some(tasks);
         self.shared.wake.notify_all();
-    }
-
-    /// Tiles made or failed since the start.
-    pub fn made(&self) -> u64 {
-        self.shared.state().made
     }
 
     /// Whether nothing is queued or being made.
@@ -791,7 +799,6 @@ fn worker(shared: &Shared, rx: &Mutex<Receiver<Task>>) {
         let mut s = shared.state();
         s.in_flight.remove(&key);
         s.idle += 1;
-        s.made += 1;
         drop(s);
         shared.wake.notify_all();
     }

@@ -17,8 +17,8 @@ use winit::window::{Window, WindowId};
 use crate::camera::{Controller, Input, Mode};
 use crate::graph::{FilterHandle, FilterParams};
 use crate::render::{
-    Camera, ClipmapPass, FrameStats, RenderError, SPACE, StreamSources, begin_pass, depth_target,
-    device_for, read_back,
+    Camera, ClipmapPass, FrameStats, ImageReadback, RenderError, SPACE, StreamSources, begin_pass,
+    depth_target, device_for,
 };
 use crate::stream::Streamer;
 
@@ -433,30 +433,10 @@ impl App<'_> {
                         "this adapter cannot read the window back for --screenshot".into(),
                     ));
                 }
-                let bytes_per_row = (w * 4).div_ceil(256) * 256;
-                let buf = gpu.device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("screenshot"),
-                    size: u64::from(bytes_per_row) * u64::from(h),
-                    usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-                    mapped_at_creation: false,
-                });
-                enc.copy_texture_to_buffer(
-                    frame.texture.as_image_copy(),
-                    wgpu::TexelCopyBufferInfo {
-                        buffer: &buf,
-                        layout: wgpu::TexelCopyBufferLayout {
-                            offset: 0,
-                            bytes_per_row: Some(bytes_per_row),
-                            rows_per_image: Some(h),
-                        },
-                    },
-                    wgpu::Extent3d {
-                        width: w,
-                        height: h,
-                        depth_or_array_layers: 1,
-                    },
-                );
-                Some((path.clone(), buf, bytes_per_row))
+                Some((
+                    path.clone(),
+                    ImageReadback::record(&gpu.device, &mut enc, &frame.texture, (w, h)),
+                ))
             }
             _ => None,
         };
@@ -468,28 +448,14 @@ impl App<'_> {
         } else {
             0.9 * self.cpu_avg + 0.1 * cpu
         };
-        if let Some((path, buf, bytes_per_row)) = shot {
-            let data = read_back(&gpu.device, &buf)?;
+        if let Some((path, readback)) = shot {
             let bgra = matches!(
                 gpu.config.format,
                 wgpu::TextureFormat::Bgra8Unorm | wgpu::TextureFormat::Bgra8UnormSrgb
             );
-            let mut img = image::RgbaImage::new(w, h);
-            for (y, row) in data
-                .chunks(bytes_per_row as usize)
-                .take(h as usize)
-                .enumerate()
-            {
-                for x in 0..w as usize {
-                    let p = &row[x * 4..x * 4 + 4];
-                    let px = if bgra {
-                        [p[2], p[1], p[0], 255]
-                    } else {
-                        [p[0], p[1], p[2], 255]
-                    };
-                    img.put_pixel(x as u32, y as u32, image::Rgba(px));
-                }
-            }
+            let mut img = readback.image(&gpu.device, bgra)?;
+            // the window is opaque whatever alpha the surface holds
+            img.pixels_mut().for_each(|p| p.0[3] = 255);
             img.save(&path)
                 .map_err(|e| RenderError::Usage(format!("cannot write {}: {e}", path.display())))?;
         }

@@ -18,14 +18,16 @@ fn marker(id: LevelId) -> f32 {
 
 /// Levels 0–3 and every anisotropic level of 3 the grid has, each filled with its marker.
 fn marker_store(root: &Path) -> GridSpec {
-    store_of(root, |id, _, _| marker(id), false)
+    store_of(root, |id, _, _| marker(id), |_, _| true, false)
 }
 
-/// Levels 0–3 and the anisotropic levels of 3, texel values from `value(level, tile, texel)`;
-/// with `colors`, a colour layer of levels 0–3 too; some tiles are left out (missing).
+/// Levels 0–3 and the anisotropic levels of 3, texel values from `value(level, tile, texel)`,
+/// the height tiles for which `keep(level, tile)` holds (the others missing); with `colors`, a
+/// colour layer of levels 0–3 too, some of its tiles left out.
 fn store_of(
     root: &Path,
     value: impl Fn(LevelId, (u64, u64), usize) -> f32,
+    keep: impl Fn(LevelId, (u64, u64)) -> bool,
     colors: bool,
 ) -> GridSpec {
     let grid = GridSpec::new(T).expect("grid");
@@ -50,7 +52,7 @@ fn store_of(
                 let tiles: Vec<_> = sw
                     .tiles()
                     .filter(|t| grid.level_has_tile_row(id, t.y))
-                    .filter(|t| !colors || (t.x + 3 * t.y) % 7 != 3)
+                    .filter(|t| keep(id, (t.x, t.y)))
                     .collect();
                 for t in tiles {
                     let v: Vec<f32> = (0..(T * T) as usize)
@@ -105,6 +107,7 @@ fn tiles_from_the_row_sampler_equal_point_by_point_sampling() {
                     + ((k * 31 + x as usize * 7 + y as usize * 3) % 97) as f32
             }
         },
+        |_, (x, y)| (x + 3 * y) % 7 != 3,
         true,
     );
     let reader = StoreReader::open(&root).expect("open");
@@ -211,40 +214,16 @@ fn polar_texels_come_from_the_anisotropic_levels_and_never_from_a_missing_row() 
 
 #[test]
 fn where_a_fine_level_has_no_tiles_the_next_coarser_one_serves() {
-    // levels 0–2 everywhere, level 3 only in one tile (a regional high-resolution patch)
+    // levels 0–2 everywhere, level 3 (and its anisotropic levels) only in one tile: a regional
+    // high-resolution patch
     let dir = tempfile::tempdir().expect("tempdir");
     let root = dir.path().join("r.zarr");
-    let grid = GridSpec::new(T).expect("grid");
-    let w = StoreWriter::create(
+    store_of(
         &root,
-        StoreConfig {
-            grid,
-            shard_tiles: 4,
-            ..StoreConfig::default()
-        },
-    )
-    .expect("create");
-    for l in 0..4 {
-        let id = LevelId::iso(l).expect("level");
-        let (sx, sy) = ShardId::counts(grid, id, 4);
-        for y in 0..sy {
-            for x in 0..sx {
-                let mut sw = w
-                    .shard_writer::<f32>(ShardId { level: id, x, y })
-                    .expect("shard");
-                let tiles: Vec<_> = sw
-                    .tiles()
-                    .filter(|t| l < 3 || (t.x, t.y) == (1, 1))
-                    .collect();
-                for t in tiles {
-                    sw.put_tile(t, &vec![marker(id); (T * T) as usize])
-                        .expect("put");
-                }
-                sw.finish().expect("finish");
-            }
-        }
-    }
-    w.commit(None).expect("commit");
+        |id, _, _| marker(id),
+        |id, t| id.level < 3 || t == (1, 1),
+        false,
+    );
     let mut heights =
         StoreHeights::new(StoreReader::open(&root).expect("open")).expect("height levels");
     // a fine clipmap level far from the patch: level 2's marker, never 0 (sea level)
