@@ -384,3 +384,53 @@ color = "grey"
         assert!(e.contains(want) && e.contains("alps.sources.toml"), "{e}");
     }
 }
+
+#[test]
+fn bad_flight_files_get_one_line_errors() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let flight = dir.path().join("flight.toml");
+    let stats = dir.path().join("stats.json");
+    for (toml, want) in [
+        (None, "cannot read"),
+        (Some("altitudes = [800000]\nspeeds = [1]\n"), "start"),
+        (
+            Some("start = [46.5, 8.0]\naltitudes = []\nspeeds = [1]\n"),
+            "`altitudes` must list",
+        ),
+        (
+            Some("start = [46.5, 8.0]\naltitudes = [-5]\nspeeds = [1]\n"),
+            "altitudes must be",
+        ),
+        (
+            Some("start = [46.5, 8.0]\naltitudes = [50]\nspeeds = [0]\n"),
+            "`speeds` must list",
+        ),
+        (
+            Some("start = [46.5, 8.0]\naltitudes = [50]\nspeeds = [1]\nwarp = 9\n"),
+            "warp",
+        ),
+    ] {
+        match toml {
+            Some(t) => std::fs::write(&flight, t).expect("write"),
+            None => {
+                let _ = std::fs::remove_file(&flight);
+            }
+        }
+        let o = run(&[
+            "render",
+            s(&dir.path().join("no-store.zarr")),
+            "--flight",
+            s(&flight),
+            "--stats",
+            s(&stats),
+        ]);
+        assert_eq!(o.status.code(), Some(1), "{toml:?}");
+        let e = text(&o.stderr);
+        assert_eq!(e.trim().lines().count(), 1, "{e}");
+        assert!(
+            e.contains(want) && e.contains("flight.toml"),
+            "{toml:?}: {e}"
+        );
+        assert!(!stats.exists(), "no stats written for a bad flight");
+    }
+}
