@@ -239,6 +239,8 @@ struct StoreLevels<T: TileSample + ZeroedSample> {
     budget: usize,
     /// Read errors seen (a damaged tile reads as missing and is counted once).
     errors: Vec<String>,
+    /// The last full row's columns (reused by the next row at the same longitudes).
+    columns: Option<Columns>,
 }
 
 /// Where a point falls in a level: the texel at the north-west of its bilinear footprint and the
@@ -276,6 +278,7 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
             tile_bytes: 0,
             budget: TILE_CACHE_BYTES,
             errors: Vec::new(),
+            columns: None,
         })
     }
 
@@ -460,35 +463,25 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
         let (f, idx) = self.locate_in(lons[first], colat, win, cap);
         let w = self.grid.width(f.id);
         let flip = colat.rem_euclid(2.0 * PI) > PI;
-        let xs: Vec<(i64, f64)> = which
-            .iter()
-            .map(|&k| {
-                let lon = lons[k];
-                let lo = if flip { lon + PI } else { lon };
-                let x = (lo + PI).rem_euclid(2.0 * PI) / (2.0 * PI) * w as f64 - 0.5;
-                let x0 = x.floor();
-                (x0 as i64, x - x0)
-            })
-            .collect();
+        // the points' columns in this level: the same for every row of a tile, so a full row
+        // reuses the previous row's when the level and the longitudes are the same
+        let full = which.len() == lons.len();
+        let columns = match self.columns.take() {
+            Some(c) if full && c.id == f.id && c.flip == flip && c.lons == lons => c,
+            _ => Columns::new(lons, which, f.id, flip, w, self.grid.tile_size()),
+        };
         // every tile the row touches, loaded before any is borrowed
         self.bound_cache();
-        let (wi, h) = (w as i64, self.grid.height(f.id) as i64);
+        let h = self.grid.height(f.id) as i64;
         let t = u64::from(self.grid.tile_size());
         let rows = [
             f.y0.clamp(0, h - 1) as u64,
             (f.y0 + 1).clamp(0, h - 1) as u64,
         ];
-        let mut cols: Vec<u64> = Vec::new();
-        for &(x0, _) in &xs {
-            for i in [x0.rem_euclid(wi) as u64, (x0 + 1).rem_euclid(wi) as u64] {
-                if !cols.contains(&(i / t)) {
-                    cols.push(i / t);
-                }
-            }
-        }
+        let cols = &columns.cols;
         let mut ids = Vec::with_capacity(cols.len() * 2);
         for &j in &rows {
-            for &tx in &cols {
+            for &tx in cols {
                 let id = TileId::new(self.grid, f.id, tx, j / t).ok();
                 if let Some(id) = id {
                     self.load(id);
@@ -500,38 +493,89 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
         let mut missing = Vec::new();
         {
             let tiles = &self.tiles;
-            // per row of the footprint, the touched tiles by column (a handful: found by a scan)
-            let row_tiles: Vec<Vec<RowTile<'_, T>>> = (0..2)
-                .map(|r| {
-                    cols.iter()
-                        .zip(&ids[r * cols.len()..(r + 1) * cols.len()])
-                        .map(|(&tx, id)| {
-                            (
-                                tx,
-                                id.and_then(|id| tiles.get(&id)).and_then(|d| d.as_deref()),
-                            )
-                        })
-                        .collect()
-                })
-                .collect();
-            // a corner: Err when its tile holds no data
-            let get = |x: i64, r: usize| -> Result<&[T], ()> {
-                let i = x.rem_euclid(wi) as u64;
-                let (_, data) = row_tiles[r].iter().find(|(tx, _)| *tx == i / t).ok_or(())?;
-                let k = ((rows[r] % t) * t + i % t) as usize * ch;
-                data.map(|d| &d[k..k + ch]).ok_or(())
+            // per row of the footprint, the touched tiles' data by slot, and the row's offset
+            let row_data: [Vec<Option<&[T]>>; 2] = [0, 1].map(|r| {
+                ids[r * cols.len()..(r + 1) * cols.len()]
+                    .iter()
+                    .map(|id| id.and_then(|id| tiles.get(&id)).and_then(|d| d.as_deref()))
+                    .collect()
+            });
+            let row_off = rows.map(|j| ((j & (t - 1)) * t) as usize);
+            // a corner: None when its tile holds no data
+            let get = |(s, o): (usize, usize), r: usize| -> Option<&[T]> {
+                let k = (row_off[r] + o) * ch;
+                row_data[r][s].map(|d| &d[k..k + ch])
             };
-            for (&k, &(x0, fx)) in which.iter().zip(&xs) {
-                let c = [get(x0, 0), get(x0 + 1, 0), get(x0, 1), get(x0 + 1, 1)];
-                if idx > 0 && c.iter().any(|c| c.is_err()) {
+            for ((&k, &fx), &[a, b]) in which.iter().zip(&columns.fx).zip(&columns.corners) {
+                let c = [get(a, 0), get(b, 0), get(a, 1), get(b, 1)];
+                if idx > 0 && c.iter().any(|c| c.is_none()) {
                     missing.push(k);
                 } else {
-                    emit(k, c.map(|c| c.ok()), fx, f.fy);
+                    emit(k, c, fx, f.fy);
                 }
             }
         }
+        if full {
+            self.columns = Some(columns);
+        }
         if !missing.is_empty() {
             self.sample_points(lons, &missing, colat, win, idx - 1, emit);
+        }
+    }
+}
+
+/// Where a row's points fall in a level's columns: per point the fraction towards the next
+/// column and its two corner columns as (slot in `cols`, offset in the tile row); `cols` are
+/// the store tile columns touched. Rows of one clipmap tile share their longitudes, so this is
+/// computed once per tile and level rather than once per texel.
+#[derive(Debug)]
+struct Columns {
+    lons: Vec<f64>,
+    id: LevelId,
+    flip: bool,
+    fx: Vec<f64>,
+    corners: Vec<[(usize, usize); 2]>,
+    cols: Vec<u64>,
+}
+
+impl Columns {
+    /// Points `which` of `lons` in level `id` (`w` columns, store tiles `t` wide, a power of
+    /// two); `flip`: the row lies beyond a pole (lon + 180°).
+    fn new(lons: &[f64], which: &[usize], id: LevelId, flip: bool, w: u64, t: u32) -> Self {
+        let (wi, t) = (w as i64, u64::from(t));
+        let shift = t.trailing_zeros();
+        let mut cols: Vec<u64> = Vec::new();
+        let mut slot = |i: i64| -> (usize, usize) {
+            let i = i as u64;
+            let tx = i >> shift;
+            let s = match cols.iter().position(|&c| c == tx) {
+                Some(s) => s,
+                None => {
+                    cols.push(tx);
+                    cols.len() - 1
+                }
+            };
+            (s, (i & (t - 1)) as usize)
+        };
+        let mut fx = Vec::with_capacity(which.len());
+        let mut corners = Vec::with_capacity(which.len());
+        for &k in which {
+            let lon = lons[k];
+            let lo = if flip { lon + PI } else { lon };
+            let x = (lo + PI).rem_euclid(2.0 * PI) / (2.0 * PI) * w as f64 - 0.5;
+            let x0 = x.floor();
+            fx.push(x - x0);
+            let i0 = (x0 as i64).rem_euclid(wi);
+            let i1 = if i0 + 1 == wi { 0 } else { i0 + 1 };
+            corners.push([slot(i0), slot(i1)]);
+        }
+        Self {
+            lons: lons.to_vec(),
+            id,
+            flip,
+            fx,
+            corners,
+            cols,
         }
     }
 }
@@ -541,9 +585,6 @@ type Corners<'a, T> = [Option<&'a [T]>; 4];
 
 /// What receives the samples of a row: point index, corners, fx, fy.
 type EmitFn<'e, T> = dyn for<'a> FnMut(usize, Corners<'a, T>, f64, f64) + 'e;
-
-/// A store tile touched by a row: its column and data (None: missing).
-type RowTile<'a, T> = (u64, Option<&'a [T]>);
 
 /// A zero sample of a store type (the buffer a tile is decoded into).
 trait ZeroedSample {

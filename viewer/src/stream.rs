@@ -21,8 +21,10 @@
 use std::collections::{HashMap, HashSet};
 use std::f64::consts::PI;
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
 
 use sc_store::StoreReader;
 
@@ -192,7 +194,8 @@ impl<S> Pool<S> {
     }
 }
 
-/// A tile's samples row by row: `fill(lons, colat, texel size, out)` appends one row.
+/// A tile's samples row by row: `fill(lons, colat, texel size, out)` appends one row (every row
+/// of a tile has the same longitudes).
 fn sample_rows<T>(
     key: &TileKey,
     n: u32,
@@ -201,10 +204,8 @@ fn sample_rows<T>(
 ) -> Vec<T> {
     let win = key.grid.window(n);
     let mut data = Vec::with_capacity((n * n) as usize * channels);
-    let mut lons = Vec::with_capacity(n as usize);
+    let lons: Vec<f64> = (0..n).map(|c| key.texel_centre(c, 0, n).0).collect();
     for r in 0..n {
-        lons.clear();
-        lons.extend((0..n).map(|c| key.texel_centre(c, r, n).0));
         fill(&lons, key.texel_centre(0, r, n).1, win, &mut data);
     }
     data
@@ -507,6 +508,10 @@ struct Shared {
     state: Mutex<State>,
     wake: Condvar,
     errors: Mutex<Vec<String>>,
+    /// Tiles made (inputs made on a worker's own account included).
+    made: AtomicU64,
+    /// Nanoseconds workers spent making tiles.
+    busy_ns: AtomicU64,
 }
 
 impl Shared {
@@ -541,6 +546,8 @@ impl Streamer {
             }),
             wake: Condvar::new(),
             errors: Mutex::new(Vec::new()),
+            made: AtomicU64::new(0),
+            busy_ns: AtomicU64::new(0),
         });
         let (tx, rx) = sync_channel::<Task>(workers);
         let rx = Arc::new(Mutex::new(rx));
@@ -587,8 +594,8 @@ impl Streamer {
     }
 
     /// Blocks until `key` is made or failed, or `timeout` passes; the tile if made.
-    pub fn wait_for(&self, key: &TileKey, timeout: std::time::Duration) -> Option<Tile> {
-        let end = std::time::Instant::now() + timeout;
+    pub fn wait_for(&self, key: &TileKey, timeout: Duration) -> Option<Tile> {
+        let end = Instant::now() + timeout;
         let mut s = self.shared.state();
         loop {
             if let Some(t) = self.shared.cache.get(key) {
@@ -597,7 +604,7 @@ impl Streamer {
             if self.shared.cache.is_failed(key) {
                 return None;
             }
-            let now = std::time::Instant::now();
+            let now = Instant::now();
             if now >= end {
                 return None;
             }
@@ -618,6 +625,14 @@ impl Streamer {
             .map(|t| t.key)
             .collect();
         self.shared.cache.prune_keeping(focus, &keep);
+    }
+
+    /// Tiles made so far and the time workers spent making them (all workers together).
+    pub fn work(&self) -> (u64, Duration) {
+        (
+            self.shared.made.load(Ordering::Relaxed),
+            Duration::from_nanos(self.shared.busy_ns.load(Ordering::Relaxed)),
+        )
     }
 
     /// Failures so far (one line per tile, the first [`MAX_ERRORS`]).
@@ -770,7 +785,9 @@ fn make(shared: &Shared, key: TileKey, depth: usize) -> Result<TileData, String>
         };
         inputs.push(t);
     }
-    src.make(&key, shared.n, &inputs)
+    let tile = src.make(&key, shared.n, &inputs);
+    shared.made.fetch_add(1, Ordering::Relaxed);
+    tile
 }
 
 fn worker(shared: &Shared, rx: &Mutex<Receiver<Task>>) {
@@ -783,7 +800,12 @@ fn worker(shared: &Shared, rx: &Mutex<Receiver<Task>>) {
             }
         };
         let key = task.key;
-        match make(shared, key, 0) {
+        let start = Instant::now();
+        let made = make(shared, key, 0);
+        shared
+            .busy_ns
+            .fetch_add(start.elapsed().as_nanos() as u64, Ordering::Relaxed);
+        match made {
             Ok(tile) => shared.cache.insert(key, tile),
             Err(e) => {
                 if shared.cache.fail(key) {
@@ -808,7 +830,6 @@ fn worker(shared: &Shared, rx: &Mutex<Receiver<Task>>) {
 mod tests {
     use super::*;
     use std::sync::mpsc::{Receiver, Sender, channel};
-    use std::time::Duration;
 
     /// A source that records each tile it starts and then waits to be released (one message per
     /// tile): the test decides when work finishes, so orders are deterministic.

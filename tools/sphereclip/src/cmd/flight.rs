@@ -76,6 +76,10 @@ pub struct Run {
     pub cpu_ms: [f64; 3],
     /// Levels visibility asked for at the end (coarsest, finest).
     pub levels: [u32; 2],
+    /// Tiles the workers made per second.
+    pub tiles_per_s: f64,
+    /// Share of the workers' time spent making tiles (1: they never waited for work).
+    pub workers_busy: f64,
 }
 
 /// One altitude.
@@ -159,6 +163,7 @@ pub fn run(store: &Path, flight_path: &Path, (w, h): (u32, u32), out: &Path) -> 
         fov: flight.fov,
     };
     let budget = Duration::from_secs_f64(flight.update_budget_ms / 1e3);
+    let workers = super::view::default_workers();
     let mut altitudes = Vec::new();
     for &alt in &flight.altitudes {
         camera.alt = alt;
@@ -175,6 +180,7 @@ pub fn run(store: &Path, flight_path: &Path, (w, h): (u32, u32), out: &Path) -> 
             let v = speed * alt;
             let (mut frame_ms, mut cpu_ms, mut finest) = (Vec::new(), Vec::new(), 0usize);
             let mut last = None;
+            let (made0, busy0) = streamer.work();
             let start = Instant::now();
             let mut prev = start;
             while start.elapsed().as_secs_f64() < flight.seconds {
@@ -190,13 +196,18 @@ pub fn run(store: &Path, flight_path: &Path, (w, h): (u32, u32), out: &Path) -> 
                 finest += usize::from(s.level_hi == s.level_wanted);
                 last = Some(s);
             }
+            let elapsed = start.elapsed().as_secs_f64();
+            let (made1, busy1) = streamer.work();
+            let tiles_per_s = (made1 - made0) as f64 / elapsed;
+            let workers_busy = (busy1 - busy0).as_secs_f64() / (elapsed * workers as f64);
             let share = finest as f64 / frame_ms.len().max(1) as f64;
             let levels = last.map_or([0, 0], |s| [s.level_lo, s.level_wanted]);
             eprintln!(
-                "flight: {alt} m at {speed} alt/s ({v:.0} m/s): {} frames, finest level in {:.0} %, frame p50 {:.0} ms",
+                "flight: {alt} m at {speed} alt/s ({v:.0} m/s): {} frames, finest level in {:.0} %, frame p50 {:.0} ms, {tiles_per_s:.0} tiles/s, workers busy {:.0} %",
                 frame_ms.len(),
                 share * 100.0,
-                percentile(&frame_ms, 0.5)
+                percentile(&frame_ms, 0.5),
+                workers_busy * 100.0
             );
             runs.push(Run {
                 speed_alt_per_s: speed,
@@ -206,6 +217,8 @@ pub fn run(store: &Path, flight_path: &Path, (w, h): (u32, u32), out: &Path) -> 
                 frame_ms: pcts(&frame_ms),
                 cpu_ms: pcts(&cpu_ms),
                 levels,
+                tiles_per_s,
+                workers_busy,
             });
         }
         let best = runs
@@ -223,7 +236,7 @@ pub fn run(store: &Path, flight_path: &Path, (w, h): (u32, u32), out: &Path) -> 
         store: store.display().to_string(),
         adapter: r.adapter.clone(),
         size: [w, h],
-        workers: super::view::default_workers(),
+        workers,
         altitudes,
     };
     let json = serde_json::to_string_pretty(&stats)?;
