@@ -239,8 +239,8 @@ struct StoreLevels<T: TileSample + ZeroedSample> {
     budget: usize,
     /// Read errors seen (a damaged tile reads as missing and is counted once).
     errors: Vec<String>,
-    /// The last full row's columns (reused by the next row at the same longitudes).
-    columns: Option<Columns>,
+    /// The last full rows' columns, by level (reused by the next row at the same longitudes).
+    columns: Vec<Columns>,
 }
 
 /// Where a point falls in a level: the texel at the north-west of its bilinear footprint and the
@@ -278,7 +278,7 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
             tile_bytes: 0,
             budget: TILE_CACHE_BYTES,
             errors: Vec::new(),
-            columns: None,
+            columns: Vec::new(),
         })
     }
 
@@ -466,9 +466,13 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
         // the points' columns in this level: the same for every row of a tile, so a full row
         // reuses the previous row's when the level and the longitudes are the same
         let full = which.len() == lons.len();
-        let columns = match self.columns.take() {
-            Some(c) if full && c.id == f.id && c.flip == flip && c.lons == lons => c,
-            _ => Columns::new(lons, which, f.id, flip, w, self.grid.tile_size()),
+        let hit = self
+            .columns
+            .iter()
+            .position(|c| full && c.id == f.id && c.flip == flip && c.lons == lons);
+        let columns = match hit {
+            Some(i) => self.columns.remove(i),
+            None => Columns::new(lons, which, f.id, flip, w, self.grid.tile_size()),
         };
         // every tile the row touches, loaded before any is borrowed
         self.bound_cache();
@@ -501,12 +505,22 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
                     .collect()
             });
             let row_off = rows.map(|j| ((j & (t - 1)) * t) as usize);
+            let empty = row_data.iter().flatten().all(|d| d.is_none());
             // a corner: None when its tile holds no data
             let get = |(s, o): (usize, usize), r: usize| -> Option<&[T]> {
                 let k = (row_off[r] + o) * ch;
                 row_data[r][s].map(|d| &d[k..k + ch])
             };
-            for ((&k, &fx), &[a, b]) in which.iter().zip(&columns.fx).zip(&columns.corners) {
+            if empty && idx > 0 {
+                // nothing here at this level (a regional level elsewhere): all fall back
+                missing.extend_from_slice(which);
+            }
+            let points = if empty && idx > 0 { 0 } else { which.len() };
+            for ((&k, &fx), &[a, b]) in which[..points]
+                .iter()
+                .zip(&columns.fx)
+                .zip(&columns.corners)
+            {
                 let c = [get(a, 0), get(b, 0), get(a, 1), get(b, 1)];
                 if idx > 0 && c.iter().any(|c| c.is_none()) {
                     missing.push(k);
@@ -516,13 +530,18 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
             }
         }
         if full {
-            self.columns = Some(columns);
+            // the most recent first; a few levels (a row falling back from a regional level)
+            self.columns.truncate(COLUMN_MEMOS - 1);
+            self.columns.insert(0, columns);
         }
         if !missing.is_empty() {
             self.sample_points(lons, &missing, colat, win, idx - 1, emit);
         }
     }
 }
+
+/// Column layouts [`StoreLevels`] keeps (a row may fall back through a few levels).
+const COLUMN_MEMOS: usize = 4;
 
 /// Where a row's points fall in a level's columns: per point the fraction towards the next
 /// column and its two corner columns as (slot in `cols`, offset in the tile row); `cols` are

@@ -2,6 +2,7 @@
 //! image (any adapter, the CPU one — lavapipe — included). Reversed-Z float depth with an
 //! infinite far plane serves orbit and the ground alike.
 
+use std::collections::HashMap;
 use std::f64::consts::PI;
 
 use bytemuck::{Pod, Zeroable};
@@ -14,7 +15,7 @@ use crate::clipmap::{
 };
 use crate::geometry::{Hemisphere, HemisphereSpec};
 use crate::stream::{Focus, GridId, Streamer, Task, Tile, TileData, TileKey};
-use crate::transform::{Viewer, visible_levels};
+use crate::transform::{Viewer, finest_level_in_view, visible_levels};
 use std::time::{Duration, Instant};
 
 /// Errors of the renderer.
@@ -145,8 +146,12 @@ pub struct FrameStats {
     pub level_lo: u32,
     /// Last (finest) level drawn.
     pub level_hi: u32,
-    /// The finest level visibility asks for (above `level_hi` while tiles are being made).
+    /// The finest level visibility asks for (above `level_hi` while tiles are being made): the
+    /// finest whose triangles cover a pixel and whose ground is in view.
     pub level_wanted: u32,
+    /// The finest level whose triangles cover a pixel; levels past `level_wanted` up to this one
+    /// lie out of view (under a camera looking ahead) and are prefetched, not drawn.
+    pub level_sharpest: u32,
     /// Triangles drawn.
     pub triangles: u32,
     /// Clipmap levels (height or colour) whose window moved by a texel or more: their changed
@@ -190,6 +195,13 @@ pub struct ClipmapPass {
     last_tasks: Vec<Task>,
     /// Where the viewer was last frame (to prefetch along its motion).
     prev_viewer: Option<Viewer>,
+    /// Per level drawn last frame, the highest terrain in its quad plus a texel's rise
+    /// (metres above sea level): bounds the terrain in the caps of it and of finer levels.
+    rise_from: Vec<Option<f64>>,
+    /// The ground under the camera last frame, metres.
+    ground_prev: f64,
+    /// Highest height of tiles seen lately (not recomputed every frame).
+    tile_top: HashMap<TileKey, f32>,
     /// Debug toggles.
     pub options: DrawOptions,
 }
@@ -396,6 +408,9 @@ impl ClipmapPass {
             last: FrameStats::default(),
             last_tasks: Vec::new(),
             prev_viewer: None,
+            rise_from: Vec::new(),
+            ground_prev: 0.0,
+            tile_top: HashMap::new(),
             options: DrawOptions::default(),
         }
     }
@@ -436,6 +451,34 @@ impl ClipmapPass {
             self.hemi.spec.n,
             self.hemi.spec.levels,
         )
+    }
+
+    /// How far terrain may rise above the ground under the camera within level `i`'s cap: from
+    /// the finest level drawn last frame at or below `i` (its quad holds the cap); unbounded
+    /// before anything is drawn.
+    fn rise(&self, i: u32) -> f64 {
+        self.rise_from
+            .iter()
+            .take(i as usize + 1)
+            .rev()
+            .find_map(|r| *r)
+            .map_or(f64::INFINITY, |top| top - self.ground_prev)
+    }
+
+    /// The highest height in a quad of height tiles (`keys`, `tiles`; NaN texels skipped).
+    fn quad_top(&mut self, keys: &[TileKey], tiles: &[Tile]) -> f64 {
+        if self.tile_top.len() > 1024 {
+            self.tile_top.clear();
+        }
+        let mut top = f32::NEG_INFINITY;
+        for (k, t) in keys.iter().zip(tiles) {
+            let t = *self.tile_top.entry(*k).or_insert_with(|| match &**t {
+                TileData::Height(h) => h.iter().copied().fold(f32::NEG_INFINITY, f32::max),
+                TileData::Color(_) => f32::NEG_INFINITY,
+            });
+            top = top.max(t);
+        }
+        f64::from(top)
     }
 
     /// Whether the device draws wireframes.
@@ -494,6 +537,7 @@ impl ClipmapPass {
             level_lo: lo,
             level_hi: hi,
             level_wanted: hi,
+            level_sharpest: hi,
             triangles: self.hemi.triangles(lo, hi),
             levels_filled: filled,
         };
@@ -561,15 +605,26 @@ impl ClipmapPass {
         debug_assert_eq!(streamer.tile_size(), n);
         let viewer = Viewer::from_deg(camera.lat, camera.lon);
         let levels = self.hemi.spec.levels;
-        let (lo, wanted) = self.visible(camera, h);
+        let (lo, sharpest) = self.visible(camera, h);
+        // levels whose ground is out of view are not drawn (the coarser disc covers it unseen),
+        // only prefetched: tilting the camera down finds their tiles made
+        let wanted = finest_level_in_view(
+            self.radius,
+            camera.alt,
+            camera.pitch.to_radians(),
+            camera.fov.to_radians(),
+            (lo, sharpest),
+            |i| self.rise(i),
+        );
         let layers: Vec<(bool, u32)> = std::iter::once((true, sources.height))
             .chain(sources.color.map(|c| (false, c)))
             .collect();
-        // 1. the tasks of this focus (visible levels, then the next finer one as prefetch)
+        // 1. the tasks of this focus (visible levels, then as prefetch the finer ones out of
+        // view and the next finer one)
         let mut tasks = Vec::new();
         let mut focus = Focus::new();
         let mut windows = Vec::new();
-        for i in lo..=(wanted + 1).min(levels - 1) {
+        for i in lo..=(sharpest + 1).min(levels - 1) {
             let p = Placement::new(i, &viewer, n);
             let grid = GridId::of(i, &p, n);
             for &(_, src) in &layers {
@@ -617,6 +672,7 @@ impl ClipmapPass {
         // 2. levels coarse to fine, as far as their tiles are ready
         let mut drawn = None;
         let mut filled = 0;
+        let mut rise_from = vec![None; levels as usize];
         for &(i, p, grid) in windows.iter().filter(|(i, ..)| *i <= wanted) {
             let quad: Option<Vec<Vec<Tile>>> = layers
                 .iter()
@@ -642,6 +698,8 @@ impl ClipmapPass {
                 }
                 filled += u32::from(!todo.is_empty());
             }
+            let top = self.quad_top(&quad_keys(sources.height, grid, &p, n), &quad[0]);
+            rise_from[i as usize] = Some(top + p.win.texel_colat * self.radius);
             self.level_uniforms[i as usize] = level_uniform(&p);
             drawn = Some((i, p, quad));
             if deadline.is_some_and(|d| Instant::now() >= d) {
@@ -652,10 +710,27 @@ impl ClipmapPass {
             Some((i, p, quad)) => (*i, ground_from_quad(&quad[0], p, n)),
             None => (lo, 0.0),
         };
+        // the ground under the camera from the finest level with its heights made, drawn or
+        // not (the same as a full render's once the prefetch is done)
+        let ground = windows
+            .iter()
+            .rev()
+            .filter(|(i, ..)| *i > hi && *i <= sharpest)
+            .find_map(|&(_, p, grid)| {
+                let quad: Option<Vec<Tile>> = quad_keys(sources.height, grid, &p, n)
+                    .iter()
+                    .map(|k| streamer.cache().get(k))
+                    .collect();
+                quad.map(|q| ground_from_quad(&q, &p, n))
+            })
+            .unwrap_or(ground);
+        self.rise_from = rise_from;
+        self.ground_prev = ground;
         let stats = FrameStats {
             level_lo: lo,
             level_hi: hi,
             level_wanted: wanted,
+            level_sharpest: sharpest,
             triangles: self.hemi.triangles(lo, hi),
             levels_filled: filled,
         };

@@ -218,6 +218,42 @@ pub fn visible_levels(
     (lo, hi)
 }
 
+/// The finest of levels `lo..=hi` whose ground can show in the view (coarse levels first: a
+/// level's cap — the ground within `level_outer(i)` of the point under the viewer, which its
+/// rings and, when it is the finest drawn, its fill disc cover — lies inside every coarser
+/// one's). A camera `height_m` above the ground under it, pitched `pitch_rad` (negative: down)
+/// with vertical field of view `fov_rad`, sees nothing steeper than `fov/2 − pitch` below its
+/// horizon (the bottom-centre ray is the steepest of the frustum). A cap is out of view when its
+/// rim, raised by `rise(i)` metres above the ground under the camera (the highest terrain there,
+/// with a margin), lies steeper than that; then so are all finer caps, which the coarser level's
+/// disc covers unseen. Conservative: only the steepest ray is compared (not the sides), so a
+/// level kept may still be off-screen, never the reverse.
+pub fn finest_level_in_view(
+    radius_m: f64,
+    height_m: f64,
+    pitch_rad: f64,
+    fov_rad: f64,
+    (lo, hi): (u32, u32),
+    rise: impl Fn(u32) -> f64,
+) -> u32 {
+    let steepest = fov_rad / 2.0 - pitch_rad;
+    if steepest >= std::f64::consts::FRAC_PI_2 {
+        return hi; // the point under the camera is in view
+    }
+    let eye = radius_m + height_m.max(0.0);
+    let mut finest = lo;
+    for i in lo..=hi {
+        let theta = crate::geometry::level_outer(i);
+        let rim = radius_m + rise(i);
+        let (down, across) = (eye - rim * theta.cos(), rim * theta.sin());
+        if down > 0.0 && down.atan2(across) > steepest {
+            break;
+        }
+        finest = i;
+    }
+    finest
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -282,6 +318,34 @@ mod tests {
             far(PI, 1.0)
         );
         assert!((far(PI, 1.0).dlon - far(PI - 0.01, 0.0).dlon).abs() < 0.05);
+    }
+
+    #[test]
+    fn levels_whose_ground_is_out_of_view_are_not_wanted() {
+        let r = sc_core::EARTH_RADIUS_M;
+        let fov = 60f64.to_radians();
+        let flat = |_: u32| 0.0;
+        // 20 km up, 20° down: the view's steepest ray is 50° down and meets the ground 16.8 km
+        // ahead; level 9's cap (19.6 km) reaches into the view, level 10's (9.8 km) does not
+        let l = finest_level_in_view(r, 20_000.0, -20f64.to_radians(), fov, (4, 11), flat);
+        assert_eq!(l, 9);
+        let cap = |i: u32| crate::geometry::level_outer(i) * r;
+        assert!(cap(9) > 20_000.0 / 50f64.to_radians().tan());
+        assert!(cap(10) < 20_000.0 / 50f64.to_radians().tan());
+        // looking straight down, or far enough down to see under the camera: every level
+        for pitch in [-90.0f64, -60.0] {
+            let l = finest_level_in_view(r, 20_000.0, pitch.to_radians(), fov, (4, 11), flat);
+            assert_eq!(l, 11, "pitch {pitch}");
+        }
+        // a mountain 9 km high near the camera rises into the view: level 10 comes back
+        let l = finest_level_in_view(r, 20_000.0, -20f64.to_radians(), fov, (4, 11), |_| 9000.0);
+        assert_eq!(l, 10);
+        // terrain above the camera: every level may show
+        let l = finest_level_in_view(r, 200.0, 0.0, fov, (4, 17), |_| 300.0);
+        assert_eq!(l, 17);
+        // looking up, only the coarsest level is kept
+        let l = finest_level_in_view(r, 2000.0, 40f64.to_radians(), fov, (5, 14), flat);
+        assert!(l <= 6, "{l}");
     }
 
     #[test]

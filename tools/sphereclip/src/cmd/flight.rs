@@ -74,8 +74,10 @@ pub struct Run {
     pub frame_ms: [f64; 3],
     /// CPU time per frame percentiles (50, 95, 99), milliseconds.
     pub cpu_ms: [f64; 3],
-    /// Levels visibility asked for at the end (coarsest, finest).
-    pub levels: [u32; 2],
+    /// Levels at the end: the coarsest, the finest in view (the one counted) and the finest
+    /// whose triangles cover a pixel (finer than the one in view while the ground under the
+    /// camera is out of view).
+    pub levels: [u32; 3],
     /// Tiles the workers made per second.
     pub tiles_per_s: f64,
     /// Share of the workers' time spent making tiles (1: they never waited for work).
@@ -201,7 +203,7 @@ pub fn run(store: &Path, flight_path: &Path, (w, h): (u32, u32), out: &Path) -> 
             let tiles_per_s = (made1 - made0) as f64 / elapsed;
             let workers_busy = (busy1 - busy0).as_secs_f64() / (elapsed * workers as f64);
             let share = finest as f64 / frame_ms.len().max(1) as f64;
-            let levels = last.map_or([0, 0], |s| [s.level_lo, s.level_wanted]);
+            let levels = last.map_or([0; 3], |s| [s.level_lo, s.level_wanted, s.level_sharpest]);
             eprintln!(
                 "flight: {alt} m at {speed} alt/s ({v:.0} m/s): {} frames, finest level in {:.0} %, frame p50 {:.0} ms, {tiles_per_s:.0} tiles/s, workers busy {:.0} %",
                 frame_ms.len(),
