@@ -13,7 +13,7 @@ use crate::clipmap::{
     CLIPMAP_N, ColorSource, HeightSource, Placement, Region, all_regions, changed_regions,
     fill_region,
 };
-use crate::geometry::{Hemisphere, HemisphereSpec};
+use crate::geometry::{Hemisphere, HemisphereSpec, level_outer};
 use crate::stream::{Focus, GridId, Streamer, Task, Tile, TileData, TileKey};
 use crate::transform::{Viewer, finest_level_in_view, visible_levels};
 use std::time::{Duration, Instant};
@@ -195,13 +195,11 @@ pub struct ClipmapPass {
     last_tasks: Vec<Task>,
     /// Where the viewer was last frame (to prefetch along its motion).
     prev_viewer: Option<Viewer>,
-    /// Per level drawn last frame, the highest terrain in its quad plus a texel's rise
-    /// (metres above sea level): bounds the terrain in the caps of it and of finer levels.
-    rise_from: Vec<Option<f64>>,
     /// The ground under the camera last frame, metres.
     ground_prev: f64,
-    /// Highest height of tiles seen lately (not recomputed every frame).
-    tile_top: HashMap<TileKey, f32>,
+    /// Per height tile seen lately, its highest height and largest step between neighbouring
+    /// texels (not recomputed every frame).
+    tile_top: HashMap<TileKey, (f32, f32)>,
     /// Debug toggles.
     pub options: DrawOptions,
 }
@@ -408,7 +406,6 @@ impl ClipmapPass {
             last: FrameStats::default(),
             last_tasks: Vec::new(),
             prev_viewer: None,
-            rise_from: Vec::new(),
             ground_prev: 0.0,
             tile_top: HashMap::new(),
             options: DrawOptions::default(),
@@ -453,32 +450,46 @@ impl ClipmapPass {
         )
     }
 
-    /// How far terrain may rise above the ground under the camera within level `i`'s cap: from
-    /// the finest level drawn last frame at or below `i` (its quad holds the cap); unbounded
-    /// before anything is drawn.
-    fn rise(&self, i: u32) -> f64 {
-        self.rise_from
-            .iter()
-            .take(i as usize + 1)
-            .rev()
-            .find_map(|r| *r)
-            .map_or(f64::INFINITY, |top| top - self.ground_prev)
-    }
-
-    /// The highest height in a quad of height tiles (`keys`, `tiles`; NaN texels skipped).
-    fn quad_top(&mut self, keys: &[TileKey], tiles: &[Tile]) -> f64 {
+    /// Per level of `windows` (ascending from the coarsest), how high terrain may rise above
+    /// the ground under the camera within its cap: the height tiles of every level at or
+    /// coarser than it that are made (each level's quad holds the caps of it and of all finer
+    /// levels) bound it by their highest height plus their largest step between neighbouring
+    /// texels (a peak between samples rises no further); the lowest bound counts. Unbounded
+    /// where no such quad is made.
+    fn rises(
+        &mut self,
+        streamer: &Streamer,
+        height: u32,
+        windows: &[(u32, Placement, GridId)],
+    ) -> Vec<f64> {
         if self.tile_top.len() > 1024 {
             self.tile_top.clear();
         }
-        let mut top = f32::NEG_INFINITY;
-        for (k, t) in keys.iter().zip(tiles) {
-            let t = *self.tile_top.entry(*k).or_insert_with(|| match &**t {
-                TileData::Height(h) => h.iter().copied().fold(f32::NEG_INFINITY, f32::max),
-                TileData::Color(_) => f32::NEG_INFINITY,
-            });
-            top = top.max(t);
-        }
-        f64::from(top)
+        let mut bound = f64::INFINITY;
+        windows
+            .iter()
+            .map(|&(_, p, grid)| {
+                let keys = quad_keys(height, grid, &p, CLIPMAP_N);
+                let mut top = Some((f32::NEG_INFINITY, 0.0f32));
+                for k in keys {
+                    let t = match self.tile_top.get(&k) {
+                        Some(t) => Some(*t),
+                        None => streamer.cache().get(&k).map(|t| {
+                            let v = height_top_and_step(&t, CLIPMAP_N);
+                            self.tile_top.insert(k, v);
+                            v
+                        }),
+                    };
+                    top = top.zip(t).map(|(a, b)| (a.0.max(b.0), a.1.max(b.1)));
+                }
+                if let Some((top, step)) = top
+                    && top.is_finite()
+                {
+                    bound = bound.min(f64::from(top) + f64::from(step));
+                }
+                bound - self.ground_prev
+            })
+            .collect()
     }
 
     /// Whether the device draws wireframes.
@@ -606,58 +617,71 @@ impl ClipmapPass {
         let viewer = Viewer::from_deg(camera.lat, camera.lon);
         let levels = self.hemi.spec.levels;
         let (lo, sharpest) = self.visible(camera, h);
+        let layers: Vec<(bool, u32)> = std::iter::once((true, sources.height))
+            .chain(sources.color.map(|c| (false, c)))
+            .collect();
+        let windows: Vec<(u32, Placement, GridId)> = (lo..=(sharpest + 1).min(levels - 1))
+            .map(|i| {
+                let p = Placement::new(i, &viewer, n);
+                (i, p, GridId::of(i, &p, n))
+            })
+            .collect();
         // levels whose ground is out of view are not drawn (the coarser disc covers it unseen),
         // only prefetched: tilting the camera down finds their tiles made
+        let rises = self.rises(streamer, sources.height, &windows);
         let wanted = finest_level_in_view(
             self.radius,
             camera.alt,
             camera.pitch.to_radians(),
             camera.fov.to_radians(),
             (lo, sharpest),
-            |i| self.rise(i),
+            |i| rises[(i - lo) as usize],
         );
-        let layers: Vec<(bool, u32)> = std::iter::once((true, sources.height))
-            .chain(sources.color.map(|c| (false, c)))
-            .collect();
-        // 1. the tasks of this focus (visible levels, then as prefetch the finer ones out of
-        // view and the next finer one)
+        // the motion since the last frame (radians of longitude and colatitude, and of arc)
+        let motion = self.prev_viewer.map(|prev| {
+            let dlon = (viewer.lon - prev.lon + PI).rem_euclid(2.0 * PI) - PI;
+            let dcolat = viewer.colat - prev.colat;
+            (dlon, dcolat, dcolat.hypot(dlon * viewer.colat.sin()))
+        });
+        // 1. the tasks of this focus: the visible levels, then as prefetch the finer ones (out
+        // of view, or the next finer) whose window the camera does not cross within
+        // `PREFETCH_FINER_FRAMES` frames (tiles a fast camera would leave before tilting down
+        // to them would only delay the visible ones)
         let mut tasks = Vec::new();
         let mut focus = Focus::new();
-        let mut windows = Vec::new();
-        for i in lo..=(sharpest + 1).min(levels - 1) {
-            let p = Placement::new(i, &viewer, n);
-            let grid = GridId::of(i, &p, n);
+        let step = motion.map_or(0.0, |m| m.2);
+        for &(i, p, grid) in &windows {
+            let wanted_now = i <= wanted || step * PREFETCH_FINER_FRAMES < 2.0 * level_outer(i);
             for &(_, src) in &layers {
                 let quad = quad_keys(src, grid, &p, n);
-                tasks.extend(quad.map(|key| Task {
-                    key,
-                    prefetch: i > wanted,
-                }));
+                if wanted_now {
+                    tasks.extend(quad.map(|key| Task {
+                        key,
+                        prefetch: i > wanted,
+                    }));
+                }
                 focus.insert((src, grid), (quad[0].x, quad[0].y));
             }
-            windows.push((i, p, grid));
         }
         // prefetch along the motion: the quads where the viewer will be in a few frames if it
         // keeps going (so a level's next tiles are made before its window reaches them)
-        if let Some(prev) = self.prev_viewer {
-            let dlon = (viewer.lon - prev.lon + PI).rem_euclid(2.0 * PI) - PI;
-            let dcolat = viewer.colat - prev.colat;
-            if dlon != 0.0 || dcolat != 0.0 {
-                for frames in [3.0, 10.0, 30.0] {
-                    let ahead = Viewer {
-                        lon: viewer.lon + dlon * frames,
-                        colat: (viewer.colat + dcolat * frames).clamp(1e-9, PI - 1e-9),
-                    };
-                    for i in lo..=wanted {
-                        let p = Placement::new(i, &ahead, n);
-                        let grid = GridId::of(i, &p, n);
-                        for &(_, src) in &layers {
-                            for key in quad_keys(src, grid, &p, n) {
-                                tasks.push(Task {
-                                    key,
-                                    prefetch: true,
-                                });
-                            }
+        if let Some((dlon, dcolat, step)) = motion
+            && step > 0.0
+        {
+            for frames in [3.0, 10.0, 30.0] {
+                let ahead = Viewer {
+                    lon: viewer.lon + dlon * frames,
+                    colat: (viewer.colat + dcolat * frames).clamp(1e-9, PI - 1e-9),
+                };
+                for i in lo..=wanted {
+                    let p = Placement::new(i, &ahead, n);
+                    let grid = GridId::of(i, &p, n);
+                    for &(_, src) in &layers {
+                        for key in quad_keys(src, grid, &p, n) {
+                            tasks.push(Task {
+                                key,
+                                prefetch: true,
+                            });
                         }
                     }
                 }
@@ -672,7 +696,6 @@ impl ClipmapPass {
         // 2. levels coarse to fine, as far as their tiles are ready
         let mut drawn = None;
         let mut filled = 0;
-        let mut rise_from = vec![None; levels as usize];
         for &(i, p, grid) in windows.iter().filter(|(i, ..)| *i <= wanted) {
             let quad: Option<Vec<Vec<Tile>>> = layers
                 .iter()
@@ -698,8 +721,6 @@ impl ClipmapPass {
                 }
                 filled += u32::from(!todo.is_empty());
             }
-            let top = self.quad_top(&quad_keys(sources.height, grid, &p, n), &quad[0]);
-            rise_from[i as usize] = Some(top + p.win.texel_colat * self.radius);
             self.level_uniforms[i as usize] = level_uniform(&p);
             drawn = Some((i, p, quad));
             if deadline.is_some_and(|d| Instant::now() >= d) {
@@ -724,7 +745,6 @@ impl ClipmapPass {
                 quad.map(|q| ground_from_quad(&q, &p, n))
             })
             .unwrap_or(ground);
-        self.rise_from = rise_from;
         self.ground_prev = ground;
         let stats = FrameStats {
             level_lo: lo,
@@ -792,6 +812,10 @@ impl ClipmapPass {
     }
 }
 
+/// Levels finer than those drawn are prefetched only while the camera takes at least this many
+/// frames to cross their window.
+const PREFETCH_FINER_FRAMES: f64 = 10.0;
+
 /// Which sources of a [`Streamer`] feed the clipmaps.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct StreamSources {
@@ -858,6 +882,28 @@ fn region_from_quad(quad: &[Tile], p: &Placement, r: Region, n: u32) -> Vec<u8> 
 }
 
 /// Height under the viewer, bilinear from the height quad of its finest drawn level.
+/// A height tile's highest height and largest step between neighbouring texels (NaN texels
+/// skipped; colour tiles: no height).
+fn height_top_and_step(tile: &TileData, n: u32) -> (f32, f32) {
+    let TileData::Height(h) = tile else {
+        return (f32::NEG_INFINITY, 0.0);
+    };
+    let n = n as usize;
+    let (mut top, mut step) = (f32::NEG_INFINITY, 0.0f32);
+    for (r, row) in h.chunks_exact(n).enumerate() {
+        for (c, &v) in row.iter().enumerate() {
+            top = top.max(v);
+            if c + 1 < n {
+                step = step.max((row[c + 1] - v).abs());
+            }
+            if r + 1 < n {
+                step = step.max((h[(r + 1) * n + c] - v).abs());
+            }
+        }
+    }
+    (top, step)
+}
+
 fn ground_from_quad(quad: &[Tile], p: &Placement, n: u32) -> f64 {
     let at = |c: i64, r: i64| -> f64 {
         let (c, r) = (
