@@ -3,8 +3,9 @@
 //! coarser level as a full disc while a finer level's tiles are missing, and never wait for a
 //! slow source beyond the coarsest level.
 
-use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, channel};
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use sc_viewer::clipmap::{CLIPMAP_N, ColorSource, HeightSource, LevelWindow};
@@ -135,6 +136,64 @@ fn a_still_camera_converges_to_the_synchronous_render() {
         culled > 0,
         "no view left a level out: the comparison shows nothing"
     );
+}
+
+/// Heights that fail once `closed` is set (a store that went away).
+#[derive(Debug)]
+struct Closable(Arc<AtomicBool>);
+
+impl TileSource for Closable {
+    fn make(&self, key: &TileKey, n: u32, i: &[Tile]) -> Result<TileData, String> {
+        if self.0.load(Ordering::SeqCst) {
+            return Err("the store went away".into());
+        }
+        FnHeightTiles(mountains).make(key, n, i)
+    }
+}
+
+#[test]
+fn levels_out_of_view_are_prefetched_so_looking_down_shows_them_at_once() {
+    let closed = Arc::new(AtomicBool::new(false));
+    let streamer = Streamer::new(
+        vec![Box::new(Closable(closed.clone()))],
+        CLIPMAP_N,
+        2,
+        256 << 20,
+    );
+    let only_heights = StreamSources {
+        height: 0,
+        color: None,
+    };
+    let mut ahead = Camera::parse("46.5,8.0,6000,90,-5,60").expect("camera");
+    let mut r = renderer();
+    let mut stats = None;
+    // stop at one place, then at another 15 km east (beyond the finest levels' windows: their
+    // tiles there are new, and only the prefetch makes them while they are out of view)
+    for lon in [8.0, 8.2] {
+        ahead.lon = lon;
+        for _ in 0..10 {
+            settle(&streamer);
+            let frame = r.render_streamed(&streamer, only_heights, &ahead, None);
+            stats = Some(frame.expect("render").1);
+        }
+    }
+    let stats = stats.expect("frames");
+    assert!(
+        stats.level_wanted < stats.level_sharpest,
+        "nothing out of view: {stats:?}"
+    );
+    assert_eq!(stats.level_hi, stats.level_wanted, "{stats:?}");
+    // from now on no tile can be made: looking down draws from what was prefetched
+    closed.store(true, Ordering::SeqCst);
+    let down = Camera {
+        pitch: -90.0,
+        ..ahead
+    };
+    let (_, stats, _) = r
+        .render_streamed(&streamer, only_heights, &down, None)
+        .expect("render");
+    assert_eq!(stats.level_wanted, stats.level_sharpest, "{stats:?}");
+    assert_eq!(stats.level_hi, stats.level_wanted, "{stats:?}");
 }
 
 /// Heights that fail for grids finer than `max_level` (a corrupt store below some level).
