@@ -540,8 +540,9 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
     }
 }
 
-/// Column layouts [`StoreLevels`] keeps (a row may fall back through a few levels).
-const COLUMN_MEMOS: usize = 4;
+/// Column layouts [`StoreLevels`] keeps: a row may fall back through every level of the store
+/// (a regional fine level over a global coarse one), each with its own layout.
+const COLUMN_MEMOS: usize = 32;
 
 /// Where a row's points fall in a level's columns: per point the fraction towards the next
 /// column and its two corner columns as (slot in `cols`, offset in the tile row); `cols` are
