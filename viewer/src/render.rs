@@ -654,34 +654,40 @@ impl ClipmapPass {
             let wanted_now = i <= wanted || step * PREFETCH_FINER_FRAMES < 2.0 * level_outer(i);
             for &(_, src) in &layers {
                 let quad = quad_keys(src, grid, &p, n);
-                if wanted_now {
-                    tasks.extend(quad.map(|key| Task {
-                        key,
-                        prefetch: i > wanted,
-                    }));
+                if i <= wanted {
+                    tasks.extend(quad.map(Task::visible));
+                } else if wanted_now {
+                    // needed only when the camera tilts down or descends
+                    tasks.extend(quad.map(|k| Task::prefetch(k, PREFETCH_FINER_FRAMES as u32)));
                 }
                 focus.insert((src, grid), (quad[0].x, quad[0].y));
             }
         }
-        // prefetch along the motion: the quads where the viewer will be in a few frames if it
-        // keeps going (so a level's next tiles are made before its window reaches them)
+        // prefetch along the motion: the quads where the viewer will be if it keeps going, every
+        // half window up to `LOOKAHEAD_FRAMES` ahead (so every quad a level's window passes
+        // through is made before it gets there), and the one at the horizon
         if let Some((dlon, dcolat, step)) = motion
             && step > 0.0
         {
-            for frames in [3.0, 10.0, 30.0] {
-                let ahead = Viewer {
-                    lon: viewer.lon + dlon * frames,
-                    colat: (viewer.colat + dcolat * frames).clamp(1e-9, PI - 1e-9),
-                };
-                for i in lo..=wanted {
+            for i in lo..=wanted {
+                let spacing = level_outer(i) / step; // frames per half window
+                let mut frames: Vec<f64> = (1..=LOOKAHEAD_QUADS)
+                    .map(|k| f64::from(k) * spacing)
+                    .take_while(|&f| f < LOOKAHEAD_FRAMES)
+                    .collect();
+                if frames.len() < LOOKAHEAD_QUADS as usize {
+                    frames.push(LOOKAHEAD_FRAMES);
+                }
+                for f in frames {
+                    let ahead = Viewer {
+                        lon: viewer.lon + dlon * f,
+                        colat: (viewer.colat + dcolat * f).clamp(1e-9, PI - 1e-9),
+                    };
                     let p = Placement::new(i, &ahead, n);
                     let grid = GridId::of(i, &p, n);
                     for &(_, src) in &layers {
                         for key in quad_keys(src, grid, &p, n) {
-                            tasks.push(Task {
-                                key,
-                                prefetch: true,
-                            });
+                            tasks.push(Task::prefetch(key, f.ceil() as u32));
                         }
                     }
                 }
@@ -815,6 +821,12 @@ impl ClipmapPass {
 /// Levels finer than those drawn are prefetched only while the camera takes at least this many
 /// frames to cross their window.
 const PREFETCH_FINER_FRAMES: f64 = 10.0;
+
+/// How far ahead along its motion the viewer's path is prefetched, frames.
+const LOOKAHEAD_FRAMES: f64 = 30.0;
+
+/// Most quads prefetched along the path per level (at half-window steps: four windows ahead).
+const LOOKAHEAD_QUADS: u32 = 8;
 
 /// Which sources of a [`Streamer`] feed the clipmaps.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

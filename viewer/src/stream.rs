@@ -482,13 +482,36 @@ impl TileCache {
     }
 }
 
-/// A tile to make, and whether it is for a level being drawn or a prefetch.
+/// A tile to make, whether it is for a level being drawn or a prefetch, and how soon it is
+/// needed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Task {
     /// The tile.
     pub key: TileKey,
     /// False: a level being drawn needs it.
     pub prefetch: bool,
+    /// Frames until the viewer is expected to need it (0: now).
+    pub ahead: u32,
+}
+
+impl Task {
+    /// A tile a level being drawn needs now.
+    pub fn visible(key: TileKey) -> Self {
+        Self {
+            key,
+            prefetch: false,
+            ahead: 0,
+        }
+    }
+
+    /// A tile expected to be needed in `ahead` frames.
+    pub fn prefetch(key: TileKey, ahead: u32) -> Self {
+        Self {
+            key,
+            prefetch: true,
+            ahead,
+        }
+    }
 }
 
 #[derive(Debug, Default)]
@@ -671,10 +694,11 @@ impl Drop for Streamer {
     }
 }
 
-/// Priority order (visible before prefetch, coarse before fine; stable within a class), then
-/// each task preceded by its inputs, depth-first; duplicates dropped.
+/// Priority order (visible before prefetch, then the sooner needed first, then coarse before
+/// fine; stable within a class), then each task preceded by its inputs, depth-first; duplicates
+/// dropped.
 fn expand(sources: &[Box<dyn TileSource>], mut tasks: Vec<Task>) -> Vec<Task> {
-    tasks.sort_by_key(|t| (t.prefetch, t.key.grid.level));
+    tasks.sort_by_key(|t| (t.prefetch, t.ahead, t.key.grid.level));
     let mut out = Vec::with_capacity(tasks.len());
     let mut seen = HashSet::new();
     fn visit(
@@ -884,32 +908,14 @@ mod tests {
     fn visible_before_prefetch_and_coarse_before_fine() {
         let (s, started, release) = gated(1);
         // occupy the only worker, then queue the rest behind it
-        s.request(vec![Task {
-            key: key(0, 99),
-            prefetch: false,
-        }]);
+        s.request(vec![Task::visible(key(0, 99))]);
         assert_eq!(next(&started), key(0, 99));
         let tasks = vec![
-            Task {
-                key: key(5, 1),
-                prefetch: true,
-            },
-            Task {
-                key: key(7, 2),
-                prefetch: false,
-            },
-            Task {
-                key: key(2, 3),
-                prefetch: true,
-            },
-            Task {
-                key: key(3, 4),
-                prefetch: false,
-            },
-            Task {
-                key: key(7, 5),
-                prefetch: false,
-            },
+            Task::prefetch(key(5, 1), 0),
+            Task::visible(key(7, 2)),
+            Task::prefetch(key(2, 3), 0),
+            Task::visible(key(3, 4)),
+            Task::visible(key(7, 5)),
         ];
         s.request(tasks);
         let mut order = Vec::new();
@@ -927,20 +933,10 @@ mod tests {
     #[test]
     fn a_new_list_cancels_queued_tasks_but_lets_running_ones_finish() {
         let (s, started, release) = gated(1);
-        s.request(
-            (0..4)
-                .map(|x| Task {
-                    key: key(1, x),
-                    prefetch: false,
-                })
-                .collect(),
-        );
+        s.request((0..4).map(|x| Task::visible(key(1, x))).collect());
         assert_eq!(next(&started), key(1, 0));
         // the focus moved: tiles 1..3 are no longer wanted
-        s.request(vec![Task {
-            key: key(1, 10),
-            prefetch: false,
-        }]);
+        s.request(vec![Task::visible(key(1, 10))]);
         release.send(()).expect("release");
         assert_eq!(next(&started), key(1, 10));
         release.send(()).expect("release");
@@ -984,16 +980,7 @@ mod tests {
             1 << 20,
         );
         let k = key(3, 5).with_source(1);
-        s.request(vec![
-            Task {
-                key: k,
-                prefetch: false,
-            },
-            Task {
-                key: k.with_source(3),
-                prefetch: false,
-            },
-        ]);
+        s.request(vec![Task::visible(k), Task::visible(k.with_source(3))]);
         let t = s.wait_for(&k, Duration::from_secs(10)).expect("made");
         let base = s.cache().get(&k.with_source(0)).expect("input made too");
         match (&*t, &*base) {
@@ -1007,10 +994,7 @@ mod tests {
                 .is_none()
         );
         // asked again: not retried, logged once
-        s.request(vec![Task {
-            key: k.with_source(3),
-            prefetch: false,
-        }]);
+        s.request(vec![Task::visible(k.with_source(3))]);
         std::thread::sleep(Duration::from_millis(50));
         assert_eq!(s.errors().len(), 1, "{:?}", s.errors());
         assert_eq!(s.dependents(0), [0, 1]);
