@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
-# Memory of the viewer's streaming stack flying over a store larger than memory budgets:
-# writes a 2.1 GB height store (levels 0..6 of rough synthetic terrain, bench/src/bin/big_store.rs)
-# unless given one, flies bench/rss-flight.toml (5 minutes) headless and samples the process's
-# resident set every 5 s; prints the peak (also from /usr/bin/time) and the samples.
+# Memory of the viewer flying over a store larger than its memory budgets: writes a 2.1 GB height
+# store (levels 0..6 of rough synthetic terrain, bench/src/bin/big_store.rs) unless given one,
+# flies bench/rss-flight.toml (5 minutes) twice — headless (`render --flight`) and in the window
+# under Xvfb (`view --flight`, egui panel and swapchain included) — and samples each process's
+# resident set every 5 s; prints the peaks (sampled and from /usr/bin/time) and keeps the samples.
 # Usage: bash bench/rss.sh [STORE] [OUT_DIR]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -15,19 +16,30 @@ cargo build --locked -q --bin sphereclip -p sphereclip
 cargo build --locked -q --bin big_store -p sc_bench
 if [ ! -e "$store/zarr.json" ]; then ./target/debug/big_store "$store" --level 6; fi
 echo "store: $store ($(du -sh "$store" | cut -f1))"
-/usr/bin/time -v ./target/debug/sphereclip render "$store" --flight bench/rss-flight.toml \
-  --stats "$out/rss-flight.json" --size 640x360 > "$out/rss-flight.out" 2> "$out/rss-flight.err" &
-pid=$!
-sleep 1
-child=$(pgrep -P "$pid" sphereclip || echo "$pid")
-: > "$out/rss-samples.txt"
-while kill -0 "$pid" 2>/dev/null; do
-  if [ -r "/proc/$child/status" ]; then
-    awk -v t="$SECONDS" '/VmRSS/ {print t " s " $2 " kB"}' "/proc/$child/status" >> "$out/rss-samples.txt"
-  fi
-  sleep 5
-done
-wait "$pid"
-echo "RSS samples (every 5 s): $(awk '{print $3}' "$out/rss-samples.txt" | sort -n | tail -1) kB peak sampled"
-grep -E "Maximum resident set size|Elapsed" "$out/rss-flight.err"
-grep -E "best" "$out/rss-flight.out" || true
+
+# measure NAME COMMAND...: runs COMMAND under /usr/bin/time, samples the sphereclip process's
+# resident set every 5 s into $out/NAME-samples.txt
+measure() {
+  local name=$1
+  shift
+  /usr/bin/time -v "$@" > "$out/$name.out" 2> "$out/$name.err" &
+  local pid=$! child=""
+  : > "$out/$name-samples.txt"
+  while kill -0 "$pid" 2>/dev/null; do
+    if [ -z "$child" ]; then child=$(pgrep -n -f "target/debug/sphereclip (render|view) $store" || true); fi
+    if [ -n "$child" ] && [ -r "/proc/$child/status" ]; then
+      awk -v t="$SECONDS" '/VmRSS/ {print t " s " $2 " kB"}' "/proc/$child/status" >> "$out/$name-samples.txt"
+    fi
+    sleep 5
+  done
+  wait "$pid"
+  echo "$name: peak sampled $(awk '{print $3}' "$out/$name-samples.txt" | sort -n | tail -1) kB over $(wc -l < "$out/$name-samples.txt") samples"
+  grep -E "Maximum resident set size|Elapsed" "$out/$name.err" | sed "s/^/$name: /"
+}
+
+measure rss-headless ./target/debug/sphereclip render "$store" --flight bench/rss-flight.toml \
+  --stats "$out/rss-flight.json" --size 640x360
+grep -E "best" "$out/rss-headless.out" || true
+measure rss-window xvfb-run -a -s "-screen 0 800x600x24" ./target/debug/sphereclip view "$store" \
+  --flight bench/rss-flight.toml --size 640x360
+cat "$out/rss-window.out"

@@ -905,27 +905,37 @@ mod tests {
     }
 
     #[test]
-    fn visible_before_prefetch_and_coarse_before_fine() {
+    fn visible_before_prefetch_then_sooner_needed_then_coarse_before_fine() {
         let (s, started, release) = gated(1);
         // occupy the only worker, then queue the rest behind it
         s.request(vec![Task::visible(key(0, 99))]);
         assert_eq!(next(&started), key(0, 99));
         let tasks = vec![
-            Task::prefetch(key(5, 1), 0),
+            Task::prefetch(key(2, 6), 30),
+            Task::prefetch(key(5, 1), 3),
             Task::visible(key(7, 2)),
-            Task::prefetch(key(2, 3), 0),
+            Task::prefetch(key(2, 3), 3),
+            Task::prefetch(key(9, 7), 1),
             Task::visible(key(3, 4)),
             Task::visible(key(7, 5)),
         ];
         s.request(tasks);
         let mut order = Vec::new();
-        for _ in 0..5 {
+        for _ in 0..7 {
             release.send(()).expect("release");
             order.push(next(&started));
         }
         assert_eq!(
             order,
-            [key(3, 4), key(7, 2), key(7, 5), key(2, 3), key(5, 1)]
+            [
+                key(3, 4),
+                key(7, 2),
+                key(7, 5),
+                key(9, 7),
+                key(2, 3),
+                key(5, 1),
+                key(2, 6)
+            ]
         );
         release.send(()).expect("release");
     }

@@ -25,8 +25,11 @@ use crate::stream::Streamer;
 /// How long a frame may spend updating clipmap levels before it draws what it has (Alg. 1).
 const UPDATE_BUDGET: std::time::Duration = std::time::Duration::from_millis(12);
 
+/// Moves the camera instead of the user: given the seconds since the last frame, the camera for
+/// this frame, or `None` when the script is over (the window closes).
+pub type CameraScript = Box<dyn FnMut(f64) -> Option<Camera>>;
+
 /// What `sphereclip view` asks for.
-#[derive(Debug, Clone)]
 pub struct ViewOptions {
     /// Where the camera starts.
     pub camera: Camera,
@@ -40,6 +43,22 @@ pub struct ViewOptions {
     pub title: String,
     /// The graph's colour filters, edited live from the panel.
     pub filters: Vec<FilterHandle>,
+    /// A scripted camera (a flight) instead of mouse and keys.
+    pub script: Option<CameraScript>,
+}
+
+impl std::fmt::Debug for ViewOptions {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ViewOptions")
+            .field("camera", &self.camera)
+            .field("size", &self.size)
+            .field("frames", &self.frames)
+            .field("screenshot", &self.screenshot)
+            .field("title", &self.title)
+            .field("filters", &self.filters.len())
+            .field("script", &self.script.is_some())
+            .finish()
+    }
 }
 
 /// What a viewing session did.
@@ -55,6 +74,8 @@ pub struct ViewReport {
     pub cpu_ms: Vec<f64>,
     /// The last frame's statistics.
     pub last: FrameStats,
+    /// Frames that drew every level wanted (the finest in view).
+    pub finest_frames: u64,
     /// Where the camera ended.
     pub camera: Option<Camera>,
 }
@@ -262,6 +283,13 @@ impl App<'_> {
         }
         let input = self.input.take(dt);
         self.controller.update(&input);
+        let mut script_over = false;
+        if let Some(script) = self.opts.script.as_mut() {
+            match script(dt) {
+                Some(c) => self.controller.camera = c,
+                None => script_over = true,
+            }
+        }
         let Some(gpu) = self.gpu.as_mut() else {
             return Ok(());
         };
@@ -277,6 +305,7 @@ impl App<'_> {
             std::time::Duration::from_secs(10),
         );
         self.report.last = stats;
+        self.report.finest_frames += u64::from(stats.level_hi == stats.level_wanted);
         // the panel
         let raw = gpu.egui_state.take_egui_input(&gpu.window);
         let mut mode = self.controller.mode;
@@ -422,10 +451,11 @@ impl App<'_> {
             let mut pass = pass.forget_lifetime();
             gpu.egui_renderer.render(&mut pass, &prims, &screen);
         }
-        let last = self
-            .opts
-            .frames
-            .is_some_and(|n| self.report.frames + 1 >= n);
+        let last = script_over
+            || self
+                .opts
+                .frames
+                .is_some_and(|n| self.report.frames + 1 >= n);
         let shot = match (&self.opts.screenshot, last) {
             (Some(path), true) => {
                 if !gpu.can_read_back {

@@ -197,6 +197,10 @@ pub struct ViewArgs {
     /// store if there is one, else the store's layers with a neutral colour filter.
     #[arg(long)]
     pub sources: Option<std::path::PathBuf>,
+    /// Fly the scripted flight of this TOML file (the format of `render --flight`: each altitude
+    /// at each speed, in real time) instead of mouse and keys; the window closes at its end.
+    #[arg(long)]
+    pub flight: Option<std::path::PathBuf>,
 }
 
 /// `sphereclip info`.

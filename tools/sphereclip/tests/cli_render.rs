@@ -162,6 +162,15 @@ fn the_window_shows_the_planet_and_the_panel() {
         ),
         (vec!["view", s(&store), "--camera", "0,0"], "--camera"),
         (vec!["view", s(&store), "--frames", "0"], "--frames"),
+        (
+            vec![
+                "view",
+                s(&store),
+                "--flight",
+                s(&dir.path().join("none.toml")),
+            ],
+            "none.toml",
+        ),
     ] {
         let o = run(&args);
         assert_eq!(o.status.code(), Some(1), "{args:?}");
@@ -216,6 +225,32 @@ fn the_window_shows_the_planet_and_the_panel() {
     assert!(
         p[2].abs_diff(p[0]) < 10 && corner[2] > corner[0] + 15,
         "panel {p:?}, space {corner:?}"
+    );
+    // a scripted flight in the window: two altitudes at two speeds, 0.3 s each, then it closes
+    let flight = dir.path().join("flight.toml");
+    std::fs::write(
+        &flight,
+        "start = [46.5, 8.0]\naltitudes = [20000, 2000]\nspeeds = [1, 4]\nseconds = 0.3\n",
+    )
+    .expect("write");
+    let o = Command::new("xvfb-run")
+        .args(["-a", "-s", "-screen 0 800x600x24"])
+        .arg(env!("CARGO_BIN_EXE_sphereclip"))
+        .args([
+            "view",
+            s(&store),
+            "--flight",
+            s(&flight),
+            "--size",
+            "160x120",
+        ])
+        .output()
+        .expect("runs");
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let out = text(&o.stdout);
+    assert!(
+        out.contains("frames on") && out.contains("% of frames"),
+        "{out}"
     );
 }
 

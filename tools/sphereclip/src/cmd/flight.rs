@@ -110,7 +110,8 @@ pub struct Stats {
     pub altitudes: Vec<Altitude>,
 }
 
-fn parse(path: &Path) -> Result<Flight> {
+/// Reads and checks a flight file.
+pub fn parse(path: &Path) -> Result<Flight> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
     let f: Flight = toml::from_str(&text)
@@ -144,6 +145,41 @@ fn parse(path: &Path) -> Result<Flight> {
     Ok(f)
 }
 
+/// The flight as a window's camera script: each altitude at each speed for `seconds`, in real
+/// time, one after the other (no settling between runs), then over.
+pub fn script(flight: Flight, radius: f64) -> sc_viewer::window::CameraScript {
+    let mut camera = start_camera(&flight);
+    let runs: Vec<(f64, f64)> = flight
+        .altitudes
+        .iter()
+        .flat_map(|&a| flight.speeds.iter().map(move |&s| (a, s)))
+        .collect();
+    let (mut run, mut t) = (0usize, 0.0f64);
+    Box::new(move |dt| {
+        t += dt;
+        while t >= flight.seconds {
+            t -= flight.seconds;
+            run += 1;
+        }
+        let &(alt, speed) = runs.get(run)?;
+        camera.alt = alt;
+        let heading = camera.heading;
+        move_along(&mut camera, heading, speed * alt * dt, radius);
+        Some(camera)
+    })
+}
+
+fn start_camera(flight: &Flight) -> Camera {
+    Camera {
+        lat: flight.start[0],
+        lon: flight.start[1],
+        alt: flight.altitudes[0],
+        heading: flight.heading,
+        pitch: flight.pitch,
+        fov: flight.fov,
+    }
+}
+
 fn pcts(v: &[f64]) -> [f64; 3] {
     [percentile(v, 0.5), percentile(v, 0.95), percentile(v, 0.99)]
 }
@@ -156,14 +192,7 @@ pub fn run(store: &Path, flight_path: &Path, (w, h): (u32, u32), out: &Path) -> 
     }
     let (streamer, sources, radius, _) = store_streamer(store, None)?;
     let mut r = Renderer::headless(w, h, radius)?;
-    let mut camera = Camera {
-        lat: flight.start[0],
-        lon: flight.start[1],
-        alt: flight.altitudes[0],
-        heading: flight.heading,
-        pitch: flight.pitch,
-        fov: flight.fov,
-    };
+    let mut camera = start_camera(&flight);
     let budget = Duration::from_secs_f64(flight.update_budget_ms / 1e3);
     let workers = super::view::default_workers();
     let mut altitudes = Vec::new();

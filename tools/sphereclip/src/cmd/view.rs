@@ -1,4 +1,5 @@
-//! `sphereclip view STORE [--camera …] [--size WxH] [--frames N [--screenshot PNG]]`.
+//! `sphereclip view STORE [--camera …] [--size WxH] [--frames N [--screenshot PNG]]
+//! [--sources G.toml] [--flight F.toml]`.
 
 use std::process::ExitCode;
 
@@ -72,6 +73,7 @@ pub fn run(a: &ViewArgs) -> Result<ExitCode> {
     {
         anyhow::bail!("--screenshot is a folder, not a PNG file: {}", p.display());
     }
+    let flight = a.flight.as_deref().map(super::flight::parse).transpose()?;
     let (streamer, sources, radius, filters) = store_streamer(&a.store, a.sources.as_deref())?;
     if !["DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET"]
         .iter()
@@ -93,12 +95,13 @@ pub fn run(a: &ViewArgs) -> Result<ExitCode> {
             screenshot: a.screenshot.clone(),
             title,
             filters,
+            script: flight.map(|f| super::flight::script(f, radius)),
         },
     )?;
-    if a.frames.is_some() {
+    if a.frames.is_some() || a.flight.is_some() {
         let c = report.cpu_ms.get(1..).unwrap_or_default();
         println!(
-            "{} frames on {}: frame median {:.1} ms (p95 {:.1}), CPU median {:.2} ms (p95 {:.2}); levels {}..{}, {} triangles",
+            "{} frames on {}: frame median {:.1} ms (p95 {:.1}), CPU median {:.2} ms (p95 {:.2}); levels {}..{}, {} triangles; every level wanted drawn in {:.0} % of frames",
             report.frames,
             report.adapter,
             median(&report.frame_ms),
@@ -107,7 +110,8 @@ pub fn run(a: &ViewArgs) -> Result<ExitCode> {
             percentile(c, 0.95),
             report.last.level_lo,
             report.last.level_hi,
-            report.last.triangles
+            report.last.triangles,
+            100.0 * report.finest_frames as f64 / report.frames.max(1) as f64
         );
         if let Some(p) = &a.screenshot {
             println!("screenshot: {}", p.display());
