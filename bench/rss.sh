@@ -18,7 +18,8 @@ if [ ! -e "$store/zarr.json" ]; then ./target/debug/big_store "$store" --level 6
 echo "store: $store ($(du -sh "$store" | cut -f1))"
 
 # measure NAME COMMAND...: runs COMMAND under /usr/bin/time, samples the sphereclip process's
-# resident set every 5 s into $out/NAME-samples.txt
+# resident set (the process named sphereclip: under xvfb-run it is a grandchild) every 5 s into
+# $out/NAME-samples.txt
 measure() {
   local name=$1
   shift
@@ -26,7 +27,7 @@ measure() {
   local pid=$! child=""
   : > "$out/$name-samples.txt"
   while kill -0 "$pid" 2>/dev/null; do
-    if [ -z "$child" ]; then child=$(pgrep -n -f "target/debug/sphereclip (render|view) $store" || true); fi
+    if [ -z "$child" ]; then child=$(pgrep -n -x sphereclip || true); fi
     if [ -n "$child" ] && [ -r "/proc/$child/status" ]; then
       awk -v t="$SECONDS" '/VmRSS/ {print t " s " $2 " kB"}' "/proc/$child/status" >> "$out/$name-samples.txt"
     fi

@@ -643,19 +643,27 @@ impl ClipmapPass {
             let dcolat = viewer.colat - prev.colat;
             (dlon, dcolat, dcolat.hypot(dlon * viewer.colat.sin()))
         });
-        // 1. the tasks of this focus: the visible levels, then as prefetch the finer ones (out
+        // 1. the tasks of this focus: the visible levels; as prefetch, the level just out of
+        // view (terrain ahead may lift its ground into view any frame), and the finer ones (out
         // of view, or the next finer) whose window the camera does not cross within
         // `PREFETCH_FINER_FRAMES` frames (tiles a fast camera would leave before tilting down
         // to them would only delay the visible ones)
         let mut tasks = Vec::new();
         let mut focus = Focus::new();
         let step = motion.map_or(0.0, |m| m.2);
+        let edge = if wanted < sharpest {
+            wanted + 1
+        } else {
+            wanted
+        };
         for &(i, p, grid) in &windows {
             let wanted_now = i <= wanted || step * PREFETCH_FINER_FRAMES < 2.0 * level_outer(i);
             for &(_, src) in &layers {
                 let quad = quad_keys(src, grid, &p, n);
                 if i <= wanted {
                     tasks.extend(quad.map(Task::visible));
+                } else if i == edge {
+                    tasks.extend(quad.map(|k| Task::prefetch(k, 1)));
                 } else if wanted_now {
                     // needed only when the camera tilts down or descends
                     tasks.extend(quad.map(|k| Task::prefetch(k, PREFETCH_FINER_FRAMES as u32)));
@@ -669,7 +677,7 @@ impl ClipmapPass {
         if let Some((dlon, dcolat, step)) = motion
             && step > 0.0
         {
-            for i in lo..=wanted {
+            for i in lo..=edge {
                 let spacing = level_outer(i) / step; // frames per half window
                 let mut frames: Vec<f64> = (1..=LOOKAHEAD_QUADS)
                     .map(|k| f64::from(k) * spacing)
