@@ -514,23 +514,19 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
             if empty && idx > 0 {
                 // nothing here at this level (a regional level elsewhere): all fall back
                 missing.extend_from_slice(which);
-            }
-            let points = if empty && idx > 0 { 0 } else { which.len() };
-            for ((&k, &fx), &[a, b]) in which[..points]
-                .iter()
-                .zip(&columns.fx)
-                .zip(&columns.corners)
-            {
-                let c = [get(a, 0), get(b, 0), get(a, 1), get(b, 1)];
-                if idx > 0 && c.iter().any(|c| c.is_none()) {
-                    missing.push(k);
-                } else {
-                    emit(k, c, fx, f.fy);
+            } else {
+                for ((&k, &fx), &[a, b]) in which.iter().zip(&columns.fx).zip(&columns.corners) {
+                    let c = [get(a, 0), get(b, 0), get(a, 1), get(b, 1)];
+                    if idx > 0 && c.iter().any(|c| c.is_none()) {
+                        missing.push(k);
+                    } else {
+                        emit(k, c, fx, f.fy);
+                    }
                 }
             }
         }
         if full {
-            // the most recent first; a few levels (a row falling back from a regional level)
+            // the most recent first
             self.columns.truncate(COLUMN_MEMOS - 1);
             self.columns.insert(0, columns);
         }

@@ -657,14 +657,14 @@ impl ClipmapPass {
             wanted
         };
         for &(i, p, grid) in &windows {
-            let wanted_now = i <= wanted || step * PREFETCH_FINER_FRAMES < 2.0 * level_outer(i);
+            let crossed_slowly = step * PREFETCH_FINER_FRAMES < 2.0 * level_outer(i);
             for &(_, src) in &layers {
                 let quad = quad_keys(src, grid, &p, n);
                 if i <= wanted {
                     tasks.extend(quad.map(Task::visible));
                 } else if i == edge {
                     tasks.extend(quad.map(|k| Task::prefetch(k, 1)));
-                } else if wanted_now {
+                } else if crossed_slowly {
                     // needed only when the camera tilts down or descends
                     tasks.extend(quad.map(|k| Task::prefetch(k, PREFETCH_FINER_FRAMES as u32)));
                 }
@@ -901,7 +901,6 @@ fn region_from_quad(quad: &[Tile], p: &Placement, r: Region, n: u32) -> Vec<u8> 
     out
 }
 
-/// Height under the viewer, bilinear from the height quad of its finest drawn level.
 /// A height tile's highest height and largest step between neighbouring texels (NaN texels
 /// skipped; colour tiles: no height).
 fn height_top_and_step(tile: &TileData, n: u32) -> (f32, f32) {
@@ -924,6 +923,7 @@ fn height_top_and_step(tile: &TileData, n: u32) -> (f32, f32) {
     (top, step)
 }
 
+/// Height under the viewer, bilinear from a level's height quad.
 fn ground_from_quad(quad: &[Tile], p: &Placement, n: u32) -> f64 {
     let at = |c: i64, r: i64| -> f64 {
         let (c, r) = (

@@ -810,7 +810,9 @@ fn make(shared: &Shared, key: TileKey, depth: usize) -> Result<TileData, String>
         inputs.push(t);
     }
     let tile = src.make(&key, shared.n, &inputs);
-    shared.made.fetch_add(1, Ordering::Relaxed);
+    if tile.is_ok() {
+        shared.made.fetch_add(1, Ordering::Relaxed);
+    }
     tile
 }
 

@@ -188,23 +188,18 @@ fn the_window_shows_the_planet_and_the_panel() {
         return;
     }
     let shot = dir.path().join("window.png");
-    let o = Command::new("xvfb-run")
-        .args(["-a", "-s", "-screen 0 800x600x24"])
-        .arg(env!("CARGO_BIN_EXE_sphereclip"))
-        .args([
-            "view",
-            s(&store),
-            "--camera",
-            "0,20,9000000",
-            "--size",
-            "480x360",
-            "--frames",
-            "4",
-            "--screenshot",
-            s(&shot),
-        ])
-        .output()
-        .expect("runs");
+    let o = in_xvfb(&[
+        "view",
+        s(&store),
+        "--camera",
+        "0,20,9000000",
+        "--size",
+        "480x360",
+        "--frames",
+        "4",
+        "--screenshot",
+        s(&shot),
+    ]);
     assert!(o.status.success(), "{}", text(&o.stderr));
     let out = text(&o.stdout);
     assert!(out.contains("4 frames on"), "{out}");
@@ -233,25 +228,30 @@ fn the_window_shows_the_planet_and_the_panel() {
         "start = [46.5, 8.0]\naltitudes = [20000, 2000]\nspeeds = [1, 4]\nseconds = 0.3\n",
     )
     .expect("write");
-    let o = Command::new("xvfb-run")
-        .args(["-a", "-s", "-screen 0 800x600x24"])
-        .arg(env!("CARGO_BIN_EXE_sphereclip"))
-        .args([
-            "view",
-            s(&store),
-            "--flight",
-            s(&flight),
-            "--size",
-            "160x120",
-        ])
-        .output()
-        .expect("runs");
+    let o = in_xvfb(&[
+        "view",
+        s(&store),
+        "--flight",
+        s(&flight),
+        "--size",
+        "160x120",
+    ]);
     assert!(o.status.success(), "{}", text(&o.stderr));
     let out = text(&o.stdout);
     assert!(
         out.contains("frames on") && out.contains("% of frames"),
         "{out}"
     );
+}
+
+/// Runs sphereclip with `args` on a virtual display.
+fn in_xvfb(args: &[&str]) -> std::process::Output {
+    Command::new("xvfb-run")
+        .args(["-a", "-s", "-screen 0 800x600x24"])
+        .arg(env!("CARGO_BIN_EXE_sphereclip"))
+        .args(args)
+        .output()
+        .expect("runs")
 }
 
 /// The number in "ground under the camera X m" of render's output.
