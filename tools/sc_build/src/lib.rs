@@ -390,15 +390,10 @@ impl ManifestFile {
 }
 
 fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    use std::io::Write;
-    let io = |source| BuildError::Io {
+    sc_store::fault::write_atomic(path, bytes).map_err(|source| BuildError::Io {
         source,
         path: path.to_path_buf(),
-    };
-    let tmp = path.with_extension("json.tmp");
-    let mut f = std::fs::File::create(&tmp).map_err(io)?;
-    f.write_all(bytes).and_then(|_| f.sync_all()).map_err(io)?;
-    std::fs::rename(&tmp, path).map_err(io)
+    })
 }
 
 /// SHA-256 (hex, 128 bits shown) of shard files, each read once per build.

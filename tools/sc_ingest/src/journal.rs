@@ -4,7 +4,6 @@
 //! it ends with is byte-identical to an uninterrupted run's.
 
 use std::collections::BTreeMap;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
@@ -29,6 +28,8 @@ struct Data {
 pub(crate) struct Journal {
     path: PathBuf,
     data: Mutex<Data>,
+    /// Whether an earlier run of the same plan left this journal.
+    pub(crate) resumed: bool,
 }
 
 fn key(s: &ShardId) -> String {
@@ -49,6 +50,7 @@ impl Journal {
             .ok()
             .and_then(|b| serde_json::from_slice(&b).ok())
             .filter(|d: &Data| d.plan == plan && d.step == step);
+        let resumed = old.is_some();
         let data = old.unwrap_or_else(|| Data {
             step: step.into(),
             plan: plan.into(),
@@ -58,6 +60,7 @@ impl Journal {
         let j = Self {
             path,
             data: Mutex::new(data),
+            resumed,
         };
         j.save()?;
         Ok(j)
@@ -66,14 +69,10 @@ impl Journal {
     fn save(&self) -> Result<()> {
         let data = self.data.lock().unwrap_or_else(|e| e.into_inner());
         let bytes = serde_json::to_vec(&*data).map_err(|e| IngestError::Usage(e.to_string()))?;
-        let tmp = self.path.with_extension("json.tmp");
-        let io = |source| IngestError::Io {
+        sc_store::fault::write_atomic(&self.path, &bytes).map_err(|source| IngestError::Io {
             source,
             path: self.path.clone(),
-        };
-        let mut f = std::fs::File::create(&tmp).map_err(io)?;
-        f.write_all(&bytes).and_then(|_| f.sync_all()).map_err(io)?;
-        std::fs::rename(&tmp, &self.path).map_err(io)
+        })
     }
 
     pub(crate) fn is_done(&self, s: &ShardId) -> bool {
@@ -120,12 +119,9 @@ impl Journal {
 
     /// Removes the journal after the store was committed.
     pub(crate) fn finish(&self) -> Result<()> {
-        match std::fs::remove_file(&self.path) {
-            Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(IngestError::Io {
-                source: e,
-                path: self.path.clone(),
-            }),
-            _ => Ok(()),
-        }
+        sc_store::fault::remove_file(&self.path).map_err(|source| IngestError::Io {
+            source,
+            path: self.path.clone(),
+        })
     }
 }

@@ -38,6 +38,13 @@ pub enum IngestError {
     /// A request that cannot be served.
     #[error("{0}")]
     Usage(String),
+    /// An input or the store turned out unusable after writing had started; every shard this
+    /// run (and the interrupted runs it resumed) wrote was put back as it was.
+    #[error("{0}; the store was rolled back to its state before this ingest")]
+    RolledBack(Box<IngestError>),
+    /// The run stopped part-way for a reason a rerun can overcome (a full disk, an I/O error).
+    #[error("{0} (the store is incomplete: rerun the same command to resume)")]
+    Interrupted(Box<IngestError>),
     /// The file system failed.
     #[error("{source} ({})", path.display())]
     Io {
@@ -302,6 +309,48 @@ pub fn run(root: &Path, plan: &Plan, on_shard: &(dyn Fn(u64, u64) + Sync)) -> Re
         writer.ensure_level(settings.layer, l)?;
     }
     let journal = Journal::open(root, "ingest", &plan.hash)?;
+    writer.keep_undo(!journal.resumed)?;
+    // a shard an interrupted run replaced but did not record is put back first: mosaicking and
+    // feathering read what a shard holds, so redoing it over its new bytes would blend twice
+    for (kind, shard) in writer.undo_entries() {
+        if !journal.is_done(&shard) {
+            writer.restore(kind, shard)?;
+        }
+    }
+    match write_all(&writer, plan, &journal, start, levels, on_shard) {
+        Ok(summary) => Ok(summary),
+        Err(e) if resumable(&e) => Err(IngestError::Interrupted(Box::new(e))),
+        Err(e) => match writer.rollback().and_then(|()| {
+            journal
+                .finish()
+                .map_err(|e| StoreError::Usage(e.to_string()))
+        }) {
+            Ok(()) => Err(IngestError::RolledBack(Box::new(e))),
+            Err(r) => Err(IngestError::Interrupted(Box::new(IngestError::Usage(
+                format!("{e}; rolling back failed too: {r}"),
+            )))),
+        },
+    }
+}
+
+/// Whether an error mid-run is one a rerun of the same command can overcome.
+fn resumable(e: &IngestError) -> bool {
+    matches!(
+        e,
+        IngestError::Io { .. }
+            | IngestError::Store(StoreError::Io { .. } | StoreError::Format { .. })
+    )
+}
+
+fn write_all(
+    writer: &StoreWriter,
+    plan: &Plan,
+    journal: &Journal,
+    start: Instant,
+    levels: std::collections::BTreeSet<LevelId>,
+    on_shard: &(dyn Fn(u64, u64) + Sync),
+) -> Result<Summary> {
+    let settings = &plan.settings;
     let mut summary = Summary {
         levels: levels.iter().map(|l| l.to_string()).collect(),
         ..Summary::default()
@@ -356,7 +405,7 @@ pub fn run(root: &Path, plan: &Plan, on_shard: &(dyn Fn(u64, u64) + Sync)) -> Re
                     shard: &ShardId,
                     tiles: &BTreeMap<TileId, Vec<usize>>|
      -> Result<()> {
-        let s = write_shard(&writer, plan, &lut, sources, *shard, tiles)?;
+        let s = write_shard(writer, plan, &lut, sources, *shard, tiles)?;
         journal.mark_done(shard, s.range.map(|r| (settings.layer, shard.level, r)))?;
         {
             let mut st = stats.lock().unwrap_or_else(|e| e.into_inner());
@@ -428,6 +477,7 @@ pub fn run(root: &Path, plan: &Plan, on_shard: &(dyn Fn(u64, u64) + Sync)) -> Re
         }),
     };
     writer.commit(Some(record))?;
+    writer.drop_undo()?;
     journal.finish()?;
     let st = stats.into_inner().unwrap_or_else(|e| e.into_inner());
     summary.shards_written = todo.len() as u64;

@@ -1,10 +1,8 @@
 //! A write-only zarrs storage that makes every `set` atomic and durable: temp file, fsync, rename,
 //! fsync of the folder. A crash leaves either the old file or the new one, never half of either.
 
-use std::fs::{self, File, OpenOptions};
-use std::io::Write;
+use std::fs;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use zarrs::storage::{
     Bytes, OffsetBytesIterator, StorageError, StoreKey, StorePrefix, WritableStorageTraits,
@@ -14,14 +12,12 @@ use zarrs::storage::{
 #[derive(Debug)]
 pub(crate) struct DurableFs {
     root: PathBuf,
-    counter: AtomicU64,
 }
 
 impl DurableFs {
     pub(crate) fn new(root: &Path) -> Self {
         Self {
             root: root.to_path_buf(),
-            counter: AtomicU64::new(0),
         }
     }
 
@@ -31,26 +27,7 @@ impl DurableFs {
 
     /// Writes `value` to `path` atomically and durably.
     pub(crate) fn write_atomic(&self, path: &Path, value: &[u8]) -> std::io::Result<()> {
-        let parent = path.parent().unwrap_or(&self.root);
-        fs::create_dir_all(parent)?;
-        let n = self.counter.fetch_add(1, Ordering::Relaxed);
-        let name = path
-            .file_name()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_default();
-        let tmp = parent.join(format!("{name}.tmp.{}.{n}", std::process::id()));
-        let result = (|| {
-            let mut f = OpenOptions::new().write(true).create_new(true).open(&tmp)?;
-            f.write_all(value)?;
-            f.sync_all()?;
-            drop(f);
-            fs::rename(&tmp, path)?;
-            File::open(parent)?.sync_all()
-        })();
-        if result.is_err() {
-            let _ = fs::remove_file(&tmp);
-        }
-        result
+        crate::fault::write_atomic(path, value)
     }
 }
 
@@ -70,10 +47,7 @@ impl WritableStorageTraits for DurableFs {
     }
 
     fn erase(&self, key: &StoreKey) -> Result<(), StorageError> {
-        match fs::remove_file(self.path_of(key.as_str())) {
-            Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(e.into()),
-            _ => Ok(()),
-        }
+        Ok(crate::fault::remove_file(&self.path_of(key.as_str()))?)
     }
 
     fn erase_prefix(&self, prefix: &StorePrefix) -> Result<(), StorageError> {

@@ -10,6 +10,8 @@
 //! - `meta.complete` turns true only in [`StoreWriter::commit`], after every shard is durable.
 
 mod durable;
+pub mod fault;
+mod layout;
 mod meta;
 mod reader;
 mod sample;

@@ -139,6 +139,29 @@ impl StoreMeta {
                 meta.shard_tiles, meta.radius_m
             )));
         }
+        for (kind, layer) in &meta.layers {
+            for (key, lm) in &layer.levels {
+                let (l, a) = (lm.level.level, lm.level.aniso);
+                if LevelId::new(l, a).is_err() {
+                    return Err(format(format!(
+                        "damaged store metadata: {kind} level {key} is ({l}, {a}), not a level of the grid"
+                    )));
+                }
+                if *key != lm.level.key() {
+                    return Err(format(format!(
+                        "damaged store metadata: {kind} level key `{key}` names level {}",
+                        lm.level.key()
+                    )));
+                }
+                if let Some((lo, hi)) = lm.value_range
+                    && !(lo <= hi)
+                {
+                    return Err(format(format!(
+                        "damaged store metadata: {kind} level {key} has value range {lo} .. {hi}"
+                    )));
+                }
+            }
+        }
         Ok(meta)
     }
 

@@ -106,6 +106,11 @@ impl StoreReader {
         for (&kind, layer) in &meta.layers {
             for lm in layer.levels.values() {
                 let path = level_array_path(kind, lm.level);
+                let damaged = |what: String| StoreError::Format {
+                    what: format!("damaged store: {kind} level {}: {what}", lm.level.key()),
+                    path: root.join(path.trim_start_matches('/')).join("zarr.json"),
+                };
+                crate::layout::check_file(root, kind, lm.level, &meta).map_err(damaged)?;
                 let array = Array::open(fs.clone(), &path).map_err(|e| StoreError::Format {
                     what: format!("cannot open {kind} level {}: {e}", lm.level),
                     path: root.join(path.trim_start_matches('/')),

@@ -147,6 +147,7 @@ impl StoreReader {
     pub fn verify(&self, on_shard: &(dyn Fn() + Sync)) -> Result<VerifyReport> {
         let meta = self.meta();
         let mut report = VerifyReport::default();
+        self.verify_listing(&mut report);
         for &kind in meta.layers.keys() {
             for level in meta.levels(kind) {
                 let lr = self.level(kind, level)?;
@@ -157,6 +158,37 @@ impl StoreReader {
             }
         }
         Ok(report)
+    }
+
+    /// Every level array on disk must be listed in the group metadata (a level key renamed or
+    /// dropped there would silently hide its data from every reader).
+    fn verify_listing(&self, report: &mut VerifyReport) {
+        let meta = self.meta();
+        for kind in [LayerKind::Height, LayerKind::Color] {
+            let dir = self.root().join(kind.name());
+            let Ok(rd) = std::fs::read_dir(&dir) else {
+                continue;
+            };
+            let mut names: Vec<String> = rd
+                .flatten()
+                .filter(|e| e.path().join("zarr.json").is_file())
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .collect();
+            names.sort();
+            for name in names {
+                let listed = meta
+                    .layers
+                    .get(&kind)
+                    .is_some_and(|l| l.levels.contains_key(&name));
+                if !listed {
+                    report.problems.push(Problem {
+                        path: dir.join(&name),
+                        what: format!("{kind} array {name}"),
+                        detail: "on disk but not listed in the store metadata (its data is invisible to readers)".into(),
+                    });
+                }
+            }
+        }
     }
 
     /// Shards to be checked by [`StoreReader::verify`].

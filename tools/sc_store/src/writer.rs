@@ -7,12 +7,12 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, PoisonError};
 
 use sc_core::{GridSpec, LevelId, ShardId, TileId};
-use zarrs::array::codec::{Crc32cCodec, PcodecCodec, ZstdCodec};
-use zarrs::array::{Array, ArrayBuilder};
+use zarrs::array::Array;
 use zarrs::filesystem::FilesystemStore;
 use zarrs::group::GroupBuilder;
 
 use crate::durable::DurableFs;
+use crate::layout::MAX_SHARD_SAMPLES;
 use crate::meta::{BuildRecord, LayerMeta, LevelMeta, StoreMeta};
 use crate::reader::{level_array_path, open_fs, read_meta};
 use crate::{LayerKind, Result, StoreError, TileSample, io_err};
@@ -51,9 +51,6 @@ impl Default for StoreConfig {
     }
 }
 
-/// Largest shard the writer holds in memory: 64 Mi samples (256 MiB of f32).
-const MAX_SHARD_SAMPLES: u64 = 64 << 20;
-
 type LevelKey = (LayerKind, LevelId);
 
 /// The one writer of a store in this process; share `&StoreWriter` between worker threads.
@@ -67,6 +64,10 @@ pub struct StoreWriter {
     arrays: Mutex<HashMap<LevelKey, Arc<LevelArrays>>>,
     claimed: Mutex<HashSet<(LayerKind, ShardId)>>,
     ranges: Mutex<HashMap<LevelKey, (f64, f64)>>,
+    /// The metadata as it was before this writer (what a rollback restores).
+    initial: StoreMeta,
+    /// Whether shards keep their previous version under `.sphereclip/undo` before being replaced.
+    undo: std::sync::atomic::AtomicBool,
     _lock: File,
 }
 
@@ -105,73 +106,158 @@ fn zarr_err(path: &Path) -> impl Fn(String) -> StoreError + '_ {
     }
 }
 
+/// Whether `root` may become a new store: missing, or a folder holding nothing but the lock a
+/// killed creation left. A folder with anything else in it is someone's, and is refused.
+fn check_new_root(root: &Path) -> Result<()> {
+    if !root.exists() {
+        return Ok(());
+    }
+    if !root.is_dir() {
+        return Err(StoreError::Usage(format!(
+            "store path exists and is not a folder: {}",
+            root.display()
+        )));
+    }
+    let rd = fs::read_dir(root).map_err(io_err(root))?;
+    for e in rd {
+        let e = e.map_err(io_err(root))?;
+        if e.file_name() != ".lock" {
+            return Err(StoreError::Usage(format!(
+                "folder is not empty and is not a sphereclip store (found {}); choose a new or empty folder: {}",
+                e.file_name().to_string_lossy(),
+                root.display()
+            )));
+        }
+    }
+    Ok(())
+}
+
+fn check_config(config: &StoreConfig) -> Result<()> {
+    if !(1..=64).contains(&config.shard_tiles) {
+        return Err(StoreError::Usage(format!(
+            "shard_tiles {} is outside 1..=64",
+            config.shard_tiles
+        )));
+    }
+    let shard = config.shard_tiles * u64::from(config.grid.tile_size());
+    if shard * shard * 4 > MAX_SHARD_SAMPLES {
+        return Err(StoreError::LimitsExceeded(format!(
+            "a shard of {shard}x{shard} texels (tile size {} x {} tiles) exceeds the limit of {MAX_SHARD_SAMPLES} samples; choose a smaller tile size",
+            config.grid.tile_size(),
+            config.shard_tiles
+        )));
+    }
+    if !(config.radius_m > 0.0 && config.radius_m.is_finite()) {
+        return Err(StoreError::Usage(format!(
+            "radius {} m is not a sphere",
+            config.radius_m
+        )));
+    }
+    Ok(())
+}
+
 impl StoreWriter {
+    /// Checks, without writing, that `root` is a store or a place a new one may be created
+    /// (missing or an empty folder): what [`Self::open_or_create`] will accept.
+    pub fn check_path(root: &Path) -> Result<()> {
+        if root.join("zarr.json").is_file() {
+            read_meta(root).map(|_| ())
+        } else {
+            check_new_root(root)
+        }
+    }
+
     /// Creates a new, empty store at `root` (the folder must not exist or be empty).
     pub fn create(root: &Path, config: StoreConfig) -> Result<Self> {
-        if root.join("zarr.json").exists() {
+        Self::lock_and_open(root, Some(config), true)
+    }
+
+    /// Opens an existing store for adding to it; it reads as incomplete until [`Self::commit`].
+    pub fn open(root: &Path) -> Result<Self> {
+        Self::lock_and_open(root, None, false)
+    }
+
+    /// Creates the store if `root` holds none, else opens it.
+    pub fn open_or_create(root: &Path, config: StoreConfig) -> Result<Self> {
+        Self::lock_and_open(root, Some(config), false)
+    }
+
+    /// Takes the store's lock first, then reads what is there: a writer never acts on metadata
+    /// another process changed while it waited.
+    fn lock_and_open(root: &Path, config: Option<StoreConfig>, must_be_new: bool) -> Result<Self> {
+        let exists = root.join("zarr.json").is_file();
+        if exists && must_be_new {
             return Err(StoreError::Usage(format!(
                 "a store already exists at {}",
                 root.display()
             )));
         }
-        if !(1..=64).contains(&config.shard_tiles) {
-            return Err(StoreError::Usage(format!(
-                "shard_tiles {} is outside 1..=64",
-                config.shard_tiles
-            )));
+        match (exists, config) {
+            (true, _) => {
+                // refuse non-stores before leaving a lock file in them
+                read_meta(root)?;
+            }
+            (false, None) => {
+                read_meta(root)?;
+            }
+            (false, Some(c)) => {
+                check_config(&c)?;
+                check_new_root(root)?;
+                fs::create_dir_all(root).map_err(io_err(root))?;
+            }
         }
-        if !(config.radius_m > 0.0 && config.radius_m.is_finite()) {
-            return Err(StoreError::Usage(format!(
-                "radius {} m is not a sphere",
-                config.radius_m
-            )));
-        }
-        fs::create_dir_all(root).map_err(io_err(root))?;
-        let meta = StoreMeta::new(config.grid, config.shard_tiles, config.radius_m);
-        let w = Self::with_meta(root, meta, config.height_codec)?;
-        w.write_group_meta()?;
-        Ok(w)
-    }
-
-    /// Opens an existing store for adding to it; it reads as incomplete until [`Self::commit`].
-    pub fn open(root: &Path) -> Result<Self> {
-        let (_, meta) = read_meta(root)?;
-        let codec = match meta
-            .layers
-            .get(&LayerKind::Height)
-            .map(|l| l.codec.as_str())
-        {
-            Some(c) if c.starts_with("zstd") => HeightCodec::Zstd,
-            _ => HeightCodec::Pcodec,
-        };
-        let w = Self::with_meta(root, meta, codec)?;
-        // we hold the lock: temp files left behind are from writers that died mid-write
-        remove_stale_temp_files(root);
-        w.lock_meta().complete = false;
-        w.write_group_meta()?;
-        Ok(w)
-    }
-
-    /// Creates the store if `root` holds none, else opens it.
-    pub fn open_or_create(root: &Path, config: StoreConfig) -> Result<Self> {
-        if root.join("zarr.json").exists() {
-            Self::open(root)
-        } else {
-            Self::create(root, config)
-        }
-    }
-
-    fn with_meta(root: &Path, meta: StoreMeta, height_codec: HeightCodec) -> Result<Self> {
+        crate::fault::pause("before-lock");
         let lock = lock_store(root)?;
+        if root.join("zarr.json").is_file() {
+            if must_be_new {
+                return Err(StoreError::Usage(format!(
+                    "a store already exists at {}",
+                    root.display()
+                )));
+            }
+            let (_, meta) = read_meta(root)?;
+            let codec = crate::layout::height_codec_of(&meta);
+            let w = Self::with_meta(root, meta, codec, lock)?;
+            // we hold the lock: our temp files left behind are from writers that died mid-write
+            remove_stale_temp_files(root);
+            w.lock_meta().complete = false;
+            w.write_group_meta()?;
+            Ok(w)
+        } else {
+            let Some(config) = config else {
+                return Err(StoreError::Format {
+                    what: "no store: it was removed while this writer waited".into(),
+                    path: root.to_path_buf(),
+                });
+            };
+            check_new_root(root)?;
+            let mut meta = StoreMeta::new(config.grid, config.shard_tiles, config.radius_m);
+            // an empty store is complete; what a rollback of the first writer returns to
+            meta.complete = true;
+            let w = Self::with_meta(root, meta, config.height_codec, lock)?;
+            w.lock_meta().complete = false;
+            w.write_group_meta()?;
+            Ok(w)
+        }
+    }
+
+    fn with_meta(
+        root: &Path,
+        meta: StoreMeta,
+        height_codec: HeightCodec,
+        lock: File,
+    ) -> Result<Self> {
         Ok(Self {
             root: root.to_path_buf(),
-            meta: Mutex::new(meta),
             height_codec,
             durable: Arc::new(DurableFs::new(root)),
             fs: open_fs(root)?,
             arrays: Mutex::new(HashMap::new()),
             claimed: Mutex::new(HashSet::new()),
             ranges: Mutex::new(HashMap::new()),
+            initial: meta.clone(),
+            meta: Mutex::new(meta),
+            undo: std::sync::atomic::AtomicBool::new(false),
             _lock: lock,
         })
     }
@@ -232,58 +318,14 @@ impl StoreWriter {
         };
         let exists = fs_path.join("zarr.json").exists();
         let write = if exists {
+            let meta = self.meta();
+            crate::layout::check_file(&self.root, kind, level, &meta).map_err(&zerr)?;
             let read = Array::open(self.fs.clone(), &path).map_err(|e| zerr(e.to_string()))?;
             Array::new_with_metadata(self.durable.clone(), &path, read.metadata().clone())
                 .map_err(|e| zerr(e.to_string()))?
         } else {
-            let shard = shard_tiles * u64::from(grid.tile_size());
-            let samples = shard * shard * kind.channels() as u64;
-            if samples > MAX_SHARD_SAMPLES {
-                return Err(StoreError::LimitsExceeded(format!(
-                    "a shard of {shard}x{shard} texels exceeds the limit of {MAX_SHARD_SAMPLES} samples"
-                )));
-            }
-            let t = u64::from(grid.tile_size());
-            let (mut shape, mut chunk, mut sub) = (
-                vec![grid.height(level), grid.width(level)],
-                vec![shard, shard],
-                vec![t, t],
-            );
-            let mut dims = vec!["lat", "lon"];
-            if kind.channels() > 1 {
-                let c = kind.channels() as u64;
-                shape.push(c);
-                chunk.push(c);
-                sub.push(c);
-                dims.push("band");
-            }
-            let mut builder = ArrayBuilder::new(shape, chunk, kind.data_type(), kind.fill_value());
-            builder.subchunk_shape(sub);
-            let crc: Arc<dyn zarrs::array::codec::api::BytesToBytesCodecTraits> =
-                Arc::new(Crc32cCodec::new());
-            match (kind, self.height_codec) {
-                (LayerKind::Height, HeightCodec::Pcodec) => {
-                    let pco = PcodecCodec::new_with_configuration(&Default::default())
-                        .map_err(|e| zerr(e.to_string()))?;
-                    builder.array_to_bytes_codec(Arc::new(pco));
-                    builder.bytes_to_bytes_codecs(vec![crc]);
-                }
-                _ => {
-                    builder.bytes_to_bytes_codecs(vec![Arc::new(ZstdCodec::new(3, false)), crc]);
-                }
-            }
-            builder.dimension_names(Some(dims));
-            let mut attrs = serde_json::Map::new();
-            attrs.insert(
-                "sphereclip".into(),
-                serde_json::json!({
-                    "level": level.level,
-                    "aniso": level.aniso,
-                    "geotransform": grid.geotransform(level),
-                    "tile_size": grid.tile_size(),
-                }),
-            );
-            builder.attributes(attrs);
+            let builder = crate::layout::builder(kind, level, grid, shard_tiles, self.height_codec)
+                .map_err(&zerr)?;
             // the layer's group first (Zarr v3 has no implicit groups)
             GroupBuilder::new()
                 .build(self.durable.clone(), &format!("/{}", kind.name()))
@@ -297,6 +339,7 @@ impl StoreWriter {
             array
         };
         let read = Array::open(self.fs.clone(), &path).map_err(|e| zerr(e.to_string()))?;
+        let mut listed = true;
         {
             let mut m = self.lock_meta();
             let codec = self.codec_name(kind).to_string();
@@ -306,12 +349,20 @@ impl StoreWriter {
                 codec,
                 levels: Default::default(),
             });
-            layer.levels.entry(level.key()).or_insert(LevelMeta {
-                level,
-                value_range: None,
-            });
+            let key = level.key();
+            if !layer.levels.contains_key(&key) {
+                layer.levels.insert(
+                    key,
+                    LevelMeta {
+                        level,
+                        value_range: None,
+                    },
+                );
+                listed = false;
+            }
         }
-        if !exists {
+        // an array a killed writer made but never listed is listed now
+        if !listed {
             self.write_group_meta()?;
         }
         let a = Arc::new(LevelArrays { write, read });
@@ -398,6 +449,169 @@ impl StoreWriter {
         *e = (e.0.min(lo), e.1.max(hi));
     }
 
+    fn undo_dir(&self) -> PathBuf {
+        self.root.join(".sphereclip").join("undo")
+    }
+
+    fn undo_path(&self, kind: LayerKind, shard: ShardId) -> PathBuf {
+        self.undo_dir()
+            .join(kind.name())
+            .join(shard.level.key())
+            .join(format!("{}.{}", shard.y, shard.x))
+    }
+
+    /// From now on, before a shard is replaced its previous version (or the fact that there was
+    /// none) is kept under `STORE/.sphereclip/undo` (a hard link: no copy), once per shard, so that
+    /// [`Self::restore`] and [`Self::rollback`] can bring it back. `fresh`: a new run, whose undo
+    /// starts empty (what an abandoned earlier run kept there is dropped); else a resumed run
+    /// that keeps the earlier run's entries.
+    pub fn keep_undo(&self, fresh: bool) -> Result<()> {
+        let dir = self.undo_dir();
+        if fresh && dir.exists() {
+            fs::remove_dir_all(&dir).map_err(io_err(&dir))?;
+        }
+        let meta_copy = dir.join("zarr.json");
+        if !meta_copy.exists() {
+            let bytes =
+                serde_json::to_vec(&self.initial).map_err(|e| StoreError::Usage(e.to_string()))?;
+            crate::fault::write_atomic(&meta_copy, &bytes).map_err(io_err(&meta_copy))?;
+        }
+        self.undo.store(true, std::sync::atomic::Ordering::SeqCst);
+        Ok(())
+    }
+
+    fn save_undo(&self, kind: LayerKind, shard: ShardId, shard_path: &Path) -> Result<()> {
+        if !self.undo.load(std::sync::atomic::Ordering::SeqCst) {
+            return Ok(());
+        }
+        let u = self.undo_path(kind, shard);
+        let absent = u.with_extension(format!("{}.absent", shard.x));
+        if u.exists() || absent.exists() {
+            return Ok(()); // the version from before the run is kept already
+        }
+        let parent = u.parent().unwrap_or(&self.root).to_path_buf();
+        fs::create_dir_all(&parent).map_err(io_err(&parent))?;
+        if shard_path.exists() {
+            fs::hard_link(shard_path, &u).map_err(io_err(&u))?;
+            File::open(&parent)
+                .and_then(|d| d.sync_all())
+                .map_err(io_err(&parent))?;
+            crate::fault::step("undo kept", &u);
+        } else {
+            crate::fault::write_atomic(&absent, b"").map_err(io_err(&absent))?;
+        }
+        Ok(())
+    }
+
+    /// The shards with an undo entry, by layer.
+    pub fn undo_entries(&self) -> Vec<(LayerKind, ShardId)> {
+        let mut out = Vec::new();
+        for kind in [LayerKind::Height, LayerKind::Color] {
+            let Ok(levels) = fs::read_dir(self.undo_dir().join(kind.name())) else {
+                continue;
+            };
+            for l in levels.flatten() {
+                let Some(level) = LevelId::from_key(&l.file_name().to_string_lossy()) else {
+                    continue;
+                };
+                let Ok(files) = fs::read_dir(l.path()) else {
+                    continue;
+                };
+                for f in files.flatten() {
+                    let name = f.file_name().to_string_lossy().into_owned();
+                    let mut it = name.split('.');
+                    if let (Some(Ok(y)), Some(Ok(x))) = (
+                        it.next().map(str::parse::<u64>),
+                        it.next().map(str::parse::<u64>),
+                    ) {
+                        out.push((kind, ShardId { level, x, y }));
+                    }
+                }
+            }
+        }
+        out.sort();
+        out.dedup();
+        out
+    }
+
+    /// Puts back the version of a shard kept before this run (or its absence) and drops the
+    /// undo entry. Nothing happens when the shard has no entry.
+    pub fn restore(&self, kind: LayerKind, shard: ShardId) -> Result<()> {
+        let u = self.undo_path(kind, shard);
+        let absent = u.with_extension(format!("{}.absent", shard.x));
+        let arrays = self.level_arrays(kind, shard.level)?;
+        let indices = kind.chunk_indices(shard.x, shard.y);
+        let shard_path = self.root.join(arrays.read.chunk_key(&indices).as_str());
+        let parent = shard_path.parent().unwrap_or(&self.root).to_path_buf();
+        if u.exists() {
+            fs::create_dir_all(&parent).map_err(io_err(&parent))?;
+            fs::rename(&u, &shard_path).map_err(io_err(&shard_path))?;
+            File::open(&parent)
+                .and_then(|d| d.sync_all())
+                .map_err(io_err(&parent))?;
+            crate::fault::step("undo restored", &shard_path);
+        } else if absent.exists() {
+            match fs::remove_file(&shard_path) {
+                Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                    return Err(io_err(&shard_path)(e));
+                }
+                _ => {}
+            }
+            crate::fault::remove_file(&absent).map_err(io_err(&absent))?;
+        }
+        Ok(())
+    }
+
+    /// Returns the store to its state before this writer (and the earlier runs whose undo it
+    /// resumed): every kept shard restored, levels this run added removed, the metadata as it
+    /// was. The store is complete again if it was.
+    pub fn rollback(&self) -> Result<()> {
+        for (kind, shard) in self.undo_entries() {
+            self.restore(kind, shard)?;
+        }
+        let dir = self.undo_dir();
+        let before: StoreMeta = fs::read(dir.join("zarr.json"))
+            .ok()
+            .and_then(|b| serde_json::from_slice(&b).ok())
+            .unwrap_or_else(|| self.initial.clone());
+        let added: Vec<(LayerKind, LevelId)> = {
+            let m = self.lock_meta();
+            m.layers
+                .iter()
+                .flat_map(|(&k, l)| l.levels.values().map(move |lm| (k, lm.level)))
+                .filter(|(k, l)| !before.levels(*k).contains(l))
+                .collect()
+        };
+        *self.lock_meta() = before;
+        self.ranges
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .clear();
+        self.write_group_meta()?;
+        for (kind, level) in added {
+            // arrays this run created: the metadata no longer lists them
+            let p = self.root.join(kind.name()).join(level.key());
+            self.arrays
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .remove(&(kind, level));
+            if p.join("zarr.json").is_file() {
+                fs::remove_dir_all(&p).map_err(io_err(&p))?;
+            }
+        }
+        self.drop_undo()
+    }
+
+    /// Forgets the undo entries (after a commit made the run's shards the store's).
+    pub fn drop_undo(&self) -> Result<()> {
+        let dir = self.undo_dir();
+        if dir.exists() {
+            fs::remove_dir_all(&dir).map_err(io_err(&dir))?;
+            crate::fault::step("undo dropped", &dir);
+        }
+        Ok(())
+    }
+
     /// Records a build step and marks the store complete, durably, after every shard written so
     /// far (each already fsynced by its writer). Call once all shard writers have finished.
     pub fn commit(&self, record: Option<BuildRecord>) -> Result<()> {
@@ -426,7 +640,8 @@ impl StoreWriter {
                     });
                 }
             }
-            if let Some(r) = record {
+            // a record equal to the last one is the same step committed again by a resumed run
+            if let Some(r) = record.filter(|r| m.provenance.last() != Some(r)) {
                 m.provenance.push(r);
             }
             m.complete = true;
@@ -435,18 +650,33 @@ impl StoreWriter {
     }
 }
 
-/// Removes `NAME.tmp.PID.N` files (see `DurableFs`) below `dir`, best effort.
-fn remove_stale_temp_files(dir: &Path) {
-    let Ok(rd) = fs::read_dir(dir) else { return };
-    for e in rd.flatten() {
-        let p = e.path();
-        match e.file_type() {
-            Ok(t) if t.is_dir() => remove_stale_temp_files(&p),
-            Ok(_) if e.file_name().to_string_lossy().contains(".tmp.") => {
-                let _ = fs::remove_file(&p);
+/// Removes our temp files (`NAME.tmp.PID.N`, see [`crate::fault::is_temp_name`]) from the folders
+/// a writer writes: the store folder itself, its layers' folders and `.sphereclip`. Nothing else
+/// is touched, whatever its name. Best effort.
+fn remove_stale_temp_files(root: &Path) {
+    fn walk(dir: &Path, recurse: bool) {
+        let Ok(rd) = fs::read_dir(dir) else { return };
+        for e in rd.flatten() {
+            let p = e.path();
+            match e.file_type() {
+                Ok(t) if t.is_dir() && recurse => walk(&p, true),
+                Ok(t)
+                    if t.is_file()
+                        && crate::fault::is_temp_name(&e.file_name().to_string_lossy()) =>
+                {
+                    let _ = fs::remove_file(&p);
+                }
+                _ => {}
             }
-            _ => {}
         }
+    }
+    walk(root, false);
+    for sub in [
+        ".sphereclip",
+        LayerKind::Height.name(),
+        LayerKind::Color.name(),
+    ] {
+        walk(&root.join(sub), true);
     }
 }
 
@@ -552,6 +782,7 @@ impl<T: TileSample> ShardWriter<'_, T> {
     /// Encodes the shard and replaces its file atomically and durably.
     pub fn finish(mut self) -> Result<()> {
         let indices = T::KIND.chunk_indices(self.shard.x, self.shard.y);
+        self.writer.save_undo(T::KIND, self.shard, &self.path)?;
         let samples = std::mem::take(&mut self.samples);
         // one thread per shard: zarrs places concurrently encoded tiles in completion order, which
         // would make a shard's bytes differ run to run (parallelism lives one level up, per shard)

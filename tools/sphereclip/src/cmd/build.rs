@@ -30,11 +30,20 @@ pub fn build(store: &Path, settings: Settings, json: bool) -> Result<sc_build::S
     let writer = StoreWriter::open(store).context("cannot open store for writing")?;
     let plan = sc_build::plan(&writer.meta(), store, settings)?;
     let progress = Progress::new("build", plan.shard_count());
-    let summary = sc_build::run(&writer, &plan, &|d, _| progress.set(d)).with_context(|| {
-        format!(
-            "build stopped (rerun the same command to resume) in {}",
-            store.display()
-        )
+    let summary = sc_build::run(&writer, &plan, &|d, _| progress.set(d)).map_err(|e| {
+        use sc_build::BuildError;
+        use sc_store::StoreError;
+        // only a failure a rerun can overcome (a full disk, an I/O error) gets the resume hint
+        let hint = if matches!(
+            e,
+            BuildError::Io { .. }
+                | BuildError::Store(StoreError::Io { .. } | StoreError::Format { .. })
+        ) {
+            " (the store is incomplete: rerun the same command to resume)"
+        } else {
+            ""
+        };
+        anyhow::anyhow!("build stopped{hint} in {}: {e}", store.display())
     })?;
     progress.finish();
     if json {

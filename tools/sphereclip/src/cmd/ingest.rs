@@ -7,7 +7,7 @@ use anyhow::{Context, Result, bail};
 use sc_core::{GridSpec, Kernel, LevelId};
 use sc_ingest::{Input, LevelChoice, Settings};
 use sc_raster::SourceOptions;
-use sc_store::{StoreConfig, StoreReader};
+use sc_store::{StoreConfig, StoreReader, StoreWriter};
 
 use crate::cli::IngestArgs;
 use crate::cmd::parse_layer;
@@ -127,12 +127,7 @@ pub fn run(a: &IngestArgs) -> Result<ExitCode> {
         let m = r.meta();
         Some((m.grid, m.shard_tiles, m.radius_m))
     } else {
-        if a.store.exists() && !a.store.is_dir() {
-            bail!(
-                "store path exists and is not a folder: {}",
-                a.store.display()
-            );
-        }
+        StoreWriter::check_path(&a.store)?;
         None
     };
     let plan = sc_ingest::plan(&inputs, &settings, existing)?;
@@ -153,12 +148,8 @@ pub fn run(a: &IngestArgs) -> Result<ExitCode> {
         );
     }
     let progress = Progress::new("ingest", plan.shards.len() as u64);
-    let summary = sc_ingest::run(&a.store, &plan, &|d, _| progress.set(d)).with_context(|| {
-        format!(
-            "ingest stopped (rerun the same command to resume) in {}",
-            a.store.display()
-        )
-    })?;
+    let summary = sc_ingest::run(&a.store, &plan, &|d, _| progress.set(d))
+        .with_context(|| format!("ingest into {} stopped", a.store.display()))?;
     progress.finish();
     if a.json {
         println!("{}", serde_json::to_string_pretty(&summary)?);

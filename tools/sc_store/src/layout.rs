@@ -1,0 +1,152 @@
+//! The one definition of a level array's Zarr metadata, used to write it and to check what a
+//! reader finds on disk: a store is only read through metadata that matches the grid model
+//! (shape, shard and tile chunking, chunk key encoding, data type, fill value, codecs with their
+//! checksums). Damaged metadata could otherwise make zarrs decode garbage, allocate sizes read
+//! from a damaged index, or skip checksums.
+
+use std::sync::Arc;
+
+use sc_core::{GridSpec, LevelId};
+use zarrs::array::ArrayBuilder;
+use zarrs::array::codec::{Crc32cCodec, PcodecCodec, ZstdCodec};
+
+use crate::LayerKind;
+use crate::meta::StoreMeta;
+use crate::writer::HeightCodec;
+
+/// Largest shard a store may have: 64 Mi samples (256 MiB of f32).
+pub(crate) const MAX_SHARD_SAMPLES: u64 = 64 << 20;
+
+/// The builder of the array of `kind` at `level`.
+pub(crate) fn builder(
+    kind: LayerKind,
+    level: LevelId,
+    grid: GridSpec,
+    shard_tiles: u64,
+    height_codec: HeightCodec,
+) -> Result<ArrayBuilder, String> {
+    let t = u64::from(grid.tile_size());
+    let shard = shard_tiles * t;
+    let (mut shape, mut chunk, mut sub) = (
+        vec![grid.height(level), grid.width(level)],
+        vec![shard, shard],
+        vec![t, t],
+    );
+    let mut dims = vec!["lat", "lon"];
+    if kind.channels() > 1 {
+        let c = kind.channels() as u64;
+        shape.push(c);
+        chunk.push(c);
+        sub.push(c);
+        dims.push("band");
+    }
+    let mut builder = ArrayBuilder::new(shape, chunk, kind.data_type(), kind.fill_value());
+    builder.subchunk_shape(sub);
+    let crc: Arc<dyn zarrs::array::codec::api::BytesToBytesCodecTraits> =
+        Arc::new(Crc32cCodec::new());
+    match (kind, height_codec) {
+        (LayerKind::Height, HeightCodec::Pcodec) => {
+            let pco = PcodecCodec::new_with_configuration(&Default::default())
+                .map_err(|e| e.to_string())?;
+            builder.array_to_bytes_codec(Arc::new(pco));
+            builder.bytes_to_bytes_codecs(vec![crc]);
+        }
+        _ => {
+            builder.bytes_to_bytes_codecs(vec![Arc::new(ZstdCodec::new(3, false)), crc]);
+        }
+    }
+    builder.dimension_names(Some(dims));
+    let mut attrs = serde_json::Map::new();
+    attrs.insert(
+        "sphereclip".into(),
+        serde_json::json!({
+            "level": level.level,
+            "aniso": level.aniso,
+            "geotransform": grid.geotransform(level),
+            "tile_size": grid.tile_size(),
+        }),
+    );
+    builder.attributes(attrs);
+    Ok(builder)
+}
+
+/// The height codec a store's metadata names.
+pub(crate) fn height_codec_of(meta: &StoreMeta) -> HeightCodec {
+    match meta
+        .layers
+        .get(&LayerKind::Height)
+        .map(|l| l.codec.as_str())
+    {
+        Some(c) if c.starts_with("zstd") => HeightCodec::Zstd,
+        _ => HeightCodec::Pcodec,
+    }
+}
+
+/// Checks the array metadata found on disk (`zarr.json` of the level, parsed as JSON) against
+/// the grid model of the store. `Err` names the first field that differs.
+pub(crate) fn check(
+    found: &serde_json::Value,
+    kind: LayerKind,
+    level: LevelId,
+    meta: &StoreMeta,
+) -> Result<(), String> {
+    let want = builder(
+        kind,
+        level,
+        meta.grid,
+        meta.shard_tiles,
+        height_codec_of(meta),
+    )?
+    .build_metadata()
+    .map_err(|e| e.to_string())?;
+    let want = serde_json::to_value(&want).map_err(|e| e.to_string())?;
+    let (Some(want), Some(found)) = (want.as_object(), found.as_object()) else {
+        return Err("array metadata is not a JSON object".into());
+    };
+    for (k, w) in want {
+        if k == "attributes" {
+            continue;
+        }
+        match found.get(k) {
+            None => return Err(format!("array metadata has no `{k}`")),
+            Some(f) if f != w => {
+                return Err(format!(
+                    "array metadata `{k}` is {} where the store's grid needs {}",
+                    short(f),
+                    short(w)
+                ));
+            }
+            _ => {}
+        }
+    }
+    if let Some(k) = found
+        .keys()
+        .find(|k| *k != "attributes" && !want.contains_key(*k))
+    {
+        return Err(format!("array metadata has an unexpected field `{k}`"));
+    }
+    Ok(())
+}
+
+fn short(v: &serde_json::Value) -> String {
+    let s = v.to_string();
+    if s.len() > 120 {
+        format!("{}…", &s[..s.floor_char_boundary(120)])
+    } else {
+        s
+    }
+}
+
+/// Reads and checks the metadata of one level array below `root`.
+pub(crate) fn check_file(
+    root: &std::path::Path,
+    kind: LayerKind,
+    level: LevelId,
+    meta: &StoreMeta,
+) -> Result<(), String> {
+    let path = root.join(kind.name()).join(level.key()).join("zarr.json");
+    let bytes = std::fs::read(&path).map_err(|e| format!("cannot read array metadata: {e}"))?;
+    let v: serde_json::Value =
+        serde_json::from_slice(&bytes).map_err(|e| format!("array metadata is not JSON: {e}"))?;
+    check(&v, kind, level, meta)
+}
