@@ -281,8 +281,16 @@ pub struct Graph {
 /// Most sources a graph may declare.
 pub const MAX_SOURCES: usize = 64;
 
-fn open(path: &Path) -> Result<StoreReader, String> {
-    StoreReader::open(path).map_err(|e| format!("cannot read store {}: {e}", path.display()))
+fn open(path: &Path, warnings: &mut Vec<String>) -> Result<StoreReader, String> {
+    let r = StoreReader::open(path)
+        .map_err(|e| format!("cannot read store {}: {e}", path.display()))?;
+    if !r.meta().complete {
+        warnings.push(format!(
+            "store {} is INCOMPLETE (a writer did not commit): some tiles may be missing or old",
+            path.display()
+        ));
+    }
+    Ok(r)
 }
 
 impl Graph {
@@ -304,11 +312,13 @@ impl Graph {
     /// The default graph of `store`: its heights (a smooth sphere if it has none) and its
     /// colours through a neutral filter.
     pub fn for_store(store: &Path) -> Result<Self, String> {
-        let reader = open(store)?;
+        let mut warnings = Vec::new();
+        let reader = open(store, &mut warnings)?;
         let meta = reader.meta();
         let radius = meta.radius_m;
         let has = |k| !meta.levels(k).is_empty();
         let mut g = Graph::empty(radius);
+        g.warnings = warnings;
         if has(LayerKind::Height) {
             g.sources
                 .push(Box::new(StoreHeightTiles::new(reader.clone())));
@@ -378,7 +388,7 @@ impl Graph {
             match d {
                 Decl::Store { path, layer, .. } => {
                     let full = here.join(&path);
-                    let reader = open(&full)?;
+                    let reader = open(&full, &mut g.warnings)?;
                     let kind = LayerKind::from_name(&layer).ok_or_else(|| {
                         format!("source `{name}`: unknown layer `{layer}` (height or color)")
                     })?;

@@ -157,6 +157,10 @@ pub struct FrameStats {
     /// Clipmap levels (height or colour) whose window moved by a texel or more: their changed
     /// regions were refilled.
     pub levels_filled: u32,
+    /// The level after `level_hi` cannot be drawn because one of its tiles failed (the coarser
+    /// levels show instead; with `level_hi == level_lo` and nothing drawn, a plain sphere). The
+    /// view is as complete as it can get.
+    pub level_failed: bool,
 }
 
 /// How to draw (the viewer's debug toggles).
@@ -551,6 +555,7 @@ impl ClipmapPass {
             level_sharpest: hi,
             triangles: self.hemi.triangles(lo, hi),
             levels_filled: filled,
+            level_failed: false,
         };
         self.finish(&viewer, camera, (w, h), ground, colors.is_some(), stats);
         (ground, stats)
@@ -710,6 +715,7 @@ impl ClipmapPass {
         // 2. levels coarse to fine, as far as their tiles are ready
         let mut drawn = None;
         let mut filled = 0;
+        let mut level_failed = false;
         for &(i, p, grid) in windows.iter().filter(|(i, ..)| *i <= wanted) {
             let quad: Option<Vec<Vec<Tile>>> = layers
                 .iter()
@@ -725,6 +731,11 @@ impl ClipmapPass {
                 })
                 .collect();
             let Some(quad) = quad else {
+                level_failed = layers.iter().any(|&(_, src)| {
+                    quad_keys(src, grid, &p, n)
+                        .iter()
+                        .any(|k| streamer.cache().is_failed(k))
+                });
                 break;
             };
             for (&(height, _), tiles) in layers.iter().zip(&quad) {
@@ -743,7 +754,13 @@ impl ClipmapPass {
         }
         let (hi, ground) = match &drawn {
             Some((i, p, quad)) => (*i, ground_from_quad(&quad[0], p, n)),
-            None => (lo, 0.0),
+            None => {
+                // nothing made yet (or the coarsest level failed): the sphere at sea level
+                if let Some(&(i, p, _)) = windows.first() {
+                    self.level_uniforms[i as usize] = level_uniform(&p);
+                }
+                (lo, 0.0)
+            }
         };
         // the ground under the camera from the finest level with its heights made, drawn or
         // not (the same as a full render's once the prefetch is done)
@@ -767,6 +784,7 @@ impl ClipmapPass {
             level_sharpest: sharpest,
             triangles: self.hemi.triangles(lo, hi),
             levels_filled: filled,
+            level_failed,
         };
         self.finish(
             &viewer,

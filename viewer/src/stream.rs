@@ -827,7 +827,17 @@ fn worker(shared: &Shared, rx: &Mutex<Receiver<Task>>) {
         };
         let key = task.key;
         let start = Instant::now();
-        let made = make(shared, key, 0);
+        // a source that panics (a bug, or data no check foresaw) fails its tile, not the worker:
+        // a dead worker would leave its tile in flight forever and the view waiting on it
+        let made = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| make(shared, key, 0)))
+            .unwrap_or_else(|p| {
+                let what = p
+                    .downcast_ref::<&str>()
+                    .map(|s| s.to_string())
+                    .or_else(|| p.downcast_ref::<String>().cloned())
+                    .unwrap_or_else(|| "unknown".into());
+                Err(format!("making the tile panicked: {what}"))
+            });
         shared
             .busy_ns
             .fetch_add(start.elapsed().as_nanos() as u64, Ordering::Relaxed);
@@ -838,7 +848,7 @@ fn worker(shared: &Shared, rx: &Mutex<Receiver<Task>>) {
                     let mut log = shared.errors.lock().unwrap_or_else(|e| e.into_inner());
                     if log.len() < MAX_ERRORS {
                         log.push(format!(
-                            "tile {key:?}: {e} (the coarser level shows instead)"
+                            "tile {key:?}: {e} (coarser data shows instead; a plain sphere where there is none)"
                         ));
                     }
                 }
@@ -959,6 +969,45 @@ mod tests {
         for x in 1..4 {
             assert!(!s.cache().contains(&key(1, x)));
         }
+    }
+
+    /// Panics on every tile of level 2 (like a decoder meeting data no check foresaw).
+    #[derive(Debug)]
+    struct PanicsOnLevel2;
+
+    impl TileSource for PanicsOnLevel2 {
+        fn make(&self, k: &TileKey, n: u32, _: &[Tile]) -> Result<TileData, String> {
+            if k.grid.level == 2 {
+                // what a size read from damaged bytes does
+                let v: Vec<u64> = Vec::with_capacity(usize::MAX / 2 + n as usize);
+                return Err(format!("unreachable {}", v.len()));
+            }
+            Ok(TileData::Height(vec![0.0; (n * n) as usize]))
+        }
+    }
+
+    #[test]
+    fn a_panicking_source_fails_its_tile_and_the_workers_go_on() {
+        let s = Streamer::new(vec![Box::new(PanicsOnLevel2)], 8, 1, 1 << 20);
+        let bad = key(2, 0);
+        s.request(vec![Task::visible(bad), Task::visible(key(3, 0))]);
+        // the wait ends on the failure, not the timeout
+        let t = Instant::now();
+        assert!(s.wait_for(&bad, Duration::from_secs(20)).is_none());
+        assert!(t.elapsed() < Duration::from_secs(10));
+        assert!(s.cache().is_failed(&bad));
+        // the one worker survived and makes the next tile
+        assert!(s.wait_for(&key(3, 0), Duration::from_secs(20)).is_some());
+        let end = Instant::now() + Duration::from_secs(20);
+        while !s.idle() && Instant::now() < end {
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        assert!(s.idle(), "the panicked tile is no longer in flight");
+        let errors = s.errors();
+        assert!(
+            errors.len() == 1 && errors[0].contains("panicked"),
+            "{errors:?}"
+        );
     }
 
     /// Doubles its input (a derived source).

@@ -19,6 +19,12 @@ pub fn run(a: &ExportArgs) -> Result<ExitCode> {
         .map(str::to_ascii_lowercase)
         .unwrap_or_default();
     let reader = StoreReader::open(&a.store).context("cannot read store")?;
+    if !reader.meta().complete {
+        eprintln!(
+            "warning: store {} is INCOMPLETE (a writer did not commit): some tiles may be missing or old",
+            a.store.display()
+        );
+    }
     let rows = reader.meta().grid.tiles_y(a.level);
     let p = Progress::new("export", rows);
     let summary = match ext.as_str() {

@@ -3,7 +3,7 @@
 use std::process::ExitCode;
 use std::time::Instant;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 use sc_viewer::render::{Camera, Renderer};
 
 use super::view::store_streamer;
@@ -90,7 +90,8 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
     let (mut img, mut stats) = loop {
         let (img, stats, _) = r.render_streamed(&streamer, sources, &camera, None)?;
         frames += 1;
-        if stats.level_hi == stats.level_wanted && streamer.idle() {
+        // a level with a failed tile is as complete as it gets: the coarser levels show there
+        if (stats.level_hi == stats.level_wanted || stats.level_failed) && streamer.idle() {
             break (img, stats);
         }
         if frames >= 10_000 {
@@ -110,10 +111,15 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
         cpu_ms.push(cpu * 1e3);
         (img, stats) = (i, s);
     }
-    let tmp = out.with_extension("png.tmp");
-    img.save_with_format(&tmp, image::ImageFormat::Png)
-        .with_context(|| format!("cannot write {}", tmp.display()))?;
-    std::fs::rename(&tmp, out).with_context(|| format!("cannot write {}", out.display()))?;
+    let tmp = out.with_extension(format!("png.tmp.{}.0", std::process::id()));
+    let saved = img
+        .save_with_format(&tmp, image::ImageFormat::Png)
+        .map_err(anyhow::Error::from)
+        .and_then(|()| std::fs::rename(&tmp, out).map_err(anyhow::Error::from));
+    if let Err(e) = saved {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(e.context(format!("cannot write {}", out.display())));
+    }
     println!(
         "rendered {} ({w}x{h}) on {}: levels {}..{}, {} triangles, complete after {complete_ms:.0} ms ({frames} frames); ground under the camera {:.1} m",
         out.display(),
