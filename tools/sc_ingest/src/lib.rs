@@ -223,6 +223,23 @@ pub fn plan(
     }
     // overlay order: ascending priority, stable (later inputs win among equals)
     planned.sort_by_key(|p| p.input.priority);
+    // the texels the inputs' boxes cover (plus the margin), before any tile is listed: a level
+    // far too fine must be an error at once, not after minutes of listing
+    let bound: f64 = planned
+        .iter()
+        .map(|p| {
+            let (tw, th) = (grid.tiles_x(p.level) as f64, grid.tiles_y(p.level) as f64);
+            let b = p.bbox;
+            let rows = ((b.north - b.south) / 180.0 * th).ceil() + 2.0;
+            let cols = ((b.east - b.west).min(360.0) / 360.0 * tw).ceil() + 2.0;
+            rows.min(th) * cols.min(tw) * f64::from(grid.tile_size()).powi(2)
+        })
+        .sum();
+    if bound > MAX_TEXELS as f64 {
+        return Err(IngestError::Usage(format!(
+            "this ingest would write about {bound:.3e} texels (limit {MAX_TEXELS}); choose a coarser --level"
+        )));
+    }
     let mut shards: BTreeMap<ShardId, BTreeMap<TileId, Vec<usize>>> = BTreeMap::new();
     let mut texels = 0u64;
     for (idx, p) in planned.iter().enumerate() {

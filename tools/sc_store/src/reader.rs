@@ -102,6 +102,19 @@ impl StoreReader {
     /// Opens a store for reading. Refuses non-stores and newer major versions.
     pub fn open(root: &Path) -> Result<Self> {
         let (fs, meta) = read_meta(root)?;
+        // a committed store lists every array it has (an incomplete one may hold an array a
+        // killed writer made and had not listed yet)
+        if meta.complete
+            && let Some((kind, name, path)) =
+                crate::verify::unlisted_arrays(root, &meta).into_iter().next()
+        {
+            return Err(StoreError::Format {
+                what: format!(
+                    "damaged store: {kind} array {name} is on disk but not listed in the store metadata"
+                ),
+                path,
+            });
+        }
         let mut levels = HashMap::new();
         for (&kind, layer) in &meta.layers {
             for lm in layer.levels.values() {

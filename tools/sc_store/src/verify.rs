@@ -164,30 +164,12 @@ impl StoreReader {
     /// dropped there would silently hide its data from every reader).
     fn verify_listing(&self, report: &mut VerifyReport) {
         let meta = self.meta();
-        for kind in [LayerKind::Height, LayerKind::Color] {
-            let dir = self.root().join(kind.name());
-            let Ok(rd) = std::fs::read_dir(&dir) else {
-                continue;
-            };
-            let mut names: Vec<String> = rd
-                .flatten()
-                .filter(|e| e.path().join("zarr.json").is_file())
-                .map(|e| e.file_name().to_string_lossy().into_owned())
-                .collect();
-            names.sort();
-            for name in names {
-                let listed = meta
-                    .layers
-                    .get(&kind)
-                    .is_some_and(|l| l.levels.contains_key(&name));
-                if !listed {
-                    report.problems.push(Problem {
-                        path: dir.join(&name),
-                        what: format!("{kind} array {name}"),
-                        detail: "on disk but not listed in the store metadata (its data is invisible to readers)".into(),
-                    });
-                }
-            }
+        for (kind, name, path) in unlisted_arrays(self.root(), meta) {
+            report.problems.push(Problem {
+                path,
+                what: format!("{kind} array {name}"),
+                detail: "on disk but not listed in the store metadata (its data is invisible to readers)".into(),
+            });
         }
     }
 
@@ -263,4 +245,34 @@ impl StoreReader {
             }
         }
     }
+}
+
+/// Level arrays on disk that the group metadata does not list: `(layer, key, folder)`.
+pub(crate) fn unlisted_arrays(
+    root: &Path,
+    meta: &crate::StoreMeta,
+) -> Vec<(LayerKind, String, PathBuf)> {
+    let mut out = Vec::new();
+    for kind in [LayerKind::Height, LayerKind::Color] {
+        let dir = root.join(kind.name());
+        let Ok(rd) = std::fs::read_dir(&dir) else {
+            continue;
+        };
+        let mut names: Vec<String> = rd
+            .flatten()
+            .filter(|e| e.path().join("zarr.json").is_file())
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        for name in names {
+            let listed = meta
+                .layers
+                .get(&kind)
+                .is_some_and(|l| l.levels.contains_key(&name));
+            if !listed {
+                out.push((kind, name.clone(), dir.join(name)));
+            }
+        }
+    }
+    out
 }

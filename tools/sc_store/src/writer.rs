@@ -106,8 +106,8 @@ fn zarr_err(path: &Path) -> impl Fn(String) -> StoreError + '_ {
     }
 }
 
-/// Whether `root` may become a new store: missing, or a folder holding nothing but the lock a
-/// killed creation left. A folder with anything else in it is someone's, and is refused.
+/// Whether `root` may become a new store: missing, or a folder holding nothing but the lock and
+/// temp file a killed creation left. A folder with anything else in it is someone's, and is refused.
 fn check_new_root(root: &Path) -> Result<()> {
     if !root.exists() {
         return Ok(());
@@ -121,7 +121,8 @@ fn check_new_root(root: &Path) -> Result<()> {
     let rd = fs::read_dir(root).map_err(io_err(root))?;
     for e in rd {
         let e = e.map_err(io_err(root))?;
-        if e.file_name() != ".lock" {
+        let name = e.file_name().to_string_lossy().into_owned();
+        if name != ".lock" && !crate::fault::is_temp_name(&name) {
             return Err(StoreError::Usage(format!(
                 "folder is not empty and is not a sphereclip store (found {}); choose a new or empty folder: {}",
                 e.file_name().to_string_lossy(),
@@ -130,6 +131,14 @@ fn check_new_root(root: &Path) -> Result<()> {
         }
     }
     Ok(())
+}
+
+impl StoreConfig {
+    /// Checks that a store with these settings can be written (shard size within the limit,
+    /// a real sphere).
+    pub fn check(&self) -> Result<()> {
+        check_config(self)
+    }
 }
 
 fn check_config(config: &StoreConfig) -> Result<()> {
@@ -231,6 +240,7 @@ impl StoreWriter {
                 });
             };
             check_new_root(root)?;
+            remove_stale_temp_files(root);
             let mut meta = StoreMeta::new(config.grid, config.shard_tiles, config.radius_m);
             // an empty store is complete; what a rollback of the first writer returns to
             meta.complete = true;

@@ -127,6 +127,7 @@ pub fn run(a: &IngestArgs) -> Result<ExitCode> {
         let m = r.meta();
         Some((m.grid, m.shard_tiles, m.radius_m))
     } else {
+        settings.new_store.check()?;
         StoreWriter::check_path(&a.store)?;
         None
     };

@@ -1,0 +1,594 @@
+//! What the tools promise about data (README, "Safety"): nothing outside a store is ever deleted,
+//! a kill at any durable step of ingest or build resumes to the bytes of an uninterrupted run, a
+//! second writer never overwrites the first, bad input found mid-run rolls the store back, damaged
+//! metadata is refused with one line, and no damaged store makes `render` wait forever.
+//!
+//! Kill points are deterministic: `SPHERECLIP_FAULT_AFTER=N` ends the process right after its N-th
+//! durable step (see `sc_store::fault`), for every N of a small job.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::sync::OnceLock;
+use std::time::{Duration, Instant};
+
+const FAULT_EXIT: i32 = sc_store::fault::FAULT_EXIT;
+
+fn bin() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_sphereclip"));
+    c.env("SOURCE_DATE_EPOCH", "1790000000")
+        .env("RAYON_NUM_THREADS", "1")
+        .env_remove("SPHERECLIP_FAULT_AFTER")
+        .env_remove("SPHERECLIP_PAUSE")
+        .stdin(Stdio::null());
+    c
+}
+
+fn sample(name: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../samples")
+        .join(name)
+        .display()
+        .to_string()
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+/// Runs the command to its end, or fails the test after `limit` (a hang).
+fn run_within(mut c: Command, limit: Duration) -> Output {
+    let mut child = c
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawns");
+    let start = Instant::now();
+    loop {
+        if child.try_wait().expect("wait").is_some() {
+            return child.wait_with_output().expect("output");
+        }
+        if start.elapsed() > limit {
+            let _ = child.kill();
+            let o = child.wait_with_output().expect("output");
+            panic!(
+                "hung for {limit:?}: {:?}\n{}{}",
+                c,
+                text(&o.stdout),
+                text(&o.stderr)
+            );
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+fn run(args: &[&str]) -> Output {
+    let mut c = bin();
+    c.args(args);
+    run_within(c, Duration::from_secs(300))
+}
+
+fn ok(o: &Output) {
+    assert!(o.status.success(), "{}{}", text(&o.stdout), text(&o.stderr));
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 path")
+}
+
+/// A failure the contract allows: exit code 1 (not a panic's 101, not a signal), one line.
+fn one_line_failure(o: &Output, what: &str) -> String {
+    let err = text(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{what}: {err}");
+    let lines: Vec<&str> = err
+        .lines()
+        .filter(|l| l.starts_with("error:") || l.contains("panicked"))
+        .collect();
+    assert_eq!(lines.len(), 1, "{what}: one error line expected: {err}");
+    lines[0].to_string()
+}
+
+/// Every file below `root` (bookkeeping included) but the lock, with its bytes.
+fn snapshot(root: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
+    fn walk(dir: &Path, root: &Path, out: &mut BTreeMap<PathBuf, Vec<u8>>) {
+        for e in std::fs::read_dir(dir).expect("read_dir").flatten() {
+            let p = e.path();
+            let rel = p.strip_prefix(root).expect("inside").to_path_buf();
+            if rel == Path::new(".lock") {
+                continue;
+            }
+            if p.is_dir() {
+                walk(&p, root, out);
+            } else {
+                out.insert(rel, std::fs::read(&p).expect("read"));
+            }
+        }
+    }
+    let mut out = BTreeMap::new();
+    walk(root, root, &mut out);
+    out
+}
+
+fn same_files(a: &BTreeMap<PathBuf, Vec<u8>>, b: &BTreeMap<PathBuf, Vec<u8>>, what: &str) {
+    let ka: Vec<_> = a.keys().collect();
+    let kb: Vec<_> = b.keys().collect();
+    assert_eq!(ka, kb, "{what}: different files");
+    for (k, v) in a {
+        assert!(b[k] == *v, "{what}: {} differs", k.display());
+    }
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).expect("mkdir");
+    for e in std::fs::read_dir(from).expect("read_dir").flatten() {
+        let p = e.path();
+        if p.is_dir() {
+            copy_dir(&p, &to.join(e.file_name()));
+        } else if e.file_name() != ".lock" {
+            std::fs::copy(&p, to.join(e.file_name())).expect("copy");
+        }
+    }
+}
+
+/// ETOPO20 at level 5 with 32² tiles (32 shards) and its pyramid, made once for every test.
+fn base_store() -> &'static Path {
+    static BASE: OnceLock<(tempfile::TempDir, PathBuf)> = OnceLock::new();
+    let (_, p) = BASE.get_or_init(|| {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let p = dir.path().join("base.zarr");
+        ok(&run(&[
+            "ingest",
+            s(&p),
+            &sample("etopo20.cdf"),
+            "--tile-size",
+            "32",
+            "--level",
+            "5",
+        ]));
+        ok(&run(&["build", s(&p), "--threads", "1"]));
+        (dir, p)
+    });
+    p
+}
+
+#[test]
+fn a_folder_that_is_not_a_store_is_refused_and_foreign_files_are_never_deleted() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    // someone's folder
+    let theirs = dir.path().join("thesis");
+    std::fs::create_dir_all(theirs.join("sub")).expect("mkdir");
+    std::fs::write(theirs.join("thesis.tmp.1"), b"chapter 1").expect("write");
+    std::fs::write(theirs.join("sub/report.tmp.docx"), b"report").expect("write");
+    let before = snapshot(&theirs);
+    let o = run(&["ingest", s(&theirs), &sample("etopo20.cdf"), "--level", "1"]);
+    let line = one_line_failure(&o, "ingest into a foreign folder");
+    assert!(line.contains("not empty and is not a sphereclip store"), "{line}");
+    same_files(&before, &snapshot(&theirs), "foreign folder");
+    assert!(!theirs.join(".lock").exists(), "not even a lock file is left");
+    // an empty folder is fine
+    let empty = dir.path().join("empty");
+    std::fs::create_dir_all(&empty).expect("mkdir");
+    ok(&run(&["ingest", s(&empty), &sample("etopo20.cdf"), "--level", "1"]));
+
+    // inside a store, only our own temp files (NAME.tmp.PID.N) in our own folders are cleaned
+    let store = dir.path().join("s.zarr");
+    copy_dir(base_store(), &store);
+    let keep = [
+        store.join("notes.tmp.1"),
+        store.join("height/L05/report.tmp.docx"),
+        store.join("mine/0.tmp.12.3"),
+    ];
+    std::fs::create_dir_all(store.join("mine")).expect("mkdir");
+    for k in &keep {
+        std::fs::write(k, b"theirs").expect("write");
+    }
+    let ours = store.join("height/L05/c/0/0.tmp.4242.7");
+    std::fs::write(&ours, b"half a shard").expect("write");
+    ok(&run(&[
+        "ingest",
+        s(&store),
+        &sample("terra_elev_luxembourg.tif"),
+        "--level",
+        "5",
+    ]));
+    for k in &keep {
+        assert_eq!(std::fs::read(k).expect("still there"), b"theirs");
+    }
+    assert!(!ours.exists(), "a killed writer's temp file is cleaned");
+}
+
+/// Runs `args` killed after every durable step N in turn, each time on a fresh copy of `base`
+/// (`None`: no store yet), reruns it, and compares with an uninterrupted run. Returns the
+/// number of kill points.
+fn every_kill_point_resumes(base: Option<&Path>, args: &[&str], what: &str) -> u64 {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let fresh = |name: &str| {
+        let p = dir.path().join(name);
+        if let Some(b) = base {
+            copy_dir(b, &p);
+        }
+        p
+    };
+    let with_store = |store: &Path| -> Vec<String> {
+        args.iter()
+            .map(|a| {
+                if *a == "STORE" {
+                    s(store).to_string()
+                } else {
+                    a.to_string()
+                }
+            })
+            .collect()
+    };
+    let reference = fresh("reference.zarr");
+    let a = with_store(&reference);
+    ok(&run(&a.iter().map(String::as_str).collect::<Vec<_>>()));
+    let want = snapshot(&reference);
+    assert!(
+        !want.keys().any(|k| k.starts_with(".sphereclip/undo")
+            || k.ends_with("journal-ingest.json")),
+        "{what}: a finished run leaves no undo or journal"
+    );
+    for n in 1.. {
+        let store = fresh(&format!("kill{n}.zarr"));
+        let a = with_store(&store);
+        let a: Vec<&str> = a.iter().map(String::as_str).collect();
+        let mut c = bin();
+        c.args(&a).env("SPHERECLIP_FAULT_AFTER", n.to_string());
+        let o = run_within(c, Duration::from_secs(300));
+        if o.status.success() {
+            assert!(n > 5, "{what}: only {n} durable steps?");
+            return n - 1;
+        }
+        let err = text(&o.stderr);
+        assert_eq!(o.status.code(), Some(FAULT_EXIT), "{what}, kill {n}: {err}");
+        // a kill after the last step (the journal removed) is a finished command
+        if !(err.contains("(removed") && err.contains("journal-ingest.json")) {
+            ok(&run(&a));
+        }
+        same_files(&want, &snapshot(&store), &format!("{what}, killed after step {n}"));
+        std::fs::remove_dir_all(&store).expect("cleanup");
+    }
+    unreachable!()
+}
+
+#[test]
+fn a_kill_at_any_durable_step_resumes_to_identical_bytes() {
+    // a new store (creation, array metadata, shards, journal, commit)
+    let n = every_kill_point_resumes(
+        None,
+        &[
+            "ingest",
+            "STORE",
+            &sample("etopo20.cdf"),
+            "--tile-size",
+            "32",
+            "--level",
+            "3",
+        ],
+        "ingest into a new store",
+    );
+    assert!(n >= 10, "{n}");
+    // a feathered ingest over data (a shard blended twice would differ) that adds a level
+    let base = base_store();
+    let lux = sample("terra_elev_luxembourg.tif");
+    every_kill_point_resumes(
+        Some(base),
+        &["ingest", "STORE", &lux, "--level", "5", "--feather", "4"],
+        "feathered ingest",
+    );
+    every_kill_point_resumes(
+        Some(base),
+        &["ingest", "STORE", &lux, "--level", "7"],
+        "ingest adding a level",
+    );
+    // a build (level arrays created, listed, shards, manifests, commit) of a small new store
+    let dir = tempfile::tempdir().expect("tempdir");
+    let small = dir.path().join("small.zarr");
+    ok(&run(&[
+        "ingest",
+        s(&small),
+        &sample("etopo20.cdf"),
+        "--tile-size",
+        "32",
+        "--level",
+        "3",
+    ]));
+    let n = every_kill_point_resumes(
+        Some(&small),
+        &["build", "STORE", "--threads", "1"],
+        "build",
+    );
+    assert!(n >= 20, "{n}");
+}
+
+#[test]
+fn a_second_writer_that_waited_for_the_lock_keeps_the_first_ones_commit() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let store = dir.path().join("s.zarr");
+    ok(&run(&[
+        "ingest",
+        s(&store),
+        &sample("etopo20.cdf"),
+        "--tile-size",
+        "32",
+        "--level",
+        "1",
+    ]));
+    // the second writer stops just before taking the lock, after it decided to open the store
+    let go = dir.path().join("go");
+    let mut second = bin();
+    second
+        .args([
+            "ingest",
+            s(&store),
+            &sample("etopo20.cdf"),
+            "--level",
+            "2",
+        ])
+        .env("SPHERECLIP_PAUSE", format!("before-lock:{}", s(&go)))
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    let child = second.spawn().expect("spawns");
+    // wait until it has planned (it prints its plan before opening the store)
+    std::thread::sleep(Duration::from_millis(300));
+    ok(&run(&["ingest", s(&store), &sample("etopo20.cdf"), "--level", "3"]));
+    std::fs::write(&go, b"").expect("release");
+    let o = child.wait_with_output().expect("waits");
+    ok(&o);
+    let r = sc_store::StoreReader::open(&store).expect("opens");
+    let levels: Vec<String> = r
+        .meta()
+        .levels(sc_store::LayerKind::Height)
+        .iter()
+        .map(|l| l.key())
+        .collect();
+    assert_eq!(levels, ["L01", "L02", "L03"], "both writers' levels are listed");
+    assert_eq!(r.meta().provenance.len(), 3);
+    assert!(r.meta().complete);
+    ok(&run(&["info", s(&store), "--verify"]));
+}
+
+/// A GeoTIFF whose middle strip is damaged (its first and last rows read fine).
+fn damaged_geotiff(dir: &Path) -> PathBuf {
+    let clean = dir.join("clean.tif");
+    let o = Command::new("gdal_translate")
+        .args([
+            "-q",
+            "-co",
+            "COMPRESS=DEFLATE",
+            "-co",
+            "BLOCKYSIZE=16",
+            &sample("n07_w006_3arc_v2.tif"),
+            s(&clean),
+        ])
+        .output()
+        .expect("gdal_translate runs");
+    ok(&o);
+    let mut b = std::fs::read(&clean).expect("read");
+    let mid = b.len() / 2;
+    for x in &mut b[mid..mid + 4000] {
+        *x ^= 0x5a;
+    }
+    let bad = dir.join("damaged_strip.tif");
+    std::fs::write(&bad, b).expect("write");
+    bad
+}
+
+#[test]
+fn bad_input_found_mid_run_rolls_the_store_back() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let store = dir.path().join("s.zarr");
+    copy_dir(base_store(), &store);
+    let before = snapshot(&store);
+    let bad = damaged_geotiff(dir.path());
+    for level in ["5", "9"] {
+        let o = run(&["ingest", s(&store), s(&bad), "--level", level]);
+        let line = one_line_failure(&o, "damaged strip");
+        assert!(line.contains("damaged_strip.tif"), "names the input: {line}");
+        assert!(line.contains("rolled back"), "{line}");
+        assert!(!line.contains("rerun"), "a rerun cannot help: {line}");
+        same_files(&before, &snapshot(&store), "after the rollback");
+    }
+    ok(&run(&["info", s(&store), "--verify"]));
+    // a lock held by another process is no reason to suggest a rerun to resume either
+    let _held = sc_store::StoreWriter::open(&store).expect("lock");
+    let o = run(&["ingest", s(&store), &sample("etopo20.cdf"), "--level", "5"]);
+    let line = one_line_failure(&o, "locked");
+    assert!(line.contains("being written by another process"), "{line}");
+    assert!(!line.contains("rerun"), "{line}");
+}
+
+/// Edits one JSON file of a store.
+fn edit_json(path: &Path, f: impl FnOnce(&mut serde_json::Value)) {
+    let mut v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(path).expect("read")).expect("json");
+    f(&mut v);
+    std::fs::write(path, serde_json::to_vec_pretty(&v).expect("json")).expect("write");
+}
+
+#[test]
+fn damaged_metadata_is_one_line_for_verify_export_and_render() {
+    type Damage = fn(&Path);
+    let cases: [(&str, Damage); 8] = [
+        ("big-endian shard index", |p| {
+            edit_json(&p.join("height/L05/zarr.json"), |v| {
+                v["codecs"][0]["configuration"]["index_codecs"][0]["configuration"]["endian"] =
+                    "big".into();
+            })
+        }),
+        ("index without crc32c", |p| {
+            edit_json(&p.join("height/L05/zarr.json"), |v| {
+                let ic = &mut v["codecs"][0]["configuration"]["index_codecs"];
+                ic.as_array_mut().expect("list").truncate(1);
+            })
+        }),
+        ("chunk key separator", |p| {
+            edit_json(&p.join("height/L05/zarr.json"), |v| {
+                v["chunk_key_encoding"]["configuration"]["separator"] = ".".into();
+            })
+        }),
+        ("level key renamed", |p| {
+            edit_json(&p.join("zarr.json"), |v| {
+                let levels = v["attributes"]["sphereclip"]["layers"]["height"]["levels"]
+                    .as_object_mut()
+                    .expect("levels");
+                let l = levels.remove("L03").expect("L03");
+                levels.insert("L3".into(), l);
+            })
+        }),
+        ("layers emptied", |p| {
+            edit_json(&p.join("zarr.json"), |v| {
+                v["attributes"]["sphereclip"]["layers"] = serde_json::json!({});
+            })
+        }),
+        ("tile size changed", |p| {
+            edit_json(&p.join("zarr.json"), |v| {
+                v["attributes"]["sphereclip"]["grid"]["tile_size"] = 128.into();
+            })
+        }),
+        ("shard size changed", |p| {
+            edit_json(&p.join("zarr.json"), |v| {
+                v["attributes"]["sphereclip"]["shard_tiles"] = 64.into();
+            })
+        }),
+        ("level out of range", |p| {
+            edit_json(&p.join("zarr.json"), |v| {
+                v["attributes"]["sphereclip"]["layers"]["height"]["levels"]["L03"]["level"]
+                    ["level"] = 99.into();
+            })
+        }),
+    ];
+    let dir = tempfile::tempdir().expect("tempdir");
+    for (what, damage) in cases {
+        let store = dir.path().join(what.replace(' ', "_"));
+        copy_dir(base_store(), &store);
+        damage(&store);
+        let o = run(&["info", s(&store), "--verify"]);
+        assert!(!o.status.success(), "{what}: verify must report it");
+        assert_eq!(o.status.code(), Some(1), "{what}: {}", text(&o.stderr));
+        let out = dir.path().join("x.tif");
+        let o = run(&["export", "--level", "3", s(&store), s(&out)]);
+        one_line_failure(&o, what);
+        let png = dir.path().join("x.png");
+        let mut c = bin();
+        c.args([
+            "render",
+            s(&store),
+            "--camera",
+            "10,20,3000000",
+            "--size",
+            "64x64",
+            "--out",
+            s(&png),
+        ])
+        .env("XDG_RUNTIME_DIR", xdg());
+        let o = run_within(c, Duration::from_secs(120));
+        one_line_failure(&o, what);
+    }
+}
+
+fn xdg() -> PathBuf {
+    let d = std::env::temp_dir().join("sphereclip-xdg");
+    std::fs::create_dir_all(&d).expect("mkdir");
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&d, std::fs::Permissions::from_mode(0o700)).expect("chmod");
+    d
+}
+
+#[test]
+fn render_of_a_damaged_store_terminates_and_leaves_no_temp_file() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let store = dir.path().join("s.zarr");
+    copy_dir(base_store(), &store);
+    // every shard of every level damaged: no tile can be made, the coarsest level included
+    fn damage(dir: &Path) {
+        for e in std::fs::read_dir(dir).expect("read_dir").flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                damage(&p);
+            } else if p.components().any(|c| c.as_os_str() == "c") {
+                let mut b = std::fs::read(&p).expect("read");
+                b[40] ^= 0xff;
+                std::fs::write(&p, b).expect("write");
+            }
+        }
+    }
+    damage(&store.join("height"));
+    let png = dir.path().join("shot.png");
+    let mut c = bin();
+    c.args([
+        "render",
+        s(&store),
+        "--camera",
+        "10,20,2000000",
+        "--size",
+        "64x64",
+        "--out",
+        s(&png),
+    ])
+    .env("XDG_RUNTIME_DIR", xdg());
+    let o = run_within(c, Duration::from_secs(60));
+    ok(&o);
+    let err = text(&o.stderr);
+    assert!(err.contains("checksum mismatch"), "the damage is said: {err}");
+    assert!(err.contains("plain sphere"), "{err}");
+    assert!(png.is_file());
+    // a PNG that cannot be written: one line, no temp file left
+    let nowhere = dir.path().join("missing-folder/shot.png");
+    let mut c = bin();
+    c.args([
+        "render",
+        s(base_store()),
+        "--camera",
+        "10,20,2000000",
+        "--size",
+        "64x64",
+        "--out",
+        s(&nowhere),
+    ])
+    .env("XDG_RUNTIME_DIR", xdg());
+    let o = run_within(c, Duration::from_secs(60));
+    one_line_failure(&o, "unwritable png");
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .expect("read_dir")
+        .flatten()
+        .map(|e| e.file_name())
+        .filter(|n| n.to_string_lossy().contains(".tmp"))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+}
+
+#[test]
+fn sizes_that_cannot_work_are_refused_before_any_work() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let store = dir.path().join("s.zarr");
+    for size in ["2048", "4096"] {
+        let o = run(&[
+            "ingest",
+            s(&store),
+            &sample("etopo20.cdf"),
+            "--tile-size",
+            size,
+            "--level",
+            "0",
+        ]);
+        let line = one_line_failure(&o, "tile size");
+        assert!(line.contains("tile size"), "{line}");
+        assert!(!store.exists(), "nothing is created");
+    }
+    // a level far too fine for the limit: an error before the tiles are listed
+    // (before the fix it planned for minutes, its memory growing)
+    let mut c = bin();
+    c.args([
+        "ingest",
+        s(&store),
+        &sample("n07_w006_3arc_v2.tif"),
+        "--level",
+        "20",
+    ]);
+    let o = run_within(c, Duration::from_secs(60));
+    let line = one_line_failure(&o, "level 20");
+    assert!(line.contains("texels"), "{line}");
+    assert!(!store.exists());
+}
