@@ -105,8 +105,9 @@ impl StoreReader {
         // a committed store lists every array it has (an incomplete one may hold an array a
         // killed writer made and had not listed yet)
         if meta.complete
-            && let Some((kind, name, path)) =
-                crate::verify::unlisted_arrays(root, &meta).into_iter().next()
+            && let Some((kind, name, path)) = crate::verify::unlisted_arrays(root, &meta)
+                .into_iter()
+                .next()
         {
             return Err(StoreError::Format {
                 what: format!(

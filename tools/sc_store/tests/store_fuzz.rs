@@ -32,10 +32,14 @@ fn make_store(root: &Path) {
         let (sx, sy) = ShardId::counts(m.grid, level, m.shard_tiles);
         for y in 0..sy {
             for x in 0..sx {
-                let mut sw = w.shard_writer::<f32>(ShardId { level, x, y }).expect("claim");
+                let mut sw = w
+                    .shard_writer::<f32>(ShardId { level, x, y })
+                    .expect("claim");
                 let tiles: Vec<TileId> = sw.tiles().collect();
                 for t in tiles {
-                    let v: Vec<f32> = (0..T * T).map(|_| rng.random_range(-500.0..500.0)).collect();
+                    let v: Vec<f32> = (0..T * T)
+                        .map(|_| rng.random_range(-500.0..500.0))
+                        .collect();
                     sw.put_tile(t, &v).expect("put");
                 }
                 sw.finish().expect("finish");
@@ -43,7 +47,9 @@ fn make_store(root: &Path) {
         }
     }
     let level = LevelId::iso(1).expect("level");
-    let mut sw = w.shard_writer::<u8>(ShardId { level, x: 0, y: 0 }).expect("claim");
+    let mut sw = w
+        .shard_writer::<u8>(ShardId { level, x: 0, y: 0 })
+        .expect("claim");
     let tiles: Vec<TileId> = sw.tiles().collect();
     for t in tiles {
         let v: Vec<u8> = (0..T * T * 4).map(|_| rng.random()).collect();
@@ -314,5 +320,8 @@ fn random_damage_never_panics_and_every_change_is_reported() {
         failures.join("\n")
     );
     // the harness damages for real: most cases are caught, few change nothing a reader sees
-    assert!(reported * 10 >= n * 6, "only {reported} of {n} cases reported");
+    assert!(
+        reported * 10 >= n * 6,
+        "only {reported} of {n} cases reported"
+    );
 }

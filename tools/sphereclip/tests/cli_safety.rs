@@ -162,13 +162,25 @@ fn a_folder_that_is_not_a_store_is_refused_and_foreign_files_are_never_deleted()
     let before = snapshot(&theirs);
     let o = run(&["ingest", s(&theirs), &sample("etopo20.cdf"), "--level", "1"]);
     let line = one_line_failure(&o, "ingest into a foreign folder");
-    assert!(line.contains("not empty and is not a sphereclip store"), "{line}");
+    assert!(
+        line.contains("not empty and is not a sphereclip store"),
+        "{line}"
+    );
     same_files(&before, &snapshot(&theirs), "foreign folder");
-    assert!(!theirs.join(".lock").exists(), "not even a lock file is left");
+    assert!(
+        !theirs.join(".lock").exists(),
+        "not even a lock file is left"
+    );
     // an empty folder is fine
     let empty = dir.path().join("empty");
     std::fs::create_dir_all(&empty).expect("mkdir");
-    ok(&run(&["ingest", s(&empty), &sample("etopo20.cdf"), "--level", "1"]));
+    ok(&run(&[
+        "ingest",
+        s(&empty),
+        &sample("etopo20.cdf"),
+        "--level",
+        "1",
+    ]));
 
     // inside a store, only our own temp files (NAME.tmp.PID.N) in our own folders are cleaned
     let store = dir.path().join("s.zarr");
@@ -225,8 +237,9 @@ fn every_kill_point_resumes(base: Option<&Path>, args: &[&str], what: &str) -> u
     ok(&run(&a.iter().map(String::as_str).collect::<Vec<_>>()));
     let want = snapshot(&reference);
     assert!(
-        !want.keys().any(|k| k.starts_with(".sphereclip/undo")
-            || k.ends_with("journal-ingest.json")),
+        !want
+            .keys()
+            .any(|k| k.starts_with(".sphereclip/undo") || k.ends_with("journal-ingest.json")),
         "{what}: a finished run leaves no undo or journal"
     );
     for n in 1.. {
@@ -246,7 +259,11 @@ fn every_kill_point_resumes(base: Option<&Path>, args: &[&str], what: &str) -> u
         if !(err.contains("(removed") && err.contains("journal-ingest.json")) {
             ok(&run(&a));
         }
-        same_files(&want, &snapshot(&store), &format!("{what}, killed after step {n}"));
+        same_files(
+            &want,
+            &snapshot(&store),
+            &format!("{what}, killed after step {n}"),
+        );
         std::fs::remove_dir_all(&store).expect("cleanup");
     }
     unreachable!()
@@ -294,11 +311,7 @@ fn a_kill_at_any_durable_step_resumes_to_identical_bytes() {
         "--level",
         "3",
     ]));
-    let n = every_kill_point_resumes(
-        Some(&small),
-        &["build", "STORE", "--threads", "1"],
-        "build",
-    );
+    let n = every_kill_point_resumes(Some(&small), &["build", "STORE", "--threads", "1"], "build");
     assert!(n >= 20, "{n}");
 }
 
@@ -319,20 +332,20 @@ fn a_second_writer_that_waited_for_the_lock_keeps_the_first_ones_commit() {
     let go = dir.path().join("go");
     let mut second = bin();
     second
-        .args([
-            "ingest",
-            s(&store),
-            &sample("etopo20.cdf"),
-            "--level",
-            "2",
-        ])
+        .args(["ingest", s(&store), &sample("etopo20.cdf"), "--level", "2"])
         .env("SPHERECLIP_PAUSE", format!("before-lock:{}", s(&go)))
         .stdout(Stdio::piped())
         .stderr(Stdio::piped());
     let child = second.spawn().expect("spawns");
     // wait until it has planned (it prints its plan before opening the store)
     std::thread::sleep(Duration::from_millis(300));
-    ok(&run(&["ingest", s(&store), &sample("etopo20.cdf"), "--level", "3"]));
+    ok(&run(&[
+        "ingest",
+        s(&store),
+        &sample("etopo20.cdf"),
+        "--level",
+        "3",
+    ]));
     std::fs::write(&go, b"").expect("release");
     let o = child.wait_with_output().expect("waits");
     ok(&o);
@@ -343,7 +356,11 @@ fn a_second_writer_that_waited_for_the_lock_keeps_the_first_ones_commit() {
         .iter()
         .map(|l| l.key())
         .collect();
-    assert_eq!(levels, ["L01", "L02", "L03"], "both writers' levels are listed");
+    assert_eq!(
+        levels,
+        ["L01", "L02", "L03"],
+        "both writers' levels are listed"
+    );
     assert_eq!(r.meta().provenance.len(), 3);
     assert!(r.meta().complete);
     ok(&run(&["info", s(&store), "--verify"]));
@@ -385,7 +402,10 @@ fn bad_input_found_mid_run_rolls_the_store_back() {
     for level in ["5", "9"] {
         let o = run(&["ingest", s(&store), s(&bad), "--level", level]);
         let line = one_line_failure(&o, "damaged strip");
-        assert!(line.contains("damaged_strip.tif"), "names the input: {line}");
+        assert!(
+            line.contains("damaged_strip.tif"),
+            "names the input: {line}"
+        );
         assert!(line.contains("rolled back"), "{line}");
         assert!(!line.contains("rerun"), "a rerun cannot help: {line}");
         same_files(&before, &snapshot(&store), "after the rollback");
@@ -454,8 +474,8 @@ fn damaged_metadata_is_one_line_for_verify_export_and_render() {
         }),
         ("level out of range", |p| {
             edit_json(&p.join("zarr.json"), |v| {
-                v["attributes"]["sphereclip"]["layers"]["height"]["levels"]["L03"]["level"]
-                    ["level"] = 99.into();
+                v["attributes"]["sphereclip"]["layers"]["height"]["levels"]["L03"]["level"]["level"] =
+                    99.into();
             })
         }),
     ];
@@ -531,7 +551,10 @@ fn render_of_a_damaged_store_terminates_and_leaves_no_temp_file() {
     let o = run_within(c, Duration::from_secs(60));
     ok(&o);
     let err = text(&o.stderr);
-    assert!(err.contains("checksum mismatch"), "the damage is said: {err}");
+    assert!(
+        err.contains("checksum mismatch"),
+        "the damage is said: {err}"
+    );
     assert!(err.contains("plain sphere"), "{err}");
     assert!(png.is_file());
     // a PNG that cannot be written: one line, no temp file left
