@@ -154,7 +154,7 @@ impl StoreMeta {
                     )));
                 }
                 if let Some((lo, hi)) = lm.value_range
-                    && !(lo <= hi)
+                    && lo.partial_cmp(&hi).is_none_or(|o| o.is_gt())
                 {
                     return Err(format(format!(
                         "damaged store metadata: {kind} level {key} has value range {lo} .. {hi}"

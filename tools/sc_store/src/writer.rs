@@ -360,14 +360,11 @@ impl StoreWriter {
                 levels: Default::default(),
             });
             let key = level.key();
-            if !layer.levels.contains_key(&key) {
-                layer.levels.insert(
-                    key,
-                    LevelMeta {
-                        level,
-                        value_range: None,
-                    },
-                );
+            if let std::collections::btree_map::Entry::Vacant(e) = layer.levels.entry(key) {
+                e.insert(LevelMeta {
+                    level,
+                    value_range: None,
+                });
                 listed = false;
             }
         }
