@@ -220,6 +220,14 @@ pub fn resample_tile(
         f64::INFINITY,
         f64::NEG_INFINITY,
     );
+    // pole rows take one value for the whole row: the circle around the pole, averaged row by row
+    let (_, oy) = tile.origin_texel(grid);
+    let last_row = grid.height(tile.level) - 1;
+    let pole_of = |k: usize| match (oy + (k / t) as u64, period) {
+        (0, Some(_)) if info.north_pole_y.is_some() => Some(0),
+        (r, Some(_)) if r == last_row && info.south_pole_y.is_some() => Some(1),
+        _ => None,
+    };
     let mut half = Vec::with_capacity(t * t);
     for k in 0..t * t {
         let (x, y) = (map.x[k], map.y[k]);
@@ -232,7 +240,12 @@ pub fn resample_tile(
             None => (0.5, 0.5),
         };
         if let Some(p) = period {
-            hx = hx.min(p / 2.0);
+            // a pole texel needs the full circle of longitudes, whatever its kernel's reach
+            hx = if pole_of(k).is_some() {
+                p / 2.0
+            } else {
+                hx.min(p / 2.0)
+            };
         }
         half.push((hx, hy));
         // skip texels whose whole footprint misses a non-wrapping source
@@ -273,21 +286,10 @@ pub fn resample_tile(
     let mut acc = vec![0f64; nplanes];
     let mut mips = Mips::default();
     let mut rows = RowWeights::default();
-    // pole rows: one value for the whole row, the circle around the pole averaged row by row
-    let (_, oy) = tile.origin_texel(grid);
-    let last_row = grid.height(tile.level) - 1;
     let mut pole_values: [Option<Option<Vec<f64>>>; 2] = [None, None];
     for k in 0..t * t {
         let (x, y) = (map.x[k], map.y[k]);
-        let row = oy + (k / t) as u64;
-        let pole = match row {
-            0 if info.north_pole_y.is_some() && info.lon_period_px.is_some() => Some(0),
-            r if r == last_row && info.south_pole_y.is_some() && info.lon_period_px.is_some() => {
-                Some(1)
-            }
-            _ => None,
-        };
-        if let Some(p) = pole {
+        if let Some(p) = pole_of(k) {
             let sy = map.foot[k]
                 .and_then(|f| f.axis_scales())
                 .map_or(1.0, |s| s.1);
@@ -621,8 +623,15 @@ fn pole_value(win: &Window, lut: &KernelLut, y: f64, sy: f64, period: f64) -> Op
     }
     let np = win.planes.len();
     let (mut acc, mut wsum, mut wall) = (vec![0f64; np], 0.0, 0.0);
+    // every pixel of the rows next to the pole is equally near it: nearest averages those rows
+    // (the kernel's half-open box would take none of them when the pole lies on a row boundary)
+    let nearest = lut.kernel() == Kernel::Nearest;
     for r in ceil(y - 0.5 - s * sy)..=floor(y - 0.5 + s * sy) {
-        let w = lut.weight((r as f64 + 0.5 - y) / sy);
+        let w = if nearest {
+            1.0
+        } else {
+            lut.weight((r as f64 + 0.5 - y) / sy)
+        };
         wall += w.max(0.0);
         let rr = r - win.r0;
         if w == 0.0 || rr < 0 || rr >= win.h as i64 {

@@ -2,92 +2,13 @@
 //! height on coarse levels, polar caps carry no longitude striping, a killed build resumes to the
 //! same bytes, and bad stores get one-line errors.
 
-use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 use std::time::{Duration, Instant};
 
 use sc_core::{GridSpec, LevelId, TileId};
 use sc_store::{StoreReader, TileRead};
 
-fn bin() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_sphereclip"));
-    c.env("SOURCE_DATE_EPOCH", "1790000000");
-    c
-}
-
-fn sample(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../samples")
-        .join(name)
-}
-
-fn text(b: &[u8]) -> String {
-    String::from_utf8_lossy(b).into_owned()
-}
-
-fn run(args: &[&str]) -> Output {
-    bin().args(args).output().expect("runs")
-}
-
-fn ok(o: &Output) {
-    assert!(o.status.success(), "{}{}", text(&o.stdout), text(&o.stderr));
-}
-
-/// Every file of a store except the lock and the bookkeeping folder.
-fn snapshot(root: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
-    fn walk(dir: &Path, root: &Path, out: &mut BTreeMap<PathBuf, Vec<u8>>) {
-        for e in std::fs::read_dir(dir).expect("read_dir").flatten() {
-            let p = e.path();
-            let rel = p.strip_prefix(root).expect("inside").to_path_buf();
-            if rel == Path::new(".lock") || rel.starts_with(".sphereclip") {
-                continue;
-            }
-            if p.is_dir() {
-                walk(&p, root, out);
-            } else {
-                out.insert(rel, std::fs::read(&p).expect("read"));
-            }
-        }
-    }
-    let mut out = BTreeMap::new();
-    walk(root, root, &mut out);
-    out
-}
-
-fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).expect("mkdir");
-    for e in std::fs::read_dir(from).expect("read_dir").flatten() {
-        let p = e.path();
-        if p.is_dir() {
-            copy_dir(&p, &to.join(e.file_name()));
-        } else {
-            std::fs::copy(&p, to.join(e.file_name())).expect("copy");
-        }
-    }
-}
-
-/// A whole height level, row-major.
-fn level(r: &StoreReader, id: LevelId) -> (usize, usize, Vec<f32>) {
-    let g: GridSpec = r.meta().grid;
-    let t = g.tile_size() as usize;
-    let (w, h) = (g.width(id) as usize, g.height(id) as usize);
-    let mut out = vec![f32::NAN; w * h];
-    let mut buf = vec![0f32; t * t];
-    for ty in 0..g.tiles_y(id) {
-        for tx in 0..g.tiles_x(id) {
-            let tile = TileId::new(g, id, tx, ty).expect("tile");
-            if r.read_tile(tile, &mut buf).expect("read") == TileRead::Missing {
-                continue;
-            }
-            for rr in 0..t {
-                let o = (ty as usize * t + rr) * w + tx as usize * t;
-                out[o..o + t].copy_from_slice(&buf[rr * t..(rr + 1) * t]);
-            }
-        }
-    }
-    (w, h, out)
-}
+mod common;
+use common::{bin, copy_dir, ok, read_level as level, run, sample, snapshot, text};
 
 /// Largest value in a lon/lat box.
 fn box_max(w: usize, h: usize, v: &[f32], lon: (f64, f64), lat: (f64, f64)) -> f32 {
@@ -270,4 +191,72 @@ fn bad_stores_get_one_line_errors() {
         "{}",
         text(&o.stdout)
     );
+}
+
+/// Row 0 and the last row of a level hold one value each (the pole's), finite.
+fn pole_rows(w: usize, h: usize, v: &[f32], what: &str) -> (f32, f32) {
+    let mut out = [0f32; 2];
+    for (k, j) in [0, h - 1].into_iter().enumerate() {
+        let row = &v[j * w..(j + 1) * w];
+        assert!(
+            row.iter().all(|x| x.is_finite()),
+            "{what}: row {j} has {} nodata texels of {w}",
+            row.iter().filter(|x| !x.is_finite()).count()
+        );
+        assert!(
+            row.iter().all(|x| *x == row[0]),
+            "{what}: row {j} is not one value: {:?}",
+            &row[..8]
+        );
+        out[k] = row[0];
+    }
+    (out[0], out[1])
+}
+
+#[test]
+fn every_resampling_gives_the_pole_rows_their_value_and_build_carries_it() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    // a global lon/lat GeoTIFF of exactly level 2's grid (32² tiles): the poles lie on the
+    // raster's top and bottom edges, between rows
+    let tif = dir.path().join("global.tif");
+    let o = std::process::Command::new("gdal_translate")
+        .args([
+            "-q", "-of", "GTiff", "-outsize", "256", "128", "-r", "average",
+        ])
+        .args(["-a_ullr", "-180", "90", "180", "-90", "-a_srs", "EPSG:4326"])
+        .arg(sample("etopo20.cdf"))
+        .arg(&tif)
+        .output()
+        .expect("gdal_translate runs");
+    ok(&o);
+    let level2 = LevelId::iso(2).expect("level");
+    // every kernel `ingest --resampling` takes
+    for kernel in ["nearest", "bilinear", "cubic", "lanczos2", "lanczos3"] {
+        let store = dir.path().join(format!("{kernel}.zarr"));
+        let st = store.to_str().expect("utf8");
+        ok(&run(&[
+            "ingest",
+            st,
+            tif.to_str().expect("utf8"),
+            "--tile-size",
+            "32",
+            "--level",
+            "2",
+            "--resampling",
+            kernel,
+        ]));
+        let r = StoreReader::open(&store).expect("open");
+        let (w, h, v) = level(&r, level2);
+        let (north, south) = pole_rows(w, h, &v, kernel);
+        // the Arctic Ocean's floor and the Antarctic ice
+        assert!(north < 0.0 && south > 1000.0, "{kernel}: {north} / {south}");
+        if kernel == "nearest" {
+            ok(&run(&["build", st]));
+            let r = StoreReader::open(&store).expect("open");
+            for l in 0..2 {
+                let (w, h, v) = level(&r, LevelId::iso(l).expect("level"));
+                pole_rows(w, h, &v, &format!("{kernel}, built level {l}"));
+            }
+        }
+    }
 }

@@ -2,34 +2,12 @@
 //! validates against docs/inspect-schema.json), the same on GDAL overviews of a GeoTIFF, the
 //! analytic test against gdaladdo, and one-line errors for bad input.
 
-use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use serde_json::Value;
 
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_sphereclip"))
-}
-
-fn repo(p: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..").join(p)
-}
-
-fn text(b: &[u8]) -> String {
-    String::from_utf8_lossy(b).into_owned()
-}
-
-fn run(args: &[&str]) -> Output {
-    bin().args(args).output().expect("runs")
-}
-
-fn ok(o: &Output) {
-    assert!(o.status.success(), "{}{}", text(&o.stdout), text(&o.stderr));
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf8")
-}
+mod common;
+use common::{ok, repo, run, s, text};
 
 /// Checks `v` against the subset of JSON Schema the documented schema uses (type, const,
 /// required, properties, items).

@@ -3,29 +3,10 @@
 //! the planet and the panel, bad input gets one-line errors.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_sphereclip"))
-}
-
-fn sample(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../samples")
-        .join(name)
-}
-
-fn text(b: &[u8]) -> String {
-    String::from_utf8_lossy(b).into_owned()
-}
-
-fn run(args: &[&str]) -> Output {
-    bin().args(args).output().expect("runs")
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf8")
-}
+mod common;
+use common::{bin, run, s, sample, text};
 
 /// A colour-only store of the Blue Marble at level 1.
 fn color_store(dir: &Path) -> PathBuf {

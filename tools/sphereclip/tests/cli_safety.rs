@@ -6,60 +6,21 @@
 //! Kill points are deterministic: `SPHERECLIP_FAULT_AFTER=N` ends the process right after its N-th
 //! durable step (see `sc_store::fault`), for every N of a small job.
 
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::sync::OnceLock;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
-const FAULT_EXIT: i32 = sc_store::fault::FAULT_EXIT;
+mod common;
+use common::{
+    copy_dir, ok, one_line_failure, run_within, s, same_files, sample, snapshot_with, text, xdg,
+};
 
+/// The binary, on one thread: the N-th durable step is then the same step on every run.
 fn bin() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_sphereclip"));
-    c.env("SOURCE_DATE_EPOCH", "1790000000")
-        .env("RAYON_NUM_THREADS", "1")
-        .env_remove("SPHERECLIP_FAULT_AFTER")
-        .env_remove("SPHERECLIP_PAUSE")
-        .stdin(Stdio::null());
+    let mut c = common::bin();
+    c.env("RAYON_NUM_THREADS", "1");
     c
-}
-
-fn sample(name: &str) -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../samples")
-        .join(name)
-        .display()
-        .to_string()
-}
-
-fn text(b: &[u8]) -> String {
-    String::from_utf8_lossy(b).into_owned()
-}
-
-/// Runs the command to its end, or fails the test after `limit` (a hang).
-fn run_within(mut c: Command, limit: Duration) -> Output {
-    let mut child = c
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("spawns");
-    let start = Instant::now();
-    loop {
-        if child.try_wait().expect("wait").is_some() {
-            return child.wait_with_output().expect("output");
-        }
-        if start.elapsed() > limit {
-            let _ = child.kill();
-            let o = child.wait_with_output().expect("output");
-            panic!(
-                "hung for {limit:?}: {:?}\n{}{}",
-                c,
-                text(&o.stdout),
-                text(&o.stderr)
-            );
-        }
-        std::thread::sleep(Duration::from_millis(10));
-    }
 }
 
 fn run(args: &[&str]) -> Output {
@@ -68,67 +29,7 @@ fn run(args: &[&str]) -> Output {
     run_within(c, Duration::from_secs(300))
 }
 
-fn ok(o: &Output) {
-    assert!(o.status.success(), "{}{}", text(&o.stdout), text(&o.stderr));
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 path")
-}
-
-/// A failure the contract allows: exit code 1 (not a panic's 101, not a signal), one line.
-fn one_line_failure(o: &Output, what: &str) -> String {
-    let err = text(&o.stderr);
-    assert_eq!(o.status.code(), Some(1), "{what}: {err}");
-    let lines: Vec<&str> = err
-        .lines()
-        .filter(|l| l.starts_with("error:") || l.contains("panicked"))
-        .collect();
-    assert_eq!(lines.len(), 1, "{what}: one error line expected: {err}");
-    lines[0].to_string()
-}
-
-/// Every file below `root` (bookkeeping included) but the lock, with its bytes.
-fn snapshot(root: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
-    fn walk(dir: &Path, root: &Path, out: &mut BTreeMap<PathBuf, Vec<u8>>) {
-        for e in std::fs::read_dir(dir).expect("read_dir").flatten() {
-            let p = e.path();
-            let rel = p.strip_prefix(root).expect("inside").to_path_buf();
-            if rel == Path::new(".lock") {
-                continue;
-            }
-            if p.is_dir() {
-                walk(&p, root, out);
-            } else {
-                out.insert(rel, std::fs::read(&p).expect("read"));
-            }
-        }
-    }
-    let mut out = BTreeMap::new();
-    walk(root, root, &mut out);
-    out
-}
-
-fn same_files(a: &BTreeMap<PathBuf, Vec<u8>>, b: &BTreeMap<PathBuf, Vec<u8>>, what: &str) {
-    let ka: Vec<_> = a.keys().collect();
-    let kb: Vec<_> = b.keys().collect();
-    assert_eq!(ka, kb, "{what}: different files");
-    for (k, v) in a {
-        assert!(b[k] == *v, "{what}: {} differs", k.display());
-    }
-}
-
-fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).expect("mkdir");
-    for e in std::fs::read_dir(from).expect("read_dir").flatten() {
-        let p = e.path();
-        if p.is_dir() {
-            copy_dir(&p, &to.join(e.file_name()));
-        } else if e.file_name() != ".lock" {
-            std::fs::copy(&p, to.join(e.file_name())).expect("copy");
-        }
-    }
-}
+const FAULT_EXIT: i32 = sc_store::fault::FAULT_EXIT;
 
 /// ETOPO20 at level 5 with 32² tiles (32 shards) and its pyramid, made once for every test.
 fn base_store() -> &'static Path {
@@ -139,7 +40,7 @@ fn base_store() -> &'static Path {
         ok(&run(&[
             "ingest",
             s(&p),
-            &sample("etopo20.cdf"),
+            s(&sample("etopo20.cdf")),
             "--tile-size",
             "32",
             "--level",
@@ -159,14 +60,20 @@ fn a_folder_that_is_not_a_store_is_refused_and_foreign_files_are_never_deleted()
     std::fs::create_dir_all(theirs.join("sub")).expect("mkdir");
     std::fs::write(theirs.join("thesis.tmp.1"), b"chapter 1").expect("write");
     std::fs::write(theirs.join("sub/report.tmp.docx"), b"report").expect("write");
-    let before = snapshot(&theirs);
-    let o = run(&["ingest", s(&theirs), &sample("etopo20.cdf"), "--level", "1"]);
+    let before = snapshot_with(&theirs, true);
+    let o = run(&[
+        "ingest",
+        s(&theirs),
+        s(&sample("etopo20.cdf")),
+        "--level",
+        "1",
+    ]);
     let line = one_line_failure(&o, "ingest into a foreign folder");
     assert!(
         line.contains("not empty and is not a sphereclip store"),
         "{line}"
     );
-    same_files(&before, &snapshot(&theirs), "foreign folder");
+    same_files(&before, &snapshot_with(&theirs, true), "foreign folder");
     assert!(
         !theirs.join(".lock").exists(),
         "not even a lock file is left"
@@ -177,7 +84,7 @@ fn a_folder_that_is_not_a_store_is_refused_and_foreign_files_are_never_deleted()
     ok(&run(&[
         "ingest",
         s(&empty),
-        &sample("etopo20.cdf"),
+        s(&sample("etopo20.cdf")),
         "--level",
         "1",
     ]));
@@ -199,7 +106,7 @@ fn a_folder_that_is_not_a_store_is_refused_and_foreign_files_are_never_deleted()
     ok(&run(&[
         "ingest",
         s(&store),
-        &sample("terra_elev_luxembourg.tif"),
+        s(&sample("terra_elev_luxembourg.tif")),
         "--level",
         "5",
     ]));
@@ -235,7 +142,7 @@ fn every_kill_point_resumes(base: Option<&Path>, args: &[&str], what: &str) -> u
     let reference = fresh("reference.zarr");
     let a = with_store(&reference);
     ok(&run(&a.iter().map(String::as_str).collect::<Vec<_>>()));
-    let want = snapshot(&reference);
+    let want = snapshot_with(&reference, true);
     assert!(
         !want
             .keys()
@@ -261,7 +168,7 @@ fn every_kill_point_resumes(base: Option<&Path>, args: &[&str], what: &str) -> u
         }
         same_files(
             &want,
-            &snapshot(&store),
+            &snapshot_with(&store, true),
             &format!("{what}, killed after step {n}"),
         );
         std::fs::remove_dir_all(&store).expect("cleanup");
@@ -277,7 +184,7 @@ fn a_kill_at_any_durable_step_resumes_to_identical_bytes() {
         &[
             "ingest",
             "STORE",
-            &sample("etopo20.cdf"),
+            s(&sample("etopo20.cdf")),
             "--tile-size",
             "32",
             "--level",
@@ -291,12 +198,12 @@ fn a_kill_at_any_durable_step_resumes_to_identical_bytes() {
     let lux = sample("terra_elev_luxembourg.tif");
     every_kill_point_resumes(
         Some(base),
-        &["ingest", "STORE", &lux, "--level", "5", "--feather", "4"],
+        &["ingest", "STORE", s(&lux), "--level", "5", "--feather", "4"],
         "feathered ingest",
     );
     every_kill_point_resumes(
         Some(base),
-        &["ingest", "STORE", &lux, "--level", "7"],
+        &["ingest", "STORE", s(&lux), "--level", "7"],
         "ingest adding a level",
     );
     // a build (level arrays created, listed, shards, manifests, commit) of a small new store
@@ -305,7 +212,7 @@ fn a_kill_at_any_durable_step_resumes_to_identical_bytes() {
     ok(&run(&[
         "ingest",
         s(&small),
-        &sample("etopo20.cdf"),
+        s(&sample("etopo20.cdf")),
         "--tile-size",
         "32",
         "--level",
@@ -322,7 +229,7 @@ fn a_second_writer_that_waited_for_the_lock_keeps_the_first_ones_commit() {
     ok(&run(&[
         "ingest",
         s(&store),
-        &sample("etopo20.cdf"),
+        s(&sample("etopo20.cdf")),
         "--tile-size",
         "32",
         "--level",
@@ -332,7 +239,13 @@ fn a_second_writer_that_waited_for_the_lock_keeps_the_first_ones_commit() {
     let go = dir.path().join("go");
     let mut second = bin();
     second
-        .args(["ingest", s(&store), &sample("etopo20.cdf"), "--level", "2"])
+        .args([
+            "ingest",
+            s(&store),
+            s(&sample("etopo20.cdf")),
+            "--level",
+            "2",
+        ])
         .env("SPHERECLIP_PAUSE", format!("before-lock:{}", s(&go)))
         .stdout(Stdio::piped())
         .stderr(Stdio::piped());
@@ -342,7 +255,7 @@ fn a_second_writer_that_waited_for_the_lock_keeps_the_first_ones_commit() {
     ok(&run(&[
         "ingest",
         s(&store),
-        &sample("etopo20.cdf"),
+        s(&sample("etopo20.cdf")),
         "--level",
         "3",
     ]));
@@ -376,7 +289,7 @@ fn damaged_geotiff(dir: &Path) -> PathBuf {
             "COMPRESS=DEFLATE",
             "-co",
             "BLOCKYSIZE=16",
-            &sample("n07_w006_3arc_v2.tif"),
+            s(&sample("n07_w006_3arc_v2.tif")),
             s(&clean),
         ])
         .output()
@@ -397,7 +310,7 @@ fn bad_input_found_mid_run_rolls_the_store_back() {
     let dir = tempfile::tempdir().expect("tempdir");
     let store = dir.path().join("s.zarr");
     copy_dir(base_store(), &store);
-    let before = snapshot(&store);
+    let before = snapshot_with(&store, true);
     let bad = damaged_geotiff(dir.path());
     for level in ["5", "9"] {
         let o = run(&["ingest", s(&store), s(&bad), "--level", level]);
@@ -408,12 +321,18 @@ fn bad_input_found_mid_run_rolls_the_store_back() {
         );
         assert!(line.contains("rolled back"), "{line}");
         assert!(!line.contains("rerun"), "a rerun cannot help: {line}");
-        same_files(&before, &snapshot(&store), "after the rollback");
+        same_files(&before, &snapshot_with(&store, true), "after the rollback");
     }
     ok(&run(&["info", s(&store), "--verify"]));
     // a lock held by another process is no reason to suggest a rerun to resume either
     let _held = sc_store::StoreWriter::open(&store).expect("lock");
-    let o = run(&["ingest", s(&store), &sample("etopo20.cdf"), "--level", "5"]);
+    let o = run(&[
+        "ingest",
+        s(&store),
+        s(&sample("etopo20.cdf")),
+        "--level",
+        "5",
+    ]);
     let line = one_line_failure(&o, "locked");
     assert!(line.contains("being written by another process"), "{line}");
     assert!(!line.contains("rerun"), "{line}");
@@ -508,14 +427,6 @@ fn damaged_metadata_is_one_line_for_verify_export_and_render() {
     }
 }
 
-fn xdg() -> PathBuf {
-    let d = std::env::temp_dir().join("sphereclip-xdg");
-    std::fs::create_dir_all(&d).expect("mkdir");
-    use std::os::unix::fs::PermissionsExt;
-    std::fs::set_permissions(&d, std::fs::Permissions::from_mode(0o700)).expect("chmod");
-    d
-}
-
 #[test]
 fn render_of_a_damaged_store_terminates_and_leaves_no_temp_file() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -590,7 +501,7 @@ fn sizes_that_cannot_work_are_refused_before_any_work() {
         let o = run(&[
             "ingest",
             s(&store),
-            &sample("etopo20.cdf"),
+            s(&sample("etopo20.cdf")),
             "--tile-size",
             size,
             "--level",
@@ -606,7 +517,7 @@ fn sizes_that_cannot_work_are_refused_before_any_work() {
     c.args([
         "ingest",
         s(&store),
-        &sample("n07_w006_3arc_v2.tif"),
+        s(&sample("n07_w006_3arc_v2.tif")),
         "--level",
         "20",
     ]);

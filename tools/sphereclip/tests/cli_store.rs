@@ -1,22 +1,13 @@
 //! End-to-end tests of `sphereclip info` and `export` on stores written through the API.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
 use sc_core::{GridSpec, LevelId, ShardId};
 use sc_store::{StoreConfig, StoreReader, StoreWriter};
 
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_sphereclip"))
-}
-
-fn run(args: &[&str]) -> Output {
-    bin().args(args).output().expect("sphereclip runs")
-}
-
-fn text(b: &[u8]) -> String {
-    String::from_utf8_lossy(b).into_owned()
-}
+mod common;
+use common::{run, text};
 
 /// A store with heights on levels 0..=2 and (2,1), every tile written.
 fn make_store(dir: &Path) -> PathBuf {

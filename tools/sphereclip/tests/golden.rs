@@ -4,29 +4,8 @@
 //! 99th percentile ≤ 40/255). On failure a diff picture lands next to the test's output and its
 //! path is printed. `SPHERECLIP_BLESS=1` rewrites the goldens (after a deliberate change).
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_sphereclip"))
-}
-
-fn repo(p: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..").join(p)
-}
-
-fn ok(o: &Output) {
-    assert!(
-        o.status.success(),
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    );
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf8")
-}
+mod common;
+use common::{bin, ok, repo, s};
 
 #[test]
 fn golden_views_of_the_sample_planet() {

@@ -1,0 +1,168 @@
+//! Helpers every CLI test file shares: running the binary (with a hang limit), the samples,
+//! byte snapshots of a store, and the one-line error contract.
+#![allow(dead_code)] // each test file uses its own subset
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+use sc_core::{GridSpec, LevelId, TileId};
+use sc_store::{StoreReader, TileRead};
+
+/// The binary, with a fixed clock for provenance and no inherited fault points or stdin.
+pub fn bin() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_sphereclip"));
+    c.env("SOURCE_DATE_EPOCH", "1790000000")
+        .env_remove("SPHERECLIP_FAULT_AFTER")
+        .env_remove("SPHERECLIP_PAUSE")
+        .stdin(Stdio::null());
+    c
+}
+
+/// A path inside the repository.
+pub fn repo(p: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..").join(p)
+}
+
+/// A file of `samples/`.
+pub fn sample(name: &str) -> PathBuf {
+    repo("samples").join(name)
+}
+
+pub fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+pub fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 path")
+}
+
+/// Runs the command to its end, or fails the test after `limit` (a hang).
+pub fn run_within(mut c: Command, limit: Duration) -> Output {
+    let mut child = c
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawns");
+    let start = Instant::now();
+    loop {
+        if child.try_wait().expect("wait").is_some() {
+            return child.wait_with_output().expect("output");
+        }
+        if start.elapsed() > limit {
+            let _ = child.kill();
+            let o = child.wait_with_output().expect("output");
+            panic!(
+                "hung for {limit:?}: {:?}\n{}{}",
+                c,
+                text(&o.stdout),
+                text(&o.stderr)
+            );
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+/// `sphereclip ARGS…`, failing the test if it runs longer than five minutes.
+pub fn run(args: &[&str]) -> Output {
+    let mut c = bin();
+    c.args(args);
+    run_within(c, Duration::from_secs(300))
+}
+
+pub fn ok(o: &Output) {
+    assert!(o.status.success(), "{}{}", text(&o.stdout), text(&o.stderr));
+}
+
+/// A failure the contract allows: exit code 1 (not a panic's 101, not a signal), one line.
+pub fn one_line_failure(o: &Output, what: &str) -> String {
+    let err = text(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{what}: {err}");
+    let lines: Vec<&str> = err
+        .lines()
+        .filter(|l| l.starts_with("error:") || l.contains("panicked"))
+        .collect();
+    assert_eq!(lines.len(), 1, "{what}: one error line expected: {err}");
+    lines[0].to_string()
+}
+
+/// Every file below `root` but the lock, with its bytes; `.sphereclip/` (journals, undo,
+/// provenance) too when `bookkeeping`.
+pub fn snapshot_with(root: &Path, bookkeeping: bool) -> BTreeMap<PathBuf, Vec<u8>> {
+    fn walk(dir: &Path, root: &Path, bk: bool, out: &mut BTreeMap<PathBuf, Vec<u8>>) {
+        for e in std::fs::read_dir(dir).expect("read_dir").flatten() {
+            let p = e.path();
+            let rel = p.strip_prefix(root).expect("inside").to_path_buf();
+            if rel == Path::new(".lock") || (!bk && rel.starts_with(".sphereclip")) {
+                continue;
+            }
+            if p.is_dir() {
+                walk(&p, root, bk, out);
+            } else {
+                out.insert(rel, std::fs::read(&p).expect("read"));
+            }
+        }
+    }
+    let mut out = BTreeMap::new();
+    walk(root, root, bookkeeping, &mut out);
+    out
+}
+
+/// The store's data: every file but the lock and the bookkeeping.
+pub fn snapshot(root: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
+    snapshot_with(root, false)
+}
+
+pub fn same_files(a: &BTreeMap<PathBuf, Vec<u8>>, b: &BTreeMap<PathBuf, Vec<u8>>, what: &str) {
+    let ka: Vec<_> = a.keys().collect();
+    let kb: Vec<_> = b.keys().collect();
+    assert_eq!(ka, kb, "{what}: different files");
+    for (k, v) in a {
+        assert!(b[k] == *v, "{what}: {} differs", k.display());
+    }
+}
+
+/// Copies a store (without its lock).
+pub fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).expect("mkdir");
+    for e in std::fs::read_dir(from).expect("read_dir").flatten() {
+        let p = e.path();
+        if p.is_dir() {
+            copy_dir(&p, &to.join(e.file_name()));
+        } else if e.file_name() != ".lock" {
+            std::fs::copy(&p, to.join(e.file_name())).expect("copy");
+        }
+    }
+}
+
+/// A private runtime folder for the windowing stack.
+pub fn xdg() -> PathBuf {
+    let d = std::env::temp_dir().join("sphereclip-xdg");
+    std::fs::create_dir_all(&d).expect("mkdir");
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&d, std::fs::Permissions::from_mode(0o700)).expect("chmod");
+    d
+}
+
+/// A whole height level, row-major.
+pub fn read_level(r: &StoreReader, id: LevelId) -> (usize, usize, Vec<f32>) {
+    let g: GridSpec = r.meta().grid;
+    let t = g.tile_size() as usize;
+    let (w, h) = (g.width(id) as usize, g.height(id) as usize);
+    let mut out = vec![f32::NAN; w * h];
+    let mut buf = vec![0f32; t * t];
+    for ty in 0..g.tiles_y(id) {
+        for tx in 0..g.tiles_x(id) {
+            let tile = TileId::new(g, id, tx, ty).expect("tile");
+            if r.read_tile(tile, &mut buf).expect("read") == TileRead::Missing {
+                continue;
+            }
+            for rr in 0..t {
+                let o = (ty as usize * t + rr) * w + tx as usize * t;
+                out[o..o + t].copy_from_slice(&buf[rr * t..(rr + 1) * t]);
+            }
+        }
+    }
+    (w, h, out)
+}
