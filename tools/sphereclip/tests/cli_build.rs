@@ -4,8 +4,8 @@
 
 use std::time::{Duration, Instant};
 
-use sc_core::{GridSpec, LevelId, TileId};
-use sc_store::{StoreReader, TileRead};
+use sc_core::LevelId;
+use sc_store::StoreReader;
 
 mod common;
 use common::{bin, copy_dir, ok, read_level as level, run, sample, snapshot, text};
