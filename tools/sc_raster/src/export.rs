@@ -108,6 +108,17 @@ fn write_geotiff(
         detail: e.to_string(),
         path: out.to_path_buf(),
     };
+    // a block GDAL writes back from its cache (on a full disk, say) fails without a return value:
+    // its error handler keeps it, and it is checked after every row and after closing
+    crate::quiet_gdal();
+    let _ = crate::take_gdal_failure();
+    let failed = || match crate::take_gdal_failure() {
+        Some(detail) => Err(RasterError::Gdal {
+            detail,
+            path: out.to_path_buf(),
+        }),
+        None => Ok(()),
+    };
     let meta = reader.meta();
     let grid = meta.grid;
     let (w, h) = (grid.width(level), grid.height(level));
@@ -180,6 +191,7 @@ fn write_geotiff(
                     )
                     .map_err(gerr)?;
                 }
+                failed()?;
                 on_row(y + 1, ty);
             }
         }
@@ -218,12 +230,14 @@ fn write_geotiff(
                         .map_err(gerr)?;
                     }
                 }
+                failed()?;
                 on_row(y + 1, ty);
             }
         }
     }
     ds.flush_cache().map_err(gerr)?;
     drop(ds);
+    failed()?;
     Ok(summary)
 }
 

@@ -19,7 +19,7 @@ pub use export::{EXR_MAX_TEXELS, ExportSummary, export_exr, export_geotiff};
 pub use global::{GLOBAL_MAX_TEXELS, GlobalLevel, read_global_levels};
 pub use source::{
     LonLatBox, MAX_CACHED_SAMPLES, MAX_PIXELS, MAX_SIDE, MAX_WINDOW, RasterSource, SampleCache,
-    SampleRole, SourceInfo, SourceOptions, Window, quiet_gdal,
+    SampleRole, SourceInfo, SourceOptions, Window, quiet_gdal, take_gdal_failure,
 };
 
 /// Errors of raster IO. One line each, path last.

@@ -141,10 +141,32 @@ fn gdal_err(path: &Path) -> impl Fn(gdal::errors::GdalError) -> RasterError + '_
     }
 }
 
+/// The first failure GDAL reported through its error handler since the last
+/// [`take_gdal_failure`]. Some failures reach no return value (a block written back from GDAL's
+/// cache to a full disk), so writers check this after their last write.
+static GDAL_FAILURE: std::sync::Mutex<Option<String>> = std::sync::Mutex::new(None);
+
 /// Routes GDAL's own error printing into silence: sphereclip reports errors itself, one line each.
+/// Failures are kept for [`take_gdal_failure`].
 pub fn quiet_gdal() {
     static ONCE: std::sync::Once = std::sync::Once::new();
-    ONCE.call_once(|| gdal::config::set_error_handler(|_, _, _| {}));
+    ONCE.call_once(|| {
+        gdal::config::set_error_handler(|kind, _, msg| {
+            use gdal::errors::CplErrType;
+            if matches!(kind, CplErrType::Failure | CplErrType::Fatal) {
+                let mut first = GDAL_FAILURE.lock().unwrap_or_else(|p| p.into_inner());
+                first.get_or_insert_with(|| msg.to_string());
+            }
+        })
+    });
+}
+
+/// Takes (and forgets) the first failure GDAL reported since the last call.
+pub fn take_gdal_failure() -> Option<String> {
+    GDAL_FAILURE
+        .lock()
+        .unwrap_or_else(|p| p.into_inner())
+        .take()
 }
 
 fn usage(path: &Path, what: impl std::fmt::Display) -> RasterError {

@@ -526,3 +526,62 @@ fn sizes_that_cannot_work_are_refused_before_any_work() {
     assert!(line.contains("texels"), "{line}");
     assert!(!store.exists());
 }
+
+/// `sphereclip ARGS…` under a file-size limit of `kib` KiB: writes beyond it fail with EFBIG
+/// (SIGXFSZ ignored), the way they fail on a full disk, deterministically.
+fn run_with_file_limit(kib: u64, args: &[&str]) -> Output {
+    let mut c = Command::new("bash");
+    c.arg("-c")
+        .arg(format!(
+            "trap '' XFSZ; ulimit -f {kib}; exec {} \"$@\"",
+            env!("CARGO_BIN_EXE_sphereclip")
+        ))
+        .arg("sphereclip")
+        .args(args)
+        .env("SOURCE_DATE_EPOCH", "1790000000")
+        .env("XDG_RUNTIME_DIR", xdg())
+        .stdin(Stdio::null());
+    run_within(c, Duration::from_secs(300))
+}
+
+#[test]
+fn a_full_disk_fails_exports_and_renders_in_one_line_and_keeps_the_old_file() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let store = s(base_store());
+    for (out, args) in [
+        ("old.tif", vec!["export", "--level", "5", store]),
+        ("old.exr", vec!["export", "--level", "5", store]),
+        (
+            "old.png",
+            vec![
+                "render",
+                store,
+                "--camera",
+                "0,0,8000000",
+                "--size",
+                "640x360",
+                "--out",
+            ],
+        ),
+    ] {
+        let out = dir.path().join(out);
+        std::fs::write(&out, b"the user's previous file").expect("write");
+        let mut a = args.clone();
+        a.push(s(&out));
+        let o = run_with_file_limit(40, &a);
+        let line = one_line_failure(&o, &format!("{a:?} on a full disk"));
+        assert!(line.contains("too large"), "{a:?}: {line}");
+        assert_eq!(
+            std::fs::read(&out).expect("read"),
+            b"the user's previous file",
+            "{a:?} damaged the old file"
+        );
+        let left: Vec<_> = std::fs::read_dir(dir.path())
+            .expect("read_dir")
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .filter(|n| !n.starts_with("old."))
+            .collect();
+        assert!(left.is_empty(), "{a:?} left {left:?}");
+    }
+}
