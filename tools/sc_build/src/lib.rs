@@ -24,7 +24,7 @@ use std::time::Instant;
 use sc_core::pyramid::{LevelFilter, RowReader, halve, halve_needs};
 use sc_core::{ANISO_MAX, GridSpec, Kernel, LevelId, ShardId, TileId};
 use sc_store::BuildRecord;
-use sc_store::{LayerKind, StoreError, StoreReader, StoreWriter};
+use sc_store::{LayerKind, StoreError, StoreReader, StoreWriter, TileRead};
 use sha2::{Digest, Sha256};
 
 use rows::{StoreRows, Texel, iso};
@@ -38,6 +38,18 @@ pub enum BuildError {
     /// The request does not fit the store.
     #[error("{0}")]
     Usage(String),
+    /// An output shard cannot be read, so the build cannot merge over it.
+    #[error("{source}; {}", if *.derived {
+        "the level holds only derived data: `sphereclip build --repair` recomputes it"
+    } else {
+        "the level also holds ingested data: `sphereclip build --repair` keeps the intact tiles and recomputes what finer levels give, then ingest again to restore the rest"
+    })]
+    DamagedOutput {
+        /// What is damaged.
+        source: StoreError,
+        /// True when no ingest wrote the level (every texel is recomputable).
+        derived: bool,
+    },
     /// The file system failed.
     #[error("{source} ({})", path.display())]
     Io {
@@ -65,6 +77,9 @@ pub struct Settings {
     pub from_level: Option<u32>,
     /// Worker threads (0: one per core).
     pub threads: usize,
+    /// Rewrite output shards that cannot be read: their intact tiles are kept, the rest is made
+    /// again from the finer level (see [`Summary::tiles_lost`] for what could not be).
+    pub repair: bool,
 }
 
 impl Default for Settings {
@@ -74,6 +89,7 @@ impl Default for Settings {
             kernel: Kernel::JincLanczos3,
             from_level: None,
             threads: 0,
+            repair: false,
         }
     }
 }
@@ -139,6 +155,25 @@ pub struct Summary {
     pub seconds: f64,
     /// Wall time per output level (`layer level`, seconds), in build order.
     pub step_seconds: Vec<(String, f64)>,
+    /// Damaged output shards rewritten (with `repair`).
+    pub shards_repaired: u64,
+    /// Damaged tiles of levels that also hold ingested data, `layer level (x, y)`: what finer
+    /// levels give was recomputed, the rest is nodata until the inputs are ingested again.
+    pub tiles_lost: Vec<String>,
+}
+
+/// True when an ingest wrote `level` of `layer` (its provenance says so): then not every texel of
+/// it can be made again by a build.
+fn ingested(meta: &sc_store::StoreMeta, layer: LayerKind, level: LevelId) -> bool {
+    let name = level.to_string();
+    meta.provenance.iter().any(|r| {
+        r.step == "ingest"
+            && r.settings.get("layer").and_then(|v| v.as_str()) == Some(layer.name())
+            && r.settings
+                .get("levels")
+                .and_then(|v| v.as_array())
+                .is_some_and(|ls| ls.iter().any(|l| l.as_str() == Some(name.as_str())))
+    })
 }
 
 /// Checks the store and makes the plan. Does not write.
@@ -452,7 +487,29 @@ fn unix_now() -> u64 {
 }
 
 /// Runs the plan on the store open in `writer`. `on_shard(done, total)` reports progress.
+///
+/// A build stopped by damaged data leaves a store that was complete complete again: every shard
+/// it wrote is durable and recorded, and a rerun cannot get further until the damage is dealt
+/// with. Other failures (a full disk) leave it incomplete, for a rerun to finish.
 pub fn run(
+    writer: &StoreWriter,
+    plan: &Plan,
+    on_shard: &(dyn Fn(u64, u64) + Sync),
+) -> Result<Summary> {
+    let result = run_steps(writer, plan, on_shard);
+    if let Err(e) = &result {
+        let damage = matches!(
+            e,
+            BuildError::DamagedOutput { .. } | BuildError::Store(StoreError::Corrupt { .. })
+        );
+        if damage && writer.was_complete() {
+            writer.commit(None)?;
+        }
+    }
+    result
+}
+
+fn run_steps(
     writer: &StoreWriter,
     plan: &Plan,
     on_shard: &(dyn Fn(u64, u64) + Sync),
@@ -500,6 +557,7 @@ pub fn run(
         let next = AtomicUsize::new(0);
         let failed = AtomicBool::new(false);
         let counts = Mutex::new((0u64, 0u64, 0u64, 0u64)); // written, skipped, empty, texels
+        let repairs = Mutex::new((0u64, Vec::new())); // shards repaired, tiles lost
         let base_reader = &reader;
         // steps with fewer shards than threads split each shard's tile rows between threads
         let inner = (threads / step.shards.len().max(1)).max(1);
@@ -540,7 +598,7 @@ pub fn run(
                 c.1 += 1;
             } else {
                 drop(c);
-                let (texels, range) = match step.layer {
+                let (texels, range, repaired) = match step.layer {
                     LayerKind::Height => build_shard::<f32>(
                         writer,
                         base_reader,
@@ -564,6 +622,11 @@ pub fn run(
                 };
                 rec.insert("self".into(), own_fingerprint(&out_path)?);
                 manifest.record(&shard, Entry { deps: rec, range })?;
+                if let Some(lost) = repaired {
+                    let mut r = repairs.lock().unwrap_or_else(|e| e.into_inner());
+                    r.0 += 1;
+                    r.1.extend(lost.iter().map(|t| format!("{} {t}", step.layer)));
+                }
                 c = counts.lock().unwrap_or_else(|e| e.into_inner());
                 c.0 += 1;
                 c.3 += texels;
@@ -611,6 +674,10 @@ pub fn run(
         summary.shards_skipped += c.1;
         summary.shards_empty += c.2;
         summary.texels += c.3;
+        let (repaired, mut lost) = repairs.into_inner().unwrap_or_else(|e| e.into_inner());
+        summary.shards_repaired += repaired;
+        lost.sort();
+        summary.tiles_lost.extend(lost);
         summary.step_seconds.push((
             format!("{} {}", step.layer, step.out),
             step_start.elapsed().as_secs_f64(),
@@ -725,6 +792,10 @@ impl TileRowJob<'_> {
 /// Computes and writes one output shard with `inner` threads; returns the texels computed and
 /// the range of values. The bytes do not depend on `inner`.
 #[allow(clippy::too_many_arguments)]
+/// What building one shard did: texels computed, their value range, and with a repair the damaged
+/// tiles whose ingested data is lost (empty when the level is derived only).
+type Built = (u64, Option<(f64, f64)>, Option<Vec<TileId>>);
+
 fn build_shard<T: Texel>(
     writer: &StoreWriter,
     reader: &StoreReader,
@@ -734,7 +805,7 @@ fn build_shard<T: Texel>(
     src_level: u32,
     stored: &[u32],
     inner: usize,
-) -> Result<(u64, Option<(f64, f64)>)> {
+) -> Result<Built> {
     let grid = plan.grid;
     let t = u64::from(grid.tile_size());
     let s = plan.shard_tiles;
@@ -748,10 +819,36 @@ fn build_shard<T: Texel>(
         stored,
         cols: (shard.x * s * t, ((shard.x + 1) * s * t).min(w)),
     };
-    let mut sw = writer.shard_writer::<T>(shard)?;
     let sc = T::KIND.channels();
     let ch = T::CH;
     let mut tile_buf = vec![T::default_fill(); (t * t) as usize * sc];
+    let derived = !ingested(reader.meta(), step.layer, out);
+    // with a repair: the damaged tiles of a level that also holds ingested data
+    let mut repaired: Option<Vec<TileId>> = None;
+    let mut sw = match writer.shard_writer::<T>(shard) {
+        Ok(sw) => sw,
+        Err(source @ StoreError::Corrupt { .. }) if !plan.settings.repair => {
+            return Err(BuildError::DamagedOutput { source, derived });
+        }
+        Err(StoreError::Corrupt { .. }) => {
+            // keep every tile that still reads; the others are made again below where they can be
+            let mut sw = writer.empty_shard_writer::<T>(shard)?;
+            let mut damaged = Vec::new();
+            for id in sw.tiles().collect::<Vec<_>>() {
+                match reader.read_tile(id, &mut tile_buf) {
+                    Ok(TileRead::Present) => sw.put_tile(id, &tile_buf)?,
+                    Ok(TileRead::Missing) => {}
+                    Err(_) => damaged.push(id),
+                }
+            }
+            if derived {
+                damaged.clear();
+            }
+            repaired = Some(damaged);
+            sw
+        }
+        Err(e) => return Err(e.into()),
+    };
     let mut texels = 0;
     let mut range: Option<(f64, f64)> = None;
     let mut merge = |ty: u64, spans: TileRowSpans| -> Result<()> {
@@ -813,5 +910,5 @@ fn build_shard<T: Texel>(
         })?;
     }
     sw.finish()?;
-    Ok((texels, range))
+    Ok((texels, range, repaired))
 }

@@ -286,6 +286,11 @@ impl StoreWriter {
         &self.root
     }
 
+    /// Whether the store was complete when this writer opened it.
+    pub fn was_complete(&self) -> bool {
+        self.initial.complete
+    }
+
     fn write_group_meta(&self) -> Result<()> {
         let meta = self.lock_meta().clone();
         let mut attrs = serde_json::Map::new();
@@ -380,6 +385,16 @@ impl StoreWriter {
     /// Claims `shard` of layer `T::KIND` and returns its writer, holding what the shard already
     /// stores. A shard has at most one writer at a time; asking twice is an error.
     pub fn shard_writer<T: TileSample>(&self, shard: ShardId) -> Result<ShardWriter<'_, T>> {
+        self.claim_shard(shard, true)
+    }
+
+    /// Claims `shard` like [`Self::shard_writer`], holding nodata instead of what the shard stores
+    /// (which is not read: a damaged shard is rewritten from what its writer puts).
+    pub fn empty_shard_writer<T: TileSample>(&self, shard: ShardId) -> Result<ShardWriter<'_, T>> {
+        self.claim_shard(shard, false)
+    }
+
+    fn claim_shard<T: TileSample>(&self, shard: ShardId, load: bool) -> Result<ShardWriter<'_, T>> {
         let kind = T::KIND;
         let (grid, shard_tiles) = {
             let m = self.lock_meta();
@@ -405,6 +420,19 @@ impl StoreWriter {
         let indices = kind.chunk_indices(shard.x, shard.y);
         let shard_path = self.root.join(arrays.read.chunk_key(&indices).as_str());
         let t = self.lock_meta().shard_tiles;
+        if !load {
+            let n = (t * u64::from(grid.tile_size())).pow(2) as usize * kind.channels();
+            return Ok(ShardWriter {
+                writer: self,
+                arrays,
+                shard,
+                grid,
+                shard_tiles,
+                samples: vec![T::FILL; n],
+                range: None,
+                path: shard_path,
+            });
+        }
         if let Err(detail) = crate::shard_index::ShardIndex::read(&shard_path, (t * t) as usize) {
             self.release(kind, shard);
             return Err(StoreError::Corrupt {

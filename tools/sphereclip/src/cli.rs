@@ -99,6 +99,11 @@ pub struct BuildArgs {
     /// Worker threads (default: one per core).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
+    /// Rewrite built shards that are damaged: intact tiles are kept, the rest is recomputed from
+    /// the finer level (tiles of a level that also holds ingested data are named: ingest again to
+    /// restore what finer levels do not give).
+    #[arg(long)]
+    pub repair: bool,
     /// Print a JSON summary at the end.
     #[arg(long)]
     pub json: bool,

@@ -585,3 +585,64 @@ fn a_full_disk_fails_exports_and_renders_in_one_line_and_keeps_the_old_file() {
         assert!(left.is_empty(), "{a:?} left {left:?}");
     }
 }
+
+/// Flips one byte in the middle of a file.
+fn flip_middle(path: &Path) {
+    let mut b = std::fs::read(path).expect("read");
+    let k = b.len() / 2;
+    b[k] ^= 0xff;
+    std::fs::write(path, b).expect("write");
+}
+
+#[test]
+fn build_repairs_a_damaged_derived_shard_on_request() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    // a level only build wrote: recomputed to the bytes of the undamaged pyramid
+    let store = dir.path().join("derived.zarr");
+    copy_dir(base_store(), &store);
+    flip_middle(&store.join("height/L03/c/0/1"));
+    let before = snapshot_with(&store, true);
+    let line = one_line_failure(&run(&["build", s(&store)]), "build over a damaged shard");
+    assert!(
+        line.contains("height level 3 shard (1, 0)") && line.contains("build --repair"),
+        "{line}"
+    );
+    same_files(&before, &snapshot_with(&store, true), "a refused build");
+    let o = run(&["build", s(&store), "--repair"]);
+    ok(&o);
+    assert!(
+        text(&o.stderr).contains("repaired 1 damaged shard(s)"),
+        "{}",
+        text(&o.stderr)
+    );
+    same_files(
+        &common::snapshot(base_store()),
+        &common::snapshot(&store),
+        "the repaired store",
+    );
+    ok(&run(&["info", "--verify", s(&store)]));
+
+    // a level an ingest wrote too: the intact tiles stay, the damaged ones are named
+    let store = dir.path().join("ingested.zarr");
+    copy_dir(base_store(), &store);
+    ok(&run(&[
+        "ingest",
+        s(&store),
+        s(&sample("etopo20.cdf")),
+        "--level",
+        "3",
+    ]));
+    ok(&run(&["build", s(&store)]));
+    flip_middle(&store.join("height/L03/c/0/1"));
+    let line = one_line_failure(&run(&["build", s(&store)]), "a damaged ingested level");
+    assert!(line.contains("also holds ingested data"), "{line}");
+    let o = run(&["build", s(&store), "--repair"]);
+    ok(&o);
+    let err = text(&o.stderr);
+    let lost: Vec<&str> = err.lines().filter(|l| l.starts_with("warning:")).collect();
+    assert!(
+        !lost.is_empty() && lost.iter().all(|l| l.contains("height level 3 tile")),
+        "{err}"
+    );
+    ok(&run(&["info", "--verify", s(&store)]));
+}

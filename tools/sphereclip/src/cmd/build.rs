@@ -46,6 +46,18 @@ pub fn build(store: &Path, settings: Settings, json: bool) -> Result<sc_build::S
         anyhow::anyhow!("build stopped{hint} in {}: {e}", store.display())
     })?;
     progress.finish();
+    for t in &summary.tiles_lost {
+        eprintln!(
+            "warning: {t} was damaged in a level that also holds ingested data: what finer levels give is recomputed, the rest is nodata until its inputs are ingested again"
+        );
+    }
+    if summary.shards_repaired > 0 {
+        eprintln!(
+            "repaired {} damaged shard(s) of {}",
+            summary.shards_repaired,
+            store.display()
+        );
+    }
     if json {
         println!("{}", serde_json::to_string_pretty(&summary)?);
     } else {
@@ -81,6 +93,7 @@ pub fn run(a: &BuildArgs) -> Result<ExitCode> {
         kernel: parse_kernel(&a.kernel)?,
         from_level: a.from_level,
         threads: a.threads,
+        repair: a.repair,
     };
     build(&a.store, settings, a.json)?;
     Ok(ExitCode::SUCCESS)
