@@ -789,13 +789,13 @@ impl TileRowJob<'_> {
     }
 }
 
-/// Computes and writes one output shard with `inner` threads; returns the texels computed and
-/// the range of values. The bytes do not depend on `inner`.
-#[allow(clippy::too_many_arguments)]
 /// What building one shard did: texels computed, their value range, and with a repair the damaged
 /// tiles whose ingested data is lost (empty when the level is derived only).
 type Built = (u64, Option<(f64, f64)>, Option<Vec<TileId>>);
 
+/// Computes and writes one output shard with `inner` threads; returns what it did ([`Built`]).
+/// The bytes do not depend on `inner`.
+#[allow(clippy::too_many_arguments)]
 fn build_shard<T: Texel>(
     writer: &StoreWriter,
     reader: &StoreReader,
