@@ -437,7 +437,13 @@ impl Mips {
             &[Vec<f32>],
             Option<&[f32]>,
         ) = if pmx == 0 && pmy == 0 {
-            (win.w, win.h, (1.0, 1.0), &win.planes, None)
+            (
+                win.w,
+                win.h,
+                (win.step as f64, win.step as f64),
+                &win.planes,
+                None,
+            )
         } else {
             let m = self.levels[pmx as usize * MIP_SIDE + pmy as usize]
                 .as_ref()

@@ -16,6 +16,7 @@
 //!   hundred metres are ignored); projected CRSs go through PROJ.
 
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use gdal::Dataset;
 use gdal::raster::GdalDataType;
@@ -146,11 +147,19 @@ fn gdal_err(path: &Path) -> impl Fn(gdal::errors::GdalError) -> RasterError + '_
 /// cache to a full disk), so writers check this after their last write.
 static GDAL_FAILURE: std::sync::Mutex<Option<String>> = std::sync::Mutex::new(None);
 
+/// GDAL's block cache, MiB, unless `GDAL_CACHEMAX` is set.
+const GDAL_CACHE_MB: &str = "64";
+
 /// Routes GDAL's own error printing into silence: sphereclip reports errors itself, one line each.
 /// Failures are kept for [`take_gdal_failure`].
 pub fn quiet_gdal() {
     static ONCE: std::sync::Once = std::sync::Once::new();
     ONCE.call_once(|| {
+        // GDAL's block cache defaults to 5 % of RAM; ours is bounded (README, "Safety") unless
+        // the user chose another size
+        if std::env::var_os("GDAL_CACHEMAX").is_none() {
+            let _ = gdal::config::set_config_option("GDAL_CACHEMAX", GDAL_CACHE_MB);
+        }
         gdal::config::set_error_handler(|kind, _, msg| {
             use gdal::errors::CplErrType;
             if matches!(kind, CplErrType::Failure | CplErrType::Fatal) {
@@ -675,10 +684,13 @@ impl RasterSource {
             SampleRole::Height => 1,
             SampleRole::Color => 4,
         };
-        if (w as u64) * (h as u64) > MAX_WINDOW {
+        let wraps = info.lon_period_px.is_some()
+            || info.north_pole_y.is_some()
+            || info.south_pole_y.is_some();
+        let samples = (w as u64) * (h as u64) * nplanes as u64;
+        if (w as u64) * (h as u64) > MAX_WINDOW || (samples > DIRECT_WINDOW && !wraps) {
             return self.read_region_averaged(c0, r0, w, h);
         }
-        let mut planes = vec![vec![f32::NAN; w * h]; nplanes];
         // map every (row, col) of the region to a source (row, col) or None
         let map_row = |r: i64| -> Option<(i64, bool)> {
             if (0..info.height as i64).contains(&r) {
@@ -705,15 +717,19 @@ impl RasterSource {
         };
         let rows: Vec<Option<(i64, bool)>> = (0..h as i64).map(|k| map_row(r0 + k)).collect();
         let src_rows: Vec<i64> = rows.iter().flatten().map(|&(r, _)| r).collect();
-        if src_rows.is_empty() {
-            return Ok(Window {
+        let nodata = |memory| -> Result<Window> {
+            Ok(Window {
                 c0,
                 r0,
                 w,
                 h,
                 step: 1,
-                planes,
-            });
+                planes: vec![vec![f32::NAN; w * h]; nplanes],
+                memory: Some(memory),
+            })
+        };
+        if src_rows.is_empty() {
+            return nodata(self.reserve(w, h, 0, 0)?);
         }
         let (rmin, rmax) = (
             *src_rows.iter().min().unwrap_or(&0),
@@ -731,14 +747,7 @@ impl RasterSource {
                 .flatten()
                 .collect();
             if cols.is_empty() {
-                return Ok(Window {
-                    c0,
-                    r0,
-                    w,
-                    h,
-                    step: 1,
-                    planes,
-                });
+                return nodata(self.reserve(w, h, 0, 0)?);
             }
             (
                 *cols.iter().min().unwrap_or(&0),
@@ -752,6 +761,8 @@ impl RasterSource {
                 info.path.display()
             )));
         }
+        let memory = self.reserve(w, h, rw, rh)?;
+        let mut planes = vec![vec![f32::NAN; w * h]; nplanes];
         let raw = self.read_cached(cmin, rmin, rw, rh)?;
         for (k, row) in rows.iter().enumerate() {
             let Some((sr, flipped)) = *row else { continue };
@@ -775,6 +786,26 @@ impl RasterSource {
             h,
             step: 1,
             planes,
+            memory: Some(memory),
+        })
+    }
+
+    /// Takes the share of [`WINDOW_BUDGET_BYTES`] a window of `w×h` samples read from `rw×rh`
+    /// source pixels costs at its peak, waiting for it if other windows hold the budget.
+    fn reserve(&self, w: usize, h: usize, rw: usize, rh: usize) -> Result<Reservation> {
+        let nplanes: u64 = match self.role {
+            SampleRole::Height => 1,
+            SampleRole::Color => 4,
+        };
+        let (win, raw) = (w as u64 * h as u64, rw as u64 * rh as u64);
+        let bytes = (WINDOW_COST * win).max(win + raw) * nplanes * 4;
+        Reservation::take(bytes).ok_or_else(|| {
+            RasterError::LimitsExceeded(format!(
+                "one output tile needs {w}x{h} samples from {rw}x{rh} source pixels ({} MiB, over the {} MiB window budget); choose a finer --level for {}",
+                bytes >> 20,
+                WINDOW_BUDGET_BYTES >> 20,
+                self.info.path.display()
+            ))
         })
     }
 
@@ -793,13 +824,31 @@ impl RasterSource {
             match &*slot {
                 Some(a) => a.clone(),
                 None => {
-                    let a = std::sync::Arc::new(self.read_raw(0, 0, info.width, info.height)?);
+                    // decoded sources together stay within their budget; beyond it, windows
+                    // are read from the file
+                    let bytes = total * 4;
+                    let fits = CACHED_BYTES
+                        .fetch_update(Ordering::SeqCst, Ordering::SeqCst, |used| {
+                            (used + bytes <= CACHE_BUDGET_BYTES).then_some(used + bytes)
+                        })
+                        .is_ok();
+                    if !fits {
+                        drop(slot);
+                        return self.read_raw(c0, r0, w, h);
+                    }
+                    let planes =
+                        self.read_raw(0, 0, info.width, info.height)
+                            .inspect_err(|_| {
+                                CACHED_BYTES.fetch_sub(bytes, Ordering::SeqCst);
+                            })?;
+                    let a = std::sync::Arc::new(Decoded { planes, bytes });
                     *slot = Some(a.clone());
                     a
                 }
             }
         };
         Ok(all
+            .planes
             .iter()
             .map(|plane| {
                 let mut v = Vec::with_capacity(w * h);
@@ -853,15 +902,20 @@ impl RasterSource {
                 h: 1,
                 step: w.max(h),
                 planes: vec![vec![f32::NAN]; nplanes],
+                memory: None,
             });
         }
         let (cw, ch) = ((x1 - x0) as usize, (y1 - y0) as usize);
-        let k = ((cw as f64 * ch as f64 / MAX_WINDOW as f64).sqrt().ceil() as usize).max(2);
+        let k = ((cw as f64 * ch as f64 / AVERAGED_WINDOW as f64)
+            .sqrt()
+            .ceil() as usize)
+            .max(2);
         // whole k×k blocks only, so that every sample covers exactly k×k pixels
         let (bw, bh) = (cw / k, ch / k);
         if bw == 0 || bh == 0 {
             return Err(too_big());
         }
+        let memory = self.reserve(bw, bh, 0, 0)?;
         let planes = self.read_raw_into(x0, y0, bw * k, bh * k, (bw, bh))?;
         Ok(Window {
             c0: x0,
@@ -870,6 +924,7 @@ impl RasterSource {
             h: bh,
             step: k,
             planes,
+            memory: Some(memory),
         })
     }
 
@@ -906,16 +961,26 @@ impl RasterSource {
                 ))),
                 Backend::Gdal(ds) => {
                     let band = ds.rasterband(b).map_err(gdal_err(path))?;
-                    let buf = serialized(is_serial(ds), || {
+                    // an averaged read skips the empty blocks of a sparse file, leaving the
+                    // buffer as it was: what such a block reads as (nodata, else 0) goes in first
+                    let empty = band.no_data_value().unwrap_or(0.0) as f32;
+                    let mut buf = vec![empty; ow * oh];
+                    serialized(is_serial(ds), || {
                         let alg =
                             ((ow, oh) != (w, h)).then_some(gdal::raster::ResampleAlg::Average);
-                        band.read_as::<f32>((c0 as isize, r0 as isize), (w, h), (ow, oh), alg)
+                        band.read_into_slice::<f32>(
+                            (c0 as isize, r0 as isize),
+                            (w, h),
+                            (ow, oh),
+                            &mut buf,
+                            alg,
+                        )
                     })
                     .map_err(|e| RasterError::Gdal {
                         detail: format!("reading pixels {c0},{r0} {w}x{h}: {e}"),
                         path: path.to_path_buf(),
                     })?;
-                    Ok(buf.into_shape_and_vec().1)
+                    Ok(buf)
                 }
             }
         };
@@ -987,16 +1052,84 @@ impl RasterSource {
 }
 
 /// A whole small source decoded into planes, shared by the handles of every worker thread.
-pub type SampleCache = std::sync::Arc<std::sync::Mutex<Option<std::sync::Arc<Vec<Vec<f32>>>>>>;
+pub type SampleCache = std::sync::Arc<std::sync::Mutex<Option<std::sync::Arc<Decoded>>>>;
+
+/// A whole source decoded into planes, counted against [`CACHE_BUDGET_BYTES`] while it lives.
+#[derive(Debug)]
+pub struct Decoded {
+    planes: Vec<Vec<f32>>,
+    bytes: u64,
+}
+
+impl Drop for Decoded {
+    fn drop(&mut self) {
+        CACHED_BYTES.fetch_sub(self.bytes, Ordering::SeqCst);
+    }
+}
 
 /// Largest source (pixels × bands used) kept whole in memory: 2^26 samples.
 pub const MAX_CACHED_SAMPLES: u64 = 1 << 26;
 
+/// Bytes all sources kept whole in memory may hold together.
+pub const CACHE_BUDGET_BYTES: u64 = MAX_CACHED_SAMPLES * 4;
+
+static CACHED_BYTES: AtomicU64 = AtomicU64::new(0);
+
 /// Largest source rectangle read for one output tile: 2^26 pixels.
 pub const MAX_WINDOW: u64 = 1 << 26;
 
-/// Pixels read from a source around one output tile; see [`RasterSource::read_region`].
-#[derive(Debug, Clone, PartialEq)]
+/// Samples (pixels × planes) above which a region of a source that does not wrap is read averaged
+/// (five such windows fit in [`WINDOW_BUDGET_BYTES`] at their peak).
+pub const DIRECT_WINDOW: u64 = 1 << 23;
+
+/// Samples (pixels × planes) a region read averaged is reduced to: plenty for one output tile
+/// (64 samples per texel of a 256² tile).
+pub const AVERAGED_WINDOW: u64 = 1 << 22;
+
+/// Bytes all windows alive at once may cost together, whatever the number of workers: a read
+/// waits until enough of it is free, and a single window larger than all of it is refused.
+pub const WINDOW_BUDGET_BYTES: u64 = 640 << 20;
+
+/// What a window costs at its peak, in multiples of its samples' bytes: the raw read and the
+/// planes made from it, or the planes and the averaged copies a resampler makes of them.
+const WINDOW_COST: u64 = 4;
+
+static WINDOW_BUDGET: (std::sync::Mutex<u64>, std::sync::Condvar) =
+    (std::sync::Mutex::new(0), std::sync::Condvar::new());
+
+/// A share of [`WINDOW_BUDGET_BYTES`], given back when dropped.
+#[derive(Debug)]
+pub struct Reservation(u64);
+
+impl Reservation {
+    /// Waits until `bytes` of the budget are free and takes them; `None` when `bytes` exceeds the
+    /// whole budget (waiting could never end).
+    fn take(bytes: u64) -> Option<Self> {
+        if bytes > WINDOW_BUDGET_BYTES {
+            return None;
+        }
+        let (used, freed) = &WINDOW_BUDGET;
+        let mut u = used.lock().unwrap_or_else(|e| e.into_inner());
+        while *u + bytes > WINDOW_BUDGET_BYTES {
+            u = freed.wait(u).unwrap_or_else(|e| e.into_inner());
+        }
+        *u += bytes;
+        Some(Self(bytes))
+    }
+}
+
+impl Drop for Reservation {
+    fn drop(&mut self) {
+        let (used, freed) = &WINDOW_BUDGET;
+        let mut u = used.lock().unwrap_or_else(|e| e.into_inner());
+        *u -= self.0;
+        freed.notify_all();
+    }
+}
+
+/// Pixels read from a source around one output tile; see [`RasterSource::read_region`]. It holds
+/// its share of the window budget until dropped.
+#[derive(Debug)]
 pub struct Window {
     /// First column (may be negative or beyond the raster for wrapping sources).
     pub c0: i64,
@@ -1011,6 +1144,8 @@ pub struct Window {
     pub step: usize,
     /// Sample planes, row-major `w×h` each; NaN in plane 0 = no valid sample.
     pub planes: Vec<Vec<f32>>,
+    /// This window's share of [`WINDOW_BUDGET_BYTES`].
+    pub memory: Option<Reservation>,
 }
 
 /// Drivers whose underlying library is not thread-safe (libnetcdf, libhdf5 as Debian builds

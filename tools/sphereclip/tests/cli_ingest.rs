@@ -6,7 +6,7 @@ use std::process::Output;
 use std::time::{Duration, Instant};
 
 mod common;
-use common::{bin, sample, snapshot, text};
+use common::{bin, read_level, s, sample, snapshot, text};
 
 fn ingest(store: &Path, args: &[&str]) -> Output {
     bin()
@@ -151,4 +151,74 @@ fn a_killed_ingest_resumes_to_identical_bytes() {
         assert!(b[k] == *v, "{} differs after resume", k.display());
     }
     assert!(!journal.exists(), "the journal is removed after commit");
+}
+
+/// Runs `sphereclip ARGS…` under `/usr/bin/time` and returns whether it succeeded and its peak
+/// resident set, KiB.
+fn run_measured(args: &[&str]) -> (bool, u64, String) {
+    let o = std::process::Command::new("/usr/bin/time")
+        .args(["-f", "peak-kib %M"])
+        .arg(env!("CARGO_BIN_EXE_sphereclip"))
+        .args(args)
+        .env("SOURCE_DATE_EPOCH", "1790000000")
+        .output()
+        .expect("/usr/bin/time runs (scripts/deps.sh installs it)");
+    let err = text(&o.stderr);
+    let peak = err
+        .lines()
+        .find_map(|l| l.strip_prefix("peak-kib "))
+        .and_then(|v| v.trim().parse().ok())
+        .unwrap_or_else(|| panic!("no peak in {err}"));
+    (o.status.success(), peak, err)
+}
+
+#[test]
+fn a_huge_sparse_geotiff_ingests_within_the_memory_bound_with_every_texel() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    // 65536² pixels of value 0 over 10°×10°, in a 512 KB file (no block written)
+    let tif = dir.path().join("sparse.tif");
+    let o = std::process::Command::new("gdal_create")
+        .args([
+            "-q", "-outsize", "65536", "65536", "-bands", "1", "-ot", "Int16",
+        ])
+        .args(["-a_srs", "EPSG:4326", "-a_ullr", "0", "40", "10", "30"])
+        .args([
+            "-co",
+            "SPARSE_OK=TRUE",
+            "-co",
+            "TILED=YES",
+            "-co",
+            "COMPRESS=DEFLATE",
+        ])
+        .arg(&tif)
+        .output()
+        .expect("gdal_create runs");
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let store = dir.path().join("s.zarr");
+    let (ok, peak_kib, err) = run_measured(&["ingest", s(&store), s(&tif), "--level", "6"]);
+    assert!(ok, "ingest failed: {err}");
+    // README, "Safety": ingest stays within 1 GiB on up to four workers
+    assert!(
+        peak_kib < 1 << 20,
+        "peak resident set {} MiB",
+        peak_kib >> 10
+    );
+    // every texel whose centre lies inside the raster holds its value: the source is read
+    // averaged (one tile covers ~18000² pixels), empty blocks read as 0
+    let r = sc_store::StoreReader::open(&store).expect("open");
+    let (w, h, v) = read_level(&r, sc_core::LevelId::iso(6).expect("level"));
+    let (mut inside, mut valid) = (0, 0);
+    for j in 0..h {
+        let lat = 90.0 - (j as f64 + 0.5) * 180.0 / h as f64;
+        for i in 0..w {
+            let lon = -180.0 + (i as f64 + 0.5) * 360.0 / w as f64;
+            // a texel's width in from the edges: the kernel there reaches outside the raster
+            if (0.02..9.98).contains(&lon) && (30.02..39.98).contains(&lat) {
+                inside += 1;
+                valid += usize::from(v[j * w + i] == 0.0);
+            }
+        }
+    }
+    assert!(inside > 800_000, "{inside}");
+    assert_eq!(valid, inside, "texels without their value");
 }
