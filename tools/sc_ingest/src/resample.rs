@@ -101,6 +101,12 @@ fn texel_map(src: &dyn PixelSource, grid: GridSpec, tile: TileId, kernel: Kernel
         }
         src.lonlat_to_pixel(&mut xs, &mut ys);
     }
+    // a position this far outside any raster (a nonsense geotransform) is no position at all
+    for (x, y) in xs.iter_mut().zip(ys.iter_mut()) {
+        if x.abs() > MAX_PIXEL_COORD || y.abs() > MAX_PIXEL_COORD {
+            (*x, *y) = (f64::NAN, f64::NAN);
+        }
+    }
     let gt = info.geotransform;
     // unwrap geographic x around the tile centre, so the tile's footprints form one window
     if let (true, Some(p)) = (info.geographic, info.lon_period_px) {
@@ -666,18 +672,22 @@ fn pole_value(win: &Window, lut: &KernelLut, y: f64, sy: f64, period: f64) -> Op
     (wall > 0.0 && wsum >= MIN_COVERAGE * wall).then(|| acc.into_iter().map(|a| a / wsum).collect())
 }
 
-/// `floor` without a libm call (the values here are far inside i64).
+/// Largest pixel coordinate a texel may map to: far beyond any raster GDAL opens (2^21 pixels a
+/// side at most, `sc_raster::MAX_SIDE`), far inside i64.
+const MAX_PIXEL_COORD: f64 = (1u64 << 40) as f64;
+
+/// `floor` without a libm call (saturating; the values here are within ±2^40 plus a footprint).
 #[inline]
 fn floor(v: f64) -> i64 {
     let i = v as i64;
-    i - i64::from((i as f64) > v)
+    i.saturating_sub(i64::from((i as f64) > v))
 }
 
-/// `ceil` without a libm call.
+/// `ceil` without a libm call (saturating).
 #[inline]
 fn ceil(v: f64) -> i64 {
     let i = v as i64;
-    i + i64::from((i as f64) < v)
+    i.saturating_add(i64::from((i as f64) < v))
 }
 
 /// Sample of `win` at (c, r): source pixel coordinates for a full window, or
