@@ -126,22 +126,6 @@ impl Kernel {
             Kernel::JincLanczos2 => jinc(d) * jinc(d * JINC_ZERO_1 / JINC_ZERO_2),
         }
     }
-
-    /// Parses the names the CLI takes (`nearest`, `bilinear`, `cubic`, `lanczos` = lanczos3,
-    /// `lanczos2`, `lanczos3`, `gauss`).
-    pub fn from_name(name: &str) -> Option<Self> {
-        Some(match name {
-            "nearest" => Kernel::Nearest,
-            "bilinear" => Kernel::Bilinear,
-            "cubic" => Kernel::Cubic,
-            "lanczos" | "lanczos3" => Kernel::Lanczos3,
-            "lanczos2" => Kernel::Lanczos2,
-            "gauss" => Kernel::Gauss,
-            "jinc" | "jinc-lanczos3" => Kernel::JincLanczos3,
-            "jinc-lanczos2" => Kernel::JincLanczos2,
-            _ => return None,
-        })
-    }
 }
 
 /// A kernel tabulated over the distance, so that the inner loops need no `sin`/`exp`: 4096 entries
@@ -339,11 +323,5 @@ mod tests {
         assert!(jinc(JINC_ZERO_3).abs() < 1e-6);
         assert!((bessel_j1(1.0) - 0.440_050_585_744_933_5).abs() < 1e-7);
         assert!((bessel_j1(5.0) + 0.327_579_137_591_465_2).abs() < 1e-7);
-    }
-
-    #[test]
-    fn names() {
-        assert_eq!(Kernel::from_name("lanczos"), Some(Kernel::Lanczos3));
-        assert_eq!(Kernel::from_name("box"), None);
     }
 }

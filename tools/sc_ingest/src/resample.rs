@@ -182,7 +182,7 @@ fn texel_map(src: &dyn PixelSource, grid: GridSpec, tile: TileId, kernel: Kernel
 
 /// The kernel of a run, tabulated for separable use (the 1-D shape the user chose) and for radial
 /// use. A radial sinc is a poor 2-D low-pass (its spectrum peaks at the cutoff), so the Lanczos
-/// kernels become [`Kernel::JincLanczos3`] where a footprint is filtered radially.
+/// kernels become the jinc-windowed jinc of the same order where a footprint is filtered radially.
 #[derive(Debug, Clone)]
 pub struct Kernels {
     separable: KernelLut,
@@ -193,7 +193,8 @@ impl Kernels {
     /// Tables for `kernel`.
     pub fn new(kernel: Kernel) -> Self {
         let radial = match kernel {
-            Kernel::Lanczos2 | Kernel::Lanczos3 => Kernel::JincLanczos3,
+            Kernel::Lanczos2 => Kernel::JincLanczos2,
+            Kernel::Lanczos3 => Kernel::JincLanczos3,
             k => k,
         };
         Self {

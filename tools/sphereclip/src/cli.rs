@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use clap::{Parser, Subcommand};
-use sc_core::LevelId;
+use sc_core::{Kernel, LevelId};
 
 /// sphereclip: rasters in any projection → a global spherical pyramid → a planet on screen.
 #[derive(Debug, Parser)]
@@ -48,9 +48,10 @@ pub struct IngestArgs {
     /// Output level `L` or `L,A`, or `auto`: per input, the coarsest level no coarser than the input.
     #[arg(long, default_value = "auto")]
     pub level: String,
-    /// Resampling kernel: nearest, bilinear, cubic, lanczos (world-space circular footprint).
-    #[arg(long, default_value = "cubic")]
-    pub resampling: String,
+    /// Resampling kernel, applied over each texel's footprint (its level's spacing as a circle on
+    /// the sphere); rotated footprints of projected sources use its radial counterpart.
+    #[arg(long, value_enum, default_value_t = Resampling::Cubic)]
+    pub resampling: Resampling,
     /// CRS of the inputs, overriding the files' (EPSG:32633, WKT, PROJ string).
     #[arg(long)]
     pub src_srs: Option<String>,
@@ -89,10 +90,9 @@ pub struct BuildArgs {
     /// Layer to build: height, color or all.
     #[arg(long, default_value = "all")]
     pub layer: String,
-    /// Circular kernel on the sphere: gauss, lanczos2 or lanczos3 (jinc-windowed jinc, the radial
-    /// Lanczos).
-    #[arg(long, default_value = "lanczos3")]
-    pub kernel: String,
+    /// Circular kernel of the great-circle distance that filters each level from the finer one.
+    #[arg(long, value_enum, default_value_t = BuildKernel::JincLanczos3)]
+    pub kernel: BuildKernel,
     /// The finest level to build from (default: the finest isotropic level of each layer).
     #[arg(long)]
     pub from_level: Option<u32>,
@@ -248,4 +248,56 @@ pub struct DemoArgs {
     /// Do not open the viewer at the end even when a display is there.
     #[arg(long)]
     pub no_view: bool,
+}
+
+/// `ingest --resampling`: a 1-D kernel, applied separably along the footprint's axes (lon/lat
+/// sources) or radially (rotated footprints: the Lanczos kernels then become their jinc-windowed
+/// jinc counterparts of the same order, since a radial sinc is a poor 2-D low-pass).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Resampling {
+    /// The nearest source pixel.
+    Nearest,
+    /// Linear along each axis.
+    Bilinear,
+    /// Keys cubic (a = −0.5).
+    Cubic,
+    /// Lanczos with 2 lobes.
+    Lanczos2,
+    /// Lanczos with 3 lobes.
+    #[value(alias = "lanczos")]
+    Lanczos3,
+}
+
+impl From<Resampling> for Kernel {
+    fn from(r: Resampling) -> Self {
+        match r {
+            Resampling::Nearest => Kernel::Nearest,
+            Resampling::Bilinear => Kernel::Bilinear,
+            Resampling::Cubic => Kernel::Cubic,
+            Resampling::Lanczos2 => Kernel::Lanczos2,
+            Resampling::Lanczos3 => Kernel::Lanczos3,
+        }
+    }
+}
+
+/// `build --kernel`: a radial kernel of the great-circle distance, in units of the output level's
+/// spacing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum BuildKernel {
+    /// Gaussian, weight exp(−2d²), reach 1.5.
+    Gauss,
+    /// Jinc windowed by jinc (the radial Lanczos), 2 lobes.
+    JincLanczos2,
+    /// Jinc windowed by jinc (the radial Lanczos), 3 lobes.
+    JincLanczos3,
+}
+
+impl From<BuildKernel> for Kernel {
+    fn from(k: BuildKernel) -> Self {
+        match k {
+            BuildKernel::Gauss => Kernel::Gauss,
+            BuildKernel::JincLanczos2 => Kernel::JincLanczos2,
+            BuildKernel::JincLanczos3 => Kernel::JincLanczos3,
+        }
+    }
 }

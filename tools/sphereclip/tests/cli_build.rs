@@ -169,7 +169,7 @@ fn bad_stores_get_one_line_errors() {
     ]));
     for (args, want) in [
         (vec!["--layer", "color"], "no color level"),
-        (vec!["--kernel", "box"], "unknown --kernel"),
+        (vec!["--kernel", "box"], "invalid value 'box' for '--kernel"),
         (vec!["--from-level", "9"], "no height level 9"),
     ] {
         let o = bin()

@@ -181,6 +181,8 @@ fn bad_stores_get_one_line_errors() {
         "x.tif",
     ]);
     assert_eq!(o.status.code(), Some(2), "clap rejects the level");
+    let err = text(&o.stderr);
+    assert_eq!(err.lines().count(), 1, "one line: {err}");
 }
 
 /// Exports `level` of `root` to a GeoTIFF and returns `gdalinfo -json` of it.

@@ -5,22 +5,11 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
 use sc_build::Settings;
-use sc_core::Kernel;
 use sc_store::StoreWriter;
 
 use crate::cli::BuildArgs;
 use crate::cmd::parse_layer;
 use crate::progress::Progress;
-
-/// The kernels `build` offers, by CLI name.
-pub fn parse_kernel(name: &str) -> Result<Kernel> {
-    Ok(match name {
-        "gauss" => Kernel::Gauss,
-        "lanczos2" => Kernel::JincLanczos2,
-        "lanczos3" | "lanczos" => Kernel::JincLanczos3,
-        _ => bail!("unknown --kernel `{name}` (expected gauss, lanczos2 or lanczos3)"),
-    })
-}
 
 /// Builds the pyramid of the store at `store`; prints one line (or JSON).
 pub fn build(store: &Path, settings: Settings, json: bool) -> Result<sc_build::Summary> {
@@ -90,7 +79,7 @@ pub fn run(a: &BuildArgs) -> Result<ExitCode> {
     };
     let settings = Settings {
         layers,
-        kernel: parse_kernel(&a.kernel)?,
+        kernel: a.kernel.into(),
         from_level: a.from_level,
         threads: a.threads,
         repair: a.repair,

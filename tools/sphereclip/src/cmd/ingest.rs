@@ -63,23 +63,7 @@ fn inputs(a: &IngestArgs, options: &SourceOptions) -> Result<Vec<Input>> {
 /// Runs `ingest`.
 pub fn run(a: &IngestArgs) -> Result<ExitCode> {
     let layer = parse_layer(&a.layer)?;
-    let kernel = Kernel::from_name(&a.resampling)
-        .filter(|k| {
-            matches!(
-                k,
-                Kernel::Nearest
-                    | Kernel::Bilinear
-                    | Kernel::Cubic
-                    | Kernel::Lanczos3
-                    | Kernel::Lanczos2
-            )
-        })
-        .ok_or_else(|| {
-            anyhow::anyhow!(
-                "unknown --resampling `{}` (expected nearest, bilinear, cubic or lanczos)",
-                a.resampling
-            )
-        })?;
+    let kernel = Kernel::from(a.resampling);
     let level = if a.level == "auto" {
         LevelChoice::Auto
     } else {
