@@ -33,7 +33,7 @@ fn golden_views_of_the_sample_planet() {
     ok(&bin().args(["build", s(&store)]).output().expect("runs"));
     let bless = std::env::var_os("SPHERECLIP_BLESS").is_some();
     let mut failures = Vec::new();
-    for (name, cam) in sc_viewer::render::GOLDEN_VIEWS {
+    for (name, cam) in sc_view_plan::camera::GOLDEN_VIEWS {
         let shot = dir.path().join(format!("{name}.png"));
         ok(&bin()
             .args([

@@ -143,7 +143,7 @@ pub fn run(a: &DemoArgs) -> Result<ExitCode> {
     let views = a.out.join("views");
     std::fs::create_dir_all(&views)
         .with_context(|| format!("cannot create {}", views.display()))?;
-    for (name, cam) in sc_viewer::render::GOLDEN_VIEWS {
+    for (name, cam) in sc_view_plan::camera::GOLDEN_VIEWS {
         let out = views.join(format!("{name}.png"));
         let o = std::process::Command::new(std::env::current_exe()?)
             .arg("render")

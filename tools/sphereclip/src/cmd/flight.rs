@@ -9,8 +9,8 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
-use sc_viewer::camera::move_along;
-use sc_viewer::render::{Camera, Renderer};
+use sc_view_gpu::render::Renderer;
+use sc_view_plan::camera::{Camera, move_along};
 use serde::{Deserialize, Serialize};
 
 use super::render::percentile;
@@ -147,7 +147,7 @@ pub fn parse(path: &Path) -> Result<Flight> {
 
 /// The flight as a window's camera script: each altitude at each speed for `seconds`, in real
 /// time, one after the other (no settling between runs), then over.
-pub fn script(flight: Flight, radius: f64) -> sc_viewer::window::CameraScript {
+pub fn script(flight: Flight, radius: f64) -> sc_view_window::CameraScript {
     let mut camera = start_camera(&flight);
     let runs: Vec<(f64, f64)> = flight
         .altitudes

@@ -3,8 +3,9 @@
 use std::process::ExitCode;
 use std::time::Instant;
 
-use anyhow::{Result, bail};
-use sc_viewer::render::{Camera, Renderer};
+use anyhow::{Context, Result, bail};
+use sc_view_gpu::render::Renderer;
+use sc_view_plan::camera::Camera;
 
 use super::view::store_streamer;
 
@@ -63,7 +64,7 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
     let (Some(camera), Some(out)) = (&a.camera, &a.out) else {
         bail!("render needs --camera and --out (or --flight and --stats)");
     };
-    let camera = Camera::parse(camera)?;
+    let camera = Camera::parse(camera).context("--camera")?;
     if out.is_dir() {
         bail!("--out is a folder, not a PNG file: {}", out.display());
     }

@@ -3,12 +3,13 @@
 
 use std::process::ExitCode;
 
-use anyhow::Result;
-use sc_viewer::clipmap::CLIPMAP_N;
-use sc_viewer::graph::{self, FilterHandle, Graph};
-use sc_viewer::render::{Camera, StreamSources};
-use sc_viewer::stream::Streamer;
-use sc_viewer::window::{ViewOptions, view};
+use anyhow::{Context, Result};
+use sc_view_plan::camera::Camera;
+use sc_view_plan::clipmap::CLIPMAP_N;
+use sc_view_plan::frame::StreamSources;
+use sc_view_plan::graph::{self, FilterHandle, Graph};
+use sc_view_plan::stream::Streamer;
+use sc_view_window::{ViewOptions, view};
 
 use super::render::{median, parse_size, percentile};
 use crate::cli::ViewArgs;
@@ -61,7 +62,7 @@ pub fn store_streamer(
 
 /// Runs `view`.
 pub fn run(a: &ViewArgs) -> Result<ExitCode> {
-    let camera = Camera::parse(&a.camera)?;
+    let camera = Camera::parse(&a.camera).context("--camera")?;
     let size = parse_size(&a.size)?;
     if let Some(n) = a.frames
         && !(1..=1_000_000).contains(&n)

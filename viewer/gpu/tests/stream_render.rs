@@ -8,9 +8,11 @@ use std::sync::mpsc::{Receiver, channel};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use sc_viewer::clipmap::{CLIPMAP_N, ColorSource, HeightSource, LevelWindow};
-use sc_viewer::render::{Camera, Renderer, StreamSources};
-use sc_viewer::stream::{
+use sc_view_gpu::render::Renderer;
+use sc_view_plan::camera::Camera;
+use sc_view_plan::clipmap::{CLIPMAP_N, ColorSource, HeightSource, LevelWindow};
+use sc_view_plan::frame::StreamSources;
+use sc_view_plan::stream::{
     FnColorTiles, FnHeightTiles, Streamer, Tile, TileData, TileKey, TileSource,
 };
 
@@ -340,7 +342,7 @@ const SOURCES_FILTERED: StreamSources = StreamSources {
 
 #[test]
 fn a_filter_edit_remakes_only_the_visible_tiles() {
-    use sc_viewer::graph::{ColorFilter, FilterParams};
+    use sc_view_plan::graph::{ColorFilter, FilterParams};
     use std::sync::atomic::{AtomicUsize, Ordering};
     use std::sync::{Arc, RwLock};
     let made = Arc::new(AtomicUsize::new(0));

@@ -4,7 +4,7 @@
 use wgpu::util::DeviceExt;
 
 use crate::render::{RenderError, gpu_device, read_back};
-use crate::transform::TransformUniforms;
+use sc_view_plan::transform::TransformUniforms;
 
 /// A device with the probe pipeline.
 #[derive(Debug)]

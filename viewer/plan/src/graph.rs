@@ -51,7 +51,7 @@ use std::sync::{Arc, RwLock};
 use sc_store::{LayerKind, StoreReader};
 use serde::Deserialize;
 
-use crate::render::StreamSources;
+use crate::frame::StreamSources;
 use crate::stream::{
     FnHeightTiles, StoreColorTiles, StoreHeightTiles, Tile, TileData, TileKey, TileSource,
 };

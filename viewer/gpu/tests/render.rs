@@ -2,9 +2,11 @@
 //! the ground to orbit, over both poles and across the antimeridian; no seam beyond a pole.
 
 use glam::{Vec3, Vec4};
-use sc_viewer::clipmap::{ColorSource, HeightSource, LevelWindow};
-use sc_viewer::render::{Camera, Renderer, view_projection};
-use sc_viewer::transform::Viewer;
+use sc_view_gpu::render::Renderer;
+use sc_view_plan::camera::Camera;
+use sc_view_plan::clipmap::{ColorSource, HeightSource, LevelWindow};
+use sc_view_plan::frame::view_projection;
+use sc_view_plan::transform::Viewer;
 
 const R: f64 = sc_core::EARTH_RADIUS_M;
 
@@ -119,7 +121,7 @@ fn no_cracks_below_the_horizon_from_the_ground_to_orbit() {
         let ground = f64::from(Mountains.height(
             v.lon,
             v.colat,
-            sc_viewer::clipmap::level_window(20, v.colat, 256),
+            sc_view_plan::clipmap::level_window(20, v.colat, 256),
         ));
         let must = hits(&cam, ground + cam.alt, w, h, R - 6500.0);
         let mut holes = Vec::new();

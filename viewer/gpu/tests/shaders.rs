@@ -2,8 +2,8 @@
 
 #[test]
 fn clipmap_wgsl_validates() {
-    let module = naga::front::wgsl::parse_str(sc_viewer::CLIPMAP_WGSL)
-        .unwrap_or_else(|e| panic!("{}", e.emit_to_string(sc_viewer::CLIPMAP_WGSL)));
+    let module = naga::front::wgsl::parse_str(sc_view_gpu::CLIPMAP_WGSL)
+        .unwrap_or_else(|e| panic!("{}", e.emit_to_string(sc_view_gpu::CLIPMAP_WGSL)));
     naga::valid::Validator::new(
         naga::valid::ValidationFlags::all(),
         naga::valid::Capabilities::default(),

@@ -14,7 +14,87 @@
 
 use glam::DVec3;
 
-use crate::render::Camera;
+/// A camera description that does not parse or is out of range.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{0}")]
+pub struct CameraError(String);
+
+/// Where the camera is and where it looks.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Camera {
+    /// Latitude, degrees.
+    pub lat: f64,
+    /// Longitude, degrees.
+    pub lon: f64,
+    /// Height above the ground below it, metres.
+    pub alt: f64,
+    /// Heading, degrees clockwise from north.
+    pub heading: f64,
+    /// Pitch, degrees (0 horizontal, −90 straight down).
+    pub pitch: f64,
+    /// Vertical field of view, degrees.
+    pub fov: f64,
+}
+
+impl Camera {
+    /// Parses `LAT,LON,ALT[,HEADING,PITCH,FOV]` (heading 0, pitch −90 from above 100 km else −20,
+    /// fov 60 by default).
+    pub fn parse(s: &str) -> Result<Self, CameraError> {
+        let bad = || {
+            CameraError(format!(
+                "expected LAT,LON,ALT[,HEADING,PITCH,FOV] in degrees and metres, found `{s}`"
+            ))
+        };
+        let v: Vec<f64> = s
+            .split(',')
+            .map(|x| x.trim().parse::<f64>().map_err(|_| bad()))
+            .collect::<Result<_, _>>()?;
+        if !(3..=6).contains(&v.len()) || v.iter().any(|x| !x.is_finite()) {
+            return Err(bad());
+        }
+        let c = Camera {
+            lat: v[0],
+            lon: v[1],
+            alt: v[2],
+            heading: v.get(3).copied().unwrap_or(0.0),
+            pitch: v
+                .get(4)
+                .copied()
+                .unwrap_or(if v[2] > 1.0e5 { -90.0 } else { -20.0 }),
+            fov: v.get(5).copied().unwrap_or(60.0),
+        };
+        if !(-90.0..=90.0).contains(&c.lat) {
+            return Err(CameraError(format!(
+                "latitude {} is outside −90..90",
+                c.lat
+            )));
+        }
+        if !(0.0..=1.0e8).contains(&c.alt) {
+            return Err(CameraError(format!(
+                "altitude {} m is outside 0..100000 km",
+                c.alt
+            )));
+        }
+        if !(1.0..=170.0).contains(&c.fov) || !(-90.0..=90.0).contains(&c.pitch) {
+            return Err(CameraError(format!(
+                "field of view must be 1..170° and pitch −90..90°, found {} and {}",
+                c.fov, c.pitch
+            )));
+        }
+        Ok(c)
+    }
+}
+
+/// The views the demo renders (and golden-image tests will compare): name and
+/// `LAT,LON,ALT,HEADING,PITCH,FOV`.
+pub const GOLDEN_VIEWS: [(&str, &str); 6] = [
+    ("space", "30,80,8000000,0,-90,40"),
+    ("aircraft-himalaya", "28.0,86.9,9000,200,-10,60"),
+    ("ground-alps", "46.5,8.0,1.7,30,-4,60"),
+    ("north-pole", "90,0,3000000,0,-90,50"),
+    ("south-pole", "-90,0,3000000,0,-90,50"),
+    ("antimeridian", "-17,179.9,20000,270,-15,60"),
+];
 
 /// How the camera moves.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -286,5 +366,23 @@ mod tests {
             ..Input::default()
         });
         assert!(c.camera.lat > lat);
+    }
+
+    #[test]
+    fn cameras_parse_with_defaults_and_refuse_nonsense() {
+        let c = Camera::parse("46.5,8,1.7").expect("camera");
+        assert_eq!((c.heading, c.pitch, c.fov), (0.0, -20.0, 60.0));
+        assert_eq!(Camera::parse("0,0,8000000").expect("camera").pitch, -90.0);
+        for bad in [
+            "",
+            "1,2",
+            "a,b,c",
+            "95,0,1",
+            "0,0,-5",
+            "0,0,1,0,0,0",
+            "0,0,1,0,-100",
+        ] {
+            assert!(Camera::parse(bad).is_err(), "{bad}");
+        }
     }
 }

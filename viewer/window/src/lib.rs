@@ -1,5 +1,5 @@
-//! The windowed viewer: winit window, wgpu surface, the clipmap pass, camera control
-//! ([`crate::camera`]) and an egui panel with frame statistics and debug toggles.
+//! The windowed viewer: winit window, wgpu surface, the clipmap pass of `sc_view_gpu`, camera
+//! control (`sc_view_plan::camera`) and an egui panel with frame statistics and debug toggles.
 //!
 //! Keys: W/A/S/D move, Q/E down/up, Shift ×5, 1/2/3 orbit/fly/walk, F wireframe, L level
 //! colours, Esc quits; drag with the left button; the wheel zooms (orbit) or sets speed (fly).
@@ -14,13 +14,13 @@ use winit::event_loop::{ActiveEventLoop, EventLoop};
 use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::{Window, WindowId};
 
-use crate::camera::{Controller, Input, Mode};
-use crate::graph::{FilterHandle, FilterParams};
-use crate::render::{
-    Camera, ClipmapPass, FrameStats, ImageReadback, RenderError, SPACE, StreamSources, begin_pass,
-    depth_target, device_for,
+use sc_view_gpu::render::{
+    ClipmapPass, ImageReadback, RenderError, SPACE, begin_pass, depth_target, device_for,
 };
-use crate::stream::Streamer;
+use sc_view_plan::camera::{Camera, Controller, Input, Mode};
+use sc_view_plan::frame::{FrameStats, StreamSources};
+use sc_view_plan::graph::{FilterHandle, FilterParams};
+use sc_view_plan::stream::Streamer;
 
 /// How long a frame may spend updating clipmap levels before it draws what it has (Alg. 1).
 const UPDATE_BUDGET: std::time::Duration = std::time::Duration::from_millis(12);

@@ -1,9 +1,9 @@
 //! The f32 map transform the shaders evaluate against its f64 twin, from 1.7 m above the ground to
 //! 1000 km, at the poles, the antimeridian and elsewhere (same f32 vertex attributes into both).
 
-use sc_viewer::geometry::{Hemisphere, HemisphereSpec, level_outer};
-use sc_viewer::probe::TransformProbe;
-use sc_viewer::transform::{Viewer, offsets_f32, offsets_f64, visible_levels};
+use sc_view_gpu::probe::TransformProbe;
+use sc_view_plan::geometry::{Hemisphere, HemisphereSpec, level_outer};
+use sc_view_plan::transform::{Viewer, offsets_f32, offsets_f64, visible_levels};
 
 const R: f64 = sc_core::EARTH_RADIUS_M;
 

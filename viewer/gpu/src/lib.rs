@@ -1,0 +1,18 @@
+//! The GPU side of the spherical-clipmap viewer, on wgpu and without a window: the clipmap pass
+//! that uploads and draws the frames `sc_view_plan` plans, the headless renderer and its
+//! read-back, device setup, the map-transform probe, and the WGSL of `shaders/`.
+
+pub mod probe;
+pub mod render;
+
+/// The WGSL of the clipmap renderer, from `shaders/` (the map transform first).
+pub const CLIPMAP_WGSL: &str = concat!(
+    include_str!("../../../shaders/map_transform.wgsl"),
+    include_str!("../../../shaders/clipmap.wgsl")
+);
+
+/// The WGSL of the map-transform probe (a compute pass over vertices).
+pub const PROBE_WGSL: &str = concat!(
+    include_str!("../../../shaders/map_transform.wgsl"),
+    include_str!("../../../shaders/transform_probe.wgsl")
+);

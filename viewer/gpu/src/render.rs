@@ -1,0 +1,771 @@
+//! The wgpu side of the spherical-clipmap renderer: the clipmap pass (hemisphere buffers, height
+//! and colour clipmap texture arrays, pipelines) that uploads and draws a
+//! [`FramePlan`](sc_view_plan::frame::FramePlan), and the headless renderer (an offscreen
+//! target and its read-back; any adapter, the CPU one — lavapipe — included). Reversed-Z float
+//! depth with an infinite far plane serves orbit and the ground alike.
+
+use std::time::{Duration, Instant};
+
+use bytemuck::{Pod, Zeroable};
+use sc_view_plan::camera::Camera;
+use sc_view_plan::clipmap::{CLIPMAP_N, ColorSource, HeightSource, Region};
+use sc_view_plan::frame::{
+    DrawOptions, FramePlan, FramePlanner, FrameStats, FrameUniform, LevelUniform, StreamSources,
+};
+use sc_view_plan::geometry::HemisphereSpec;
+use sc_view_plan::stream::Streamer;
+use wgpu::util::DeviceExt;
+
+/// Errors of the renderer.
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    /// No GPU or CPU adapter.
+    #[error(
+        "no graphics adapter found (for the CPU renderer install Mesa's Vulkan driver: apt-get install mesa-vulkan-drivers)"
+    )]
+    NoAdapter,
+    /// The device refused.
+    #[error("graphics device: {0}")]
+    Device(String),
+    /// A request out of range.
+    #[error("{0}")]
+    Usage(String),
+}
+
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+struct GpuVertex {
+    pxy: [f32; 2],
+    one_minus_cos: f32,
+    seam: f32,
+    level: u32,
+    depth: f32,
+}
+
+const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+/// The spherical-clipmap pass on a device, for any colour target format: static hemisphere
+/// geometry, height and colour clipmap texture arrays (toroidally addressed), pipelines. The
+/// headless [`Renderer`] and the windowed viewer both draw through it.
+#[derive(Debug)]
+pub struct ClipmapPass {
+    queue: wgpu::Queue,
+    pipeline: wgpu::RenderPipeline,
+    wire: Option<wgpu::RenderPipeline>,
+    vertices: wgpu::Buffer,
+    indices: wgpu::Buffer,
+    heights: wgpu::Texture,
+    colors: wgpu::Texture,
+    frame_buf: wgpu::Buffer,
+    level_buf: wgpu::Buffer,
+    bind: wgpu::BindGroup,
+    /// The CPU side: what each level holds, the streaming requests, the frame plans.
+    planner: FramePlanner,
+    /// What the last uploaded plan draws.
+    last: FrameStats,
+    /// Debug toggles.
+    pub options: DrawOptions,
+}
+
+fn clipmap_array(device: &wgpu::Device, label: &str, format: wgpu::TextureFormat) -> wgpu::Texture {
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width: CLIPMAP_N,
+            height: CLIPMAP_N,
+            depth_or_array_layers: HemisphereSpec::default().levels,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    })
+}
+
+fn layout_entry(binding: u32, ty: wgpu::BindingType) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+        ty,
+        count: None,
+    }
+}
+
+fn array_view(t: &wgpu::Texture) -> wgpu::TextureView {
+    t.create_view(&wgpu::TextureViewDescriptor {
+        dimension: Some(wgpu::TextureViewDimension::D2Array),
+        ..Default::default()
+    })
+}
+
+impl ClipmapPass {
+    /// The pass on `device`, drawing into targets of `format` with a [`DEPTH_FORMAT`] depth
+    /// buffer (reversed Z: clear to 0), for a sphere of `radius_m`.
+    pub fn new(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        format: wgpu::TextureFormat,
+        radius_m: f64,
+    ) -> Self {
+        let planner = FramePlanner::new(radius_m);
+        let hemi = planner.hemisphere();
+        let levels = hemi.spec.levels;
+        let verts: Vec<GpuVertex> = hemi
+            .vertices
+            .iter()
+            .map(|v| GpuVertex {
+                pxy: [v.px, v.py],
+                one_minus_cos: v.one_minus_cos,
+                seam: v.seam,
+                level: v.level,
+                depth: v.depth,
+            })
+            .collect();
+        let vertices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("hemisphere vertices"),
+            contents: bytemuck::cast_slice(&verts),
+            usage: wgpu::BufferUsages::VERTEX,
+        });
+        let indices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("hemisphere indices"),
+            contents: bytemuck::cast_slice(&hemi.indices),
+            usage: wgpu::BufferUsages::INDEX,
+        });
+        let heights = clipmap_array(device, "height clipmap", wgpu::TextureFormat::R32Float);
+        let colors = clipmap_array(
+            device,
+            "colour clipmap",
+            wgpu::TextureFormat::Rgba8UnormSrgb,
+        );
+        let texture = wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Float { filterable: false },
+            view_dimension: wgpu::TextureViewDimension::D2Array,
+            multisampled: false,
+        };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("clipmap"),
+            entries: &[
+                layout_entry(
+                    0,
+                    wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                ),
+                layout_entry(
+                    1,
+                    wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Storage { read_only: true },
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                ),
+                layout_entry(2, texture),
+                layout_entry(3, texture),
+            ],
+        });
+        let frame_buf = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("frame"),
+            size: std::mem::size_of::<FrameUniform>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let level_buf = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("levels"),
+            size: (std::mem::size_of::<LevelUniform>() * levels as usize) as u64,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("clipmap"),
+            layout: &layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: frame_buf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: level_buf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::TextureView(&array_view(&heights)),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: wgpu::BindingResource::TextureView(&array_view(&colors)),
+                },
+            ],
+        });
+        let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("clipmap.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(crate::CLIPMAP_WGSL.into()),
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("clipmap"),
+            bind_group_layouts: &[Some(&layout)],
+            ..Default::default()
+        });
+        let make = |polygon_mode| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some("clipmap"),
+                layout: Some(&pipeline_layout),
+                vertex: wgpu::VertexState {
+                    module: &shader,
+                    entry_point: Some("vs_main"),
+                    compilation_options: Default::default(),
+                    buffers: &[wgpu::VertexBufferLayout {
+                        array_stride: std::mem::size_of::<GpuVertex>() as u64,
+                        step_mode: wgpu::VertexStepMode::Vertex,
+                        attributes: &wgpu::vertex_attr_array![0 => Float32x2, 1 => Float32, 2 => Float32, 3 => Uint32, 4 => Float32],
+                    }],
+                },
+                primitive: wgpu::PrimitiveState {
+                    cull_mode: None,
+                    polygon_mode,
+                    ..Default::default()
+                },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: DEPTH_FORMAT,
+                    depth_write_enabled: Some(true),
+                    depth_compare: Some(wgpu::CompareFunction::Greater),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &shader,
+                    entry_point: Some("fs_main"),
+                    compilation_options: Default::default(),
+                    targets: &[Some(format.into())],
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        let pipeline = make(wgpu::PolygonMode::Fill);
+        let wire = device
+            .features()
+            .contains(wgpu::Features::POLYGON_MODE_LINE)
+            .then(|| make(wgpu::PolygonMode::Line));
+        Self {
+            queue: queue.clone(),
+            pipeline,
+            wire,
+            vertices,
+            indices,
+            heights,
+            colors,
+            frame_buf,
+            level_buf,
+            bind,
+            planner,
+            last: FrameStats::default(),
+            options: DrawOptions::default(),
+        }
+    }
+
+    /// Whether the device draws wireframes.
+    pub fn has_wireframe(&self) -> bool {
+        self.wire.is_some()
+    }
+
+    /// Forgets what the clipmaps hold (a source's parameters changed and its tiles were dropped
+    /// from the cache): the next streamed frames ask for the visible tiles again and re-upload
+    /// each level as its new tiles arrive.
+    pub fn invalidate(&mut self, heights: bool, colors: bool) {
+        self.planner.invalidate(heights, colors);
+    }
+
+    /// GPU memory of the height and colour clipmaps, bytes.
+    pub fn clipmap_bytes(&self) -> u64 {
+        self.planner.clipmap_bytes()
+    }
+
+    /// Plans a frame with tiles sampled from the sources on this thread
+    /// ([`FramePlanner::plan`]) and uploads it; returns the ground height under the camera
+    /// (metres) and what the frame will draw.
+    pub fn prepare(
+        &mut self,
+        heights: &mut dyn HeightSource,
+        colors: Option<&mut dyn ColorSource>,
+        camera: &Camera,
+        size: (u32, u32),
+    ) -> (f64, FrameStats) {
+        self.planner.level_colors = self.options.level_colors;
+        let plan = self.planner.plan(heights, colors, camera, size);
+        self.upload(&plan);
+        (plan.ground, plan.stats)
+    }
+
+    /// Plans a frame of Alg. 1 with tiles from `streamer` ([`FramePlanner::plan_streamed`]) and
+    /// uploads it; returns the ground height under the camera and what the frame draws.
+    pub fn prepare_streamed(
+        &mut self,
+        streamer: &Streamer,
+        sources: StreamSources,
+        camera: &Camera,
+        size: (u32, u32),
+        deadline: Option<Instant>,
+        wait: Duration,
+    ) -> (f64, FrameStats) {
+        self.planner.level_colors = self.options.level_colors;
+        let plan = self
+            .planner
+            .plan_streamed(streamer, sources, camera, size, deadline, wait);
+        self.upload(&plan);
+        (plan.ground, plan.stats)
+    }
+
+    /// Writes a plan's texture regions and uniforms, and remembers what it draws.
+    pub fn upload(&mut self, plan: &FramePlan) {
+        for u in &plan.uploads {
+            self.write_region(u.height, u.level, u.region, &u.bytes);
+        }
+        self.queue
+            .write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&plan.frame));
+        self.queue
+            .write_buffer(&self.level_buf, 0, bytemuck::cast_slice(&plan.levels));
+        self.last = plan.stats;
+    }
+
+    fn write_region(&self, height: bool, layer: u32, r: Region, bytes: &[u8]) {
+        self.queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture: if height { &self.heights } else { &self.colors },
+                mip_level: 0,
+                origin: wgpu::Origin3d {
+                    x: r.x,
+                    y: r.y,
+                    z: layer,
+                },
+                aspect: wgpu::TextureAspect::All,
+            },
+            bytes,
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(r.w * 4),
+                rows_per_image: Some(r.h),
+            },
+            wgpu::Extent3d {
+                width: r.w,
+                height: r.h,
+                depth_or_array_layers: 1,
+            },
+        );
+    }
+
+    /// Records the draw of the last prepared frame into `pass`: the rings of the visible levels,
+    /// then the fill disc closing the finest one.
+    pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>) {
+        let (lo, hi) = (self.last.level_lo as usize, self.last.level_hi as usize);
+        let pipeline = match (&self.wire, self.options.wireframe) {
+            (Some(w), true) => w,
+            _ => &self.pipeline,
+        };
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, &self.bind, &[]);
+        pass.set_vertex_buffer(0, self.vertices.slice(..));
+        pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
+        pass.draw_indexed(
+            self.planner.hemisphere().level_ranges[lo].start
+                ..self.planner.hemisphere().level_ranges[hi].end,
+            0,
+            0..1,
+        );
+        pass.draw_indexed(self.planner.hemisphere().fill_ranges[hi].clone(), 0, 0..1);
+    }
+}
+
+/// A depth target for the pass.
+pub fn depth_target(device: &wgpu::Device, w: u32, h: u32) -> wgpu::TextureView {
+    device
+        .create_texture(&wgpu::TextureDescriptor {
+            label: Some("depth target"),
+            size: wgpu::Extent3d {
+                width: w,
+                height: h,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: DEPTH_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+            view_formats: &[],
+        })
+        .create_view(&Default::default())
+}
+
+/// Begins a render pass clearing `color` to `clear` and `depth` to the far plane (0).
+pub fn begin_pass<'a>(
+    enc: &'a mut wgpu::CommandEncoder,
+    color: &wgpu::TextureView,
+    depth: &wgpu::TextureView,
+    clear: [f64; 4],
+) -> wgpu::RenderPass<'a> {
+    enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some("clipmap"),
+        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+            view: color,
+            depth_slice: None,
+            resolve_target: None,
+            ops: wgpu::Operations {
+                load: wgpu::LoadOp::Clear(wgpu::Color {
+                    r: clear[0],
+                    g: clear[1],
+                    b: clear[2],
+                    a: clear[3],
+                }),
+                store: wgpu::StoreOp::Store,
+            },
+        })],
+        depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+            view: depth,
+            depth_ops: Some(wgpu::Operations {
+                load: wgpu::LoadOp::Clear(0.0),
+                store: wgpu::StoreOp::Store,
+            }),
+            stencil_ops: None,
+        }),
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    })
+}
+
+/// Copies `buffer` (made with `MAP_READ`) back to the CPU, waiting for the GPU.
+pub fn read_back(device: &wgpu::Device, buffer: &wgpu::Buffer) -> Result<Vec<u8>, RenderError> {
+    let slice = buffer.slice(..);
+    slice.map_async(wgpu::MapMode::Read, |_| {});
+    device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| RenderError::Device(e.to_string()))?;
+    let out = slice.get_mapped_range().to_vec();
+    buffer.unmap();
+    Ok(out)
+}
+
+/// A `w × h` 8-bit RGBA or BGRA texture's copy on its way back to the CPU (rows padded to
+/// wgpu's 256-byte alignment).
+#[derive(Debug)]
+pub struct ImageReadback {
+    buffer: wgpu::Buffer,
+    bytes_per_row: u32,
+    width: u32,
+    height: u32,
+}
+
+impl ImageReadback {
+    /// Records the copy of `texture` (made with `COPY_SRC`) into `enc`.
+    pub fn record(
+        device: &wgpu::Device,
+        enc: &mut wgpu::CommandEncoder,
+        texture: &wgpu::Texture,
+        (width, height): (u32, u32),
+    ) -> Self {
+        let bytes_per_row = (width * 4).div_ceil(256) * 256;
+        let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("readback"),
+            size: u64::from(bytes_per_row) * u64::from(height),
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        enc.copy_texture_to_buffer(
+            texture.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &buffer,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(bytes_per_row),
+                    rows_per_image: Some(height),
+                },
+            },
+            wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+        );
+        Self {
+            buffer,
+            bytes_per_row,
+            width,
+            height,
+        }
+    }
+
+    /// Waits for the GPU (after the submission of the recorded copy) and returns the image;
+    /// `bgra`: the texture's channels are B, G, R, A.
+    pub fn image(
+        &self,
+        device: &wgpu::Device,
+        bgra: bool,
+    ) -> Result<image::RgbaImage, RenderError> {
+        let data = read_back(device, &self.buffer)?;
+        let (w, h) = (self.width as usize, self.height as usize);
+        let mut img = image::RgbaImage::new(self.width, self.height);
+        for (y, row) in data.chunks(self.bytes_per_row as usize).take(h).enumerate() {
+            let out = &mut img.as_mut()[y * w * 4..(y + 1) * w * 4];
+            out.copy_from_slice(&row[..w * 4]);
+            if bgra {
+                out.chunks_exact_mut(4).for_each(|p| p.swap(0, 2));
+            }
+        }
+        Ok(img)
+    }
+}
+
+/// A headless renderer of one size: the clipmap pass into an offscreen image.
+#[derive(Debug)]
+pub struct Renderer {
+    pass: ClipmapPass,
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    color: wgpu::Texture,
+    depth: wgpu::TextureView,
+    size: (u32, u32),
+    /// The adapter, in words (e.g. "llvmpipe (Vulkan, Cpu)").
+    pub adapter: String,
+    /// The clear colour (magenta in crack tests).
+    pub clear: [f64; 4],
+    /// The height of the ground under the camera in the last streamed frame, metres.
+    pub ground: f64,
+}
+
+const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+
+/// The default background: near-black blue.
+pub const SPACE: [f64; 4] = [0.02, 0.02, 0.06, 1.0];
+
+impl Renderer {
+    /// A renderer drawing `width × height` images of a sphere of `radius_m`, on the first adapter
+    /// wgpu finds (a real GPU if any, else the CPU one).
+    pub fn headless(width: u32, height: u32, radius_m: f64) -> Result<Self, RenderError> {
+        if !(16..=8192).contains(&width) || !(16..=8192).contains(&height) {
+            return Err(RenderError::Usage(format!(
+                "image size {width}x{height} is outside 16..8192 a side"
+            )));
+        }
+        let (device, queue, adapter) = gpu_device()?;
+        let max = device.limits().max_texture_dimension_2d;
+        if width > max || height > max {
+            return Err(RenderError::Usage(format!(
+                "image size {width}x{height} exceeds what {adapter} renders ({max} a side)"
+            )));
+        }
+        let color = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("colour target"),
+            size: wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: COLOR_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
+        Ok(Self {
+            pass: ClipmapPass::new(&device, &queue, COLOR_FORMAT, radius_m),
+            depth: depth_target(&device, width, height),
+            device,
+            queue,
+            color,
+            size: (width, height),
+            adapter,
+            clear: SPACE,
+            ground: 0.0,
+        })
+    }
+
+    /// The clipmap pass (debug toggles, memory).
+    pub fn pass_mut(&mut self) -> &mut ClipmapPass {
+        &mut self.pass
+    }
+
+    /// Renders one frame from `camera` over `heights` (and `colors` if given); returns the RGBA
+    /// image and what was drawn.
+    pub fn render(
+        &mut self,
+        heights: &mut dyn HeightSource,
+        colors: Option<&mut dyn ColorSource>,
+        camera: &Camera,
+    ) -> Result<(image::RgbaImage, FrameStats), RenderError> {
+        let (img, stats, _) = self.render_timed(heights, colors, camera)?;
+        Ok((img, stats))
+    }
+
+    /// [`Self::render`], also returning the CPU seconds spent before the GPU is waited for
+    /// (clipmap update, uniforms, command encoding and submission).
+    pub fn render_timed(
+        &mut self,
+        heights: &mut dyn HeightSource,
+        colors: Option<&mut dyn ColorSource>,
+        camera: &Camera,
+    ) -> Result<(image::RgbaImage, FrameStats, f64), RenderError> {
+        let start = std::time::Instant::now();
+        let (_, stats) = self.pass.prepare(heights, colors, camera, self.size);
+        self.draw_and_read(stats, start)
+    }
+
+    /// One frame from `camera` with clipmap tiles from `streamer` (Alg. 1: levels whose tiles are
+    /// not made yet are not waited for; see [`ClipmapPass::prepare_streamed`]); the image, what
+    /// was drawn, and the CPU seconds before the GPU is waited for.
+    pub fn render_streamed(
+        &mut self,
+        streamer: &Streamer,
+        sources: StreamSources,
+        camera: &Camera,
+        deadline: Option<Instant>,
+    ) -> Result<(image::RgbaImage, FrameStats, f64), RenderError> {
+        let start = Instant::now();
+        let (ground, stats) = self.pass.prepare_streamed(
+            streamer,
+            sources,
+            camera,
+            self.size,
+            deadline,
+            Duration::from_secs(10),
+        );
+        self.ground = ground;
+        self.draw_and_read(stats, start)
+    }
+
+    fn draw_and_read(
+        &mut self,
+        stats: FrameStats,
+        start: Instant,
+    ) -> Result<(image::RgbaImage, FrameStats, f64), RenderError> {
+        let (w, h) = self.size;
+        let color_view = self.color.create_view(&Default::default());
+        let mut enc = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+        {
+            let mut pass = begin_pass(&mut enc, &color_view, &self.depth, self.clear);
+            self.pass.draw(&mut pass);
+        }
+        let readback = ImageReadback::record(&self.device, &mut enc, &self.color, (w, h));
+        self.queue.submit([enc.finish()]);
+        let cpu = start.elapsed().as_secs_f64();
+        let img = readback.image(&self.device, false)?;
+        Ok((img, stats, cpu))
+    }
+}
+
+/// A device on the first adapter wgpu finds (a real GPU if any, else the CPU one), and the
+/// adapter in words.
+pub fn gpu_device() -> Result<(wgpu::Device, wgpu::Queue, String), RenderError> {
+    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle());
+    let (_, device, queue, name) = device_for(&instance, None)?;
+    Ok((device, queue, name))
+}
+
+/// A device on the first adapter of `instance` that can present to `surface` (if given).
+pub fn device_for(
+    instance: &wgpu::Instance,
+    surface: Option<&wgpu::Surface<'_>>,
+) -> Result<(wgpu::Adapter, wgpu::Device, wgpu::Queue, String), RenderError> {
+    let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+        power_preference: wgpu::PowerPreference::HighPerformance,
+        force_fallback_adapter: false,
+        compatible_surface: surface,
+    }))
+    .map_err(|_| RenderError::NoAdapter)?;
+    let info = adapter.get_info();
+    let levels = HemisphereSpec::default().levels;
+    let (device, queue) = pollster::block_on(
+        adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("sphereclip"),
+            // wireframe where the adapter has it (lavapipe does)
+            required_features: adapter.features() & wgpu::Features::POLYGON_MODE_LINE,
+            required_limits: wgpu::Limits {
+                max_texture_array_layers: levels.max(256),
+                ..wgpu::Limits::downlevel_defaults()
+            }
+            .using_resolution(adapter.limits()),
+            ..Default::default()
+        }),
+    )
+    .map_err(|e| RenderError::Device(e.to_string()))?;
+    let name = format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type);
+    Ok((adapter, device, queue, name))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The uniform structs match the WGSL structs member by member (naga's layout).
+    #[test]
+    fn rust_structs_match_the_wgsl_layout() {
+        let module = naga::front::wgsl::parse_str(crate::CLIPMAP_WGSL).expect("wgsl parses");
+        let wgsl = |name: &str| -> (u32, Vec<(String, u32)>) {
+            let (_, ty) = module
+                .types
+                .iter()
+                .find(|(_, t)| t.name.as_deref() == Some(name))
+                .unwrap_or_else(|| panic!("no struct {name} in clipmap.wgsl"));
+            match &ty.inner {
+                naga::TypeInner::Struct { members, span } => (
+                    *span,
+                    members
+                        .iter()
+                        .map(|m| (m.name.clone().unwrap_or_default(), m.offset))
+                        .collect(),
+                ),
+                _ => panic!("{name} is not a struct"),
+            }
+        };
+        let (span, members) = wgsl("Frame");
+        assert_eq!(span as usize, std::mem::size_of::<FrameUniform>());
+        let rust = [
+            ("sin_v", std::mem::offset_of!(FrameUniform, sin_v)),
+            ("cos_v", std::mem::offset_of!(FrameUniform, cos_v)),
+            ("colat", std::mem::offset_of!(FrameUniform, colat)),
+            ("orient", std::mem::offset_of!(FrameUniform, orient)),
+            ("cam_height", std::mem::offset_of!(FrameUniform, cam_height)),
+            ("radius", std::mem::offset_of!(FrameUniform, radius)),
+            ("level_hi", std::mem::offset_of!(FrameUniform, level_hi)),
+            ("level_lo", std::mem::offset_of!(FrameUniform, level_lo)),
+            ("has_color", std::mem::offset_of!(FrameUniform, has_color)),
+            ("flags", std::mem::offset_of!(FrameUniform, flags)),
+            ("view_proj", std::mem::offset_of!(FrameUniform, view_proj)),
+        ];
+        for (name, off) in rust {
+            let w = members
+                .iter()
+                .find(|m| m.0 == name)
+                .unwrap_or_else(|| panic!("Frame.{name}"));
+            assert_eq!(w.1 as usize, off, "Frame.{name}");
+        }
+        let (span, members) = wgsl("Level");
+        assert_eq!(span as usize, std::mem::size_of::<LevelUniform>());
+        let rust = [
+            (
+                "viewer_texel",
+                std::mem::offset_of!(LevelUniform, viewer_texel),
+            ),
+            (
+                "texels_per_rad",
+                std::mem::offset_of!(LevelUniform, texels_per_rad),
+            ),
+            ("size", std::mem::offset_of!(LevelUniform, size)),
+            ("origin", std::mem::offset_of!(LevelUniform, origin)),
+        ];
+        for (name, off) in rust {
+            let w = members
+                .iter()
+                .find(|m| m.0 == name)
+                .unwrap_or_else(|| panic!("Level.{name}"));
+            assert_eq!(w.1 as usize, off, "Level.{name}");
+        }
+    }
+}

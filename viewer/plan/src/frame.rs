@@ -1,0 +1,712 @@
+//! The frame plan: everything a frame of the spherical-clipmap renderer needs, prepared on the
+//! CPU as plain data — the levels to draw (§4.5), the tiles wanted with their priorities and the
+//! Alg. 1 prefetch (clipmap-data-synthesis §7), the texture regions to upload and the uniforms.
+//! A GPU backend only uploads and draws what a [`FramePlan`] says, so every decision here is
+//! testable without a device.
+
+use std::collections::HashMap;
+use std::f64::consts::PI;
+use std::time::{Duration, Instant};
+
+use bytemuck::{Pod, Zeroable};
+use glam::{Mat4, Vec3};
+
+use crate::camera::Camera;
+use crate::clipmap::{
+    CLIPMAP_N, ColorSource, HeightSource, Placement, Region, all_regions, changed_regions,
+    fill_region,
+};
+use crate::geometry::{Hemisphere, HemisphereSpec, level_outer};
+use crate::stream::{Focus, GridId, Streamer, Task, Tile, TileData, TileKey};
+use crate::transform::{Viewer, finest_level_in_view, visible_levels};
+
+/// The frame uniform of `shaders/clipmap.wgsl`, as plain numbers (its layout is checked against
+/// the WGSL by the GPU crate's tests).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct FrameUniform {
+    pub sin_v: f32,
+    pub cos_v: f32,
+    pub colat: f32,
+    pub orient: f32,
+    pub cam_height: f32,
+    pub radius: f32,
+    pub level_hi: u32,
+    pub level_lo: u32,
+    pub has_color: u32,
+    pub flags: u32,
+    pub _p: [u32; 2],
+    pub view_proj: [[f32; 4]; 4],
+}
+
+/// `FrameUniform::flags`: tint each clipmap level (debug view).
+pub const FLAG_LEVEL_COLORS: u32 = 1;
+
+/// One clipmap level's uniform of `shaders/clipmap.wgsl`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct LevelUniform {
+    pub viewer_texel: [f32; 2],
+    pub texels_per_rad: [f32; 2],
+    pub size: [u32; 2],
+    pub origin: [u32; 2],
+}
+
+/// What one frame drew.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct FrameStats {
+    /// First (coarsest) level drawn.
+    pub level_lo: u32,
+    /// Last (finest) level drawn.
+    pub level_hi: u32,
+    /// The finest level visibility asks for (above `level_hi` while tiles are being made): the
+    /// finest whose triangles cover a pixel and whose ground is in view.
+    pub level_wanted: u32,
+    /// The finest level whose triangles cover a pixel; levels past `level_wanted` up to this one
+    /// lie out of view (under a camera looking ahead) and are prefetched, not drawn.
+    pub level_sharpest: u32,
+    /// Triangles drawn.
+    pub triangles: u32,
+    /// Clipmap levels (height or colour) whose window moved by a texel or more: their changed
+    /// regions were refilled.
+    pub levels_filled: u32,
+    /// The level after `level_hi` cannot be drawn because one of its tiles failed (the coarser
+    /// levels show instead; with `level_hi == level_lo` and nothing drawn, a plain sphere). The
+    /// view is as complete as it can get.
+    pub level_failed: bool,
+}
+
+/// How to draw (the viewer's debug toggles).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct DrawOptions {
+    /// Triangle edges only (needs the adapter's line polygon mode; ignored without it).
+    pub wireframe: bool,
+    /// Tint each clipmap level.
+    pub level_colors: bool,
+}
+
+/// Levels finer than those drawn are prefetched only while the camera takes at least this many
+/// frames to cross their window.
+const PREFETCH_FINER_FRAMES: f64 = 10.0;
+
+/// How far ahead along its motion the viewer's path is prefetched, frames.
+const LOOKAHEAD_FRAMES: f64 = 30.0;
+
+/// Most quads prefetched along the path per level (at half-window steps: four windows ahead).
+const LOOKAHEAD_QUADS: u32 = 8;
+
+/// Which sources of a [`Streamer`] feed the clipmaps.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StreamSources {
+    /// The height source.
+    pub height: u32,
+    /// The colour source, if any.
+    pub color: Option<u32>,
+}
+
+/// One texture region to write: level `level` of the height (or colour) clipmap array, the
+/// region's texels row-major, 4 bytes each (f32 height or RGBA).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Upload {
+    /// Heights (else colours).
+    pub height: bool,
+    /// Clipmap level (array layer).
+    pub level: u32,
+    /// Where in the layer.
+    pub region: Region,
+    /// The texels.
+    pub bytes: Vec<u8>,
+}
+
+impl Upload {
+    fn new(height: bool, level: u32, region: Region, bytes: Vec<u8>) -> Self {
+        Self {
+            height,
+            level,
+            region,
+            bytes,
+        }
+    }
+}
+
+/// One frame, ready for the GPU.
+#[derive(Debug, Clone)]
+pub struct FramePlan {
+    /// Texture regions to write, in order.
+    pub uploads: Vec<Upload>,
+    /// The frame uniform.
+    pub frame: FrameUniform,
+    /// Every level's uniform (those not drawn keep their last values).
+    pub levels: Vec<LevelUniform>,
+    /// What the frame draws.
+    pub stats: FrameStats,
+    /// The ground height under the camera, metres.
+    pub ground: f64,
+}
+
+/// The CPU side of the clipmap renderer: what each clipmap level holds, what was asked of the
+/// streamer, the camera's motion; makes one [`FramePlan`] per frame.
+#[derive(Debug)]
+pub struct FramePlanner {
+    hemi: Hemisphere,
+    /// Per layer (heights, colours) and level, where its data was last filled (None: never).
+    held: [Vec<Option<Placement>>; 2],
+    level_uniforms: Vec<LevelUniform>,
+    radius: f64,
+    /// The tasks last posted to a streamer (posted again only when they change).
+    last_tasks: Vec<Task>,
+    /// Where the viewer was last frame (to prefetch along its motion).
+    prev_viewer: Option<Viewer>,
+    /// The ground under the camera last frame, metres.
+    ground_prev: f64,
+    /// Per height tile seen lately, its highest height and largest step between neighbouring
+    /// texels (not recomputed every frame).
+    tile_top: HashMap<TileKey, (f32, f32)>,
+    /// Tint each clipmap level (debug view).
+    pub level_colors: bool,
+}
+
+impl FramePlanner {
+    /// A planner for a sphere of `radius_m` and the default hemisphere geometry.
+    pub fn new(radius_m: f64) -> Self {
+        let hemi = Hemisphere::new(HemisphereSpec::default());
+        let levels = hemi.spec.levels as usize;
+        Self {
+            hemi,
+            held: [vec![None; levels], vec![None; levels]],
+            level_uniforms: vec![LevelUniform::zeroed(); levels],
+            radius: radius_m,
+            last_tasks: Vec::new(),
+            prev_viewer: None,
+            ground_prev: 0.0,
+            tile_top: HashMap::new(),
+            level_colors: false,
+        }
+    }
+
+    /// The hemisphere geometry the plans refer to.
+    pub fn hemisphere(&self) -> &Hemisphere {
+        &self.hemi
+    }
+}
+
+impl FramePlanner {
+    /// Forgets what the clipmaps hold (a source's parameters changed and its tiles were dropped
+    /// from the cache): the next streamed frames ask for the visible tiles again and re-upload
+    /// each level as its new tiles arrive.
+    pub fn invalidate(&mut self, heights: bool, colors: bool) {
+        for (layer, forget) in self.held.iter_mut().zip([heights, colors]) {
+            if forget {
+                layer.fill(None);
+            }
+        }
+        self.last_tasks.clear();
+    }
+
+    /// The texture regions of level `i` (heights or colours) to write for placement `p`: those
+    /// whose world texels changed since the level was last filled (all at first; §5). Records
+    /// `p` as what the level holds once they are written.
+    fn stale_regions(&mut self, height: bool, i: u32, p: &Placement) -> Vec<Region> {
+        let held = &mut self.held[usize::from(!height)][i as usize];
+        let todo = match *held {
+            Some(old) => changed_regions(&old, p, CLIPMAP_N),
+            None => all_regions(p, CLIPMAP_N),
+        };
+        *held = Some(*p);
+        todo
+    }
+
+    /// Levels to draw for `camera` into a target `h` pixels high (§4.5).
+    fn visible(&self, camera: &Camera, h: u32) -> (u32, u32) {
+        visible_levels(
+            self.radius,
+            camera.alt,
+            9000.0,
+            camera.fov.to_radians(),
+            h,
+            self.hemi.spec.n,
+            self.hemi.spec.levels,
+        )
+    }
+
+    /// Per level of `windows` (ascending from the coarsest), how high terrain may rise above
+    /// the ground under the camera within its cap: the height tiles of every level at or
+    /// coarser than it that are made (each level's quad holds the caps of it and of all finer
+    /// levels) bound it by their highest height plus their largest step between neighbouring
+    /// texels (a peak between samples rises no further); the lowest bound counts. Unbounded
+    /// where no such quad is made.
+    fn rises(
+        &mut self,
+        streamer: &Streamer,
+        height: u32,
+        windows: &[(u32, Placement, GridId)],
+    ) -> Vec<f64> {
+        if self.tile_top.len() > 1024 {
+            self.tile_top.clear();
+        }
+        let mut bound = f64::INFINITY;
+        windows
+            .iter()
+            .map(|&(_, p, grid)| {
+                let keys = quad_keys(height, grid, &p, CLIPMAP_N);
+                let mut top = Some((f32::NEG_INFINITY, 0.0f32));
+                for k in keys {
+                    let t = match self.tile_top.get(&k) {
+                        Some(t) => Some(*t),
+                        None => streamer.cache().get(&k).map(|t| {
+                            let v = height_top_and_step(&t, CLIPMAP_N);
+                            self.tile_top.insert(k, v);
+                            v
+                        }),
+                    };
+                    top = top.zip(t).map(|(a, b)| (a.0.max(b.0), a.1.max(b.1)));
+                }
+                if let Some((top, step)) = top
+                    && top.is_finite()
+                {
+                    bound = bound.min(f64::from(top) + f64::from(step));
+                }
+                bound - self.ground_prev
+            })
+            .collect()
+    }
+
+    /// GPU memory of the height and colour clipmaps, bytes.
+    pub fn clipmap_bytes(&self) -> u64 {
+        u64::from(CLIPMAP_N * CLIPMAP_N * self.hemi.spec.levels) * (4 + 4)
+    }
+
+    /// The frame from `camera` into a `w × h` target, its tiles sampled from the sources on this
+    /// thread: levels per §4.5; where a level's window moved by a texel or more, the texture
+    /// regions whose world texels changed are refilled.
+    pub fn plan(
+        &mut self,
+        heights: &mut dyn HeightSource,
+        mut colors: Option<&mut dyn ColorSource>,
+        camera: &Camera,
+        (w, h): (u32, u32),
+    ) -> FramePlan {
+        let viewer = Viewer::from_deg(camera.lat, camera.lon);
+        let (lo, hi) = self.visible(camera, h);
+        let mut uploads = Vec::new();
+        let mut filled = 0;
+        for i in lo..=hi {
+            let p = Placement::new(i, &viewer, CLIPMAP_N);
+            let todo = self.stale_regions(true, i, &p);
+            for r in &todo {
+                let data = fill_region(&p, CLIPMAP_N, *r, |lon, colat| {
+                    [heights.height(lon, colat, p.win)]
+                });
+                uploads.push(Upload::new(
+                    true,
+                    i,
+                    *r,
+                    bytemuck::cast_slice(&data).to_vec(),
+                ));
+            }
+            filled += u32::from(!todo.is_empty());
+            if let Some(c) = colors.as_deref_mut() {
+                let todo = self.stale_regions(false, i, &p);
+                for r in &todo {
+                    let rgba =
+                        fill_region(&p, CLIPMAP_N, *r, |lon, colat| c.color(lon, colat, p.win));
+                    uploads.push(Upload::new(false, i, *r, rgba));
+                }
+                filled += u32::from(!todo.is_empty());
+            }
+            self.level_uniforms[i as usize] = level_uniform(&p);
+        }
+        // the ground under the camera: the finest level drawn, as drawn
+        let p = Placement::new(hi, &viewer, CLIPMAP_N);
+        let ground = at_viewer(&p, |c, r| {
+            let (lon, colat) = p.texel_centre(c.max(0) as u32, r.max(0) as u32);
+            f64::from(heights.height(lon, colat, p.win))
+        });
+        let stats = FrameStats {
+            level_lo: lo,
+            level_hi: hi,
+            level_wanted: hi,
+            level_sharpest: hi,
+            triangles: self.hemi.triangles(lo, hi),
+            levels_filled: filled,
+            level_failed: false,
+        };
+        let frame = self.frame_uniform(&viewer, camera, (w, h), ground, colors.is_some(), stats);
+        FramePlan {
+            uploads,
+            frame,
+            levels: self.level_uniforms.clone(),
+            stats,
+            ground,
+        }
+    }
+
+    /// The frame's uniforms.
+    fn frame_uniform(
+        &self,
+        viewer: &Viewer,
+        camera: &Camera,
+        (w, h): (u32, u32),
+        ground: f64,
+        has_color: bool,
+        stats: FrameStats,
+    ) -> FrameUniform {
+        let (lo, hi) = (stats.level_lo, stats.level_hi);
+        let u = viewer.uniforms();
+        FrameUniform {
+            sin_v: u.sin_v,
+            cos_v: u.cos_v,
+            colat: u.colat,
+            orient: u.orient,
+            cam_height: (ground + camera.alt) as f32,
+            radius: self.radius as f32,
+            level_hi: hi,
+            level_lo: lo,
+            has_color: u32::from(has_color),
+            flags: if self.level_colors {
+                FLAG_LEVEL_COLORS
+            } else {
+                0
+            },
+            _p: [0; 2],
+            view_proj: view_projection(viewer, camera, w, h).to_cols_array_2d(),
+        }
+    }
+
+    /// The frame of Alg. 1 (clipmap-data-synthesis §7) with tiles made by `streamer`'s worker
+    /// threads: posts the tiles of the visible levels' quads (and, as prefetch, of the next finer
+    /// level) when the focus moved, prunes the cache, then goes through the levels coarse to
+    /// fine, updating each from its quad; a level whose tiles are not ready (or failed) is not
+    /// waited for — the previous level is drawn as a full disc — and past `deadline` no further
+    /// level is updated. Only the coarsest visible level is waited for (up to `wait`), so that
+    /// something shows. Returns the ground height under the camera and what the frame draws.
+    pub fn plan_streamed(
+        &mut self,
+        streamer: &Streamer,
+        sources: StreamSources,
+        camera: &Camera,
+        (w, h): (u32, u32),
+        deadline: Option<Instant>,
+        wait: Duration,
+    ) -> FramePlan {
+        let n = CLIPMAP_N;
+        debug_assert_eq!(streamer.tile_size(), n);
+        let viewer = Viewer::from_deg(camera.lat, camera.lon);
+        let levels = self.hemi.spec.levels;
+        let (lo, sharpest) = self.visible(camera, h);
+        let layers: Vec<(bool, u32)> = std::iter::once((true, sources.height))
+            .chain(sources.color.map(|c| (false, c)))
+            .collect();
+        let windows: Vec<(u32, Placement, GridId)> = (lo..=(sharpest + 1).min(levels - 1))
+            .map(|i| {
+                let p = Placement::new(i, &viewer, n);
+                (i, p, GridId::of(i, &p, n))
+            })
+            .collect();
+        // levels whose ground is out of view are not drawn (the coarser disc covers it unseen),
+        // only prefetched: tilting the camera down finds their tiles made
+        let rises = self.rises(streamer, sources.height, &windows);
+        let wanted = finest_level_in_view(
+            self.radius,
+            camera.alt,
+            camera.pitch.to_radians(),
+            camera.fov.to_radians(),
+            (lo, sharpest),
+            |i| rises[(i - lo) as usize],
+        );
+        // the motion since the last frame (radians of longitude and colatitude, and of arc)
+        let motion = self.prev_viewer.map(|prev| {
+            let dlon = (viewer.lon - prev.lon + PI).rem_euclid(2.0 * PI) - PI;
+            let dcolat = viewer.colat - prev.colat;
+            (dlon, dcolat, dcolat.hypot(dlon * viewer.colat.sin()))
+        });
+        // 1. the tasks of this focus: the visible levels; as prefetch, the level just out of
+        // view (terrain ahead may lift its ground into view any frame), and the finer ones (out
+        // of view, or the next finer) whose window the camera does not cross within
+        // `PREFETCH_FINER_FRAMES` frames (tiles a fast camera would leave before tilting down
+        // to them would only delay the visible ones)
+        let mut tasks = Vec::new();
+        let mut focus = Focus::new();
+        let step = motion.map_or(0.0, |m| m.2);
+        let edge = if wanted < sharpest {
+            wanted + 1
+        } else {
+            wanted
+        };
+        for &(i, p, grid) in &windows {
+            let crossed_slowly = step * PREFETCH_FINER_FRAMES < 2.0 * level_outer(i);
+            for &(_, src) in &layers {
+                let quad = quad_keys(src, grid, &p, n);
+                if i <= wanted {
+                    tasks.extend(quad.map(Task::visible));
+                } else if i == edge {
+                    tasks.extend(quad.map(|k| Task::prefetch(k, 1)));
+                } else if crossed_slowly {
+                    // needed only when the camera tilts down or descends
+                    tasks.extend(quad.map(|k| Task::prefetch(k, PREFETCH_FINER_FRAMES as u32)));
+                }
+                focus.insert((src, grid), (quad[0].x, quad[0].y));
+            }
+        }
+        // prefetch along the motion: the quads where the viewer will be if it keeps going, every
+        // half window up to `LOOKAHEAD_FRAMES` ahead (so every quad a level's window passes
+        // through is made before it gets there), and the one at the horizon
+        if let Some((dlon, dcolat, step)) = motion
+            && step > 0.0
+        {
+            for i in lo..=edge {
+                let spacing = level_outer(i) / step; // frames per half window
+                let mut frames: Vec<f64> = (1..=LOOKAHEAD_QUADS)
+                    .map(|k| f64::from(k) * spacing)
+                    .take_while(|&f| f < LOOKAHEAD_FRAMES)
+                    .collect();
+                if frames.len() < LOOKAHEAD_QUADS as usize {
+                    frames.push(LOOKAHEAD_FRAMES);
+                }
+                for f in frames {
+                    let ahead = Viewer {
+                        lon: viewer.lon + dlon * f,
+                        colat: (viewer.colat + dcolat * f).clamp(1e-9, PI - 1e-9),
+                    };
+                    let p = Placement::new(i, &ahead, n);
+                    let grid = GridId::of(i, &p, n);
+                    for &(_, src) in &layers {
+                        for key in quad_keys(src, grid, &p, n) {
+                            tasks.push(Task::prefetch(key, f.ceil() as u32));
+                        }
+                    }
+                }
+            }
+        }
+        self.prev_viewer = Some(viewer);
+        if tasks != self.last_tasks {
+            streamer.request(tasks.clone());
+            self.last_tasks = tasks;
+        }
+        streamer.prune(&focus, &self.last_tasks);
+        // 2. levels coarse to fine, as far as their tiles are ready
+        let mut uploads = Vec::new();
+        let mut drawn = None;
+        let mut filled = 0;
+        let mut level_failed = false;
+        for &(i, p, grid) in windows.iter().filter(|(i, ..)| *i <= wanted) {
+            let quad: Option<Vec<Vec<Tile>>> = layers
+                .iter()
+                .map(|&(_, src)| {
+                    quad_keys(src, grid, &p, n)
+                        .iter()
+                        .map(|k| match streamer.cache().get(k) {
+                            Some(t) => Some(t),
+                            None if i == lo && drawn.is_none() => streamer.wait_for(k, wait),
+                            None => None,
+                        })
+                        .collect()
+                })
+                .collect();
+            let Some(quad) = quad else {
+                level_failed = layers.iter().any(|&(_, src)| {
+                    quad_keys(src, grid, &p, n)
+                        .iter()
+                        .any(|k| streamer.cache().is_failed(k))
+                });
+                break;
+            };
+            for (&(height, _), tiles) in layers.iter().zip(&quad) {
+                let todo = self.stale_regions(height, i, &p);
+                for r in &todo {
+                    let bytes = region_from_quad(tiles, &p, *r, n);
+                    uploads.push(Upload::new(height, i, *r, bytes));
+                }
+                filled += u32::from(!todo.is_empty());
+            }
+            self.level_uniforms[i as usize] = level_uniform(&p);
+            drawn = Some((i, p, quad));
+            if deadline.is_some_and(|d| Instant::now() >= d) {
+                break;
+            }
+        }
+        let (hi, ground) = match &drawn {
+            Some((i, p, quad)) => (*i, ground_from_quad(&quad[0], p, n)),
+            None => {
+                // nothing made yet (or the coarsest level failed): the sphere at sea level
+                if let Some(&(i, p, _)) = windows.first() {
+                    self.level_uniforms[i as usize] = level_uniform(&p);
+                }
+                (lo, 0.0)
+            }
+        };
+        // the ground under the camera from the finest level with its heights made, drawn or
+        // not (the same as a full render's once the prefetch is done)
+        let ground = windows
+            .iter()
+            .rev()
+            .filter(|(i, ..)| *i > hi && *i <= sharpest)
+            .find_map(|&(_, p, grid)| {
+                let quad: Option<Vec<Tile>> = quad_keys(sources.height, grid, &p, n)
+                    .iter()
+                    .map(|k| streamer.cache().get(k))
+                    .collect();
+                quad.map(|q| ground_from_quad(&q, &p, n))
+            })
+            .unwrap_or(ground);
+        self.ground_prev = ground;
+        let stats = FrameStats {
+            level_lo: lo,
+            level_hi: hi,
+            level_wanted: wanted,
+            level_sharpest: sharpest,
+            triangles: self.hemi.triangles(lo, hi),
+            levels_filled: filled,
+            level_failed,
+        };
+        let frame = self.frame_uniform(
+            &viewer,
+            camera,
+            (w, h),
+            ground,
+            sources.color.is_some(),
+            stats,
+        );
+        FramePlan {
+            uploads,
+            frame,
+            levels: self.level_uniforms.clone(),
+            stats,
+            ground,
+        }
+    }
+}
+
+/// The uniform of a level placed at `p`.
+pub fn level_uniform(p: &Placement) -> LevelUniform {
+    LevelUniform {
+        viewer_texel: p.viewer_texel.map(|v| v as f32),
+        texels_per_rad: [
+            (1.0 / p.win.texel_lon) as f32,
+            (1.0 / p.win.texel_colat) as f32,
+        ],
+        size: [CLIPMAP_N, CLIPMAP_N],
+        origin: p.origin(CLIPMAP_N),
+    }
+}
+
+/// The quad: the four tiles a window at `p` overlaps (x, x+1) × (y, y+1), row-major.
+pub fn quad_keys(source: u32, grid: GridId, p: &Placement, n: u32) -> [TileKey; 4] {
+    let nn = i64::from(n);
+    let (u, v) = (p.u0.div_euclid(nn) * nn, p.v0.div_euclid(nn) * nn);
+    [
+        TileKey::at(source, grid, u, v, n),
+        TileKey::at(source, grid, u + nn, v, n),
+        TileKey::at(source, grid, u, v + nn, n),
+        TileKey::at(source, grid, u + nn, v + nn, n),
+    ]
+}
+
+/// Which quad tile (0..4) holds window texel (c, r) of a window at `p`.
+fn quad_index(p: &Placement, c: u32, r: u32, n: u32) -> usize {
+    let nn = i64::from(n);
+    let dx = (p.u0 + i64::from(c)).div_euclid(nn) - p.u0.div_euclid(nn);
+    let dy = (p.v0 + i64::from(r)).div_euclid(nn) - p.v0.div_euclid(nn);
+    (dy * 2 + dx) as usize
+}
+
+/// The texture bytes of region `r` from the quad: a region lies within one tile, at the same
+/// offsets (toroidal addressing), so its rows are copied as they are.
+pub fn region_from_quad(quad: &[Tile], p: &Placement, r: Region, n: u32) -> Vec<u8> {
+    let [ox, oy] = p.origin(n);
+    let c = (r.x + n - ox) % n;
+    let row = (r.y + n - oy) % n;
+    let tile = &quad[quad_index(p, c, row, n)];
+    let bytes = tile.texel_bytes();
+    let mut out = Vec::with_capacity((r.w * r.h * 4) as usize);
+    for y in r.y..r.y + r.h {
+        let start = ((y * n + r.x) * 4) as usize;
+        out.extend_from_slice(&bytes[start..start + (r.w * 4) as usize]);
+    }
+    if let TileData::Height(_) = **tile {
+        // nodata that no overlay filled is drawn at sea level
+        for v in out.chunks_exact_mut(4) {
+            if f32::from_ne_bytes([v[0], v[1], v[2], v[3]]).is_nan() {
+                v.copy_from_slice(&0f32.to_ne_bytes());
+            }
+        }
+    }
+    out
+}
+
+/// A height tile's highest height and largest step between neighbouring texels (NaN texels
+/// skipped; colour tiles: no height).
+fn height_top_and_step(tile: &TileData, n: u32) -> (f32, f32) {
+    let TileData::Height(h) = tile else {
+        return (f32::NEG_INFINITY, 0.0);
+    };
+    let n = n as usize;
+    let (mut top, mut step) = (f32::NEG_INFINITY, 0.0f32);
+    for (r, row) in h.chunks_exact(n).enumerate() {
+        for (c, &v) in row.iter().enumerate() {
+            top = top.max(v);
+            if c + 1 < n {
+                step = step.max((row[c + 1] - v).abs());
+            }
+            if r + 1 < n {
+                step = step.max((h[(r + 1) * n + c] - v).abs());
+            }
+        }
+    }
+    (top, step)
+}
+
+/// Height under the viewer, bilinear from a level's height quad.
+pub fn ground_from_quad(quad: &[Tile], p: &Placement, n: u32) -> f64 {
+    let at = |c: i64, r: i64| -> f64 {
+        let (c, r) = (
+            c.clamp(0, i64::from(n) - 1) as u32,
+            r.clamp(0, i64::from(n) - 1) as u32,
+        );
+        let nn = i64::from(n);
+        let (u, v) = (p.u0 + i64::from(c), p.v0 + i64::from(r));
+        let k = (v.rem_euclid(nn) * nn + u.rem_euclid(nn)) as usize;
+        match &*quad[quad_index(p, c, r, n)] {
+            TileData::Height(h) if !h[k].is_nan() => f64::from(h[k]),
+            _ => 0.0,
+        }
+    };
+    at_viewer(p, at)
+}
+
+/// Bilinear interpolation at the viewer of a level placed at `p`, from its window texels
+/// `at(c, r)`: the surface as drawn (the shader interpolates the same four texels).
+fn at_viewer(p: &Placement, mut at: impl FnMut(i64, i64) -> f64) -> f64 {
+    let (x, y) = (p.viewer_texel[0] - 0.5, p.viewer_texel[1] - 0.5);
+    let (x0, y0) = (x.floor(), y.floor());
+    let (fx, fy) = (x - x0, y - y0);
+    let (c, r) = (x0 as i64, y0 as i64);
+    let top = at(c, r) * (1.0 - fx) + at(c + 1, r) * fx;
+    let bottom = at(c, r + 1) * (1.0 - fx) + at(c + 1, r + 1) * fx;
+    top * (1.0 - fy) + bottom * fy
+}
+
+/// View-space (viewer at the north pole, camera at the origin, metres) to clip space: reversed-Z
+/// perspective with an infinite far plane.
+pub fn view_projection(viewer: &Viewer, camera: &Camera, w: u32, h: u32) -> Mat4 {
+    let o = viewer.orient() as f32;
+    let north = Vec3::new(-o, 0.0, 0.0);
+    let east = Vec3::new(0.0, o, 0.0);
+    let up = Vec3::Z;
+    let (hd, pt) = (
+        camera.heading.to_radians() as f32,
+        camera.pitch.to_radians() as f32,
+    );
+    let horiz = north * hd.cos() + east * hd.sin();
+    let forward = horiz * pt.cos() + up * pt.sin();
+    // looking straight down: "up" on screen is the heading
+    let screen_up = if pt.abs() > 1.5 { horiz } else { up };
+    let view = Mat4::look_to_rh(Vec3::ZERO, forward, screen_up);
+    let near = (camera.alt * 0.01).clamp(0.05, 1000.0) as f32;
+    let proj = Mat4::perspective_infinite_reverse_rh(
+        camera.fov.to_radians() as f32,
+        w as f32 / h as f32,
+        near,
+    );
+    proj * view
+}
