@@ -134,6 +134,9 @@ impl Upload {
 pub struct FramePlan {
     /// Texture regions to write, in order.
     pub uploads: Vec<Upload>,
+    /// The tiles this frame wants made, with how soon (posted to the streamer when they changed;
+    /// empty for a frame sampled synchronously).
+    pub tasks: Vec<Task>,
     /// The frame uniform.
     pub frame: FrameUniform,
     /// Every level's uniform (those not drawn keep their last values).
@@ -188,9 +191,7 @@ impl FramePlanner {
     pub fn hemisphere(&self) -> &Hemisphere {
         &self.hemi
     }
-}
 
-impl FramePlanner {
     /// Forgets what the clipmaps hold (a source's parameters changed and its tiles were dropped
     /// from the cache): the next streamed frames ask for the visible tiles again and re-upload
     /// each level as its new tiles arrive.
@@ -334,6 +335,7 @@ impl FramePlanner {
         let frame = self.frame_uniform(&viewer, camera, (w, h), ground, colors.is_some(), stats);
         FramePlan {
             uploads,
+            tasks: Vec::new(),
             frame,
             levels: self.level_uniforms.clone(),
             stats,
@@ -569,6 +571,7 @@ impl FramePlanner {
         );
         FramePlan {
             uploads,
+            tasks: self.last_tasks.clone(),
             frame,
             levels: self.level_uniforms.clone(),
             stats,

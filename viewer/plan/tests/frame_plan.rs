@@ -1,0 +1,243 @@
+//! Frame plans without a GPU: what Alg. 1 (clipmap-data-synthesis §7) asks the workers for and
+//! what it uploads, frame by frame — the visible levels now, the level just out of view and the
+//! next finer as prefetch, the path ahead of a moving camera; every region of a level once and
+//! nothing again while the camera stands still; the coarser level kept when a finer one fails.
+
+use std::time::Duration;
+
+use sc_view_plan::camera::Camera;
+use sc_view_plan::clipmap::CLIPMAP_N;
+use sc_view_plan::frame::{FramePlan, FramePlanner, StreamSources};
+use sc_view_plan::stream::{
+    FnColorTiles, FnHeightTiles, Streamer, Task, Tile, TileData, TileKey, TileSource,
+};
+
+const R: f64 = sc_core::EARTH_RADIUS_M;
+const SIZE: (u32, u32) = (320, 180);
+const SOURCES: StreamSources = StreamSources {
+    height: 0,
+    color: Some(1),
+};
+
+fn mountains(lon: f64, colat: f64) -> f32 {
+    (1500.0 * ((3.0 * lon).sin() + (5.0 * colat).cos())) as f32
+}
+
+fn by_longitude(lon: f64, colat: f64) -> [u8; 4] {
+    [
+        (128.0 + 100.0 * lon.cos()) as u8,
+        (128.0 + 100.0 * colat.cos()) as u8,
+        90,
+        255,
+    ]
+}
+
+fn streamer(heights: Box<dyn TileSource>) -> Streamer {
+    Streamer::new(
+        vec![heights, Box::new(FnColorTiles(by_longitude))],
+        CLIPMAP_N,
+        2,
+        256 << 20,
+    )
+}
+
+fn settle(s: &Streamer) {
+    for _ in 0..20_000 {
+        if s.idle() {
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    panic!("the streamer never went idle");
+}
+
+fn plan(p: &mut FramePlanner, s: &Streamer, camera: &Camera) -> FramePlan {
+    p.plan_streamed(s, SOURCES, camera, SIZE, None, Duration::from_secs(20))
+}
+
+/// Frames until the plan draws every level it wants and the workers are idle.
+fn converge(p: &mut FramePlanner, s: &Streamer, camera: &Camera) -> FramePlan {
+    for _ in 0..50 {
+        let f = plan(p, s, camera);
+        settle(s);
+        let again = plan(p, s, camera);
+        if again.stats.level_hi == again.stats.level_wanted && s.idle() {
+            return again;
+        }
+        assert!(f.stats.level_lo == again.stats.level_lo);
+    }
+    panic!("no convergence");
+}
+
+fn level(t: &Task) -> u32 {
+    t.key.grid.level
+}
+
+#[test]
+fn a_first_frame_asks_for_its_levels_now_and_prefetches_the_finer_ones() {
+    let s = streamer(Box::new(FnHeightTiles(mountains)));
+    let mut p = FramePlanner::new(R);
+    // an aircraft looking ahead: the finest levels' ground lies under it, out of view
+    let camera = Camera::parse("46.5,8.0,6000,90,-5,60").expect("camera");
+    let f = plan(&mut p, &s, &camera);
+    let st = f.stats;
+    assert!(st.level_lo <= st.level_wanted && st.level_wanted <= st.level_sharpest);
+    // now: the four tiles of the quad of every visible level, of both sources
+    let now: Vec<&Task> = f.tasks.iter().filter(|t| !t.prefetch).collect();
+    for i in st.level_lo..=st.level_wanted {
+        for src in [0, 1] {
+            let n = now
+                .iter()
+                .filter(|t| level(t) == i && t.key.source == src)
+                .count();
+            assert_eq!(n, 4, "level {i} source {src}");
+        }
+    }
+    assert!(
+        now.iter()
+            .all(|t| level(t) <= st.level_wanted && t.ahead == 0)
+    );
+    // prefetch: only finer levels (no motion yet, so no path)
+    let later: Vec<&Task> = f.tasks.iter().filter(|t| t.prefetch).collect();
+    assert!(!later.is_empty());
+    assert!(
+        later.iter().all(|t| level(t) > st.level_wanted),
+        "{later:?}"
+    );
+    // only the coarsest level was waited for: it is drawn, every region of it uploaded
+    assert_eq!(st.level_hi, st.level_lo, "{st:?}");
+    let area: u32 = f
+        .uploads
+        .iter()
+        .filter(|u| u.level == st.level_lo)
+        .map(|u| u.region.w * u.region.h)
+        .sum();
+    assert_eq!(
+        area,
+        2 * CLIPMAP_N * CLIPMAP_N,
+        "heights and colours, whole"
+    );
+
+    // once heights are made, the levels whose ground is out of view are left out and the one
+    // just out of view is asked for next frame
+    let f = converge(&mut p, &s, &camera);
+    let st = f.stats;
+    assert!(
+        st.level_wanted < st.level_sharpest,
+        "{st:?}: nothing out of view"
+    );
+    assert!(
+        f.tasks
+            .iter()
+            .all(|t| t.prefetch || level(t) <= st.level_wanted)
+    );
+    let edge: Vec<&Task> = f
+        .tasks
+        .iter()
+        .filter(|t| level(t) == st.level_wanted + 1)
+        .collect();
+    assert_eq!(edge.len(), 8, "the level just out of view, both sources");
+    assert!(edge.iter().all(|t| t.prefetch && t.ahead == 1), "{edge:?}");
+}
+
+#[test]
+fn a_still_camera_uploads_each_region_once_then_nothing() {
+    let s = streamer(Box::new(FnHeightTiles(mountains)));
+    let mut p = FramePlanner::new(R);
+    let camera = Camera::parse("28.0,86.9,9000,200,-10,60").expect("camera");
+    let mut per_level = std::collections::BTreeMap::<(bool, u32), u32>::new();
+    let mut last = None;
+    for _ in 0..50 {
+        let f = plan(&mut p, &s, &camera);
+        for u in &f.uploads {
+            *per_level.entry((u.height, u.level)).or_default() += u.region.w * u.region.h;
+        }
+        settle(&s);
+        let done = f.stats.level_hi == f.stats.level_wanted && s.idle();
+        last = Some(f);
+        if done {
+            break;
+        }
+    }
+    let f = last.expect("frames");
+    assert_eq!(f.stats.level_hi, f.stats.level_wanted, "{:?}", f.stats);
+    for i in f.stats.level_lo..=f.stats.level_hi {
+        for height in [true, false] {
+            assert_eq!(
+                per_level.get(&(height, i)).copied(),
+                Some(CLIPMAP_N * CLIPMAP_N),
+                "level {i} ({}) uploaded once, whole",
+                if height { "heights" } else { "colours" }
+            );
+        }
+    }
+    let again = plan(&mut p, &s, &camera);
+    assert!(again.uploads.is_empty(), "{} uploads", again.uploads.len());
+    assert_eq!(again.frame, f.frame);
+    assert_eq!(again.stats.levels_filled, 0);
+    assert_eq!(
+        (again.stats.level_lo, again.stats.level_hi, again.ground),
+        (f.stats.level_lo, f.stats.level_hi, f.ground)
+    );
+}
+
+#[test]
+fn a_moving_camera_prefetches_its_path_and_refills_only_what_moved() {
+    let s = streamer(Box::new(FnHeightTiles(mountains)));
+    let mut p = FramePlanner::new(R);
+    let mut camera = Camera::parse("10,20,20000,90,-30,60").expect("camera");
+    let first = converge(&mut p, &s, &camera);
+    // east by 2 km a frame
+    camera.lon += 2000.0 / (R * camera.lat.to_radians().cos()) * 180.0 / std::f64::consts::PI;
+    let f = plan(&mut p, &s, &camera);
+    let path: Vec<&Task> = f.tasks.iter().filter(|t| t.ahead > 1).collect();
+    assert!(!path.is_empty(), "no prefetch along the path");
+    // ahead: further east in the tiles of each level than the quads drawn now
+    let east_of_now = path.iter().any(|t| {
+        f.tasks
+            .iter()
+            .filter(|n| !n.prefetch && n.key.grid == t.key.grid)
+            .all(|n| n.key.x != t.key.x)
+    });
+    assert!(
+        east_of_now,
+        "the path prefetch names only tiles already wanted"
+    );
+    // the finest levels' windows moved by texels: only their changed strips are uploaded
+    let area: u32 = f.uploads.iter().map(|u| u.region.w * u.region.h).sum();
+    let levels = f.stats.level_hi - f.stats.level_lo + 1;
+    assert!(
+        area > 0 && area < levels * 2 * CLIPMAP_N * CLIPMAP_N / 2,
+        "{area}"
+    );
+    assert_eq!(first.stats.level_lo, f.stats.level_lo);
+}
+
+/// Heights that fail for grids finer than `max_level` (a store damaged below some level).
+#[derive(Debug)]
+struct FailsBelow(u32);
+
+impl TileSource for FailsBelow {
+    fn make(&self, key: &TileKey, n: u32, i: &[Tile]) -> Result<TileData, String> {
+        if key.grid.level > self.0 {
+            return Err("checksum mismatch".into());
+        }
+        FnHeightTiles(mountains).make(key, n, i)
+    }
+}
+
+#[test]
+fn a_failed_level_leaves_the_coarser_one_drawn_and_says_so() {
+    let s = streamer(Box::new(FailsBelow(9)));
+    let mut p = FramePlanner::new(R);
+    let camera = Camera::parse("28.0,86.9,2000,200,-10,60").expect("camera");
+    let mut f = plan(&mut p, &s, &camera);
+    for _ in 0..10 {
+        settle(&s);
+        f = plan(&mut p, &s, &camera);
+    }
+    assert!(f.stats.level_wanted > 9, "{:?}", f.stats);
+    assert_eq!(f.stats.level_hi, 9, "{:?}", f.stats);
+    assert!(f.stats.level_failed, "{:?}", f.stats);
+    assert_eq!(f.frame.level_hi, 9);
+}
