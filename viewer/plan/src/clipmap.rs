@@ -5,7 +5,7 @@
 //! rounded up to 2π/2^k (the whole circle once the level reaches a pole), so a small move of the
 //! viewer does not change the texel size. Texels are sampled from the store level whose spacing
 //! is the finest not finer than the clipmap's texel (bilinear; beyond a pole the row continues at
-//! longitude + 180°). Issue 7 replaces the synchronous fill with threaded, toroidal updates.
+//! longitude + 180°).
 
 use std::collections::HashMap;
 use std::f64::consts::PI;
