@@ -2,13 +2,9 @@
 
 use std::path::Path;
 
-/// The `p`-th percentile (0..=100) of `sorted` samples, nearest rank.
-pub fn percentile(sorted: &[f64], p: f64) -> f64 {
-    if sorted.is_empty() {
-        return f64::NAN;
-    }
-    let rank = ((p / 100.0) * sorted.len() as f64).ceil() as usize;
-    sorted[rank.clamp(1, sorted.len()) - 1]
+/// The `p`-th percentile (0..=100) of `samples`, nearest rank ([`sc_core::stats::percentile`]).
+pub fn percentile(samples: &[f64], p: f64) -> f64 {
+    sc_core::stats::percentile(samples, p / 100.0)
 }
 
 /// A north-up raw little-endian f32 raster (as `gdal_translate -of ENVI -ot Float32` writes).

@@ -15,6 +15,7 @@ mod level;
 pub mod pyramid;
 pub mod reference;
 pub mod signal;
+pub mod stats;
 mod tile;
 
 pub use grid::{GeoRect, GridSpec, LonLat, TexelPos};

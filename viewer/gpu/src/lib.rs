@@ -2,6 +2,7 @@
 //! that uploads and draws the frames `sc_view_plan` plans, the headless renderer and its
 //! read-back, device setup, the map-transform probe, and the WGSL of `shaders/`.
 
+pub mod flight;
 pub mod probe;
 pub mod render;
 

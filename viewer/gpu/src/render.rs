@@ -585,6 +585,11 @@ impl Renderer {
         })
     }
 
+    /// The image size, pixels.
+    pub fn size(&self) -> (u32, u32) {
+        self.size
+    }
+
     /// The clipmap pass (debug toggles, memory).
     pub fn pass_mut(&mut self) -> &mut ClipmapPass {
         &mut self.pass

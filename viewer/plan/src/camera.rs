@@ -14,6 +14,10 @@
 
 use glam::DVec3;
 
+/// Moves the camera instead of the user: given the seconds since the last frame, the camera for
+/// this frame, or `None` when the script is over (a window closes).
+pub type CameraScript = Box<dyn FnMut(f64) -> Option<Camera>>;
+
 /// A camera description that does not parse or is out of range.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error("{0}")]

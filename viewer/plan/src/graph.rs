@@ -53,7 +53,7 @@ use serde::Deserialize;
 
 use crate::frame::StreamSources;
 use crate::stream::{
-    FnHeightTiles, StoreColorTiles, StoreHeightTiles, Tile, TileData, TileKey, TileSource,
+    FnHeightTiles, StoreColorTiles, StoreHeightTiles, Streamer, Tile, TileData, TileKey, TileSource,
 };
 
 /// The settings of a colour filter.
@@ -278,6 +278,71 @@ pub struct Graph {
     pub warnings: Vec<String>,
 }
 
+/// A graph that cannot be made: the file, the store or the declaration that is wrong, in words.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{0}")]
+pub struct GraphError(String);
+
+/// The tile cache budget of a viewer's streamer, bytes.
+pub const TILE_CACHE_BUDGET: usize = 192 << 20;
+
+/// Worker threads of a viewer's streamer: one per core but one (the render thread's);
+/// `SPHERECLIP_WORKERS=N` (1..64) overrides it.
+pub fn default_workers() -> usize {
+    if let Some(n) = std::env::var("SPHERECLIP_WORKERS")
+        .ok()
+        .and_then(|v| v.parse::<usize>().ok())
+        .filter(|n| (1..=64).contains(n))
+    {
+        return n;
+    }
+    std::thread::available_parallelism()
+        .map(|n| n.get().saturating_sub(1))
+        .unwrap_or(1)
+        .max(1)
+}
+
+/// A store's graph streaming: the streamer, which of its sources feed the clipmaps, the planet's
+/// radius, the filters a panel adjusts, and what to warn about.
+#[derive(Debug)]
+pub struct StoreStreamer {
+    /// Tiles made by [`default_workers`] threads within [`TILE_CACHE_BUDGET`].
+    pub streamer: Streamer,
+    /// The sources of the height and colour clipmaps.
+    pub sources: StreamSources,
+    /// Metres.
+    pub radius: f64,
+    /// The colour filters.
+    pub filters: Vec<FilterHandle>,
+    /// Warnings made while loading (incomplete stores, missing layers).
+    pub warnings: Vec<String>,
+}
+
+/// Streams the image-source graph of `store`: the one in `graph_file` (TOML), else the
+/// `STEM.sources.toml` beside the store, else the default (heights, colours through a neutral
+/// filter).
+pub fn store_streamer(
+    store: &Path,
+    graph_file: Option<&Path>,
+) -> Result<StoreStreamer, GraphError> {
+    let graph = match graph_file.map(PathBuf::from).or_else(|| beside(store)) {
+        Some(file) => Graph::load(&file)?,
+        None => Graph::for_store(store)?,
+    };
+    Ok(StoreStreamer {
+        streamer: Streamer::new(
+            graph.sources,
+            crate::clipmap::CLIPMAP_N,
+            default_workers(),
+            TILE_CACHE_BUDGET,
+        ),
+        sources: graph.clipmaps,
+        radius: graph.radius,
+        filters: graph.filters,
+        warnings: graph.warnings,
+    })
+}
+
 /// Most sources a graph may declare.
 pub const MAX_SOURCES: usize = 64;
 
@@ -311,9 +376,9 @@ impl Graph {
 
     /// The default graph of `store`: its heights (a smooth sphere if it has none) and its
     /// colours through a neutral filter.
-    pub fn for_store(store: &Path) -> Result<Self, String> {
+    pub fn for_store(store: &Path) -> Result<Self, GraphError> {
         let mut warnings = Vec::new();
-        let reader = open(store, &mut warnings)?;
+        let reader = open(store, &mut warnings).map_err(GraphError)?;
         let meta = reader.meta();
         let radius = meta.radius_m;
         let has = |k| !meta.levels(k).is_empty();
@@ -351,13 +416,13 @@ impl Graph {
     }
 
     /// The graph declared in the TOML file `path` (store paths relative to it).
-    pub fn load(path: &Path) -> Result<Self, String> {
+    pub fn load(path: &Path) -> Result<Self, GraphError> {
         let text = std::fs::read_to_string(path)
-            .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+            .map_err(|e| GraphError(format!("cannot read {}: {e}", path.display())))?;
         let file: File = toml::from_str(&text)
-            .map_err(|e| format!("{}: {}", path.display(), e.message().trim()))?;
+            .map_err(|e| GraphError(format!("{}: {}", path.display(), e.message().trim())))?;
         let here = path.parent().unwrap_or(Path::new("."));
-        Self::build(file, here).map_err(|e| format!("{}: {e}", path.display()))
+        Self::build(file, here).map_err(|e| GraphError(format!("{}: {e}", path.display())))
     }
 
     fn build(file: File, here: &Path) -> Result<Self, String> {

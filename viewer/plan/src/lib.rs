@@ -6,6 +6,7 @@
 
 pub mod camera;
 pub mod clipmap;
+pub mod flight;
 pub mod frame;
 pub mod geometry;
 pub mod graph;

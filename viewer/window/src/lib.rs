@@ -17,17 +17,13 @@ use winit::window::{Window, WindowId};
 use sc_view_gpu::render::{
     ClipmapPass, ImageReadback, RenderError, SPACE, begin_pass, depth_target, device_for,
 };
-use sc_view_plan::camera::{Camera, Controller, Input, Mode};
+use sc_view_plan::camera::{Camera, CameraScript, Controller, Input, Mode};
 use sc_view_plan::frame::{FrameStats, StreamSources};
 use sc_view_plan::graph::{FilterHandle, FilterParams};
 use sc_view_plan::stream::Streamer;
 
 /// How long a frame may spend updating clipmap levels before it draws what it has (Alg. 1).
 const UPDATE_BUDGET: std::time::Duration = std::time::Duration::from_millis(12);
-
-/// Moves the camera instead of the user: given the seconds since the last frame, the camera for
-/// this frame, or `None` when the script is over (the window closes).
-pub type CameraScript = Box<dyn FnMut(f64) -> Option<Camera>>;
 
 /// What `sphereclip view` asks for.
 pub struct ViewOptions {

@@ -3,6 +3,7 @@
 //! GDAL users, inspect the pyramid's quality near the poles. It grows with each capability
 //! (render/view next).
 
+use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -12,7 +13,9 @@ use sc_ingest::{Input, LevelChoice, Settings};
 use sc_raster::SourceOptions;
 use sc_store::{LayerKind, StoreConfig, StoreReader};
 
-use crate::cli::DemoArgs;
+use clap::Parser;
+
+use crate::cli::{Cli, DemoArgs};
 use crate::progress::Progress;
 
 fn ingest(store: &Path, layer: LayerKind, level: LevelChoice, inputs: Vec<Input>) -> Result<()> {
@@ -78,6 +81,13 @@ pub fn run(a: &DemoArgs) -> Result<ExitCode> {
         .with_context(|| format!("cannot create {}", a.out.display()))?;
     let store: PathBuf = a.out.join("planet.zarr");
     if store.exists() {
+        // only a store (made by an earlier demo) is replaced, never anything else
+        StoreReader::open(&store).with_context(|| {
+            format!(
+                "{} exists and is not a sphereclip store; choose another --out",
+                store.display()
+            )
+        })?;
         std::fs::remove_dir_all(&store)
             .with_context(|| format!("cannot replace {}", store.display()))?;
     }
@@ -129,32 +139,34 @@ pub fn run(a: &DemoArgs) -> Result<ExitCode> {
     println!("geotiff: {}", color.display());
     // quality near the poles of the heights' global levels
     let report = a.out.join("inspect");
-    let o = std::process::Command::new(std::env::current_exe()?)
-        .args(["inspect"])
-        .arg(&store)
-        .args(["--levels", "0", "1", "2", "3", "--out"])
-        .arg(&report)
-        .status()
-        .context("cannot run inspect")?;
-    if !o.success() {
-        bail!("inspect failed on {}", store.display());
-    }
+    step(&[
+        "inspect".as_ref(),
+        store.as_os_str(),
+        "--levels".as_ref(),
+        "0".as_ref(),
+        "1".as_ref(),
+        "2".as_ref(),
+        "3".as_ref(),
+        "--out".as_ref(),
+        report.as_os_str(),
+    ])?;
     // the golden views, headless
     let views = a.out.join("views");
     std::fs::create_dir_all(&views)
         .with_context(|| format!("cannot create {}", views.display()))?;
     for (name, cam) in sc_view_plan::camera::GOLDEN_VIEWS {
         let out = views.join(format!("{name}.png"));
-        let o = std::process::Command::new(std::env::current_exe()?)
-            .arg("render")
-            .arg(&store)
-            .args(["--camera", cam, "--size", "960x540", "--out"])
-            .arg(&out)
-            .status()
-            .context("cannot run render")?;
-        if !o.success() {
-            bail!("render failed for the {name} view of {}", store.display());
-        }
+        step(&[
+            "render".as_ref(),
+            store.as_os_str(),
+            "--camera".as_ref(),
+            cam.as_ref(),
+            "--size".as_ref(),
+            "960x540".as_ref(),
+            "--out".as_ref(),
+            out.as_os_str(),
+        ])
+        .with_context(|| format!("the {name} view"))?;
         println!("view:    {}", out.display());
     }
     let display = ["DISPLAY", "WAYLAND_DISPLAY"]
@@ -169,13 +181,17 @@ pub fn run(a: &DemoArgs) -> Result<ExitCode> {
         return Ok(ExitCode::SUCCESS);
     }
     eprintln!("demo: opening the viewer (drag, W/A/S/D, wheel; 1/2/3 orbit/fly/walk; Esc quits)");
-    let o = std::process::Command::new(std::env::current_exe()?)
-        .arg("view")
-        .arg(&store)
-        .status()
-        .context("cannot run view")?;
-    if !o.success() {
-        bail!("the viewer failed on {}", store.display());
-    }
+    step(&["view".as_ref(), store.as_os_str()])?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// Runs another subcommand in this process, as if given on the command line.
+fn step(args: &[&OsStr]) -> Result<()> {
+    let cli =
+        Cli::try_parse_from(std::iter::once(OsStr::new("sphereclip")).chain(args.iter().copied()))?;
+    let code = crate::cmd::run(cli)?;
+    if code != ExitCode::SUCCESS {
+        bail!("{} failed", args[0].to_string_lossy());
+    }
+    Ok(())
 }

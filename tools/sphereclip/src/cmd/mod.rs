@@ -12,7 +12,7 @@ mod view;
 
 use std::process::ExitCode;
 
-use anyhow::Result;
+use anyhow::{Result, bail};
 
 use crate::cli::{Cli, Command};
 
@@ -34,4 +34,33 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
 pub fn parse_layer(name: &str) -> Result<sc_store::LayerKind> {
     sc_store::LayerKind::from_name(name)
         .ok_or_else(|| anyhow::anyhow!("unknown layer `{name}` (expected one of: height, color)"))
+}
+
+/// `WxH` within 16..8192 a side.
+pub fn parse_size(s: &str) -> Result<(u32, u32)> {
+    let (w, h) = s
+        .split_once('x')
+        .ok_or_else(|| anyhow::anyhow!("--size: expected WxH, found `{s}`"))?;
+    let p = |v: &str| {
+        v.trim()
+            .parse::<u32>()
+            .map_err(|_| anyhow::anyhow!("--size: expected WxH, found `{s}`"))
+    };
+    let (w, h) = (p(w)?, p(h)?);
+    if !(16..=8192).contains(&w) || !(16..=8192).contains(&h) {
+        bail!("image size {w}x{h} is outside 16..8192 a side");
+    }
+    Ok((w, h))
+}
+
+/// The store's streamer ([`sc_view_plan::graph::store_streamer`]), its warnings printed.
+pub fn streamer_for(
+    store: &std::path::Path,
+    graph_file: Option<&std::path::Path>,
+) -> Result<sc_view_plan::graph::StoreStreamer> {
+    let s = sc_view_plan::graph::store_streamer(store, graph_file)?;
+    for w in &s.warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok(s)
 }

@@ -7,41 +7,10 @@ use anyhow::{Context, Result, bail};
 use sc_view_gpu::render::Renderer;
 use sc_view_plan::camera::Camera;
 
-use super::view::store_streamer;
+use sc_core::stats::{median, percentile};
 
+use super::{parse_size, streamer_for};
 use crate::cli::RenderArgs;
-
-/// `WxH` within 16..8192 a side.
-pub fn parse_size(s: &str) -> Result<(u32, u32)> {
-    let (w, h) = s
-        .split_once('x')
-        .ok_or_else(|| anyhow::anyhow!("--size: expected WxH, found `{s}`"))?;
-    let p = |v: &str| {
-        v.trim()
-            .parse::<u32>()
-            .map_err(|_| anyhow::anyhow!("--size: expected WxH, found `{s}`"))
-    };
-    let (w, h) = (p(w)?, p(h)?);
-    if !(16..=8192).contains(&w) || !(16..=8192).contains(&h) {
-        bail!("image size {w}x{h} is outside 16..8192 a side");
-    }
-    Ok((w, h))
-}
-
-/// Median of `v` (0 when empty).
-pub fn median(v: &[f64]) -> f64 {
-    percentile(v, 0.5)
-}
-
-/// The `q` quantile of `v` (nearest rank; 0 when empty).
-pub fn percentile(v: &[f64], q: f64) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    let mut s = v.to_vec();
-    s.sort_by(f64::total_cmp);
-    s[((s.len() - 1) as f64 * q).round() as usize]
-}
 
 /// Runs `render`.
 pub fn run(a: &RenderArgs) -> Result<ExitCode> {
@@ -71,7 +40,12 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
     if !(1..=10_000).contains(&a.frames) {
         bail!("--frames must be 1..10000, found {}", a.frames);
     }
-    let (streamer, sources, radius, _) = store_streamer(&a.store, a.sources.as_deref())?;
+    let sc_view_plan::graph::StoreStreamer {
+        streamer,
+        sources,
+        radius,
+        ..
+    } = streamer_for(&a.store, a.sources.as_deref())?;
     let mut r = Renderer::headless(w, h, radius)?;
     if let Some(c) = &a.clear {
         let v: Vec<f64> = c

@@ -4,61 +4,14 @@
 use std::process::ExitCode;
 
 use anyhow::{Context, Result};
+use sc_core::stats::{median, percentile};
 use sc_view_plan::camera::Camera;
-use sc_view_plan::clipmap::CLIPMAP_N;
-use sc_view_plan::frame::StreamSources;
-use sc_view_plan::graph::{self, FilterHandle, Graph};
-use sc_view_plan::stream::Streamer;
+use sc_view_plan::flight;
+use sc_view_plan::graph::StoreStreamer;
 use sc_view_window::{ViewOptions, view};
 
-use super::render::{median, parse_size, percentile};
+use super::{parse_size, streamer_for};
 use crate::cli::ViewArgs;
-
-/// Memory the viewer's tile cache is pruned to.
-pub const TILE_CACHE_BUDGET: usize = 192 << 20;
-
-/// Worker threads: one per core but one (the render thread's); `SPHERECLIP_WORKERS=N` (1..64)
-/// overrides it.
-pub fn default_workers() -> usize {
-    if let Some(n) = std::env::var("SPHERECLIP_WORKERS")
-        .ok()
-        .and_then(|v| v.parse::<usize>().ok())
-        .filter(|n| (1..=64).contains(n))
-    {
-        return n;
-    }
-    std::thread::available_parallelism()
-        .map(|n| n.get().saturating_sub(1))
-        .unwrap_or(1)
-        .max(1)
-}
-
-/// A streamer over the image-source graph of `store`: the one in `sources` (TOML), else the
-/// `STEM.sources.toml` beside the store, else the default (heights, colours through a neutral
-/// filter); and the planet's radius and the graph's filters.
-pub fn store_streamer(
-    store: &std::path::Path,
-    sources: Option<&std::path::Path>,
-) -> Result<(Streamer, StreamSources, f64, Vec<FilterHandle>)> {
-    let graph = match sources
-        .map(std::path::PathBuf::from)
-        .or_else(|| graph::beside(store))
-    {
-        Some(file) => Graph::load(&file).map_err(|e| anyhow::anyhow!(e))?,
-        None => Graph::for_store(store).map_err(|e| anyhow::anyhow!(e))?,
-    };
-    for w in &graph.warnings {
-        eprintln!("warning: {w}");
-    }
-    let (clipmaps, radius, filters) = (graph.clipmaps, graph.radius, graph.filters);
-    let streamer = Streamer::new(
-        graph.sources,
-        CLIPMAP_N,
-        default_workers(),
-        TILE_CACHE_BUDGET,
-    );
-    Ok((streamer, clipmaps, radius, filters))
-}
 
 /// Runs `view`.
 pub fn run(a: &ViewArgs) -> Result<ExitCode> {
@@ -74,8 +27,14 @@ pub fn run(a: &ViewArgs) -> Result<ExitCode> {
     {
         anyhow::bail!("--screenshot is a folder, not a PNG file: {}", p.display());
     }
-    let flight = a.flight.as_deref().map(super::flight::parse).transpose()?;
-    let (streamer, sources, radius, filters) = store_streamer(&a.store, a.sources.as_deref())?;
+    let flight = a.flight.as_deref().map(flight::parse).transpose()?;
+    let StoreStreamer {
+        streamer,
+        sources,
+        radius,
+        filters,
+        ..
+    } = streamer_for(&a.store, a.sources.as_deref())?;
     if !["DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET"]
         .iter()
         .any(|v| std::env::var_os(v).is_some_and(|x| !x.is_empty()))
@@ -96,7 +55,7 @@ pub fn run(a: &ViewArgs) -> Result<ExitCode> {
             screenshot: a.screenshot.clone(),
             title,
             filters,
-            script: flight.map(|f| super::flight::script(f, radius)),
+            script: flight.map(|f| flight::script(f, radius)),
         },
     )?;
     if a.frames.is_some() || a.flight.is_some() {
