@@ -18,7 +18,7 @@ mod rows;
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
-use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 use sc_core::pyramid::{LevelFilter, RowReader, halve, halve_needs};
@@ -58,6 +58,9 @@ pub enum BuildError {
         /// The file.
         path: PathBuf,
     },
+    /// A worker thread panicked (a bug: please report it with the command).
+    #[error("a build worker panicked")]
+    WorkerPanicked,
 }
 
 /// Result of the builder.
@@ -473,19 +476,6 @@ fn own_fingerprint(path: &Path) -> Result<String> {
     Fingerprints::default().of(path)
 }
 
-/// `SOURCE_DATE_EPOCH` when set (reproducible builds), else now.
-fn unix_now() -> u64 {
-    std::env::var("SOURCE_DATE_EPOCH")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or_else(|| {
-            std::time::SystemTime::now()
-                .duration_since(std::time::UNIX_EPOCH)
-                .map(|d| d.as_secs())
-                .unwrap_or(0)
-        })
-}
-
 /// Runs the plan on the store open in `writer`. `on_shard(done, total)` reports progress.
 ///
 /// A build stopped by damaged data leaves a store that was complete complete again: every shard
@@ -554,8 +544,6 @@ fn run_steps(
             StepKind::Filter => (step.out.level + 1, stored_src(step.out.level + 1)),
             StepKind::Halve => (step.out.level, stored_src(step.out.level)),
         };
-        let next = AtomicUsize::new(0);
-        let failed = AtomicBool::new(false);
         let counts = Mutex::new((0u64, 0u64, 0u64, 0u64)); // written, skipped, empty, texels
         let repairs = Mutex::new((0u64, Vec::new())); // shards repaired, tiles lost
         let base_reader = &reader;
@@ -635,40 +623,16 @@ fn run_steps(
             on_shard(done.fetch_add(1, Ordering::Relaxed) + 1, total);
             Ok(())
         };
-        let workers = threads.clamp(1, step.shards.len().max(1));
         // polar shards cost most: start them first (bytes do not depend on the order)
         let mut order = step.shards.clone();
         let ny = ShardId::counts(plan.grid, step.out, plan.shard_tiles).1;
         order.sort_by_key(|s| (s.y.min(ny - 1 - s.y), s.y, s.x));
-        let results: Vec<Result<()>> = std::thread::scope(|scope| {
-            let handles: Vec<_> = (0..workers)
-                .map(|_| {
-                    scope.spawn(|| -> Result<()> {
-                        loop {
-                            let k = next.fetch_add(1, Ordering::Relaxed);
-                            if k >= order.len() || failed.load(Ordering::Relaxed) {
-                                return Ok(());
-                            }
-                            if let Err(e) = do_shard(order[k]) {
-                                failed.store(true, Ordering::Relaxed);
-                                return Err(e);
-                            }
-                        }
-                    })
-                })
-                .collect();
-            handles
-                .into_iter()
-                .map(|h| {
-                    h.join().unwrap_or_else(|_| {
-                        Err(BuildError::Usage("a build worker panicked".into()))
-                    })
-                })
-                .collect()
-        });
-        for r in results {
-            r?;
-        }
+        sc_core::workers::run(order.len(), threads, || Ok(()), |_, k| do_shard(order[k])).map_err(
+            |e| match e {
+                sc_core::workers::Stopped::Failed(e) => e,
+                sc_core::workers::Stopped::Panicked => BuildError::WorkerPanicked,
+            },
+        )?;
         let c = counts.into_inner().unwrap_or_else(|e| e.into_inner());
         summary.shards_written += c.0;
         summary.shards_skipped += c.1;
@@ -686,7 +650,7 @@ fn run_steps(
     let record = BuildRecord {
         step: "build".into(),
         tool: format!("sphereclip {}", env!("CARGO_PKG_VERSION")),
-        unix_time_s: unix_now(),
+        unix_time_s: sc_store::unix_now(),
         inputs: Vec::new(),
         settings: serde_json::json!({
             "builder": BUILDER,

@@ -17,6 +17,7 @@ pub mod reference;
 pub mod signal;
 pub mod stats;
 mod tile;
+pub mod workers;
 
 pub use grid::{GeoRect, GridSpec, LonLat, TexelPos};
 pub use kernel::{Footprint, Kernel, KernelLut};

@@ -40,7 +40,8 @@ pub const HALVE_R: i64 = 6;
 /// Half-width of the Lanczos3 interpolator in coarse samples (6 taps).
 const UP_R: i64 = 3;
 
-/// Fraction of a footprint's weight that must fall on valid samples for a valid height.
+/// Fraction of a footprint's positive weight that must fall on valid samples for a valid texel:
+/// the one nodata rule of ingest and of the pyramid.
 pub const MIN_COVERAGE: f64 = 0.5;
 
 /// A window of a periodic row of `n` samples: `ch` channels of premultiplied values and the

@@ -10,7 +10,9 @@ use std::sync::Mutex;
 use sc_core::{LevelId, ShardId};
 use sc_store::LayerKind;
 
-use crate::{IngestError, Result, unix_now};
+use sc_store::unix_now;
+
+use crate::{IngestError, Result};
 
 /// A durable shard's value range: (layer, level, (min, max)).
 pub(crate) type ShardRange = (LayerKind, LevelId, (f64, f64));

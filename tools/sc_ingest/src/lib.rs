@@ -53,6 +53,9 @@ pub enum IngestError {
         /// The file.
         path: PathBuf,
     },
+    /// A worker thread panicked (a bug: please report it with the command).
+    #[error("an ingest worker panicked")]
+    WorkerPanicked,
 }
 
 /// Result of ingest.
@@ -295,19 +298,6 @@ pub fn plan(
     })
 }
 
-/// Unix seconds now, or `SOURCE_DATE_EPOCH` when set (reproducible stores).
-pub fn unix_now() -> u64 {
-    std::env::var("SOURCE_DATE_EPOCH")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or_else(|| {
-            std::time::SystemTime::now()
-                .duration_since(std::time::UNIX_EPOCH)
-                .map(|d| d.as_secs())
-                .unwrap_or(0)
-        })
-}
-
 /// Writes the plan into the store at `root` (created if missing). `on_shard(done, total)` reports
 /// progress. Resumes an interrupted run of the same plan.
 pub fn run(root: &Path, plan: &Plan, on_shard: &(dyn Fn(u64, u64) + Sync)) -> Result<Summary> {
@@ -416,8 +406,6 @@ fn write_all(
             })
             .collect()
     };
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    let failed = std::sync::atomic::AtomicBool::new(false);
     let do_shard = |sources: &[RasterSource],
                     shard: &ShardId,
                     tiles: &BTreeMap<TileId, Vec<usize>>|
@@ -439,42 +427,15 @@ fn write_all(
     };
     // one worker thread per core, each with its own GDAL handles (opened once: opening a gzipped
     // NetCDF costs seconds), taking shards in plan order
-    let workers = rayon::current_num_threads().clamp(1, todo.len().max(1));
-    let results: Vec<Result<()>> = std::thread::scope(|scope| {
-        let handles: Vec<_> = (0..workers)
-            .map(|_| {
-                scope.spawn(|| -> Result<()> {
-                    let mut sources: Option<Vec<RasterSource>> = None;
-                    loop {
-                        let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                        if k >= todo.len() || failed.load(std::sync::atomic::Ordering::Relaxed) {
-                            return Ok(());
-                        }
-                        if sources.is_none() {
-                            sources = Some(open_set()?);
-                        }
-                        let (shard, tiles) = todo[k];
-                        if let Err(e) =
-                            do_shard(sources.as_deref().unwrap_or_default(), shard, tiles)
-                        {
-                            failed.store(true, std::sync::atomic::Ordering::Relaxed);
-                            return Err(e);
-                        }
-                    }
-                })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .map(|h| {
-                h.join()
-                    .unwrap_or_else(|_| Err(IngestError::Usage("an ingest worker panicked".into())))
-            })
-            .collect()
-    });
-    for r in results {
-        r?;
-    }
+    let workers = rayon::current_num_threads();
+    sc_core::workers::run(todo.len(), workers, open_set, |sources, k| {
+        let (shard, tiles) = todo[k];
+        do_shard(sources, shard, tiles)
+    })
+    .map_err(|e| match e {
+        sc_core::workers::Stopped::Failed(e) => e,
+        sc_core::workers::Stopped::Panicked => IngestError::WorkerPanicked,
+    })?;
     let record = BuildRecord {
         step: "ingest".into(),
         tool: format!("sphereclip {}", env!("CARGO_PKG_VERSION")),

@@ -4,13 +4,11 @@
 //!
 //! Nodata never bleeds: invalid samples get zero weight and the rest are renormalised. An output
 //! texel is nodata where the valid samples carry less than [`MIN_COVERAGE`] of the footprint's
-//! positive weight (samples outside the raster count as invalid).
+//! positive weight (samples outside the raster count as invalid) — the pyramid's rule.
 
+use sc_core::pyramid::MIN_COVERAGE;
 use sc_core::{Footprint, GridSpec, Kernel, KernelLut, TileId};
 use sc_raster::{RasterSource, Result, SourceInfo, Window};
-
-/// Fraction of the footprint's positive weight that valid samples must carry.
-pub const MIN_COVERAGE: f64 = 0.5;
 
 /// Resampled samples of one source for one tile: `planes[p][k]` for texel k (row-major), NaN in
 /// plane 0 where the source has nothing.

@@ -22,7 +22,7 @@ mod writer;
 use std::path::PathBuf;
 
 pub use meta::{
-    BuildRecord, FORMAT_MAJOR, FORMAT_MINOR, InputRecord, LayerMeta, LevelMeta, StoreMeta,
+    BuildRecord, FORMAT_MAJOR, FORMAT_MINOR, InputRecord, LayerMeta, LevelMeta, StoreMeta, unix_now,
 };
 pub use reader::{StoreReader, TileRead};
 pub use sample::{LayerKind, TileSample};

@@ -55,6 +55,20 @@ pub struct LevelMeta {
     pub value_range: Option<(f64, f64)>,
 }
 
+/// The time a provenance record carries: `SOURCE_DATE_EPOCH` when set (reproducible stores),
+/// else now, Unix seconds.
+pub fn unix_now() -> u64 {
+    std::env::var("SOURCE_DATE_EPOCH")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| {
+            std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map(|d| d.as_secs())
+                .unwrap_or(0)
+        })
+}
+
 /// One step that wrote into the store.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct BuildRecord {
