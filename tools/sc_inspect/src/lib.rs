@@ -136,14 +136,46 @@ fn slug(s: &str) -> String {
         .collect()
 }
 
-fn write(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    std::fs::write(path, bytes)
-        .map_err(|e| std::io::Error::new(e.kind(), format!("{e} ({})", path.display())))
+/// Errors of a report; one line each, path last.
+#[derive(Debug, thiserror::Error)]
+pub enum InspectError {
+    /// A file or folder of the report could not be written.
+    #[error("{source} ({})", path.display())]
+    Io {
+        /// The OS error.
+        source: std::io::Error,
+        /// The file.
+        path: PathBuf,
+    },
+    /// A picture could not be encoded or written.
+    #[error("{source} ({})", path.display())]
+    Image {
+        /// The encoder's error.
+        source: image::ImageError,
+        /// The file.
+        path: PathBuf,
+    },
+    /// The output folder is a file.
+    #[error("the output folder is a file: {}", .0.display())]
+    OutputIsFile(PathBuf),
 }
 
-fn save_png(img: &image::RgbImage, path: &Path) -> std::io::Result<()> {
-    img.save(path)
-        .map_err(|e| std::io::Error::other(format!("{e} ({})", path.display())))
+fn io_err(path: &Path) -> impl Fn(std::io::Error) -> InspectError + '_ {
+    move |source| InspectError::Io {
+        source,
+        path: path.to_path_buf(),
+    }
+}
+
+fn write(path: &Path, bytes: &[u8]) -> Result<(), InspectError> {
+    std::fs::write(path, bytes).map_err(io_err(path))
+}
+
+fn save_png(img: &image::RgbImage, path: &Path) -> Result<(), InspectError> {
+    img.save(path).map_err(|source| InspectError::Image {
+        source,
+        path: path.to_path_buf(),
+    })
 }
 
 /// Measures every level, writes pictures, plots, `report.json` and `index.html` into `out`
@@ -154,16 +186,12 @@ pub fn write_report(
     levels: &[LevelInput],
     test_signal: Vec<SignalTable>,
     opts: &ReportOptions,
-) -> std::io::Result<Report> {
+) -> Result<Report, InspectError> {
     let start = std::time::Instant::now();
     if out.exists() && !out.is_dir() {
-        return Err(std::io::Error::other(format!(
-            "the output folder is a file: {}",
-            out.display()
-        )));
+        return Err(InspectError::OutputIsFile(out.to_path_buf()));
     }
-    std::fs::create_dir_all(out)
-        .map_err(|e| std::io::Error::new(e.kind(), format!("{e} ({})", out.display())))?;
+    std::fs::create_dir_all(out).map_err(io_err(out))?;
     let mut reports = Vec::new();
     for l in levels {
         let view = LevelView {
@@ -248,7 +276,8 @@ pub fn write_report(
         plots,
         seconds: start.elapsed().as_secs_f64(),
     };
-    let json = serde_json::to_vec_pretty(&report).map_err(std::io::Error::other)?;
+    let json = serde_json::to_vec_pretty(&report)
+        .map_err(|e| io_err(&out.join("report.json"))(std::io::Error::other(e)))?;
     write(&out.join("report.json"), &json)?;
     write(&out.join("index.html"), html(&report).as_bytes())?;
     Ok(report)
@@ -262,7 +291,7 @@ fn write_plots(
     out: &Path,
     levels: &[LevelReport],
     tables: &[SignalTable],
-) -> std::io::Result<Vec<String>> {
+) -> Result<Vec<String>, InspectError> {
     let mut files = Vec::new();
     let per_level = |f: &dyn Fn(&BandMetrics) -> f64| -> Vec<Series> {
         levels

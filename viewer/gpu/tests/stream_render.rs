@@ -13,7 +13,7 @@ use sc_view_plan::camera::Camera;
 use sc_view_plan::clipmap::{CLIPMAP_N, ColorSource, HeightSource, LevelWindow};
 use sc_view_plan::frame::StreamSources;
 use sc_view_plan::stream::{
-    FnColorTiles, FnHeightTiles, Streamer, Tile, TileData, TileKey, TileSource,
+    FnColorTiles, FnHeightTiles, Streamer, Tile, TileData, TileError, TileKey, TileSource,
 };
 
 const R: f64 = sc_core::EARTH_RADIUS_M;
@@ -145,7 +145,7 @@ fn a_still_camera_converges_to_the_synchronous_render() {
 struct Closable(Arc<AtomicBool>);
 
 impl TileSource for Closable {
-    fn make(&self, key: &TileKey, n: u32, i: &[Tile]) -> Result<TileData, String> {
+    fn make(&self, key: &TileKey, n: u32, i: &[Tile]) -> Result<TileData, TileError> {
         if self.0.load(Ordering::SeqCst) {
             return Err("the store went away".into());
         }
@@ -203,7 +203,7 @@ fn levels_out_of_view_are_prefetched_so_looking_down_shows_them_at_once() {
 struct FailsBelow(u32);
 
 impl TileSource for FailsBelow {
-    fn make(&self, key: &TileKey, n: u32, i: &[Tile]) -> Result<TileData, String> {
+    fn make(&self, key: &TileKey, n: u32, i: &[Tile]) -> Result<TileData, TileError> {
         if key.grid.level > self.0 {
             return Err("checksum mismatch".into());
         }
@@ -251,7 +251,7 @@ struct Slow {
 }
 
 impl TileSource for Slow {
-    fn make(&self, key: &TileKey, n: u32, i: &[Tile]) -> Result<TileData, String> {
+    fn make(&self, key: &TileKey, n: u32, i: &[Tile]) -> Result<TileData, TileError> {
         if key.grid.level >= self.coarse_below {
             self.release
                 .lock()
@@ -316,7 +316,7 @@ impl<S: TileSource> TileSource for Counting<S> {
     fn inputs(&self) -> Vec<u32> {
         self.0.inputs()
     }
-    fn make(&self, key: &TileKey, n: u32, i: &[Tile]) -> Result<TileData, String> {
+    fn make(&self, key: &TileKey, n: u32, i: &[Tile]) -> Result<TileData, TileError> {
         self.1.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
         self.0.make(key, n, i)
     }

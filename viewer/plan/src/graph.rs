@@ -53,7 +53,8 @@ use serde::Deserialize;
 
 use crate::frame::StreamSources;
 use crate::stream::{
-    FnHeightTiles, StoreColorTiles, StoreHeightTiles, Streamer, Tile, TileData, TileKey, TileSource,
+    FnHeightTiles, StoreColorTiles, StoreHeightTiles, Streamer, Tile, TileData, TileError, TileKey,
+    TileSource,
 };
 
 /// The settings of a colour filter.
@@ -134,10 +135,10 @@ impl TileSource for ColorFilter {
         vec![self.input]
     }
 
-    fn make(&self, _: &TileKey, _: u32, inputs: &[Tile]) -> Result<TileData, String> {
-        let p = *self.params.read().map_err(|e| e.to_string())?;
+    fn make(&self, _: &TileKey, _: u32, inputs: &[Tile]) -> Result<TileData, TileError> {
+        let p = *self.params.read().unwrap_or_else(|e| e.into_inner());
         let Some(TileData::Color(c)) = inputs.first().map(|t| &**t) else {
-            return Err("a colour filter needs a colour input".into());
+            return Err(TileError::Inputs("a colour filter needs a colour input"));
         };
         if p == FilterParams::default() {
             return Ok(TileData::Color(c.clone()));
@@ -178,7 +179,7 @@ impl TileSource for Overlay {
         self.inputs.clone()
     }
 
-    fn make(&self, _: &TileKey, _: u32, inputs: &[Tile]) -> Result<TileData, String> {
+    fn make(&self, _: &TileKey, _: u32, inputs: &[Tile]) -> Result<TileData, TileError> {
         let mut out: Option<TileData> = None;
         for t in inputs {
             out = Some(match (out, &**t) {
@@ -202,10 +203,14 @@ impl TileSource for Overlay {
                     }
                     TileData::Color(below)
                 }
-                _ => return Err("an overlay's inputs must all be heights or all colours".into()),
+                _ => {
+                    return Err(TileError::Inputs(
+                        "an overlay's inputs must all be heights or all colours",
+                    ));
+                }
             });
         }
-        out.ok_or_else(|| "an overlay needs inputs".into())
+        out.ok_or(TileError::Inputs("an overlay needs inputs"))
     }
 }
 

@@ -145,7 +145,42 @@ pub trait TileSource: Send + Sync + std::fmt::Debug {
     }
 
     /// Makes the tile `key` (`n × n`), given its inputs' tiles in the order of [`Self::inputs`].
-    fn make(&self, key: &TileKey, n: u32, inputs: &[Tile]) -> Result<TileData, String>;
+    fn make(&self, key: &TileKey, n: u32, inputs: &[Tile]) -> Result<TileData, TileError>;
+}
+
+/// Why a tile could not be made.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum TileError {
+    /// The store could not give the data (damaged bytes, an I/O error), in the store's words.
+    #[error("{0}")]
+    Store(String),
+    /// The store has no level of the layer.
+    #[error("the store has no {0} levels")]
+    NoLevels(&'static str),
+    /// The source's inputs are not what it needs (a graph wired wrong).
+    #[error("{0}")]
+    Inputs(&'static str),
+    /// The graph names a source that does not exist, or nests inputs too deeply.
+    #[error("{0}")]
+    Graph(String),
+    /// The source panicked (a bug, or data no check foresaw).
+    #[error("making the tile panicked: {0}")]
+    Panicked(String),
+    /// Any other failure a source reports (synthetic and test sources).
+    #[error("{0}")]
+    Other(String),
+}
+
+impl From<&str> for TileError {
+    fn from(s: &str) -> Self {
+        TileError::Other(s.to_string())
+    }
+}
+
+impl From<String> for TileError {
+    fn from(s: String) -> Self {
+        TileError::Other(s)
+    }
 }
 
 /// Evaluates a height or colour function at every texel centre of a tile.
@@ -180,9 +215,9 @@ impl<S> Pool<S> {
     /// Runs `f` with a pooled reader (or a new one from `create`), then returns it to the pool.
     fn with<R>(
         &self,
-        create: impl FnOnce() -> Result<S, String>,
+        create: impl FnOnce() -> Result<S, TileError>,
         f: impl FnOnce(&mut S) -> R,
-    ) -> Result<R, String> {
+    ) -> Result<R, TileError> {
         let pooled = self.0.lock().unwrap_or_else(|e| e.into_inner()).pop();
         let mut s = match pooled {
             Some(s) => s,
@@ -212,9 +247,9 @@ fn sample_rows<T>(
 }
 
 /// The tile, or the first read error met while making it.
-fn first_error<T>(data: T, errors: Vec<String>) -> Result<T, String> {
+fn first_error<T>(data: T, errors: Vec<String>) -> Result<T, TileError> {
     match errors.into_iter().next() {
-        Some(e) => Err(e),
+        Some(e) => Err(TileError::Store(e)),
         None => Ok(data),
     }
 }
@@ -246,14 +281,14 @@ impl StoreHeightTiles {
 }
 
 impl TileSource for StoreHeightTiles {
-    fn make(&self, key: &TileKey, n: u32, _: &[Tile]) -> Result<TileData, String> {
+    fn make(&self, key: &TileKey, n: u32, _: &[Tile]) -> Result<TileData, TileError> {
         let create = || {
             StoreHeights::new(self.reader.clone())
                 .map(|s| {
                     s.keep_nodata(self.keep_nodata)
                         .with_cache_budget(POOLED_STORE_CACHE)
                 })
-                .ok_or_else(|| "the store has no height levels".to_string())
+                .ok_or(TileError::NoLevels("height"))
         };
         self.pool.with(create, |src| {
             let data = sample_rows(key, n, 1, |l, c, w, out| src.fill_row(l, c, w, out));
@@ -280,11 +315,11 @@ impl StoreColorTiles {
 }
 
 impl TileSource for StoreColorTiles {
-    fn make(&self, key: &TileKey, n: u32, _: &[Tile]) -> Result<TileData, String> {
+    fn make(&self, key: &TileKey, n: u32, _: &[Tile]) -> Result<TileData, TileError> {
         let create = || {
             StoreColors::new(self.reader.clone())
                 .map(|s| s.with_cache_budget(POOLED_STORE_CACHE))
-                .ok_or_else(|| "the store has no colour levels".to_string())
+                .ok_or(TileError::NoLevels("colour"))
         };
         self.pool.with(create, |src| {
             let data = sample_rows(key, n, 4, |l, c, w, out| src.fill_row(l, c, w, out));
@@ -303,7 +338,7 @@ impl<F> std::fmt::Debug for FnHeightTiles<F> {
 }
 
 impl<F: Fn(f64, f64) -> f32 + Send + Sync> TileSource for FnHeightTiles<F> {
-    fn make(&self, key: &TileKey, n: u32, _: &[Tile]) -> Result<TileData, String> {
+    fn make(&self, key: &TileKey, n: u32, _: &[Tile]) -> Result<TileData, TileError> {
         Ok(TileData::Height(sample_tile(key, n, |lon, colat| {
             [(self.0)(lon, colat)]
         })))
@@ -320,7 +355,7 @@ impl<F> std::fmt::Debug for FnColorTiles<F> {
 }
 
 impl<F: Fn(f64, f64) -> [u8; 4] + Send + Sync> TileSource for FnColorTiles<F> {
-    fn make(&self, key: &TileKey, n: u32, _: &[Tile]) -> Result<TileData, String> {
+    fn make(&self, key: &TileKey, n: u32, _: &[Tile]) -> Result<TileData, TileError> {
         Ok(TileData::Color(sample_tile(key, n, |lon, colat| {
             (self.0)(lon, colat)
         })))
@@ -785,13 +820,13 @@ fn manager(shared: &Shared, tx: &SyncSender<Task>) {
 
 /// Makes a tile from its inputs in the cache; an input that is not there (pruned since the
 /// manager saw it) is made here first, so a task always completes.
-fn make(shared: &Shared, key: TileKey, depth: usize) -> Result<TileData, String> {
+fn make(shared: &Shared, key: TileKey, depth: usize) -> Result<TileData, TileError> {
     let src = shared
         .sources
         .get(key.source as usize)
-        .ok_or_else(|| format!("no source {}", key.source))?;
+        .ok_or_else(|| TileError::Graph(format!("no source {}", key.source)))?;
     if depth > 16 {
-        return Err("source inputs nested too deeply".into());
+        return Err(TileError::Graph("source inputs nested too deeply".into()));
     }
     let mut inputs = Vec::new();
     for i in src.inputs() {
@@ -804,7 +839,7 @@ fn make(shared: &Shared, key: TileKey, depth: usize) -> Result<TileData, String>
                 shared
                     .cache
                     .get(&k)
-                    .ok_or_else(|| "an input vanished".to_string())?
+                    .ok_or_else(|| TileError::Graph("an input vanished".into()))?
             }
         };
         inputs.push(t);
@@ -836,7 +871,7 @@ fn worker(shared: &Shared, rx: &Mutex<Receiver<Task>>) {
                     .map(|s| s.to_string())
                     .or_else(|| p.downcast_ref::<String>().cloned())
                     .unwrap_or_else(|| "unknown".into());
-                Err(format!("making the tile panicked: {what}"))
+                Err(TileError::Panicked(what))
             });
         shared
             .busy_ns
@@ -876,7 +911,7 @@ mod tests {
     }
 
     impl TileSource for Gated {
-        fn make(&self, key: &TileKey, n: u32, _: &[Tile]) -> Result<TileData, String> {
+        fn make(&self, key: &TileKey, n: u32, _: &[Tile]) -> Result<TileData, TileError> {
             let _ = self.started.lock().expect("lock").send(*key);
             self.release
                 .lock()
@@ -976,11 +1011,11 @@ mod tests {
     struct PanicsOnLevel2;
 
     impl TileSource for PanicsOnLevel2 {
-        fn make(&self, k: &TileKey, n: u32, _: &[Tile]) -> Result<TileData, String> {
+        fn make(&self, k: &TileKey, n: u32, _: &[Tile]) -> Result<TileData, TileError> {
             if k.grid.level == 2 {
                 // what a size read from damaged bytes does
                 let v: Vec<u64> = Vec::with_capacity(usize::MAX / 2 + n as usize);
-                return Err(format!("unreachable {}", v.len()));
+                return Err(format!("unreachable {}", v.len()).into());
             }
             Ok(TileData::Height(vec![0.0; (n * n) as usize]))
         }
@@ -1018,7 +1053,7 @@ mod tests {
         fn inputs(&self) -> Vec<u32> {
             vec![0]
         }
-        fn make(&self, _: &TileKey, _: u32, inputs: &[Tile]) -> Result<TileData, String> {
+        fn make(&self, _: &TileKey, _: u32, inputs: &[Tile]) -> Result<TileData, TileError> {
             match &*inputs[0] {
                 TileData::Height(v) => Ok(TileData::Height(v.iter().map(|x| 2.0 * x).collect())),
                 TileData::Color(_) => Err("not heights".into()),
@@ -1069,7 +1104,7 @@ mod tests {
         fn inputs(&self) -> Vec<u32> {
             vec![2]
         }
-        fn make(&self, k: &TileKey, n: u32, i: &[Tile]) -> Result<TileData, String> {
+        fn make(&self, k: &TileKey, n: u32, i: &[Tile]) -> Result<TileData, TileError> {
             Double.make(k, n, i)
         }
     }

@@ -9,7 +9,7 @@ use sc_view_plan::camera::Camera;
 use sc_view_plan::clipmap::CLIPMAP_N;
 use sc_view_plan::frame::{FramePlan, FramePlanner, StreamSources};
 use sc_view_plan::stream::{
-    FnColorTiles, FnHeightTiles, Streamer, Task, Tile, TileData, TileKey, TileSource,
+    FnColorTiles, FnHeightTiles, Streamer, Task, Tile, TileData, TileError, TileKey, TileSource,
 };
 
 const R: f64 = sc_core::EARTH_RADIUS_M;
@@ -218,7 +218,7 @@ fn a_moving_camera_prefetches_its_path_and_refills_only_what_moved() {
 struct FailsBelow(u32);
 
 impl TileSource for FailsBelow {
-    fn make(&self, key: &TileKey, n: u32, i: &[Tile]) -> Result<TileData, String> {
+    fn make(&self, key: &TileKey, n: u32, i: &[Tile]) -> Result<TileData, TileError> {
         if key.grid.level > self.0 {
             return Err("checksum mismatch".into());
         }
