@@ -66,6 +66,18 @@ pub enum BuildError {
 /// Result of the builder.
 pub type Result<T, E = BuildError> = std::result::Result<T, E>;
 
+/// What the shards of one step did (summed into [`Summary`]).
+#[derive(Debug, Default)]
+struct StepCounts {
+    written: u64,
+    skipped: u64,
+    empty: u64,
+    texels: u64,
+    repaired: u64,
+    /// Damaged tiles of levels that also hold ingested data.
+    lost: Vec<String>,
+}
+
 /// Version of the construction, part of every shard's record: a change rebuilds everything.
 const BUILDER: &str = "pyramid-1";
 
@@ -544,8 +556,7 @@ fn run_steps(
             StepKind::Filter => (step.out.level + 1, stored_src(step.out.level + 1)),
             StepKind::Halve => (step.out.level, stored_src(step.out.level)),
         };
-        let counts = Mutex::new((0u64, 0u64, 0u64, 0u64)); // written, skipped, empty, texels
-        let repairs = Mutex::new((0u64, Vec::new())); // shards repaired, tiles lost
+        let counts = Mutex::new(StepCounts::default());
         let base_reader = &reader;
         // steps with fewer shards than threads split each shard's tile rows between threads
         let inner = (threads / step.shards.len().max(1)).max(1);
@@ -578,12 +589,12 @@ fn run_steps(
             let mut c = counts.lock().unwrap_or_else(|e| e.into_inner());
             if rec.iter().all(|(k, f)| k == "self" || f == "-") {
                 // no finer data in the footprint: nothing to filter, the level stays as it is
-                c.2 += 1;
+                c.empty += 1;
             } else if let Some(e) = manifest.matching(&shard, &rec) {
                 if let Some((lo, hi)) = e.range {
                     writer.note_range(step.layer, step.out, lo, hi);
                 }
-                c.1 += 1;
+                c.skipped += 1;
             } else {
                 drop(c);
                 let (texels, range, repaired) = match step.layer {
@@ -610,14 +621,14 @@ fn run_steps(
                 };
                 rec.insert("self".into(), own_fingerprint(&out_path)?);
                 manifest.record(&shard, Entry { deps: rec, range })?;
-                if let Some(lost) = repaired {
-                    let mut r = repairs.lock().unwrap_or_else(|e| e.into_inner());
-                    r.0 += 1;
-                    r.1.extend(lost.iter().map(|t| format!("{} {t}", step.layer)));
-                }
                 c = counts.lock().unwrap_or_else(|e| e.into_inner());
-                c.0 += 1;
-                c.3 += texels;
+                c.written += 1;
+                c.texels += texels;
+                if let Some(lost) = repaired {
+                    c.repaired += 1;
+                    c.lost
+                        .extend(lost.iter().map(|t| format!("{} {t}", step.layer)));
+                }
             }
             drop(c);
             on_shard(done.fetch_add(1, Ordering::Relaxed) + 1, total);
@@ -633,13 +644,13 @@ fn run_steps(
                 sc_core::workers::Stopped::Panicked => BuildError::WorkerPanicked,
             },
         )?;
-        let c = counts.into_inner().unwrap_or_else(|e| e.into_inner());
-        summary.shards_written += c.0;
-        summary.shards_skipped += c.1;
-        summary.shards_empty += c.2;
-        summary.texels += c.3;
-        let (repaired, mut lost) = repairs.into_inner().unwrap_or_else(|e| e.into_inner());
-        summary.shards_repaired += repaired;
+        let mut c = counts.into_inner().unwrap_or_else(|e| e.into_inner());
+        summary.shards_written += c.written;
+        summary.shards_skipped += c.skipped;
+        summary.shards_empty += c.empty;
+        summary.texels += c.texels;
+        summary.shards_repaired += c.repaired;
+        let mut lost = std::mem::take(&mut c.lost);
         lost.sort();
         summary.tiles_lost.extend(lost);
         summary.step_seconds.push((

@@ -58,6 +58,15 @@ pub enum IngestError {
     WorkerPanicked,
 }
 
+/// What the shards of a run wrote (summed into [`Summary`]).
+#[derive(Debug, Default)]
+struct WriteCounts {
+    tiles: u64,
+    valid: u64,
+    texels: u64,
+    range: Option<(f64, f64)>,
+}
+
 /// Result of ingest.
 pub type Result<T, E = IngestError> = std::result::Result<T, E>;
 
@@ -384,7 +393,7 @@ fn write_all(
     }
     let total = plan.shards.len() as u64;
     let done = std::sync::atomic::AtomicU64::new(summary.shards_resumed);
-    let stats = Mutex::new((0u64, 0u64, 0u64, None::<(f64, f64)>)); // tiles, valid texels, texels, range
+    let stats = Mutex::new(WriteCounts::default());
     let lut = Kernels::new(settings.kernel);
     on_shard(summary.shards_resumed, total);
     // small inputs are decoded once and shared by every worker's handle; handles are pooled so
@@ -414,11 +423,11 @@ fn write_all(
         journal.mark_done(shard, s.range.map(|r| (settings.layer, shard.level, r)))?;
         {
             let mut st = stats.lock().unwrap_or_else(|e| e.into_inner());
-            st.0 += s.tiles;
-            st.1 += s.valid;
-            st.2 += s.texels;
+            st.tiles += s.tiles;
+            st.valid += s.valid;
+            st.texels += s.texels;
             if let Some((lo, hi)) = s.range {
-                st.3 = Some(st.3.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
+                st.range = Some(st.range.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
             }
         }
         let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
@@ -459,13 +468,13 @@ fn write_all(
     journal.finish()?;
     let st = stats.into_inner().unwrap_or_else(|e| e.into_inner());
     summary.shards_written = todo.len() as u64;
-    summary.tiles_written = st.0;
-    summary.coverage = if st.2 > 0 {
-        st.1 as f64 / st.2 as f64
+    summary.tiles_written = st.tiles;
+    summary.coverage = if st.texels > 0 {
+        st.valid as f64 / st.texels as f64
     } else {
         0.0
     };
-    summary.value_range = st.3;
+    summary.value_range = st.range;
     summary.seconds = start.elapsed().as_secs_f64();
     Ok(summary)
 }

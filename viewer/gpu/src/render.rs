@@ -7,6 +7,7 @@
 use std::time::{Duration, Instant};
 
 use bytemuck::{Pod, Zeroable};
+use sc_store::LayerKind;
 use sc_view_plan::camera::Camera;
 use sc_view_plan::clipmap::{CLIPMAP_N, ColorSource, HeightSource, Region};
 use sc_view_plan::frame::{
@@ -277,8 +278,8 @@ impl ClipmapPass {
     /// Forgets what the clipmaps hold (a source's parameters changed and its tiles were dropped
     /// from the cache): the next streamed frames ask for the visible tiles again and re-upload
     /// each level as its new tiles arrive.
-    pub fn invalidate(&mut self, heights: bool, colors: bool) {
-        self.planner.invalidate(heights, colors);
+    pub fn invalidate(&mut self, layers: &[LayerKind]) {
+        self.planner.invalidate(layers);
     }
 
     /// GPU memory of the height and colour clipmaps, bytes.
@@ -324,7 +325,7 @@ impl ClipmapPass {
     /// Writes a plan's texture regions and uniforms, and remembers what it draws.
     pub fn upload(&mut self, plan: &FramePlan) {
         for u in &plan.uploads {
-            self.write_region(u.height, u.level, u.region, &u.bytes);
+            self.write_region(u.layer, u.level, u.region, &u.bytes);
         }
         self.queue
             .write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&plan.frame));
@@ -333,15 +334,18 @@ impl ClipmapPass {
         self.last = plan.stats;
     }
 
-    fn write_region(&self, height: bool, layer: u32, r: Region, bytes: &[u8]) {
+    fn write_region(&self, layer: LayerKind, level: u32, r: Region, bytes: &[u8]) {
         self.queue.write_texture(
             wgpu::TexelCopyTextureInfo {
-                texture: if height { &self.heights } else { &self.colors },
+                texture: match layer {
+                    LayerKind::Height => &self.heights,
+                    LayerKind::Color => &self.colors,
+                },
                 mip_level: 0,
                 origin: wgpu::Origin3d {
                     x: r.x,
                     y: r.y,
-                    z: layer,
+                    z: level,
                 },
                 aspect: wgpu::TextureAspect::All,
             },

@@ -374,7 +374,7 @@ fn a_filter_edit_remakes_only_the_visible_tiles() {
     // the panel's edit: new settings, the filter's tiles (and what derives from them) dropped
     params.write().expect("lock").brightness = 0.3;
     streamer.cache().invalidate(&streamer.dependents(2));
-    r.pass_mut().invalidate(false, true);
+    r.pass_mut().invalidate(&[sc_store::LayerKind::Color]);
     let after_edit = converge(&mut r, &streamer, &b);
     let remade = made.load(Ordering::SeqCst) - count;
     let visible = streamer.cache().tiles_of(2);

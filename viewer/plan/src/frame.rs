@@ -10,6 +10,7 @@ use std::time::{Duration, Instant};
 
 use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec3};
+use sc_store::LayerKind;
 
 use crate::camera::Camera;
 use crate::clipmap::{
@@ -104,12 +105,12 @@ pub struct StreamSources {
     pub color: Option<u32>,
 }
 
-/// One texture region to write: level `level` of the height (or colour) clipmap array, the
-/// region's texels row-major, 4 bytes each (f32 height or RGBA).
+/// One texture region to write: level `level` of the layer's clipmap array, the region's texels
+/// row-major, 4 bytes each (f32 height or RGBA).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Upload {
-    /// Heights (else colours).
-    pub height: bool,
+    /// The clipmap array: heights or colours.
+    pub layer: LayerKind,
     /// Clipmap level (array layer).
     pub level: u32,
     /// Where in the layer.
@@ -119,9 +120,9 @@ pub struct Upload {
 }
 
 impl Upload {
-    fn new(height: bool, level: u32, region: Region, bytes: Vec<u8>) -> Self {
+    fn new(layer: LayerKind, level: u32, region: Region, bytes: Vec<u8>) -> Self {
         Self {
-            height,
+            layer,
             level,
             region,
             bytes,
@@ -195,11 +196,9 @@ impl FramePlanner {
     /// Forgets what the clipmaps hold (a source's parameters changed and its tiles were dropped
     /// from the cache): the next streamed frames ask for the visible tiles again and re-upload
     /// each level as its new tiles arrive.
-    pub fn invalidate(&mut self, heights: bool, colors: bool) {
-        for (layer, forget) in self.held.iter_mut().zip([heights, colors]) {
-            if forget {
-                layer.fill(None);
-            }
+    pub fn invalidate(&mut self, layers: &[LayerKind]) {
+        for &layer in layers {
+            self.held[held_index(layer)].fill(None);
         }
         self.last_tasks.clear();
     }
@@ -207,8 +206,8 @@ impl FramePlanner {
     /// The texture regions of level `i` (heights or colours) to write for placement `p`: those
     /// whose world texels changed since the level was last filled (all at first; §5). Records
     /// `p` as what the level holds once they are written.
-    fn stale_regions(&mut self, height: bool, i: u32, p: &Placement) -> Vec<Region> {
-        let held = &mut self.held[usize::from(!height)][i as usize];
+    fn stale_regions(&mut self, layer: LayerKind, i: u32, p: &Placement) -> Vec<Region> {
+        let held = &mut self.held[held_index(layer)][i as usize];
         let todo = match *held {
             Some(old) => changed_regions(&old, p, CLIPMAP_N),
             None => all_regions(p, CLIPMAP_N),
@@ -293,13 +292,13 @@ impl FramePlanner {
         let mut filled = 0;
         for i in lo..=hi {
             let p = Placement::new(i, &viewer, CLIPMAP_N);
-            let todo = self.stale_regions(true, i, &p);
+            let todo = self.stale_regions(LayerKind::Height, i, &p);
             for r in &todo {
                 let data = fill_region(&p, CLIPMAP_N, *r, |lon, colat| {
                     [heights.height(lon, colat, p.win)]
                 });
                 uploads.push(Upload::new(
-                    true,
+                    LayerKind::Height,
                     i,
                     *r,
                     bytemuck::cast_slice(&data).to_vec(),
@@ -307,11 +306,11 @@ impl FramePlanner {
             }
             filled += u32::from(!todo.is_empty());
             if let Some(c) = colors.as_deref_mut() {
-                let todo = self.stale_regions(false, i, &p);
+                let todo = self.stale_regions(LayerKind::Color, i, &p);
                 for r in &todo {
                     let rgba =
                         fill_region(&p, CLIPMAP_N, *r, |lon, colat| c.color(lon, colat, p.win));
-                    uploads.push(Upload::new(false, i, *r, rgba));
+                    uploads.push(Upload::new(LayerKind::Color, i, *r, rgba));
                 }
                 filled += u32::from(!todo.is_empty());
             }
@@ -396,8 +395,8 @@ impl FramePlanner {
         let viewer = Viewer::from_deg(camera.lat, camera.lon);
         let levels = self.hemi.spec.levels;
         let (lo, sharpest) = self.visible(camera, h);
-        let layers: Vec<(bool, u32)> = std::iter::once((true, sources.height))
-            .chain(sources.color.map(|c| (false, c)))
+        let layers: Vec<(LayerKind, u32)> = std::iter::once((LayerKind::Height, sources.height))
+            .chain(sources.color.map(|c| (LayerKind::Color, c)))
             .collect();
         let windows: Vec<(u32, Placement, GridId)> = (lo..=(sharpest + 1).min(levels - 1))
             .map(|i| {
@@ -513,11 +512,11 @@ impl FramePlanner {
                 });
                 break;
             };
-            for (&(height, _), tiles) in layers.iter().zip(&quad) {
-                let todo = self.stale_regions(height, i, &p);
+            for (&(layer, _), tiles) in layers.iter().zip(&quad) {
+                let todo = self.stale_regions(layer, i, &p);
                 for r in &todo {
                     let bytes = region_from_quad(tiles, &p, *r, n);
-                    uploads.push(Upload::new(height, i, *r, bytes));
+                    uploads.push(Upload::new(layer, i, *r, bytes));
                 }
                 filled += u32::from(!todo.is_empty());
             }
@@ -577,6 +576,14 @@ impl FramePlanner {
             stats,
             ground,
         }
+    }
+}
+
+/// Which of [`FramePlanner`]'s `held` lists a layer's clipmap is.
+fn held_index(layer: LayerKind) -> usize {
+    match layer {
+        LayerKind::Height => 0,
+        LayerKind::Color => 1,
     }
 }
 

@@ -5,6 +5,7 @@
 
 use std::time::Duration;
 
+use sc_store::LayerKind;
 use sc_view_plan::camera::Camera;
 use sc_view_plan::clipmap::CLIPMAP_N;
 use sc_view_plan::frame::{FramePlan, FramePlanner, StreamSources};
@@ -145,12 +146,12 @@ fn a_still_camera_uploads_each_region_once_then_nothing() {
     let s = streamer(Box::new(FnHeightTiles(mountains)));
     let mut p = FramePlanner::new(R);
     let camera = Camera::parse("28.0,86.9,9000,200,-10,60").expect("camera");
-    let mut per_level = std::collections::BTreeMap::<(bool, u32), u32>::new();
+    let mut per_level = std::collections::HashMap::<(LayerKind, u32), u32>::new();
     let mut last = None;
     for _ in 0..50 {
         let f = plan(&mut p, &s, &camera);
         for u in &f.uploads {
-            *per_level.entry((u.height, u.level)).or_default() += u.region.w * u.region.h;
+            *per_level.entry((u.layer, u.level)).or_default() += u.region.w * u.region.h;
         }
         settle(&s);
         let done = f.stats.level_hi == f.stats.level_wanted && s.idle();
@@ -162,12 +163,11 @@ fn a_still_camera_uploads_each_region_once_then_nothing() {
     let f = last.expect("frames");
     assert_eq!(f.stats.level_hi, f.stats.level_wanted, "{:?}", f.stats);
     for i in f.stats.level_lo..=f.stats.level_hi {
-        for height in [true, false] {
+        for layer in [LayerKind::Height, LayerKind::Color] {
             assert_eq!(
-                per_level.get(&(height, i)).copied(),
+                per_level.get(&(layer, i)).copied(),
                 Some(CLIPMAP_N * CLIPMAP_N),
-                "level {i} ({}) uploaded once, whole",
-                if height { "heights" } else { "colours" }
+                "level {i} ({layer}) uploaded once, whole"
             );
         }
     }

@@ -14,6 +14,7 @@ use winit::event_loop::{ActiveEventLoop, EventLoop};
 use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::{Window, WindowId};
 
+use sc_store::LayerKind;
 use sc_view_gpu::render::{
     ClipmapPass, ImageReadback, RenderError, SPACE, begin_pass, depth_target, device_for,
 };
@@ -402,9 +403,14 @@ impl App<'_> {
                 }
                 let stale = self.streamer.dependents(f.source);
                 self.streamer.cache().invalidate(&stale);
-                let height = stale.contains(&self.sources.height);
-                let color = self.sources.color.is_some_and(|c| stale.contains(&c));
-                gpu.pass.invalidate(height, color);
+                let mut layers = Vec::new();
+                if stale.contains(&self.sources.height) {
+                    layers.push(LayerKind::Height);
+                }
+                if self.sources.color.is_some_and(|c| stale.contains(&c)) {
+                    layers.push(LayerKind::Color);
+                }
+                gpu.pass.invalidate(&layers);
             }
         }
         gpu.egui_state
