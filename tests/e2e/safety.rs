@@ -11,14 +11,13 @@ use std::process::{Command, Output, Stdio};
 use std::sync::OnceLock;
 use std::time::Duration;
 
-mod common;
-use common::{
+use crate::util::{
     copy_dir, ok, one_line_failure, run_within, s, same_files, sample, snapshot_with, text, xdg,
 };
 
 /// The binary, on one thread: the N-th durable step is then the same step on every run.
 fn bin() -> Command {
-    let mut c = common::bin();
+    let mut c = crate::util::bin();
     c.env("RAYON_NUM_THREADS", "1");
     c
 }
@@ -33,23 +32,8 @@ const FAULT_EXIT: i32 = sc_store::fault::FAULT_EXIT;
 
 /// ETOPO20 at level 5 with 32² tiles (32 shards) and its pyramid, made once for every test.
 fn base_store() -> &'static Path {
-    static BASE: OnceLock<(tempfile::TempDir, PathBuf)> = OnceLock::new();
-    let (_, p) = BASE.get_or_init(|| {
-        let dir = tempfile::tempdir().expect("tempdir");
-        let p = dir.path().join("base.zarr");
-        ok(&run(&[
-            "ingest",
-            s(&p),
-            s(&sample("etopo20.cdf")),
-            "--tile-size",
-            "32",
-            "--level",
-            "5",
-        ]));
-        ok(&run(&["build", s(&p), "--threads", "1"]));
-        (dir, p)
-    });
-    p
+    static BASE: OnceLock<PathBuf> = OnceLock::new();
+    BASE.get_or_init(crate::util::etopo20_level5_small_tiles)
 }
 
 #[test]
@@ -616,8 +600,8 @@ fn build_repairs_a_damaged_derived_shard_on_request() {
         text(&o.stderr)
     );
     same_files(
-        &common::snapshot(base_store()),
-        &common::snapshot(&store),
+        &crate::util::snapshot(base_store()),
+        &crate::util::snapshot(&store),
         "the repaired store",
     );
     ok(&run(&["info", "--verify", s(&store)]));

@@ -5,8 +5,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-mod common;
-use common::{bin, run, s, sample, text};
+use crate::util::{bin, run, s, sample, text};
 
 /// A colour-only store of the Blue Marble at level 1.
 fn color_store(dir: &Path) -> PathBuf {

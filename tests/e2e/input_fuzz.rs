@@ -14,8 +14,7 @@ use std::process::Command;
 use std::sync::OnceLock;
 use std::time::Duration;
 
-mod common;
-use common::{bin, copy_dir, run, run_within, s, same_files, sample, snapshot_with, text};
+use crate::util::{bin, copy_dir, run, run_within, s, same_files, sample, snapshot_with, text};
 
 /// SplitMix64: a seeded stream of numbers, enough to pick mutations.
 struct Rng(u64);

@@ -5,8 +5,7 @@ use std::path::Path;
 use std::process::Output;
 use std::time::{Duration, Instant};
 
-mod common;
-use common::{bin, read_level, s, sample, snapshot, text};
+use crate::util::{bin, read_level, s, sample, snapshot, text};
 
 fn ingest(store: &Path, args: &[&str]) -> Output {
     bin()
@@ -108,9 +107,7 @@ fn a_killed_ingest_resumes_to_identical_bytes() {
     let etopo = sample("etopo5.cdf.gz");
     let args = [etopo.to_str().expect("utf8"), "--level", "4"];
     // the reference: one uninterrupted run
-    let reference = dir.path().join("ref.zarr");
-    let o = ingest(&reference, &args);
-    assert!(o.status.success(), "{}", text(&o.stderr));
+    let reference = crate::util::etopo5_level4();
     // the same run, killed (SIGKILL) once the journal shows a durable shard, then rerun
     let store = dir.path().join("s.zarr");
     let journal = store.join(".sphereclip/journal-ingest.json");

@@ -1,6 +1,6 @@
 //! Helpers every CLI test file shares: running the binary (with a hang limit), the samples,
 //! byte snapshots of a store, and the one-line error contract.
-#![allow(dead_code)] // each test file uses its own subset
+#![allow(dead_code)] // each module uses its own subset
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -165,4 +165,98 @@ pub fn read_level(r: &StoreReader, id: LevelId) -> (usize, usize, Vec<f32>) {
         }
     }
     (w, h, out)
+}
+
+/// A folder made by `make` once per build of the binary and shared by every test of a run (the
+/// other test processes too, when a runner starts one per test): kept under cargo's target
+/// tmpdir, keyed by the binary's size and time, made under a file lock into a `.part` folder and
+/// renamed when complete. Treat it as read-only: copy it before changing anything.
+pub fn fixture(name: &str, make: impl FnOnce(&Path)) -> PathBuf {
+    let exe = std::fs::metadata(env!("CARGO_BIN_EXE_sphereclip")).expect("the binary");
+    let time = exe
+        .modified()
+        .ok()
+        .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
+        .map_or(0, |d| d.as_nanos());
+    let root = Path::new(env!("CARGO_TARGET_TMPDIR")).join("fixtures");
+    std::fs::create_dir_all(&root).expect("mkdir");
+    let lock = std::fs::File::create(root.join(format!("{name}.lock"))).expect("lock file");
+    lock.lock().expect("lock");
+    let dir = root.join(format!("{name}-{}-{time}", exe.len()));
+    if !dir.is_dir() {
+        // fixtures of earlier builds and a half-made one (all made here) go
+        for e in std::fs::read_dir(&root).expect("read_dir").flatten() {
+            let n = e.file_name().to_string_lossy().into_owned();
+            if n.starts_with(&format!("{name}-")) && e.path().is_dir() {
+                std::fs::remove_dir_all(e.path()).expect("remove an old fixture");
+            }
+        }
+        let part = root.join(format!("{name}-{}-{time}.part", exe.len()));
+        std::fs::create_dir_all(&part).expect("mkdir");
+        make(&part);
+        std::fs::rename(&part, &dir).expect("rename");
+    }
+    dir
+}
+
+/// ETOPO5 ingested at level 4 (8192×4096, 256² tiles), no pyramid.
+pub fn etopo5_level4() -> PathBuf {
+    fixture("etopo5-l4", |d| {
+        ok(&run(&[
+            "ingest",
+            s(&d.join("s.zarr")),
+            s(&sample("etopo5.cdf.gz")),
+            "--level",
+            "4",
+        ]));
+    })
+    .join("s.zarr")
+}
+
+/// The sample planet: ETOPO5 heights and Blue Marble colour at level 3, pyramid built.
+pub fn sample_planet() -> PathBuf {
+    fixture("planet-l3", |d| {
+        let store = d.join("planet.zarr");
+        ok(&run(&[
+            "ingest",
+            s(&store),
+            s(&sample("etopo5.cdf.gz")),
+            "--level",
+            "3",
+        ]));
+        ok(&run(&[
+            "ingest",
+            s(&store),
+            s(&sample("bluemarble_5400x2700.jpg")),
+            "--layer",
+            "color",
+            "--level",
+            "3",
+            "--bounds",
+            "-180,-90,180,90",
+        ]));
+        ok(&run(&["build", s(&store)]));
+    })
+    .join("planet.zarr")
+}
+
+/// ETOPO20 at level 5 with 32² tiles (32 shards) and its pyramid, built on one thread.
+pub fn etopo20_level5_small_tiles() -> PathBuf {
+    fixture("etopo20-l5-t32", |d| {
+        let p = d.join("base.zarr");
+        let mut c = bin();
+        c.args([
+            "ingest",
+            s(&p),
+            s(&sample("etopo20.cdf")),
+            "--tile-size",
+            "32",
+            "--level",
+            "5",
+        ])
+        .env("RAYON_NUM_THREADS", "1");
+        ok(&run_within(c, Duration::from_secs(300)));
+        ok(&run(&["build", s(&p), "--threads", "1"]));
+    })
+    .join("base.zarr")
 }

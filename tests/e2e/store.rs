@@ -6,8 +6,7 @@ use std::process::Command;
 use sc_core::{GridSpec, LevelId, ShardId};
 use sc_store::{StoreConfig, StoreReader, StoreWriter};
 
-mod common;
-use common::{run, text};
+use crate::util::{run, text};
 
 /// A store with heights on levels 0..=2 and (2,1), every tile written.
 fn make_store(dir: &Path) -> PathBuf {

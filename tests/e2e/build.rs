@@ -7,8 +7,7 @@ use std::time::{Duration, Instant};
 use sc_core::LevelId;
 use sc_store::StoreReader;
 
-mod common;
-use common::{bin, copy_dir, ok, read_level as level, run, sample, snapshot, text};
+use crate::util::{bin, copy_dir, ok, read_level as level, run, sample, snapshot, text};
 
 /// Largest value in a lon/lat box.
 fn box_max(w: usize, h: usize, v: &[f32], lon: (f64, f64), lat: (f64, f64)) -> f32 {
@@ -53,15 +52,7 @@ fn striping(w: usize, h: usize, v: &[f32], lat0: f64, lat1: f64) -> f64 {
 #[test]
 fn etopo5_pyramid_keeps_mountains_and_has_no_polar_striping_and_resumes_after_kill() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let base = dir.path().join("base.zarr");
-    let etopo = sample("etopo5.cdf.gz");
-    ok(&run(&[
-        "ingest",
-        base.to_str().expect("utf8"),
-        etopo.to_str().expect("utf8"),
-        "--level",
-        "4",
-    ]));
+    let base = crate::util::etopo5_level4();
     // the reference: one uninterrupted build of a copy
     let full = dir.path().join("full.zarr");
     copy_dir(&base, &full);

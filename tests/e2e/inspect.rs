@@ -6,8 +6,7 @@ use std::process::{Command, Output};
 
 use serde_json::Value;
 
-mod common;
-use common::{ok, repo, run, s, text};
+use crate::util::{ok, repo, run, s, text};
 
 /// Checks `v` against the subset of JSON Schema the documented schema uses (type, const,
 /// required, properties, items).
@@ -78,10 +77,7 @@ fn band<'a>(r: &'a Value, level: &str, lat0: f64) -> &'a Value {
 #[test]
 fn reports_on_the_etopo5_pyramid_and_on_gdal_overviews() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let store = dir.path().join("s.zarr");
-    let etopo = repo("samples/etopo5.cdf.gz");
-    ok(&run(&["ingest", s(&store), s(&etopo), "--level", "3"]));
-    ok(&run(&["build", s(&store)]));
+    let store = crate::util::sample_planet();
     let out = dir.path().join("report");
     let o = run(&["inspect", s(&store), "--out", s(&out), "--json"]);
     ok(&o);

@@ -4,33 +4,12 @@
 //! 99th percentile ≤ 40/255). On failure a diff picture lands next to the test's output and its
 //! path is printed. `SPHERECLIP_BLESS=1` rewrites the goldens (after a deliberate change).
 
-mod common;
-use common::{bin, ok, repo, s};
+use crate::util::{bin, ok, repo, s};
 
 #[test]
 fn golden_views_of_the_sample_planet() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let store = dir.path().join("planet.zarr");
-    let etopo = repo("samples/etopo5.cdf.gz");
-    let bm = repo("samples/bluemarble_5400x2700.jpg");
-    ok(&bin()
-        .args(["ingest", s(&store), s(&etopo), "--level", "3"])
-        .output()
-        .expect("runs"));
-    ok(&bin()
-        .args([
-            "ingest",
-            s(&store),
-            s(&bm),
-            "--layer",
-            "color",
-            "--level",
-            "3",
-        ])
-        .args(["--bounds", "-180,-90,180,90"])
-        .output()
-        .expect("runs"));
-    ok(&bin().args(["build", s(&store)]).output().expect("runs"));
+    let store = crate::util::sample_planet();
     let bless = std::env::var_os("SPHERECLIP_BLESS").is_some();
     let mut failures = Vec::new();
     for (name, cam) in sc_view_plan::camera::GOLDEN_VIEWS {

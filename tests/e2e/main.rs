@@ -1,0 +1,13 @@
+//! The end-to-end tests of the `sphereclip` command, one test binary (the layout of ripgrep's
+//! `tests/`): each module a command or a promise, `util` their shared helpers and fixtures.
+
+mod build;
+mod golden;
+mod ingest;
+mod input_fuzz;
+mod inspect;
+mod render;
+mod safety;
+mod store;
+mod tidy;
+mod util;
