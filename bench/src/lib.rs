@@ -58,50 +58,19 @@ pub fn write_height_level(
     workers: usize,
     value: impl Fn(u64, u64) -> f32 + Sync,
 ) -> Result<(), String> {
-    use std::sync::atomic::{AtomicU64, Ordering};
     let grid = writer.meta().grid;
     let t = grid.tile_size() as usize;
     writer
-        .ensure_level(sc_store::LayerKind::Height, level)
-        .map_err(|e| e.to_string())?;
-    let (sx, sy) = sc_core::ShardId::counts(grid, level, writer.meta().shard_tiles);
-    let next = AtomicU64::new(0);
-    std::thread::scope(|s| -> Result<(), String> {
-        let handles: Vec<_> = (0..workers.max(1))
-            .map(|_| {
-                s.spawn(|| -> Result<(), String> {
-                    let mut buf = vec![0f32; t * t];
-                    loop {
-                        let k = next.fetch_add(1, Ordering::Relaxed);
-                        if k >= sx * sy {
-                            return Ok(());
-                        }
-                        let shard = sc_core::ShardId {
-                            level,
-                            x: k % sx,
-                            y: k / sx,
-                        };
-                        let mut sw = writer
-                            .shard_writer::<f32>(shard)
-                            .map_err(|e| e.to_string())?;
-                        for tile in sw.tiles().collect::<Vec<_>>() {
-                            let (ox, oy) = tile.origin_texel(grid);
-                            for (n, v) in buf.iter_mut().enumerate() {
-                                *v = value(ox + (n % t) as u64, oy + (n / t) as u64);
-                            }
-                            sw.put_tile(tile, &buf).map_err(|e| e.to_string())?;
-                        }
-                        sw.finish().map_err(|e| e.to_string())?;
-                    }
-                })
-            })
-            .collect();
-        for h in handles {
-            h.join()
-                .map_err(|_| "a writer thread panicked".to_string())??;
-        }
-        Ok(())
-    })
+        .write_level::<f32>(level, workers.max(1), |tile| {
+            let (ox, oy) = tile.origin_texel(grid);
+            Some(
+                (0..t * t)
+                    .map(|n| value(ox + (n % t) as u64, oy + (n / t) as u64))
+                    .collect(),
+            )
+        })
+        .map(|_| ())
+        .map_err(|e| e.to_string())
 }
 
 #[cfg(test)]

@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use sc_core::{GridSpec, LevelId, ShardId};
+use sc_core::{GridSpec, LevelId};
 use sc_store::{StoreConfig, StoreReader, StoreWriter};
 
 use crate::util::{run, text};
@@ -27,22 +27,14 @@ fn make_store(dir: &Path) -> PathBuf {
         LevelId::iso(2),
         LevelId::new(2, 1),
     ] {
-        let level = level.expect("valid");
-        let (sx, sy) = ShardId::counts(grid, level, 2);
-        for y in 0..sy {
-            for x in 0..sx {
-                let mut sw = w
-                    .shard_writer::<f32>(ShardId { level, x, y })
-                    .expect("claim");
-                for tile in sw.tiles().collect::<Vec<_>>() {
-                    let v: Vec<f32> = (0..32 * 32)
-                        .map(|k| (k as f32) - 500.0 + tile.y as f32)
-                        .collect();
-                    sw.put_tile(tile, &v).expect("put");
-                }
-                sw.finish().expect("finish");
-            }
-        }
+        w.write_level::<f32>(level.expect("valid"), 1, |tile| {
+            Some(
+                (0..32 * 32)
+                    .map(|k| (k as f32) - 500.0 + tile.y as f32)
+                    .collect(),
+            )
+        })
+        .expect("write");
     }
     w.commit(None).expect("commit");
     root

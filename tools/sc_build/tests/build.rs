@@ -25,42 +25,31 @@ fn config() -> StoreConfig {
 }
 
 /// Writes isotropic level `level` of heights from `f(i, j)` into a new store.
-fn write_heights(root: &Path, level: u32, f: &dyn Fn(u64, u64) -> f32) {
+fn write_heights(root: &Path, level: u32, f: &(dyn Fn(u64, u64) -> f32 + Sync)) {
     let w = StoreWriter::open_or_create(root, config()).expect("store");
     write_level_into(&w, level, f, None);
     w.commit(None).expect("commit");
 }
 
+/// Writes level `level` of heights from `f(i, j)`, or only the tiles of shard `only`.
 fn write_level_into(
     w: &StoreWriter,
     level: u32,
-    f: &dyn Fn(u64, u64) -> f32,
+    f: &(dyn Fn(u64, u64) -> f32 + Sync),
     only: Option<ShardId>,
 ) {
-    let g = grid();
     let id = LevelId::iso(level).expect("level");
-    w.ensure_level(LayerKind::Height, id).expect("level");
-    let (sx, sy) = ShardId::counts(g, id, 2);
-    for y in 0..sy {
-        for x in 0..sx {
-            let shard = ShardId { level: id, x, y };
-            if only.is_some_and(|o| o != shard) {
-                continue;
-            }
-            let mut sw = w.shard_writer::<f32>(shard).expect("shard");
-            for tile in sw.tiles().collect::<Vec<_>>() {
-                let mut buf = vec![0f32; T * T];
-                for r in 0..T {
-                    for c in 0..T {
-                        buf[r * T + c] =
-                            f(tile.x * T as u64 + c as u64, tile.y * T as u64 + r as u64);
-                    }
-                }
-                sw.put_tile(tile, &buf).expect("put");
-            }
-            sw.finish().expect("finish");
-        }
-    }
+    w.write_level::<f32>(id, 1, |tile| {
+        only.is_none_or(|o| tile.shard(2) == o).then(|| {
+            (0..T * T)
+                .map(|k| {
+                    let (r, c) = (k / T, k % T);
+                    f(tile.x * T as u64 + c as u64, tile.y * T as u64 + r as u64)
+                })
+                .collect()
+        })
+    })
+    .expect("write");
 }
 
 fn build(root: &Path, settings: Settings) -> Result<sc_build::Summary, BuildError> {
@@ -343,33 +332,24 @@ fn colour_is_filtered_in_linear_light_and_a_constant_colour_stays_exact() {
     let id = lv(3, 0);
     {
         let w = StoreWriter::open_or_create(dir.path(), config()).expect("store");
-        w.ensure_level(LayerKind::Color, id).expect("level");
-        let (sx, sy) = ShardId::counts(g, id, 2);
-        for y in 0..sy {
-            for x in 0..sx {
-                let mut sw = w
-                    .shard_writer::<u8>(ShardId { level: id, x, y })
-                    .expect("shard");
-                for tile in sw.tiles().collect::<Vec<_>>() {
-                    // west half: a black/white checkerboard; east half: a constant opaque colour
-                    let mut buf = vec![0u8; T * T * 4];
-                    for r in 0..T {
-                        for c in 0..T {
-                            let (i, j) = (tile.x as usize * T + c, tile.y as usize * T + r);
-                            let px = if i < g.width(id) as usize / 2 {
-                                let v = if (i + j) % 2 == 0 { 255 } else { 0 };
-                                [v, v, v, 255]
-                            } else {
-                                [200, 120, 40, 255]
-                            };
-                            buf[(r * T + c) * 4..(r * T + c + 1) * 4].copy_from_slice(&px);
-                        }
-                    }
-                    sw.put_tile(tile, &buf).expect("put");
+        w.write_level::<u8>(id, 1, |tile| {
+            // west half: a black/white checkerboard; east half: a constant opaque colour
+            let mut buf = vec![0u8; T * T * 4];
+            for r in 0..T {
+                for c in 0..T {
+                    let (i, j) = (tile.x as usize * T + c, tile.y as usize * T + r);
+                    let px = if i < g.width(id) as usize / 2 {
+                        let v = if (i + j) % 2 == 0 { 255 } else { 0 };
+                        [v, v, v, 255]
+                    } else {
+                        [200, 120, 40, 255]
+                    };
+                    buf[(r * T + c) * 4..(r * T + c + 1) * 4].copy_from_slice(&px);
                 }
-                sw.finish().expect("finish");
             }
-        }
+            Some(buf)
+        })
+        .expect("write");
         w.commit(None).expect("commit");
     }
     build(dir.path(), Settings::default()).expect("build");

@@ -27,31 +27,18 @@ fn make_store(root: &Path) -> (GridSpec, LevelId) {
     )
     .expect("create");
     let level = LevelId::iso(2).expect("valid");
-    let (sx, sy) = ShardId::counts(grid, level, 2);
-    for y in 0..sy {
-        for x in 0..sx {
-            let mut sw = w
-                .shard_writer::<f32>(ShardId { level, x, y })
-                .expect("claim");
-            for tile in sw.tiles().collect::<Vec<_>>() {
-                if (tile.x, tile.y) == (5, 2) {
-                    continue; // left missing on purpose
-                }
-                let (ox, oy) = tile.origin_texel(grid);
-                let v: Vec<f32> = (0..T * T)
-                    .map(|k| {
-                        height_at(grid.texel_centre(
-                            level,
-                            ox + (k % T) as u64,
-                            oy + (k / T) as u64,
-                        ))
-                    })
-                    .collect();
-                sw.put_tile(tile, &v).expect("put");
-            }
-            sw.finish().expect("finish");
-        }
-    }
+    w.write_level::<f32>(level, 1, |tile| {
+        // (5, 2) is left missing on purpose
+        ((tile.x, tile.y) != (5, 2)).then(|| {
+            let (ox, oy) = tile.origin_texel(grid);
+            (0..T * T)
+                .map(|k| {
+                    height_at(grid.texel_centre(level, ox + (k % T) as u64, oy + (k / T) as u64))
+                })
+                .collect()
+        })
+    })
+    .expect("write");
     let l1 = LevelId::iso(1).expect("valid");
     let mut sw = w
         .shard_writer::<u8>(ShardId {

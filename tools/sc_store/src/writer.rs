@@ -314,6 +314,53 @@ impl StoreWriter {
         }
     }
 
+    /// Writes `level` of layer `T::KIND` shard by shard on `threads` threads (0: one per core):
+    /// each tile holds `make(tile)`, or keeps what it held (nothing, in a new level) where that
+    /// returns `None`. Returns the number of tiles written. Every shard is written whole, so the
+    /// bytes do not depend on the thread count.
+    pub fn write_level<T: TileSample>(
+        &self,
+        level: LevelId,
+        threads: usize,
+        make: impl Fn(TileId) -> Option<Vec<T>> + Sync,
+    ) -> Result<u64> {
+        self.ensure_level(T::KIND, level)?;
+        let (grid, s) = {
+            let m = self.lock_meta();
+            (m.grid, m.shard_tiles)
+        };
+        let (sx, sy) = ShardId::counts(grid, level, s);
+        let threads = match threads {
+            0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+            n => n,
+        };
+        let written = std::sync::atomic::AtomicU64::new(0);
+        sc_core::workers::run(
+            (sx * sy) as usize,
+            threads,
+            || Ok(()),
+            |_, k| {
+                let (x, y) = (k as u64 % sx, k as u64 / sx);
+                let mut sw = self.shard_writer::<T>(ShardId { level, x, y })?;
+                for tile in sw.tiles().collect::<Vec<_>>() {
+                    if let Some(v) = make(tile) {
+                        sw.put_tile(tile, &v)?;
+                        written.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                    }
+                }
+                sw.finish()
+            },
+        )
+        .map_err(|e| match e {
+            sc_core::workers::Stopped::Failed(e) => e,
+            sc_core::workers::Stopped::Panicked => StoreError::Usage(format!(
+                "a thread writing {} level {level} panicked",
+                T::KIND
+            )),
+        })?;
+        Ok(written.into_inner())
+    }
+
     /// Makes sure the array of `level` exists for layer `kind` (metadata written durably).
     pub fn ensure_level(&self, kind: LayerKind, level: LevelId) -> Result<()> {
         self.level_arrays(kind, level).map(|_| ())

@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use sc_core::{GridSpec, LevelId, ShardId};
+use sc_core::{GridSpec, LevelId};
 use sc_store::{StoreConfig, StoreReader, StoreWriter};
 use sc_view_plan::clipmap::{CLIPMAP_N, Placement, StoreHeights, fill_level, level_window};
 use sc_view_plan::transform::Viewer;
@@ -26,8 +26,8 @@ fn marker_store(root: &Path) -> GridSpec {
 /// colour layer of levels 0–3 too, some of its tiles left out.
 fn store_of(
     root: &Path,
-    value: impl Fn(LevelId, (u64, u64), usize) -> f32,
-    keep: impl Fn(LevelId, (u64, u64)) -> bool,
+    value: impl Fn(LevelId, (u64, u64), usize) -> f32 + Sync,
+    keep: impl Fn(LevelId, (u64, u64)) -> bool + Sync,
     colors: bool,
 ) -> GridSpec {
     let grid = GridSpec::new(T).expect("grid");
@@ -43,46 +43,26 @@ fn store_of(
     let mut ids: Vec<LevelId> = (0..4).map(|l| LevelId::iso(l).expect("level")).collect();
     ids.extend((1..=3).map(|a| LevelId::new(3, a).expect("level")));
     for id in ids {
-        let (sx, sy) = ShardId::counts(grid, id, 4);
-        for y in 0..sy {
-            for x in 0..sx {
-                let mut sw = w
-                    .shard_writer::<f32>(ShardId { level: id, x, y })
-                    .expect("shard");
-                let tiles: Vec<_> = sw
-                    .tiles()
-                    .filter(|t| grid.level_has_tile_row(id, t.y))
-                    .filter(|t| keep(id, (t.x, t.y)))
-                    .collect();
-                for t in tiles {
-                    let v: Vec<f32> = (0..(T * T) as usize)
-                        .map(|k| value(id, (t.x, t.y), k))
-                        .collect();
-                    sw.put_tile(t, &v).expect("put");
-                }
-                sw.finish().expect("finish");
-            }
-        }
+        w.write_level::<f32>(id, 1, |t| {
+            (grid.level_has_tile_row(id, t.y) && keep(id, (t.x, t.y))).then(|| {
+                (0..(T * T) as usize)
+                    .map(|k| value(id, (t.x, t.y), k))
+                    .collect()
+            })
+        })
+        .expect("write");
     }
     if colors {
         for l in 0..4 {
             let id = LevelId::iso(l).expect("level");
-            let (sx, sy) = ShardId::counts(grid, id, 4);
-            for y in 0..sy {
-                for x in 0..sx {
-                    let mut sw = w
-                        .shard_writer::<u8>(ShardId { level: id, x, y })
-                        .expect("shard");
-                    let tiles: Vec<_> = sw.tiles().filter(|t| (t.x + t.y) % 5 != 2).collect();
-                    for t in tiles {
-                        let v: Vec<u8> = (0..(T * T * 4) as usize)
-                            .map(|k| ((k * 7 + t.x as usize * 13 + t.y as usize * 29) % 256) as u8)
-                            .collect();
-                        sw.put_tile(t, &v).expect("put");
-                    }
-                    sw.finish().expect("finish");
-                }
-            }
+            w.write_level::<u8>(id, 1, |t| {
+                ((t.x + t.y) % 5 != 2).then(|| {
+                    (0..(T * T * 4) as usize)
+                        .map(|k| ((k * 7 + t.x as usize * 13 + t.y as usize * 29) % 256) as u8)
+                        .collect()
+                })
+            })
+            .expect("write");
         }
     }
     w.commit(None).expect("commit");

@@ -8,7 +8,7 @@ use anyhow::{Context, Result, bail};
 use sc_core::signal::{
     BandScore, PlaneWaves, QUALITY_BANDS, Wave, nyquist, pass_band_error, stop_band_residual,
 };
-use sc_core::{GridSpec, Kernel, LevelId, ShardId, TileId};
+use sc_core::{GridSpec, Kernel, LevelId, TileId};
 use sc_inspect::{LevelInput, ReportOptions, SignalTable};
 use sc_store::{LayerKind, StoreConfig, StoreReader, StoreWriter, TileRead};
 
@@ -293,48 +293,17 @@ fn write_signal(root: &Path, grid: GridSpec, level: LevelId, signal: &PlaneWaves
             ..StoreConfig::default()
         },
     )?;
-    w.ensure_level(LayerKind::Height, level)?;
-    let (sx, sy) = ShardId::counts(grid, level, w.meta().shard_tiles);
     let t = grid.tile_size() as usize;
-    let shards: Vec<ShardId> = (0..sy)
-        .flat_map(|y| (0..sx).map(move |x| ShardId { level, x, y }))
-        .collect();
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-    std::thread::scope(|s| -> Result<()> {
-        let hs: Vec<_> = (0..threads)
-            .map(|_| {
-                s.spawn(|| -> Result<()> {
-                    loop {
-                        let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                        let Some(&shard) = shards.get(k) else {
-                            return Ok(());
-                        };
-                        let mut sw = w.shard_writer::<f32>(shard)?;
-                        for tile in sw.tiles().collect::<Vec<_>>() {
-                            let (i0, j0) = tile.origin_texel(grid);
-                            let buf: Vec<f32> = (0..t * t)
-                                .map(|k| {
-                                    let c = grid.texel_centre(
-                                        level,
-                                        i0 + (k % t) as u64,
-                                        j0 + (k / t) as u64,
-                                    );
-                                    signal.eval(c) as f32
-                                })
-                                .collect();
-                            sw.put_tile(tile, &buf)?;
-                        }
-                        sw.finish()?;
-                    }
+    w.write_level::<f32>(level, 0, |tile| {
+        let (i0, j0) = tile.origin_texel(grid);
+        Some(
+            (0..t * t)
+                .map(|k| {
+                    let c = grid.texel_centre(level, i0 + (k % t) as u64, j0 + (k / t) as u64);
+                    signal.eval(c) as f32
                 })
-            })
-            .collect();
-        for h in hs {
-            h.join()
-                .map_err(|_| anyhow::anyhow!("a signal writer panicked"))??;
-        }
-        Ok(())
+                .collect(),
+        )
     })?;
     w.commit(None)?;
     Ok(())
