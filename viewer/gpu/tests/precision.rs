@@ -60,7 +60,7 @@ fn errors(
             f64::from(x.one_minus_cos),
             f64::from(x.seam),
         );
-        let colat = v.colat + e.dcolat;
+        let colat = v.colat_rad + e.dcolat;
         let dy = (f64::from(g[1]) - e.dcolat).abs() * R;
         let dx = (f64::from(g[0]) - e.dlon).abs() * R * colat.sin().abs();
         let ground = dx.hypot(dy);

@@ -62,7 +62,7 @@ fn hits(camera: &Camera, cam_height: f64, w: u32, h: u32, r_min: f64) -> Vec<boo
 /// For each pixel: the angle (radians) between the nearer pole and where its ray meets the
 /// sphere of radius `r_min`, if it does.
 fn hit_points(camera: &Camera, cam_height: f64, w: u32, h: u32, r_min: f64) -> Vec<Option<f64>> {
-    let v = Viewer::from_deg(camera.lat, camera.lon);
+    let v = Viewer::from_deg(camera.lat_deg, camera.lon_deg);
     let inv = view_projection(&v, camera, w, h).inverse();
     let centre = glam::DVec3::new(0.0, 0.0, -(R + cam_height));
     let mut out = Vec::with_capacity((w * h) as usize);
@@ -117,11 +117,11 @@ fn no_cracks_below_the_horizon_from_the_ground_to_orbit() {
     for (name, cam) in cameras {
         let cam = cam.expect("camera");
         let (img, stats) = r.render(&mut Mountains, None, &cam).expect("render");
-        let v = Viewer::from_deg(cam.lat, cam.lon);
+        let v = Viewer::from_deg(cam.lat_deg, cam.lon_deg);
         let ground = f64::from(Mountains.height(
-            v.lon,
-            v.colat,
-            sc_view_plan::clipmap::level_window(20, v.colat, 256),
+            v.lon_rad,
+            v.colat_rad,
+            sc_view_plan::clipmap::level_window(20, v.colat_rad, 256),
         ));
         let must = hits(&cam, ground + cam.alt, w, h, R - 6500.0);
         let mut holes = Vec::new();
@@ -195,7 +195,7 @@ fn no_stripe_along_the_meridian_beyond_the_pole() {
             }
         }
         if worst > 16 {
-            let path = std::env::temp_dir().join(format!("seam-{}.png", cam.lat));
+            let path = std::env::temp_dir().join(format!("seam-{}.png", cam.lat_deg));
             img.save(&path).ok();
             panic!(
                 "{cam:?}: a jump of {worst} between neighbouring pixels; image {}",
@@ -212,8 +212,8 @@ fn partial_clipmap_updates_draw_the_same_as_a_fresh_fill() {
     let (w, h) = (96, 64);
     let mut moving = renderer(w, h);
     let start = Camera {
-        lat: 89.2,
-        lon: 179.0,
+        lat_deg: 89.2,
+        lon_deg: 179.0,
         alt: 3000.0,
         heading: 20.0,
         pitch: -25.0,
@@ -223,8 +223,8 @@ fn partial_clipmap_updates_draw_the_same_as_a_fresh_fill() {
     let mut cam = start;
     for step in 0..6 {
         // north over the pole region and east across the antimeridian, by growing steps
-        cam.lat = (start.lat + 0.05 * f64::from(step)).min(89.99);
-        cam.lon = start.lon + 0.3 * f64::from(step * step);
+        cam.lat_deg = (start.lat_deg + 0.05 * f64::from(step)).min(89.99);
+        cam.lon_deg = start.lon_deg + 0.3 * f64::from(step * step);
         let (a, stats) = moving
             .render(&mut Mountains, Some(&mut ByLongitude), &cam)
             .expect("render");

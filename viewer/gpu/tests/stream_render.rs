@@ -172,7 +172,7 @@ fn levels_out_of_view_are_prefetched_so_looking_down_shows_them_at_once() {
     // stop at one place, then at another 15 km east (beyond the finest levels' windows: their
     // tiles there are new, and only the prefetch makes them while they are out of view)
     for lon in [8.0, 8.2] {
-        ahead.lon = lon;
+        ahead.lon_deg = lon;
         for _ in 0..10 {
             settle(&streamer);
             let frame = r.render_streamed(&streamer, only_heights, &ahead, None);

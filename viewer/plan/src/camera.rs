@@ -27,9 +27,9 @@ pub struct CameraError(String);
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Camera {
     /// Latitude, degrees.
-    pub lat: f64,
+    pub lat_deg: f64,
     /// Longitude, degrees.
-    pub lon: f64,
+    pub lon_deg: f64,
     /// Height above the ground below it, metres.
     pub alt: f64,
     /// Heading, degrees clockwise from north.
@@ -57,8 +57,8 @@ impl Camera {
             return Err(bad());
         }
         let c = Camera {
-            lat: v[0],
-            lon: v[1],
+            lat_deg: v[0],
+            lon_deg: v[1],
             alt: v[2],
             heading: v.get(3).copied().unwrap_or(0.0),
             pitch: v
@@ -67,10 +67,10 @@ impl Camera {
                 .unwrap_or(if v[2] > 1.0e5 { -90.0 } else { -20.0 }),
             fov: v.get(5).copied().unwrap_or(60.0),
         };
-        if !(-90.0..=90.0).contains(&c.lat) {
+        if !(-90.0..=90.0).contains(&c.lat_deg) {
             return Err(CameraError(format!(
                 "latitude {} is outside −90..90",
-                c.lat
+                c.lat_deg
             )));
         }
         if !(0.0..=1.0e8).contains(&c.alt) {
@@ -250,7 +250,7 @@ pub fn move_along(c: &mut Camera, bearing: f64, dist: f64, radius: f64) {
     if dist == 0.0 || !dist.is_finite() {
         return;
     }
-    let (p, n, e) = frame(c.lat, c.lon);
+    let (p, n, e) = frame(c.lat_deg, c.lon_deg);
     let b = bearing.to_radians();
     let t = n * b.cos() + e * b.sin();
     let d = dist / radius;
@@ -258,15 +258,15 @@ pub fn move_along(c: &mut Camera, bearing: f64, dist: f64, radius: f64) {
     let t2 = (t * d.cos() - p * d.sin()).normalize();
     let lat = p2.z.clamp(-1.0, 1.0).asin().to_degrees();
     let lon = if p2.x.abs() + p2.y.abs() < 1e-12 {
-        c.lon
+        c.lon_deg
     } else {
         p2.y.atan2(p2.x).to_degrees()
     };
     let (_, n2, e2) = frame(lat, lon);
     let bearing2 = t2.dot(e2).atan2(t2.dot(n2)).to_degrees();
     let turned = bearing2 - bearing;
-    c.lat = lat;
-    c.lon = lon;
+    c.lat_deg = lat;
+    c.lon_deg = lon;
     c.heading = (c.heading + turned).rem_euclid(360.0);
 }
 
@@ -278,8 +278,8 @@ mod tests {
 
     fn cam(lat: f64, lon: f64, alt: f64, heading: f64) -> Camera {
         Camera {
-            lat,
-            lon,
+            lat_deg: lat,
+            lon_deg: lon,
             alt,
             heading,
             pitch: -10.0,
@@ -288,8 +288,8 @@ mod tests {
     }
 
     fn distance(a: &Camera, b: &Camera) -> f64 {
-        let (p, _, _) = frame(a.lat, a.lon);
-        let (q, _, _) = frame(b.lat, b.lon);
+        let (p, _, _) = frame(a.lat_deg, a.lon_deg);
+        let (q, _, _) = frame(b.lat_deg, b.lon_deg);
         p.cross(q).length().atan2(p.dot(q)) * R
     }
 
@@ -328,7 +328,9 @@ mod tests {
         let d = distance(&start, &c.camera);
         assert!((d - 1.4).abs() < 1e-3, "walked {d} m");
         // due north: latitude grows, longitude stays
-        assert!(c.camera.lat > start.lat && (c.camera.lon - start.lon).abs() < 1e-9);
+        assert!(
+            c.camera.lat_deg > start.lat_deg && (c.camera.lon_deg - start.lon_deg).abs() < 1e-9
+        );
     }
 
     #[test]
@@ -343,8 +345,8 @@ mod tests {
                 ..Input::default()
             });
         }
-        assert!((c.camera.lat - 89.9).abs() < 0.01, "{:?}", c.camera);
-        assert!((c.camera.lon - (-170.0)).abs() < 1e-6, "{:?}", c.camera);
+        assert!((c.camera.lat_deg - 89.9).abs() < 0.01, "{:?}", c.camera);
+        assert!((c.camera.lon_deg - (-170.0)).abs() < 1e-6, "{:?}", c.camera);
         assert!((c.camera.heading - 180.0).abs() < 1e-6, "{:?}", c.camera);
     }
 
@@ -363,13 +365,13 @@ mod tests {
         });
         assert_eq!(c.camera.alt, ALT_RANGE_M.1);
         // dragging down moves the camera north (the ground follows the cursor)
-        let lat = c.camera.lat;
+        let lat = c.camera.lat_deg;
         c.camera.alt = 1.0e6;
         c.update(&Input {
             drag: (0.0, 50.0),
             ..Input::default()
         });
-        assert!(c.camera.lat > lat);
+        assert!(c.camera.lat_deg > lat);
     }
 
     #[test]

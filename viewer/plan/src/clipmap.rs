@@ -75,9 +75,9 @@ pub struct Placement {
 impl Placement {
     /// Level `i`'s placement around `viewer`, `n` texels a side.
     pub fn new(i: u32, viewer: &Viewer, n: u32) -> Self {
-        let win = level_window(i, viewer.colat, n);
-        let u = (viewer.lon + PI).rem_euclid(2.0 * PI) / win.texel_lon;
-        let v = viewer.colat / win.texel_colat;
+        let win = level_window(i, viewer.colat_rad, n);
+        let u = (viewer.lon_rad + PI).rem_euclid(2.0 * PI) / win.texel_lon;
+        let v = viewer.colat_rad / win.texel_colat;
         let half = i64::from(n / 2);
         let (u0, v0) = (u.floor() as i64 - half, v.floor() as i64 - half);
         Self {
@@ -716,14 +716,14 @@ mod tests {
         let p = Placement::new(12, &v, n);
         // less than a texel: nothing to refill
         let nudged = Viewer {
-            lon: v.lon + 0.2 * p.win.texel_lon * (1.0 - p.viewer_texel[0].fract()),
+            lon_rad: v.lon_rad + 0.2 * p.win.texel_lon * (1.0 - p.viewer_texel[0].fract()),
             ..v
         };
         assert_eq!(Placement::new(12, &nudged, n).u0, p.u0);
         // three texels east, two south: the texels both windows hold sit at the same index
         let moved = Viewer {
-            lon: v.lon + 3.0 * p.win.texel_lon,
-            colat: v.colat + 2.0 * p.win.texel_colat,
+            lon_rad: v.lon_rad + 3.0 * p.win.texel_lon,
+            colat_rad: v.colat_rad + 2.0 * p.win.texel_colat,
         };
         let q = Placement::new(12, &moved, n);
         assert_eq!((q.u0 - p.u0, q.v0 - p.v0), (3, 2));
@@ -765,8 +765,9 @@ mod tests {
             // across the antimeridian: the viewer starts at 170°E)
             let scale = [0.3, 2.0, 9.0, 40.0][step % 4];
             let v = Viewer {
-                lon: base.lon + (rnd() - 0.3) * scale * cur.win.texel_lon * (step as f64).sqrt(),
-                colat: base.colat + (rnd() - 0.5) * scale * cur.win.texel_colat,
+                lon_rad: base.lon_rad
+                    + (rnd() - 0.3) * scale * cur.win.texel_lon * (step as f64).sqrt(),
+                colat_rad: base.colat_rad + (rnd() - 0.5) * scale * cur.win.texel_colat,
             };
             let next = Placement::new(9, &v, n);
             let regions = changed_regions(&cur, &next, n);
@@ -808,7 +809,7 @@ mod tests {
         }
         // less than a texel: nothing
         let nudge = Viewer {
-            lon: base.lon + 0.01 * p0.win.texel_lon * (1.0 - p0.viewer_texel[0].fract()),
+            lon_rad: base.lon_rad + 0.01 * p0.win.texel_lon * (1.0 - p0.viewer_texel[0].fract()),
             ..base
         };
         assert!(changed_regions(&p0, &Placement::new(9, &nudge, n), n).is_empty());

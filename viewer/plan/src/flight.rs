@@ -127,8 +127,8 @@ impl Flight {
     /// The camera at the start of the flight (its first altitude).
     pub fn start_camera(&self) -> Camera {
         Camera {
-            lat: self.start[0],
-            lon: self.start[1],
+            lat_deg: self.start[0],
+            lon_deg: self.start[1],
             alt: self.altitudes[0],
             heading: self.heading,
             pitch: self.pitch,

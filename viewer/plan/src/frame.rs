@@ -286,7 +286,7 @@ impl FramePlanner {
         camera: &Camera,
         (w, h): (u32, u32),
     ) -> FramePlan {
-        let viewer = Viewer::from_deg(camera.lat, camera.lon);
+        let viewer = Viewer::from_deg(camera.lat_deg, camera.lon_deg);
         let (lo, hi) = self.visible(camera, h);
         let mut uploads = Vec::new();
         let mut filled = 0;
@@ -392,7 +392,7 @@ impl FramePlanner {
     ) -> FramePlan {
         let n = CLIPMAP_N;
         debug_assert_eq!(streamer.tile_size(), n);
-        let viewer = Viewer::from_deg(camera.lat, camera.lon);
+        let viewer = Viewer::from_deg(camera.lat_deg, camera.lon_deg);
         let levels = self.hemi.spec.levels;
         let (lo, sharpest) = self.visible(camera, h);
         let layers: Vec<(LayerKind, u32)> = std::iter::once((LayerKind::Height, sources.height))
@@ -417,9 +417,9 @@ impl FramePlanner {
         );
         // the motion since the last frame (radians of longitude and colatitude, and of arc)
         let motion = self.prev_viewer.map(|prev| {
-            let dlon = (viewer.lon - prev.lon + PI).rem_euclid(2.0 * PI) - PI;
-            let dcolat = viewer.colat - prev.colat;
-            (dlon, dcolat, dcolat.hypot(dlon * viewer.colat.sin()))
+            let dlon = (viewer.lon_rad - prev.lon_rad + PI).rem_euclid(2.0 * PI) - PI;
+            let dcolat = viewer.colat_rad - prev.colat_rad;
+            (dlon, dcolat, dcolat.hypot(dlon * viewer.colat_rad.sin()))
         });
         // 1. the tasks of this focus: the visible levels; as prefetch, the level just out of
         // view (terrain ahead may lift its ground into view any frame), and the finer ones (out
@@ -466,8 +466,8 @@ impl FramePlanner {
                 }
                 for f in frames {
                     let ahead = Viewer {
-                        lon: viewer.lon + dlon * f,
-                        colat: (viewer.colat + dcolat * f).clamp(1e-9, PI - 1e-9),
+                        lon_rad: viewer.lon_rad + dlon * f,
+                        colat_rad: (viewer.colat_rad + dcolat * f).clamp(1e-9, PI - 1e-9),
                     };
                     let p = Placement::new(i, &ahead, n);
                     let grid = GridId::of(i, &p, n);

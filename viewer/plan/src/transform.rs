@@ -17,23 +17,23 @@
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Viewer {
     /// Colatitude θ_v, radians (0 at the north pole).
-    pub colat: f64,
+    pub colat_rad: f64,
     /// Longitude φ_v, radians.
-    pub lon: f64,
+    pub lon_rad: f64,
 }
 
 impl Viewer {
     /// From latitude and longitude in degrees.
     pub fn from_deg(lat: f64, lon: f64) -> Self {
         Self {
-            colat: (90.0 - lat).to_radians(),
-            lon: lon.to_radians(),
+            colat_rad: (90.0 - lat).to_radians(),
+            lon_rad: lon.to_radians(),
         }
     }
 
     /// +1 in the northern hemisphere (and on the equator), −1 in the southern.
     pub fn orient(&self) -> f64 {
-        if self.colat <= std::f64::consts::FRAC_PI_2 {
+        if self.colat_rad <= std::f64::consts::FRAC_PI_2 {
             1.0
         } else {
             -1.0
@@ -43,9 +43,9 @@ impl Viewer {
     /// Colatitude from the nearer pole (≤ π/2).
     pub fn polar_colat(&self) -> f64 {
         if self.orient() > 0.0 {
-            self.colat
+            self.colat_rad
         } else {
-            std::f64::consts::PI - self.colat
+            std::f64::consts::PI - self.colat_rad
         }
     }
 
@@ -91,7 +91,7 @@ pub struct Offsets<T> {
 pub fn offsets_f64(v: &Viewer, px: f64, py: f64, c: f64, seam: f64) -> Offsets<f64> {
     let o = v.orient();
     let (tx, ty, tz) = (o * px, o * py, 1.0 - c);
-    let (s, k) = v.colat.sin_cos();
+    let (s, k) = v.colat_rad.sin_cos();
     let wx = k * tx + s * tz;
     let wy = ty;
     let wz = -s * tx + k * tz;
@@ -102,7 +102,7 @@ pub fn offsets_f64(v: &Viewer, px: f64, py: f64, c: f64, seam: f64) -> Offsets<f
     let colat = wx.hypot(wy).atan2(wz);
     Offsets {
         dlon,
-        dcolat: colat - v.colat,
+        dcolat: colat - v.colat_rad,
     }
 }
 

@@ -178,7 +178,7 @@ fn polar_texels_come_from_the_anisotropic_levels_and_never_from_a_missing_row() 
                     seen_aniso = true;
                     assert_eq!(level, 4, "stored level 3");
                     // its columns are no wider than the clipmap texel
-                    let win = level_window(i, viewer.colat, CLIPMAP_N);
+                    let win = level_window(i, viewer.colat_rad, CLIPMAP_N);
                     assert!(
                         iso3_lon * f64::from(1u32 << aniso) <= win.texel_lon * (1.0 + 1e-9),
                         "(3,{aniso}) for a texel of {} rad",

@@ -188,7 +188,8 @@ fn a_moving_camera_prefetches_its_path_and_refills_only_what_moved() {
     let mut camera = Camera::parse("10,20,20000,90,-30,60").expect("camera");
     let first = converge(&mut p, &s, &camera);
     // east by 2 km a frame
-    camera.lon += 2000.0 / (R * camera.lat.to_radians().cos()) * 180.0 / std::f64::consts::PI;
+    camera.lon_deg +=
+        2000.0 / (R * camera.lat_deg.to_radians().cos()) * 180.0 / std::f64::consts::PI;
     let f = plan(&mut p, &s, &camera);
     let path: Vec<&Task> = f.tasks.iter().filter(|t| t.ahead > 1).collect();
     assert!(!path.is_empty(), "no prefetch along the path");

@@ -350,7 +350,7 @@ impl App<'_> {
                     }
                     ui.label(format!(
                         "{:.5}°, {:.5}° · {:.1} m above ground · heading {:.0}°",
-                        camera.lat, camera.lon, camera.alt, camera.heading
+                        camera.lat_deg, camera.lon_deg, camera.alt, camera.heading
                     ));
                     ui.horizontal(|ui| {
                         ui.radio_value(&mut mode, Mode::Orbit, "orbit (1)");
