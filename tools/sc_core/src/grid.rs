@@ -159,7 +159,8 @@ impl GridSpec {
     }
 
     /// The texel that integer indices (i, j) denote once wrapped: columns wrap across the
-    /// antimeridian; a row beyond a pole is the mirrored row at longitude +180°
+    /// antimeridian; a row beyond a pole is the mirrored row at longitude +180° (the rule of
+    /// [`crate::pole`])
     /// (row −1 is row 0 at the opposite column, row H is row H−1 likewise).
     pub fn wrap_texel(self, level: LevelId, i: i64, j: i64) -> (u64, u64) {
         let w = self.width(level) as i64;

@@ -12,6 +12,7 @@ pub mod color;
 mod grid;
 mod kernel;
 mod level;
+pub mod pole;
 pub mod pyramid;
 pub mod reference;
 pub mod signal;

@@ -696,7 +696,7 @@ impl RasterSource {
             if (0..info.height as i64).contains(&r) {
                 return Some((r, false));
             }
-            let mirror = |pole: f64| -> i64 { (2.0 * pole - r as f64 - 1.0).round() as i64 };
+            let mirror = |pole: f64| sc_core::pole::mirror_row(r, pole);
             let rr = if r < 0 {
                 info.north_pole_y.map(mirror)
             } else {

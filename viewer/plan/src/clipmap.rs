@@ -304,12 +304,7 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
             .position(|(l, _)| *l >= ideal)
             .unwrap_or(cap);
         let (level, anisos) = &self.levels[idx];
-        let mut c = colat.rem_euclid(2.0 * PI);
-        let mut lo = lon;
-        if c > PI {
-            c = 2.0 * PI - c;
-            lo += PI;
-        }
+        let (lo, c, _) = sc_core::pole::fold_lon_colat(lon, colat);
         let iso = LevelId {
             level: *level,
             aniso: 0,
@@ -462,7 +457,7 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
         };
         let (f, idx) = self.locate_in(lons[first], colat, win, cap);
         let w = self.grid.width(f.id);
-        let flip = colat.rem_euclid(2.0 * PI) > PI;
+        let (_, _, flip) = sc_core::pole::fold_lon_colat(0.0, colat);
         // the points' columns in this level: the same for every row of a tile, so a full row
         // reuses the previous row's when the level and the longitudes are the same
         let full = which.len() == lons.len();
