@@ -231,6 +231,29 @@ impl GridSpec {
         [-180.0, dx, 0.0, 90.0, 0.0, -dy]
     }
 
+    /// The fractional column of longitude `lon_rad` in `level`, texel centres at integers (so
+    /// −0.5 at the antimeridian), wrapped into [−0.5, W − 0.5).
+    pub fn column_of_lon_rad(self, level: LevelId, lon_rad: f64) -> f64 {
+        use std::f64::consts::PI;
+        (lon_rad + PI).rem_euclid(2.0 * PI) / (2.0 * PI) * self.width(level) as f64 - 0.5
+    }
+
+    /// The fractional row of colatitude `colat_rad` (0 at the north pole) in `level`, texel
+    /// centres at integers.
+    pub fn row_of_colat_rad(self, level: LevelId, colat_rad: f64) -> f64 {
+        colat_rad / std::f64::consts::PI * self.height(level) as f64 - 0.5
+    }
+
+    /// The coarsest isotropic level whose latitude spacing π/H is no coarser than `spacing_rad`
+    /// (the radian form of [`Self::level_for_spacing_deg`], for callers that think in radians;
+    /// no limit).
+    pub fn level_for_spacing_rad(self, spacing_rad: f64) -> u32 {
+        (std::f64::consts::PI / (f64::from(self.tile_size) * spacing_rad))
+            .log2()
+            .ceil()
+            .max(0.0) as u32
+    }
+
     /// The coarsest isotropic level whose latitude spacing is no coarser than `spacing_deg`
     /// (clamped to [`crate::LEVEL_MAX`]).
     pub fn level_for_spacing_deg(self, spacing_deg: f64) -> LevelId {

@@ -15,6 +15,22 @@ fn grid() -> impl Strategy<Value = GridSpec> {
 
 proptest! {
     #[test]
+    fn radian_positions_agree_with_degree_positions(g in grid(), l in level(), lon in -180.0f64..179.9, lat in -89.9f64..89.9) {
+        let t = g.texel_from_lonlat(l, LonLat::new(lon, lat)).expect("on sphere");
+        let x = g.column_of_lon_rad(l, lon.to_radians());
+        let y = g.row_of_colat_rad(l, (90.0 - lat).to_radians());
+        // centres at integers in the radian form, at +0.5 in the degree form
+        prop_assert!((x + 0.5 - t.x).abs() < 1e-6 * g.width(l) as f64, "{x} vs {}", t.x);
+        prop_assert!((y + 0.5 - t.y).abs() < 1e-6 * g.height(l) as f64, "{y} vs {}", t.y);
+        // the level for a spacing: the same rule in both units, away from exact level spacings
+        let spacing_deg = 180.0 / g.height(l) as f64 * 1.3;
+        prop_assert_eq!(
+            g.level_for_spacing_rad(spacing_deg.to_radians()),
+            g.level_for_spacing_deg(spacing_deg).level
+        );
+    }
+
+    #[test]
     fn lonlat_texel_round_trip(g in grid(), l in level(), lon in -180.0f64..180.0, lat in -90.0f64..=90.0) {
         let t = g.texel_from_lonlat(l, LonLat::new(lon, lat)).expect("on sphere");
         prop_assert!(t.x >= 0.0 && t.x < g.width(l) as f64);

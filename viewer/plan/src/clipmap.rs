@@ -296,8 +296,7 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
     /// data there falls back to the next coarser one: see [`Self::locate_present`]). Returns the
     /// footprint and the index of its level.
     fn locate_in(&self, lon: f64, colat: f64, win: LevelWindow, cap: usize) -> (Footprint, usize) {
-        let t = f64::from(self.grid.tile_size());
-        let ideal = (PI / (t * win.texel_colat)).log2().ceil().max(0.0) as u32;
+        let ideal = self.grid.level_for_spacing_rad(win.texel_colat);
         let cap = cap.min(self.levels.len() - 1);
         let idx = self.levels[..=cap]
             .iter()
@@ -319,9 +318,9 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
             if a > 0 && iso_lon * f64::from(1u32 << a) > win.texel_lon * (1.0 + 1e-9) {
                 break;
             }
-            let (w, h) = (self.grid.width(id), self.grid.height(id));
-            let x = (lo + PI).rem_euclid(2.0 * PI) / (2.0 * PI) * w as f64 - 0.5;
-            let y = (c / PI * h as f64 - 0.5).clamp(0.0, (h - 1) as f64);
+            let h = self.grid.height(id);
+            let x = self.grid.column_of_lon_rad(id, lo);
+            let y = self.grid.row_of_colat_rad(id, c).clamp(0.0, (h - 1) as f64);
             // both rows of the bilinear footprint must exist in an anisotropic level
             let rows = [y.floor() as u64, (y.floor() as u64 + 1).min(h - 1)];
             let tile = u64::from(self.grid.tile_size());
@@ -456,7 +455,6 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
             return;
         };
         let (f, idx) = self.locate_in(lons[first], colat, win, cap);
-        let w = self.grid.width(f.id);
         let (_, _, flip) = sc_core::pole::fold_lon_colat(0.0, colat);
         // the points' columns in this level: the same for every row of a tile, so a full row
         // reuses the previous row's when the level and the longitudes are the same
@@ -467,7 +465,7 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
             .position(|c| full && c.id == f.id && c.flip == flip && c.lons == lons);
         let columns = match hit {
             Some(i) => self.columns.remove(i),
-            None => Columns::new(lons, which, f.id, flip, w, self.grid.tile_size()),
+            None => Columns::new(lons, which, self.grid, f.id, flip),
         };
         // every tile the row touches, loaded before any is borrowed
         self.bound_cache();
@@ -550,10 +548,10 @@ struct Columns {
 }
 
 impl Columns {
-    /// Points `which` of `lons` in level `id` (`w` columns, store tiles `t` wide, a power of
-    /// two); `flip`: the row lies beyond a pole (lon + 180°).
-    fn new(lons: &[f64], which: &[usize], id: LevelId, flip: bool, w: u64, t: u32) -> Self {
-        let (wi, t) = (w as i64, u64::from(t));
+    /// Points `which` of `lons` in level `id` of `grid` (store tiles a power of two wide);
+    /// `flip`: the row lies beyond a pole (lon + 180°).
+    fn new(lons: &[f64], which: &[usize], grid: GridSpec, id: LevelId, flip: bool) -> Self {
+        let (wi, t) = (grid.width(id) as i64, u64::from(grid.tile_size()));
         let shift = t.trailing_zeros();
         let mut cols: Vec<u64> = Vec::new();
         let mut slot = |i: i64| -> (usize, usize) {
@@ -573,7 +571,7 @@ impl Columns {
         for &k in which {
             let lon = lons[k];
             let lo = if flip { lon + PI } else { lon };
-            let x = (lo + PI).rem_euclid(2.0 * PI) / (2.0 * PI) * w as f64 - 0.5;
+            let x = grid.column_of_lon_rad(id, lo);
             let x0 = x.floor();
             fx.push(x - x0);
             let i0 = (x0 as i64).rem_euclid(wi);
