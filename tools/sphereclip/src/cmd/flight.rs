@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use sc_view_gpu::flight::{Stats, fly};
 use sc_view_gpu::render::Renderer;
 use sc_view_plan::graph::default_workers;
@@ -14,9 +14,7 @@ use super::streamer_for;
 /// (JSON) to `out` and returns them.
 pub fn run(store: &Path, flight_path: &Path, (w, h): (u32, u32), out: &Path) -> Result<Stats> {
     let flight = sc_view_plan::flight::parse(flight_path)?;
-    if out.is_dir() {
-        bail!("--stats is a folder, not a JSON file: {}", out.display());
-    }
+    super::check_output_file(out, "--stats")?;
     let s = streamer_for(store, None)?;
     let mut r = Renderer::headless(w, h, s.radius)?;
     let stats = fly(
@@ -40,8 +38,7 @@ pub fn run(store: &Path, flight_path: &Path, (w, h): (u32, u32), out: &Path) -> 
         },
     )?;
     let json = serde_json::to_string_pretty(&stats)?;
-    let tmp = out.with_extension("json.tmp");
-    std::fs::write(&tmp, json).with_context(|| format!("cannot write {}", tmp.display()))?;
-    std::fs::rename(&tmp, out).with_context(|| format!("cannot write {}", out.display()))?;
+    sc_store::fault::write_atomic(out, json.as_bytes())
+        .with_context(|| format!("cannot write {}", out.display()))?;
     Ok(stats)
 }

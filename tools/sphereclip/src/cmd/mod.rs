@@ -64,3 +64,23 @@ pub fn streamer_for(
     }
     Ok(s)
 }
+
+/// Refuses an output file path that is a folder or whose folder does not exist (nothing is
+/// created for it), before any work. `what` names the option.
+pub fn check_output_file(out: &std::path::Path, what: &str) -> Result<()> {
+    if out.is_dir() {
+        bail!("{what} is a folder, not a file: {}", out.display());
+    }
+    let parent = out
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(std::path::Path::new("."));
+    if !parent.is_dir() {
+        bail!(
+            "{what}: the folder {} does not exist: {}",
+            parent.display(),
+            out.display()
+        );
+    }
+    Ok(())
+}

@@ -34,9 +34,7 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
         bail!("render needs --camera and --out (or --flight and --stats)");
     };
     let camera = Camera::parse(camera).context("--camera")?;
-    if out.is_dir() {
-        bail!("--out is a folder, not a PNG file: {}", out.display());
-    }
+    super::check_output_file(out, "--out")?;
     if !(1..=10_000).contains(&a.frames) {
         bail!("--frames must be 1..10000, found {}", a.frames);
     }
@@ -86,15 +84,13 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
         cpu_ms.push(cpu * 1e3);
         (img, stats) = (i, s);
     }
-    let tmp = out.with_extension(format!("png.tmp.{}.0", std::process::id()));
-    let saved = img
-        .save_with_format(&tmp, image::ImageFormat::Png)
-        .map_err(anyhow::Error::from)
-        .and_then(|()| std::fs::rename(&tmp, out).map_err(anyhow::Error::from));
-    if let Err(e) = saved {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(e.context(format!("cannot write {}", out.display())));
-    }
+    // encoded in memory, then written the way every file is (a temp file of our own name, fsync,
+    // rename): a failure leaves the previous file
+    let mut png = Vec::new();
+    img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .context("cannot encode the PNG")?;
+    sc_store::fault::write_atomic(out, &png)
+        .with_context(|| format!("cannot write {}", out.display()))?;
     println!(
         "rendered {} ({w}x{h}) on {}: levels {}..{}, {} triangles, complete after {complete_ms:.0} ms ({frames} frames); ground under the camera {:.1} m",
         out.display(),
