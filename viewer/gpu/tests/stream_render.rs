@@ -16,6 +16,10 @@ use sc_view_plan::stream::{
     FnColorTiles, FnHeightTiles, Streamer, Tile, TileData, TileError, TileKey, TileSource,
 };
 
+#[path = "../../plan/tests/support/mod.rs"]
+mod support;
+use support::FailsBelow;
+
 const R: f64 = sc_core::EARTH_RADIUS_M;
 
 fn mountains(lon: f64, colat: f64) -> f32 {
@@ -198,22 +202,14 @@ fn levels_out_of_view_are_prefetched_so_looking_down_shows_them_at_once() {
     assert_eq!(stats.level_hi, stats.level_wanted, "{stats:?}");
 }
 
-/// Heights that fail for grids finer than `max_level` (a corrupt store below some level).
-#[derive(Debug)]
-struct FailsBelow(u32);
-
-impl TileSource for FailsBelow {
-    fn make(&self, key: &TileKey, n: u32, i: &[Tile]) -> Result<TileData, TileError> {
-        if key.grid.level > self.0 {
-            return Err("checksum mismatch".into());
-        }
-        FnHeightTiles(mountains).make(key, n, i)
-    }
-}
-
 #[test]
 fn missing_fine_tiles_leave_the_coarser_level_drawn_as_a_full_disc() {
-    let streamer = Streamer::new(vec![Box::new(FailsBelow(9))], CLIPMAP_N, 2, 256 << 20);
+    let streamer = Streamer::new(
+        vec![Box::new(FailsBelow(9, FnHeightTiles(mountains)))],
+        CLIPMAP_N,
+        2,
+        256 << 20,
+    );
     let camera = Camera::parse("28.0,86.9,2000,200,-10,60").expect("camera");
     let mut r = renderer();
     let only_heights = StreamSources {

@@ -9,9 +9,10 @@ use sc_store::LayerKind;
 use sc_view_plan::camera::Camera;
 use sc_view_plan::clipmap::CLIPMAP_N;
 use sc_view_plan::frame::{FramePlan, FramePlanner, StreamSources};
-use sc_view_plan::stream::{
-    FnColorTiles, FnHeightTiles, Streamer, Task, Tile, TileData, TileError, TileKey, TileSource,
-};
+use sc_view_plan::stream::{FnColorTiles, FnHeightTiles, Streamer, Task, TileSource};
+
+mod support;
+use support::FailsBelow;
 
 const R: f64 = sc_core::EARTH_RADIUS_M;
 const SIZE: (u32, u32) = (320, 180);
@@ -220,22 +221,9 @@ fn a_moving_camera_prefetches_its_path_and_refills_only_what_moved() {
     assert_eq!(first.stats.level_lo, f.stats.level_lo);
 }
 
-/// Heights that fail for grids finer than `max_level` (a store damaged below some level).
-#[derive(Debug)]
-struct FailsBelow(u32);
-
-impl TileSource for FailsBelow {
-    fn make(&self, key: &TileKey, n: u32, i: &[Tile]) -> Result<TileData, TileError> {
-        if key.grid.level > self.0 {
-            return Err("checksum mismatch".into());
-        }
-        FnHeightTiles(mountains).make(key, n, i)
-    }
-}
-
 #[test]
 fn a_failed_level_leaves_the_coarser_one_drawn_and_says_so() {
-    let s = streamer(Box::new(FailsBelow(9)));
+    let s = streamer(Box::new(FailsBelow(9, FnHeightTiles(mountains))));
     let mut p = FramePlanner::new(R);
     let camera = Camera::parse("28.0,86.9,2000,200,-10,60").expect("camera");
     let mut f = plan(&mut p, &s, &camera);
