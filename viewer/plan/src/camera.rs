@@ -14,14 +14,11 @@
 
 use glam::DVec3;
 
+use crate::ViewError;
+
 /// Moves the camera instead of the user: given the seconds since the last frame, the camera for
 /// this frame, or `None` when the script is over (a window closes).
 pub type CameraScript = Box<dyn FnMut(f64) -> Option<Camera>>;
-
-/// A camera description that does not parse or is out of range.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("{0}")]
-pub struct CameraError(String);
 
 /// Where the camera is and where it looks.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -43,9 +40,9 @@ pub struct Camera {
 impl Camera {
     /// Parses `LAT,LON,ALT[,HEADING,PITCH,FOV]` (heading 0, pitch −90 from above 100 km else −20,
     /// fov 60 by default).
-    pub fn parse(s: &str) -> Result<Self, CameraError> {
+    pub fn parse(s: &str) -> Result<Self, ViewError> {
         let bad = || {
-            CameraError(format!(
+            ViewError::Camera(format!(
                 "expected LAT,LON,ALT[,HEADING,PITCH,FOV] in degrees and metres, found `{s}`"
             ))
         };
@@ -68,19 +65,19 @@ impl Camera {
             fov: v.get(5).copied().unwrap_or(60.0),
         };
         if !(-90.0..=90.0).contains(&c.lat_deg) {
-            return Err(CameraError(format!(
+            return Err(ViewError::Camera(format!(
                 "latitude {} is outside −90..90",
                 c.lat_deg
             )));
         }
         if !(0.0..=1.0e8).contains(&c.alt) {
-            return Err(CameraError(format!(
+            return Err(ViewError::Camera(format!(
                 "altitude {} m is outside 0..100000 km",
                 c.alt
             )));
         }
         if !(1.0..=170.0).contains(&c.fov) || !(-90.0..=90.0).contains(&c.pitch) {
-            return Err(CameraError(format!(
+            return Err(ViewError::Camera(format!(
                 "field of view must be 1..170° and pitch −90..90°, found {} and {}",
                 c.fov, c.pitch
             )));

@@ -3,21 +3,12 @@
 //! window flies it; `sc_view_gpu::flight` flies it headless and measures, clipmap-data-synthesis
 //! §8, Table 1).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use serde::Deserialize;
 
+use crate::ViewError;
 use crate::camera::{Camera, CameraScript, move_along};
-
-/// A flight file that cannot be read or makes no sense.
-#[derive(Debug, thiserror::Error)]
-#[error("{}: {what}", path.display())]
-pub struct FlightError {
-    /// What is wrong.
-    pub what: String,
-    /// The file.
-    pub path: PathBuf,
-}
 
 /// The flight file.
 #[derive(Debug, Deserialize)]
@@ -63,8 +54,8 @@ fn default_budget() -> f64 {
 }
 
 /// Reads and checks a flight file.
-pub fn parse(path: &Path) -> Result<Flight, FlightError> {
-    let bad = |what: String| FlightError {
+pub fn parse(path: &Path) -> Result<Flight, ViewError> {
+    let bad = |what: String| ViewError::Flight {
         what,
         path: path.to_path_buf(),
     };

@@ -51,6 +51,7 @@ use std::sync::{Arc, RwLock};
 use sc_store::{LayerKind, StoreReader};
 use serde::Deserialize;
 
+use crate::ViewError;
 use crate::frame::StreamSources;
 use crate::stream::{
     FnHeightTiles, StoreColorTiles, StoreHeightTiles, Streamer, Tile, TileData, TileError, TileKey,
@@ -283,11 +284,6 @@ pub struct Graph {
     pub warnings: Vec<String>,
 }
 
-/// A graph that cannot be made: the file, the store or the declaration that is wrong, in words.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("{0}")]
-pub struct GraphError(String);
-
 /// The tile cache budget of a viewer's streamer, bytes.
 pub const TILE_CACHE_BUDGET: usize = 192 << 20;
 
@@ -326,10 +322,7 @@ pub struct StoreStreamer {
 /// Streams the image-source graph of `store`: the one in `graph_file` (TOML), else the
 /// `STEM.sources.toml` beside the store, else the default (heights, colours through a neutral
 /// filter).
-pub fn store_streamer(
-    store: &Path,
-    graph_file: Option<&Path>,
-) -> Result<StoreStreamer, GraphError> {
+pub fn store_streamer(store: &Path, graph_file: Option<&Path>) -> Result<StoreStreamer, ViewError> {
     let graph = match graph_file.map(PathBuf::from).or_else(|| beside(store)) {
         Some(file) => Graph::load(&file)?,
         None => Graph::for_store(store)?,
@@ -381,9 +374,9 @@ impl Graph {
 
     /// The default graph of `store`: its heights (a smooth sphere if it has none) and its
     /// colours through a neutral filter.
-    pub fn for_store(store: &Path) -> Result<Self, GraphError> {
+    pub fn for_store(store: &Path) -> Result<Self, ViewError> {
         let mut warnings = Vec::new();
-        let reader = open(store, &mut warnings).map_err(GraphError)?;
+        let reader = open(store, &mut warnings).map_err(ViewError::Graph)?;
         let meta = reader.meta();
         let radius = meta.radius_m;
         let has = |k| !meta.levels(k).is_empty();
@@ -421,13 +414,13 @@ impl Graph {
     }
 
     /// The graph declared in the TOML file `path` (store paths relative to it).
-    pub fn load(path: &Path) -> Result<Self, GraphError> {
+    pub fn load(path: &Path) -> Result<Self, ViewError> {
         let text = std::fs::read_to_string(path)
-            .map_err(|e| GraphError(format!("cannot read {}: {e}", path.display())))?;
+            .map_err(|e| ViewError::Graph(format!("cannot read {}: {e}", path.display())))?;
         let file: File = toml::from_str(&text)
-            .map_err(|e| GraphError(format!("{}: {}", path.display(), e.message().trim())))?;
+            .map_err(|e| ViewError::Graph(format!("{}: {}", path.display(), e.message().trim())))?;
         let here = path.parent().unwrap_or(Path::new("."));
-        Self::build(file, here).map_err(|e| GraphError(format!("{}: {e}", path.display())))
+        Self::build(file, here).map_err(|e| ViewError::Graph(format!("{}: {e}", path.display())))
     }
 
     fn build(file: File, here: &Path) -> Result<Self, String> {

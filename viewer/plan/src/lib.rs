@@ -12,3 +12,25 @@ pub mod geometry;
 pub mod graph;
 pub mod stream;
 pub mod transform;
+
+use std::path::PathBuf;
+
+/// Errors of the viewer's CPU side, one line each. (A tile that cannot be made is a
+/// [`stream::TileError`]: the streamer counts and shows it instead of returning it.)
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ViewError {
+    /// A camera description that does not parse or is out of range.
+    #[error("{0}")]
+    Camera(String),
+    /// A source graph that cannot be made: the file, a store or a declaration, in words.
+    #[error("{0}")]
+    Graph(String),
+    /// A flight file that cannot be read or makes no sense.
+    #[error("{}: {what}", path.display())]
+    Flight {
+        /// What is wrong.
+        what: String,
+        /// The file.
+        path: PathBuf,
+    },
+}
