@@ -588,7 +588,7 @@ fn held_index(layer: LayerKind) -> usize {
 }
 
 /// The uniform of a level placed at `p`.
-pub fn level_uniform(p: &Placement) -> LevelUniform {
+fn level_uniform(p: &Placement) -> LevelUniform {
     LevelUniform {
         viewer_texel: p.viewer_texel.map(|v| v as f32),
         texels_per_rad: [
@@ -601,7 +601,7 @@ pub fn level_uniform(p: &Placement) -> LevelUniform {
 }
 
 /// The quad: the four tiles a window at `p` overlaps (x, x+1) × (y, y+1), row-major.
-pub fn quad_keys(source: u32, grid: GridId, p: &Placement, n: u32) -> [TileKey; 4] {
+fn quad_keys(source: u32, grid: GridId, p: &Placement, n: u32) -> [TileKey; 4] {
     let nn = i64::from(n);
     let (u, v) = (p.u0.div_euclid(nn) * nn, p.v0.div_euclid(nn) * nn);
     [
@@ -622,7 +622,7 @@ fn quad_index(p: &Placement, c: u32, r: u32, n: u32) -> usize {
 
 /// The texture bytes of region `r` from the quad: a region lies within one tile, at the same
 /// offsets (toroidal addressing), so its rows are copied as they are.
-pub fn region_from_quad(quad: &[Tile], p: &Placement, r: Region, n: u32) -> Vec<u8> {
+fn region_from_quad(quad: &[Tile], p: &Placement, r: Region, n: u32) -> Vec<u8> {
     let [ox, oy] = p.origin(n);
     let c = (r.x + n - ox) % n;
     let row = (r.y + n - oy) % n;
@@ -667,7 +667,7 @@ fn height_top_and_step(tile: &TileData, n: u32) -> (f32, f32) {
 }
 
 /// Height under the viewer, bilinear from a level's height quad.
-pub fn ground_from_quad(quad: &[Tile], p: &Placement, n: u32) -> f64 {
+fn ground_from_quad(quad: &[Tile], p: &Placement, n: u32) -> f64 {
     let at = |c: i64, r: i64| -> f64 {
         let (c, r) = (
             c.clamp(0, i64::from(n) - 1) as u32,
