@@ -12,17 +12,26 @@ use sc_store::LayerKind;
 
 use sc_store::unix_now;
 
-use crate::{IngestError, Result};
+use crate::{IngestError, InputCounts, Result};
 
 /// A durable shard's value range: (layer, level, (min, max)).
 pub(crate) type ShardRange = (LayerKind, LevelId, (f64, f64));
+
+/// What the journal keeps of a durable shard.
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
+pub(crate) struct ShardRecord {
+    /// Its value range.
+    pub(crate) range: Option<ShardRange>,
+    /// What each input (by plan index) gave it; inputs that gave nothing are left out.
+    pub(crate) inputs: BTreeMap<usize, InputCounts>,
+}
 
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 struct Data {
     step: String,
     plan: String,
     started_unix: u64,
-    done: BTreeMap<String, Option<ShardRange>>,
+    done: BTreeMap<String, ShardRecord>,
 }
 
 /// A journal for one step of one plan.
@@ -85,29 +94,24 @@ impl Journal {
             .contains_key(&key(s))
     }
 
-    /// Records a durable shard and its value range.
-    pub(crate) fn mark_done(
-        &self,
-        s: &ShardId,
-        range: Option<(LayerKind, LevelId, (f64, f64))>,
-    ) -> Result<()> {
+    /// Records a durable shard, its value range and what the inputs gave it.
+    pub(crate) fn mark_done(&self, s: &ShardId, record: ShardRecord) -> Result<()> {
         self.data
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .done
-            .insert(key(s), range);
+            .insert(key(s), record);
         self.save()
     }
 
-    /// Value ranges of the shards done by earlier runs.
-    pub(crate) fn ranges(&self) -> Vec<ShardRange> {
+    /// The records of the shards done so far (by earlier runs, before this one writes).
+    pub(crate) fn records(&self) -> Vec<ShardRecord> {
         self.data
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .done
             .values()
-            .flatten()
-            .copied()
+            .cloned()
             .collect()
     }
 

@@ -62,9 +62,110 @@ pub enum IngestError {
 #[derive(Debug, Default)]
 struct WriteCounts {
     tiles: u64,
-    valid: u64,
-    texels: u64,
     range: Option<(f64, f64)>,
+    /// Per input (plan index): footprint and valid texels, and the column intervals and rows
+    /// of its valid texels.
+    inputs: Vec<InputTotals>,
+}
+
+/// What one input gave one shard.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub(crate) struct InputCounts {
+    /// Texels whose centre lies inside the input raster.
+    footprint: u64,
+    /// Of those, texels the input gave a valid value.
+    covered: u64,
+    /// Texels the input gave a valid value, inside its footprint or just outside.
+    valid: u64,
+    /// Smallest and largest level column of the valid texels (a shard never crosses the
+    /// antimeridian).
+    cols: Option<(u64, u64)>,
+    /// Smallest and largest level row of the valid texels.
+    rows: Option<(u64, u64)>,
+}
+
+impl InputCounts {
+    fn add_tile(&mut self, grid: GridSpec, tile: TileId, samples: &TileSamples) {
+        let t = grid.tile_size() as u64;
+        let (ox, oy) = tile.origin_texel(grid);
+        self.footprint += u64::from(samples.footprint);
+        self.covered += u64::from(samples.covered);
+        for (k, v) in samples.planes[0].iter().enumerate() {
+            if v.is_nan() {
+                continue;
+            }
+            self.valid += 1;
+            let (c, r) = (ox + k as u64 % t, oy + k as u64 / t);
+            let grow = |span: Option<(u64, u64)>, v: u64| {
+                Some(span.map_or((v, v), |(a, b)| (a.min(v), b.max(v))))
+            };
+            self.cols = grow(self.cols, c);
+            self.rows = grow(self.rows, r);
+        }
+    }
+}
+
+/// An input's counts over every shard of a run.
+#[derive(Debug, Clone, Default)]
+struct InputTotals {
+    footprint: u64,
+    covered: u64,
+    valid: u64,
+    cols: Vec<(u64, u64)>,
+    rows: Option<(u64, u64)>,
+}
+
+impl InputTotals {
+    fn add(&mut self, c: &InputCounts) {
+        self.footprint += c.footprint;
+        self.covered += c.covered;
+        self.valid += c.valid;
+        self.cols.extend(c.cols);
+        if let Some((a, b)) = c.rows {
+            self.rows = Some(self.rows.map_or((a, b), |(x, y)| (x.min(a), y.max(b))));
+        }
+    }
+
+    /// The lon/lat box `[west, south, east, north]` of the valid texels' edges; west > east
+    /// when it crosses the antimeridian (the smallest arc of longitude holding every column).
+    fn data_box(&self, grid: GridSpec, level: LevelId) -> Option<[f64; 4]> {
+        let (r0, r1) = self.rows?;
+        let width = grid.width(level);
+        let mut cols = self.cols.clone();
+        cols.sort_unstable();
+        // merge, then drop the widest empty gap (circularly) from the circle
+        let mut merged: Vec<(u64, u64)> = Vec::new();
+        for (a, b) in cols {
+            match merged.last_mut() {
+                Some(last) if a <= last.1 + 1 => last.1 = last.1.max(b),
+                _ => merged.push((a, b)),
+            }
+        }
+        let (first, last) = (*merged.first()?, *merged.last()?);
+        // the gap from the last interval around to the first one
+        let mut best_gap = first.0 + width - last.1 - 1;
+        let (mut west_col, mut east_col) = (first.0, last.1);
+        for pair in merged.windows(2) {
+            let gap = pair[1].0 - pair[0].1 - 1;
+            if gap > best_gap {
+                best_gap = gap;
+                (west_col, east_col) = (pair[1].0, pair[0].1);
+            }
+        }
+        let (dlon, dlat) = grid.texel_deg(level);
+        let lon = |c: u64| -180.0 + c as f64 * dlon;
+        let (west, east) = if best_gap == 0 {
+            (-180.0, 180.0)
+        } else {
+            (lon(west_col), lon(east_col + 1))
+        };
+        Some([
+            west,
+            90.0 - (r1 + 1) as f64 * dlat,
+            east,
+            90.0 - r0 as f64 * dlat,
+        ])
+    }
 }
 
 /// Result of ingest.
@@ -72,6 +173,10 @@ pub type Result<T, E = IngestError> = std::result::Result<T, E>;
 
 /// Most texels one ingest run may write: 2^34 (64 GiB of f32).
 pub const MAX_TEXELS: u64 = 1 << 34;
+
+/// Most tiles one ingest run may touch: 2^21 (the plan lists each; small tiles at a fine level
+/// would otherwise make the list itself the memory hog).
+pub const MAX_TILES: u64 = 1 << 21;
 
 /// One input file with its options.
 #[derive(Debug, Clone, PartialEq)]
@@ -150,14 +255,35 @@ pub struct Summary {
     pub shards_resumed: u64,
     /// Tiles touched that now hold data.
     pub tiles_written: u64,
-    /// Valid texels / texels of the touched tiles.
+    /// The share of the inputs' footprints (texels whose centre lies inside an input raster,
+    /// summed over the inputs) that the inputs gave a valid value.
     pub coverage: f64,
+    /// Per input, in overlay order.
+    pub inputs: Vec<InputSummary>,
     /// Range of the values written (heights).
     pub value_range: Option<(f64, f64)>,
     /// Wall time, seconds.
     pub seconds: f64,
     /// Levels written.
     pub levels: Vec<String>,
+}
+
+/// What one input gave the store.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct InputSummary {
+    /// The input file.
+    pub path: String,
+    /// The level it went to.
+    pub level: String,
+    /// Texels of that level whose centre lies inside the input raster.
+    pub footprint_texels: u64,
+    /// Of those, texels the input gave a valid value (not nodata).
+    pub valid_texels: u64,
+    /// `valid_texels / footprint_texels` (0 for an empty footprint).
+    pub coverage: f64,
+    /// Lon/lat box `[west, south, east, north]` of the valid texels (west > east when it
+    /// crosses the antimeridian); `None` when the input gave nothing.
+    pub data_bbox: Option<[f64; 4]>,
 }
 
 fn hash_file(path: &Path) -> Result<InputRecord> {
@@ -212,7 +338,7 @@ pub fn plan(
     if inputs.is_empty() {
         return Err(IngestError::Usage("no input files given".into()));
     }
-    let (grid, shard_tiles, radius_m) = store.unwrap_or((
+    let (grid, shard_tiles, _radius_m) = store.unwrap_or((
         settings.new_store.grid,
         settings.new_store.shard_tiles,
         settings.new_store.radius_m,
@@ -222,7 +348,7 @@ pub fn plan(
         let src = RasterSource::open(&input.path, role(settings.layer), &input.options)?;
         let level = match settings.level {
             LevelChoice::Fixed(l) => l,
-            LevelChoice::Auto => grid.level_for_spacing_deg(src.centre_spacing_deg(radius_m)),
+            LevelChoice::Auto => grid.level_for_spacing_deg(src.centre_spacing_deg()?),
         };
         let bbox = src.lonlat_box()?;
         planned.push(PlannedInput {
@@ -237,19 +363,25 @@ pub fn plan(
     planned.sort_by_key(|p| p.input.priority);
     // the texels the inputs' boxes cover (plus the margin), before any tile is listed: a level
     // far too fine must be an error at once, not after minutes of listing
-    let bound: f64 = planned
+    let tile_bound: f64 = planned
         .iter()
         .map(|p| {
             let (tw, th) = (grid.tiles_x(p.level) as f64, grid.tiles_y(p.level) as f64);
             let b = p.bbox;
-            let rows = ((b.north - b.south) / 180.0 * th).ceil() + 2.0;
-            let cols = ((b.east - b.west).min(360.0) / 360.0 * tw).ceil() + 2.0;
-            rows.min(th) * cols.min(tw) * f64::from(grid.tile_size()).powi(2)
+            let rows = ((b.north - b.south).max(0.0) / 180.0 * th).ceil() + 2.0;
+            let cols = ((b.east - b.west).clamp(0.0, 360.0) / 360.0 * tw).ceil() + 2.0;
+            rows.min(th) * cols.min(tw)
         })
         .sum();
+    let bound = tile_bound * f64::from(grid.tile_size()).powi(2);
     if bound > MAX_TEXELS as f64 {
         return Err(IngestError::Usage(format!(
             "this ingest would write about {bound:.3e} texels (limit {MAX_TEXELS}); choose a coarser --level"
+        )));
+    }
+    if tile_bound > MAX_TILES as f64 {
+        return Err(IngestError::Usage(format!(
+            "this ingest would touch about {tile_bound:.3e} tiles (limit {MAX_TILES}); choose a coarser --level or a larger --tile-size"
         )));
     }
     let mut shards: BTreeMap<ShardId, BTreeMap<TileId, Vec<usize>>> = BTreeMap::new();
@@ -261,8 +393,9 @@ pub fn plan(
         // tile rows/cols overlapping the box (a margin of one tile for kernels reaching out)
         let (_, dlat) = grid.texel_deg(level);
         let tile_deg_y = dlat * f64::from(grid.tile_size());
-        let y0 = (((90.0 - b.north) / tile_deg_y).floor() as i64 - 1).max(0) as u64;
-        let y1 = (((90.0 - b.south) / tile_deg_y).ceil() as i64 + 1).min(th as i64) as u64;
+        let y0 = (((90.0 - b.north) / tile_deg_y).floor() as i64 - 1).clamp(0, th as i64) as u64;
+        let y1 =
+            (((90.0 - b.south) / tile_deg_y).ceil() as i64 + 1).clamp(y0 as i64, th as i64) as u64;
         for y in y0..y1 {
             for x in 0..tw {
                 let tile = TileId { level, x, y };
@@ -388,12 +521,22 @@ fn write_all(
         t.map_or(0.0, |r| r.north.abs().max(r.south.abs()))
     };
     todo.sort_by(|a, b| polar(b.0).total_cmp(&polar(a.0)).then(a.0.cmp(b.0)));
-    for r in journal.ranges() {
+    let earlier = journal.records();
+    for r in earlier.iter().filter_map(|r| r.range) {
         writer.note_range(r.0, r.1, r.2.0, r.2.1);
     }
     let total = plan.shards.len() as u64;
     let done = std::sync::atomic::AtomicU64::new(summary.shards_resumed);
-    let stats = Mutex::new(WriteCounts::default());
+    let mut counts = WriteCounts {
+        inputs: vec![InputTotals::default(); plan.inputs.len()],
+        ..WriteCounts::default()
+    };
+    for (&i, c) in earlier.iter().flat_map(|r| &r.inputs) {
+        if let Some(t) = counts.inputs.get_mut(i) {
+            t.add(c);
+        }
+    }
+    let stats = Mutex::new(counts);
     let lut = Kernels::new(settings.kernel);
     on_shard(summary.shards_resumed, total);
     // small inputs are decoded once and shared by every worker's handle; handles are pooled so
@@ -420,16 +563,21 @@ fn write_all(
                     tiles: &BTreeMap<TileId, Vec<usize>>|
      -> Result<()> {
         let s = write_shard(writer, plan, &lut, sources, *shard, tiles)?;
-        journal.mark_done(shard, s.range.map(|r| (settings.layer, shard.level, r)))?;
         {
             let mut st = stats.lock().unwrap_or_else(|e| e.into_inner());
             st.tiles += s.tiles;
-            st.valid += s.valid;
-            st.texels += s.texels;
             if let Some((lo, hi)) = s.range {
                 st.range = Some(st.range.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
             }
+            for (&i, c) in &s.inputs {
+                st.inputs[i].add(c);
+            }
         }
+        let record = journal::ShardRecord {
+            range: s.range.map(|r| (settings.layer, shard.level, r)),
+            inputs: s.inputs,
+        };
+        journal.mark_done(shard, record)?;
         let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
         on_shard(d, total);
         Ok(())
@@ -445,6 +593,34 @@ fn write_all(
         sc_core::workers::Stopped::Failed(e) => e,
         sc_core::workers::Stopped::Panicked => IngestError::WorkerPanicked,
     })?;
+    let st = stats.into_inner().unwrap_or_else(|e| e.into_inner());
+    summary.inputs = plan
+        .inputs
+        .iter()
+        .zip(&st.inputs)
+        .map(|(p, t)| InputSummary {
+            path: p.record.path.clone(),
+            level: p.level.to_string(),
+            footprint_texels: t.footprint,
+            valid_texels: t.covered,
+            coverage: if t.footprint > 0 {
+                t.covered as f64 / t.footprint as f64
+            } else {
+                0.0
+            },
+            data_bbox: t.data_box(grid, p.level),
+        })
+        .collect();
+    if st.inputs.iter().all(|t| t.valid == 0) {
+        return Err(IngestError::Usage(format!(
+            "no input holds valid data where it lies on the globe (every pixel is nodata, NaN or transparent): {}",
+            plan.inputs
+                .iter()
+                .map(|p| p.record.path.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        )));
+    }
     let record = BuildRecord {
         step: "ingest".into(),
         tool: format!("sphereclip {}", env!("CARGO_PKG_VERSION")),
@@ -466,11 +642,12 @@ fn write_all(
     writer.commit(Some(record))?;
     writer.drop_undo()?;
     journal.finish()?;
-    let st = stats.into_inner().unwrap_or_else(|e| e.into_inner());
     summary.shards_written = todo.len() as u64;
     summary.tiles_written = st.tiles;
-    summary.coverage = if st.texels > 0 {
-        st.valid as f64 / st.texels as f64
+    let footprint: u64 = st.inputs.iter().map(|t| t.footprint).sum();
+    let valid: u64 = st.inputs.iter().map(|t| t.covered).sum();
+    summary.coverage = if footprint > 0 {
+        valid as f64 / footprint as f64
     } else {
         0.0
     };
@@ -536,9 +713,8 @@ fn feather_weights(plane0: &[f32], t: usize, width: u32) -> Vec<f32> {
 
 struct ShardStats {
     tiles: u64,
-    valid: u64,
-    texels: u64,
     range: Option<(f64, f64)>,
+    inputs: BTreeMap<usize, InputCounts>,
 }
 
 fn write_shard(
@@ -553,9 +729,8 @@ fn write_shard(
     let n = t * t;
     let mut st = ShardStats {
         tiles: 0,
-        valid: 0,
-        texels: 0,
         range: None,
+        inputs: BTreeMap::new(),
     };
     match plan.settings.layer {
         LayerKind::Height => {
@@ -565,9 +740,12 @@ fn write_shard(
                 sw.get_tile(tile, &mut cur)?;
                 let mut changed = false;
                 for &i in idxs {
-                    if let Some(TileSamples { planes }) =
-                        resample_tile(&sources[i], plan.grid, tile, lut)?
-                    {
+                    if let Some(samples) = resample_tile(&sources[i], plan.grid, tile, lut)? {
+                        st.inputs
+                            .entry(i)
+                            .or_default()
+                            .add_tile(plan.grid, tile, &samples);
+                        let planes = samples.planes;
                         let fw = feather_weights(&planes[0], t, plan.settings.feather_texels);
                         for ((c, v), w) in cur.iter_mut().zip(&planes[0]).zip(&fw) {
                             if !v.is_nan() {
@@ -582,13 +760,11 @@ fn write_shard(
                         }
                     }
                 }
-                st.texels += n as u64;
                 let valid: Vec<f64> = cur
                     .iter()
                     .filter(|v| !v.is_nan())
                     .map(|&v| f64::from(v))
                     .collect();
-                st.valid += valid.len() as u64;
                 if !valid.is_empty() {
                     st.tiles += 1;
                 }
@@ -608,9 +784,12 @@ fn write_shard(
                 sw.get_tile(tile, &mut cur)?;
                 let mut changed = false;
                 for &i in idxs {
-                    if let Some(TileSamples { planes }) =
-                        resample_tile(&sources[i], plan.grid, tile, lut)?
-                    {
+                    if let Some(samples) = resample_tile(&sources[i], plan.grid, tile, lut)? {
+                        st.inputs
+                            .entry(i)
+                            .or_default()
+                            .add_tile(plan.grid, tile, &samples);
+                        let planes = samples.planes;
                         let fw = feather_weights(&planes[0], t, plan.settings.feather_texels);
                         for k in 0..n {
                             if planes[0][k].is_nan() {
@@ -633,10 +812,7 @@ fn write_shard(
                         }
                     }
                 }
-                st.texels += n as u64;
-                let valid = cur.chunks_exact(4).filter(|p| p[3] > 0).count() as u64;
-                st.valid += valid;
-                if valid > 0 {
+                if cur.chunks_exact(4).any(|p| p[3] > 0) {
                     st.tiles += 1;
                 }
                 if changed {

@@ -16,6 +16,12 @@ use sc_raster::{RasterSource, Result, SourceInfo, Window};
 pub struct TileSamples {
     /// One plane for heights; R, G, B (linear) and alpha for colour.
     pub planes: Vec<Vec<f32>>,
+    /// Texels of the tile whose centre lies inside the source raster (its footprint), valid
+    /// or not.
+    pub footprint: u32,
+    /// Texels of the footprint that hold a valid value (texels just outside it may be valid
+    /// too, where the kernel reaches in).
+    pub covered: u32,
 }
 
 /// Anything resampling can read: where its pixels are ([`SourceInfo`]: a pixel-is-area affine
@@ -267,6 +273,7 @@ pub fn resample_tile(
         rmax = rmax.max((y + hy).ceil());
     }
     if !cmin.is_finite() {
+        // no footprint reaches the source, so no texel centre lies inside it either
         return Ok(None);
     }
     if period.is_none() {
@@ -292,8 +299,13 @@ pub fn resample_tile(
     let mut mips = Mips::default();
     let mut rows = RowWeights::default();
     let mut pole_values: [Option<Option<Vec<f64>>>; 2] = [None, None];
+    let mut inside = vec![false; t * t];
     for k in 0..t * t {
         let (x, y) = (map.x[k], map.y[k]);
+        inside[k] = pole_of(k).is_some()
+            || (x.is_finite()
+                && (period.is_some() || (0.0..w).contains(&x))
+                && (0.0..h).contains(&y));
         if let Some(p) = pole_of(k) {
             let sy = map.foot[k]
                 .and_then(|f| f.axis_scales())
@@ -338,7 +350,15 @@ pub fn resample_tile(
             any = true;
         }
     }
-    Ok(any.then_some(TileSamples { planes: out }))
+    let footprint = inside.iter().filter(|&&i| i).count() as u32;
+    let covered = (0..t * t)
+        .filter(|&k| inside[k] && !out[0][k].is_nan())
+        .count() as u32;
+    Ok((any || footprint > 0).then_some(TileSamples {
+        planes: out,
+        footprint,
+        covered,
+    }))
 }
 
 /// The averaging level for a footprint scale `sx` (source pixels): 2^m source pixels per

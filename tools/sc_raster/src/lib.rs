@@ -18,9 +18,9 @@ use std::path::PathBuf;
 pub use export::{EXR_MAX_TEXELS, ExportSummary, export_exr, export_geotiff};
 pub use global::{GLOBAL_MAX_TEXELS, GlobalLevel, read_global_levels};
 pub use source::{
-    AVERAGED_WINDOW, LonLatBox, MAX_CACHED_SAMPLES, MAX_PIXELS, MAX_SIDE, MAX_WINDOW, RasterSource,
-    Reservation, SampleCache, SampleRole, SourceInfo, SourceOptions, WINDOW_BUDGET_BYTES, Window,
-    quiet_gdal, take_gdal_failure,
+    AVERAGED_WINDOW, HeightEncoding, LonLatBox, MAX_CACHED_SAMPLES, MAX_PIXELS, MAX_SIDE,
+    MAX_WINDOW, RasterSource, Reservation, SampleCache, SampleRole, SourceInfo, SourceOptions,
+    WINDOW_BUDGET_BYTES, Window, quiet_gdal, take_gdal_failure,
 };
 
 /// Errors of raster IO. One line each, path last.

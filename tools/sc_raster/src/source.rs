@@ -42,6 +42,60 @@ pub struct SourceOptions {
     pub src_nodata: Option<f64>,
     /// 1-based bands to use: one (grey or height), three (RGB) or four (RGBA).
     pub bands: Option<Vec<usize>>,
+    /// How heights are packed into the bands of an 8-bit RGB(A) image, for the height layer.
+    pub height_encoding: Option<HeightEncoding>,
+}
+
+/// Heights packed into the three 8-bit channels of an RGB image (web map terrain tiles).
+/// A fourth band, when present, is alpha: 0 marks nodata.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum HeightEncoding {
+    /// Mapbox Terrain-RGB: h = −10000 + (R·65536 + G·256 + B)·0.1 m.
+    TerrainRgb,
+    /// Terrarium (Mapzen, AWS terrain tiles): h = R·256 + G + B/256 − 32768 m.
+    Terrarium,
+    /// KDE Marble's SRTM tiles: h = G·256 + B as a signed 16-bit number of metres (R unused),
+    /// −32768 (0x8000) for nodata.
+    Marble,
+}
+
+impl HeightEncoding {
+    /// The height of one pixel's channels (0..=255 each), NaN for nodata.
+    pub fn decode(self, r: f32, g: f32, b: f32) -> f32 {
+        let (r, g, b) = (f64::from(r), f64::from(g), f64::from(b));
+        let h = match self {
+            Self::TerrainRgb => -10000.0 + (r * 65536.0 + g * 256.0 + b) * 0.1,
+            Self::Terrarium => r * 256.0 + g + b / 256.0 - 32768.0,
+            Self::Marble => {
+                let v = (g * 256.0 + b) as u16 as i16;
+                if v == i16::MIN {
+                    return f32::NAN;
+                }
+                f64::from(v)
+            }
+        };
+        h as f32
+    }
+
+    /// The heights of one pixel's `[r, g, b]`, made by the encoder (rounded to its step): the
+    /// inverse of [`HeightEncoding::decode`], for tests and tools that write such tiles.
+    pub fn encode(self, h: f64) -> [u8; 3] {
+        let v = match self {
+            Self::TerrainRgb => ((h + 10000.0) * 10.0).round().clamp(0.0, 16_777_215.0) as u32,
+            Self::Terrarium => ((h + 32768.0) * 256.0).round().clamp(0.0, 16_777_215.0) as u32,
+            Self::Marble => u32::from(h.round().clamp(-32767.0, 32767.0) as i16 as u16),
+        };
+        [(v >> 16) as u8, (v >> 8) as u8, v as u8]
+    }
+
+    /// Its name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::TerrainRgb => "terrain-rgb",
+            Self::Terrarium => "terrarium",
+            Self::Marble => "marble",
+        }
+    }
 }
 
 /// What a source's samples are.
@@ -178,6 +232,48 @@ pub fn take_gdal_failure() -> Option<String> {
         .take()
 }
 
+/// Most samples read to find a band's range: larger bands are read decimated (nearest
+/// pixels, like GDAL's approximate statistics).
+const RANGE_SAMPLES: usize = 1 << 22;
+
+/// The smallest and largest valid value of a band (not NaN, not `nodata`), over all its
+/// pixels or, for a large band, an evenly decimated grid of them; `None` when none is valid.
+fn valid_range(
+    band: &gdal::raster::RasterBand,
+    nodata: Option<f64>,
+) -> gdal::errors::Result<Option<(f64, f64)>> {
+    let (w, h) = band.size();
+    let k = ((w as f64 * h as f64 / RANGE_SAMPLES as f64).sqrt().ceil() as usize).max(1);
+    let (bw, bh) = (w.div_ceil(k), h.div_ceil(k));
+    let mut range: Option<(f64, f64)> = None;
+    // a strip of rows at a time: the buffer stays small for any band
+    let strip = (RANGE_SAMPLES / 16 / bw).max(1);
+    let mut row = 0;
+    while row < bh {
+        let rows = strip.min(bh - row);
+        let (r0, r1) = (row * k, ((row + rows) * k).min(h));
+        let buf = band.read_as::<f64>((0, r0 as isize), (w, r1 - r0), (bw, rows), None)?;
+        for &v in buf.data() {
+            if v.is_nan() || nodata.is_some_and(|nd| v == nd) {
+                continue;
+            }
+            range = Some(range.map_or((v, v), |(lo, hi)| (lo.min(v), hi.max(v))));
+        }
+        row += rows;
+    }
+    Ok(range)
+}
+
+/// The error for a CRS that PROJ cannot relate to lon/lat (an engineering or local CRS).
+fn untransformable(path: &Path, crs: &str) -> RasterError {
+    usage(
+        path,
+        format!(
+            "its CRS `{crs}` cannot be transformed to lon/lat (a local or engineering CRS has no place on the globe); give the raster's real CRS with --src-srs"
+        ),
+    )
+}
+
 fn usage(path: &Path, what: impl std::fmt::Display) -> RasterError {
     RasterError::Usage(format!("{what}: {}", path.display()))
 }
@@ -237,7 +333,8 @@ impl RasterSource {
     /// Opens `path` for `role`, validating everything that can be validated up front (size
     /// limits, georeference, CRS, bands, the first and last rows readable).
     pub fn open(path: &Path, role: SampleRole, opts: &SourceOptions) -> Result<Self> {
-        let src = Self::open_unchecked(path, role, opts)?;
+        let mut src = Self::open_unchecked(path, role, opts)?;
+        src.check_projected_extent()?;
         src.check_readable()?;
         Ok(src)
     }
@@ -286,10 +383,23 @@ impl RasterSource {
         if count == 0 {
             return Err(usage(path, "raster has no bands"));
         }
-        let bands = choose_bands(path, role, count, opts.bands.as_deref())?;
+        let bands = choose_bands(
+            path,
+            role,
+            count,
+            opts.bands.as_deref(),
+            opts.height_encoding,
+        )?;
         let band1 = ds.rasterband(bands[0]).map_err(gdal_err(path))?;
         let data_type = band1.band_type();
+        if role == SampleRole::Height {
+            check_height_bands(path, &ds, &bands, count, opts)?;
+        }
         let mut nodata = opts.src_nodata.or(band1.no_data_value());
+        if opts.height_encoding.is_some() {
+            // the encoding says what nodata is; only --src-nodata (a decoded height) adds to it
+            nodata = opts.src_nodata;
+        }
         if role == SampleRole::Color
             && data_type == GdalDataType::UInt8
             && opts.src_nodata.is_none()
@@ -333,24 +443,31 @@ impl RasterSource {
                     ));
                 }
                 let name = srs.name().unwrap_or_else(|| "unnamed CRS".into());
+                // the root's authority only (GDAL 3.6 answers a bare code of a unit or datum
+                // for a CRS that has none of its own)
                 let code = srs
-                    .auth_code()
+                    .authority()
                     .ok()
-                    .map(|c| format!("EPSG:{c} "))
+                    .map(|c| format!("{c} "))
                     .unwrap_or_default();
-                if srs.is_geographic() {
+                // lon/lat in degrees from Greenwich are used directly; other angular units or
+                // prime meridians (NTF Paris: grads from Paris) go through PROJ like a projection
+                let degrees = (srs.angular_units() - 1f64.to_radians()).abs() < 1e-12;
+                let greenwich = srs
+                    .get_attr_value("PRIMEM", 1)
+                    .ok()
+                    .flatten()
+                    .and_then(|v| v.trim().parse::<f64>().ok())
+                    .is_none_or(|v| v == 0.0);
+                if srs.is_geographic() && degrees && greenwich {
                     (gt, true, format!("{code}{name}"), None)
                 } else {
                     let mut wgs = SpatialRef::from_epsg(4326).map_err(gdal_err(path))?;
                     wgs.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
                     let mut s = srs.clone();
                     s.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
-                    let t = CoordTransform::new(&wgs, &s).map_err(|e| {
-                        RasterError::Usage(format!(
-                            "cannot transform lon/lat to the raster's CRS {name}: {e} ({})",
-                            path.display()
-                        ))
-                    })?;
+                    let t = CoordTransform::new(&wgs, &s)
+                        .map_err(|_| untransformable(path, &format!("{code}{name}")))?;
                     (gt, false, format!("{code}{name}"), Some(t))
                 }
             }
@@ -390,25 +507,41 @@ impl RasterSource {
         };
         if geographic {
             snap_geographic(&mut info);
+            check_geographic_extent(&mut info)?;
         }
         if role == SampleRole::Color {
-            info.stretch = info
-                .bands
-                .iter()
-                .map(|&b| {
-                    let band = ds.rasterband(b).map_err(gdal_err(path))?;
-                    if band.band_type() == GdalDataType::UInt8 {
-                        return Ok((1.0, 0.0));
-                    }
-                    let mm = band.compute_raster_min_max(true).map_err(gdal_err(path))?;
-                    let span = (mm.max - mm.min).max(1e-12);
-                    Ok((255.0 / span, -mm.min * 255.0 / span))
-                })
-                .collect::<Result<_>>()?;
-            if info.stretch.iter().any(|&s| s != (1.0, 0.0)) {
+            let mut ranges = Vec::new();
+            for &b in &info.bands {
+                let band = ds.rasterband(b).map_err(gdal_err(path))?;
+                if band.band_type() == GdalDataType::UInt8 {
+                    info.stretch.push((1.0, 0.0));
+                    continue;
+                }
+                // the band's own nodata unless --src-nodata says otherwise
+                let nodata = opts.src_nodata.or(band.no_data_value());
+                let range = serialized(is_serial(&ds), || valid_range(&band, nodata))
+                    .map_err(gdal_err(path))?;
+                info.stretch.push(match range {
+                    // one value only: nothing to stretch, shown as mid-grey
+                    Some((lo, hi)) if hi <= lo => (0.0, 128.0),
+                    Some((lo, hi)) => (255.0 / (hi - lo), -lo * 255.0 / (hi - lo)),
+                    None => (1.0, 0.0),
+                });
+                ranges.push((b, range));
+            }
+            if !ranges.is_empty() {
+                let said: Vec<String> = ranges
+                    .iter()
+                    .map(|(b, r)| match r {
+                        Some((lo, hi)) if hi <= lo => format!("band {b}: one value {lo}, mid-grey"),
+                        Some((lo, hi)) => format!("band {b}: {lo}..{hi}"),
+                        None => format!("band {b}: no valid pixel"),
+                    })
+                    .collect();
                 info.warnings.push(format!(
-                    "{} colour bands stretched linearly from their min..max to 0..255",
-                    data_type.name()
+                    "{} colour bands stretched linearly from the min..max of their valid pixels to 0..255 ({})",
+                    data_type.name(),
+                    said.join(", ")
                 ));
             }
         }
@@ -436,6 +569,12 @@ impl RasterSource {
                 "EXR heightmaps carry no georeference; give --bounds W,S,E,N",
             ));
         };
+        if opts.height_encoding.is_some() {
+            return Err(usage(
+                path,
+                "EXR heightmaps hold heights as numbers; --height-encoding is for 8-bit RGB images",
+            ));
+        }
         let image = read_first_flat_layer_from_file(path)
             .map_err(|e| usage(path, format!("not a readable OpenEXR file ({e})")))?;
         let size = image.layer_data.size;
@@ -470,6 +609,7 @@ impl RasterSource {
             stretch: Vec::new(),
         };
         snap_geographic(&mut info);
+        check_geographic_extent(&mut info)?;
         Ok(Self {
             info,
             cache: SampleCache::default(),
@@ -561,9 +701,10 @@ impl RasterSource {
             {
                 west = -180.0;
                 east = 180.0;
-            } else if west >= 180.0 {
-                west -= 360.0;
-                east -= 360.0;
+            } else {
+                let shift = wrap_shift_deg(west);
+                west += shift;
+                east += shift;
             }
             return Ok(LonLatBox {
                 west,
@@ -573,38 +714,26 @@ impl RasterSource {
             });
         }
         // projected: transform a densified outline back to lon/lat
-        let Backend::Gdal(ds) = &self.backend else {
-            return Err(RasterError::Usage(
-                "projected EXR sources are not supported".into(),
-            ));
-        };
         let path = &info.path;
-        let srs = match &self.opts.src_srs {
-            Some(d) => SpatialRef::from_definition(d),
-            None => ds.spatial_ref(),
-        };
-        let mut srs = srs.map_err(gdal_err(path))?;
-        srs.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
-        let mut wgs = SpatialRef::from_epsg(4326).map_err(gdal_err(path))?;
-        wgs.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
-        let t = CoordTransform::new(&srs, &wgs).map_err(gdal_err(path))?;
         let n = 64;
-        let (mut xs, mut ys) = (Vec::new(), Vec::new());
+        let mut outline = Vec::new();
         for k in 0..=n {
             let f = k as f64 / n as f64;
-            for (px, py) in [(f * w, 0.0), (f * w, h), (0.0, f * h), (w, f * h)] {
-                xs.push(gt[0] + px * gt[1] + py * gt[2]);
-                ys.push(gt[3] + px * gt[4] + py * gt[5]);
-            }
+            outline.extend([(f * w, 0.0), (f * w, h), (0.0, f * h), (w, f * h)]);
         }
-        let _ = t.transform_coords(&mut xs, &mut ys, &mut []);
-        let pts: Vec<(f64, f64)> = xs
+        let pts: Vec<(f64, f64)> = self
+            .pixels_to_lonlat(&outline)?
             .into_iter()
-            .zip(ys)
-            .filter(|(x, y)| x.is_finite() && y.is_finite())
+            .flatten()
             .collect();
         if pts.is_empty() {
-            return Err(usage(path, "no pixel of the raster maps to lon/lat"));
+            return Err(usage(
+                path,
+                format!(
+                    "no part of the raster's outline maps to lon/lat in its CRS {}; check the CRS (--src-srs)",
+                    info.crs
+                ),
+            ));
         }
         let west = pts.iter().map(|p| p.0).fold(f64::INFINITY, f64::min);
         let east = pts.iter().map(|p| p.0).fold(f64::NEG_INFINITY, f64::max);
@@ -629,49 +758,143 @@ impl RasterSource {
         })
     }
 
+    /// Lon/lat degrees of pixel positions of a projected source; `None` where a position is
+    /// outside what its CRS can place on the globe (no inverse, a latitude beyond ±90°, or a
+    /// round trip that does not come back within a hundredth of a pixel).
+    fn pixels_to_lonlat(&self, px: &[(f64, f64)]) -> Result<Vec<Option<(f64, f64)>>> {
+        let info = &self.info;
+        let gt = info.geotransform;
+        let path = &info.path;
+        let (Backend::Gdal(ds), Some(to_src)) = (&self.backend, &self.to_src) else {
+            return Err(usage(path, "projected EXR sources are not supported"));
+        };
+        let srs = match &self.opts.src_srs {
+            Some(d) => SpatialRef::from_definition(d),
+            None => ds.spatial_ref(),
+        };
+        let mut srs = srs.map_err(gdal_err(path))?;
+        srs.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
+        let mut wgs = SpatialRef::from_epsg(4326).map_err(gdal_err(path))?;
+        wgs.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
+        let t = CoordTransform::new(&srs, &wgs).map_err(|_| self.untransformable())?;
+        let xs0: Vec<f64> = px
+            .iter()
+            .map(|(c, r)| gt[0] + c * gt[1] + r * gt[2])
+            .collect();
+        let ys0: Vec<f64> = px
+            .iter()
+            .map(|(c, r)| gt[3] + c * gt[4] + r * gt[5])
+            .collect();
+        let (mut lon, mut lat) = (xs0.clone(), ys0.clone());
+        // a point that does not transform comes back as inf/NaN; the call's error only says
+        // that some did
+        let _ = t.transform_coords(&mut lon, &mut lat, &mut []);
+        let (mut xs, mut ys) = (lon.clone(), lat.clone());
+        for (x, y) in xs.iter_mut().zip(ys.iter_mut()) {
+            if !x.is_finite() || !y.is_finite() {
+                (*x, *y) = (0.0, 0.0);
+            }
+        }
+        let _ = to_src.transform_coords(&mut xs, &mut ys, &mut []);
+        let tol = 0.01 * gt[1].abs().min(gt[5].abs());
+        Ok((0..px.len())
+            .map(|k| {
+                let ok = lon[k].is_finite()
+                    && lat[k].is_finite()
+                    && lat[k].abs() <= 90.0 + 1e-9
+                    && (xs[k] - xs0[k]).abs() <= tol
+                    && (ys[k] - ys0[k]).abs() <= tol;
+                ok.then_some((lon[k], lat[k]))
+            })
+            .collect())
+    }
+
+    /// The error for a CRS that PROJ cannot take to lon/lat.
+    fn untransformable(&self) -> RasterError {
+        untransformable(&self.info.path, &self.info.crs)
+    }
+
+    /// Refuses a projected source no part of which its CRS can place on the globe (extents that
+    /// are nonsense for the CRS) and warns when part of it falls off; checked on a 33×33 lattice
+    /// of pixel positions spanning the raster.
+    fn check_projected_extent(&mut self) -> Result<()> {
+        if self.info.geographic {
+            return Ok(());
+        }
+        let (w, h) = (self.info.width as f64, self.info.height as f64);
+        let n = 32;
+        let lattice: Vec<(f64, f64)> = (0..=n)
+            .flat_map(|j| (0..=n).map(move |i| (i as f64, j as f64)))
+            .map(|(i, j)| (i / f64::from(n) * w, j / f64::from(n) * h))
+            .collect();
+        let ok = self.pixels_to_lonlat(&lattice)?;
+        let valid = ok.iter().filter(|p| p.is_some()).count();
+        let gt = self.info.geotransform;
+        let extent = format!(
+            "x {}..{}, y {}..{}",
+            short(gt[0]),
+            short(gt[0] + gt[1] * w),
+            short(gt[3] + gt[5] * h),
+            short(gt[3])
+        );
+        if valid == 0 {
+            return Err(usage(
+                &self.info.path,
+                format!(
+                    "no part of the raster's extent ({extent}) lies on the globe in its CRS {}; check the CRS (--src-srs) and the geotransform",
+                    self.info.crs
+                ),
+            ));
+        }
+        if valid < ok.len() {
+            let share = 100.0 * (ok.len() - valid) as f64 / ok.len() as f64;
+            self.info.warnings.push(format!(
+                "about {share:.0} % of the raster's extent ({extent}) lies outside what its CRS {} can place on the globe; that part is ignored",
+                self.info.crs
+            ));
+        }
+        Ok(())
+    }
+
     /// The source's pixel spacing at its centre in degrees of the grid, the finer of its two
-    /// axes: longitude spacing in degrees of longitude, latitude spacing in degrees of latitude
-    /// (projected pixels are converted at the centre latitude on a sphere of `radius_m`). A level
-    /// with `180°/H` no larger than this keeps every detail along both axes.
-    pub fn centre_spacing_deg(&self, radius_m: f64) -> f64 {
+    /// axes: longitude spacing in degrees of longitude, latitude spacing in degrees of latitude.
+    /// Projected pixels are measured on the ground (the great-circle angle of one pixel step
+    /// taken through the CRS, so its linear unit, scale factor and convergence all count) at the
+    /// first point of the centre, the quarter points and the corners that lies on the globe. A
+    /// level with `180°/H` no larger than this keeps every detail along both axes.
+    pub fn centre_spacing_deg(&self) -> Result<f64> {
         let info = &self.info;
         let gt = info.geotransform;
         if info.geographic {
-            return gt[1].abs().min(gt[5].abs());
+            return Ok(gt[1].abs().min(gt[5].abs()));
         }
-        // projected units are metres for every CRS we accept
-        let m_per_deg = radius_m * std::f64::consts::PI / 180.0;
-        let (mut x, mut y) = (vec![0.0], vec![0.0]);
-        let c = [
-            gt[0] + gt[1] * info.width as f64 / 2.0,
-            gt[3] + gt[5] * info.height as f64 / 2.0,
+        let (w, h) = (info.width as f64, info.height as f64);
+        let candidates = [
+            (0.5, 0.5),
+            (0.25, 0.25),
+            (0.75, 0.25),
+            (0.25, 0.75),
+            (0.75, 0.75),
+            (0.0, 0.0),
+            (1.0, 0.0),
+            (0.0, 1.0),
+            (1.0, 1.0),
         ];
-        let lat = match self.to_lonlat_point(c[0], c[1]) {
-            Some((_, lat)) => lat,
-            None => 0.0,
-        };
-        x[0] = gt[1].abs() / (m_per_deg * lat.to_radians().cos().max(1e-6));
-        y[0] = gt[5].abs() / m_per_deg;
-        x[0].min(y[0])
-    }
-
-    /// One point of the source CRS to lon/lat, if it transforms.
-    fn to_lonlat_point(&self, sx: f64, sy: f64) -> Option<(f64, f64)> {
-        let Backend::Gdal(ds) = &self.backend else {
-            return None;
-        };
-        let mut srs = match &self.opts.src_srs {
-            Some(d) => SpatialRef::from_definition(d),
-            None => ds.spatial_ref(),
+        for (fx, fy) in candidates {
+            // one pixel step each way, kept inside the raster
+            let (c, r) = ((fx * w).clamp(0.0, w - 1.0), (fy * h).clamp(0.0, h - 1.0));
+            let p = self.pixels_to_lonlat(&[(c, r), (c + 1.0, r), (c, r + 1.0)])?;
+            if let [Some(o), Some(ex), Some(ey)] = p[..] {
+                let at = |p: (f64, f64)| sc_core::LonLat::new(p.0, p.1);
+                let step_x = at(o).angle_to_rad(at(ex)).to_degrees();
+                let step_y = at(o).angle_to_rad(at(ey)).to_degrees();
+                return Ok(step_x.min(step_y));
+            }
         }
-        .ok()?;
-        srs.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
-        let mut wgs = SpatialRef::from_epsg(4326).ok()?;
-        wgs.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
-        let t = CoordTransform::new(&srs, &wgs).ok()?;
-        let (mut x, mut y) = ([sx], [sy]);
-        t.transform_coords(&mut x, &mut y, &mut []).ok()?;
-        (x[0].is_finite() && y[0].is_finite()).then_some((x[0], y[0]))
+        Err(usage(
+            &info.path,
+            "no pixel of the raster can be measured on the globe in its CRS; check the CRS (--src-srs)",
+        ))
     }
 
     /// Reads the rectangle of pixels `[c0, c0+w) × [r0, r0+h)` of this source into `planes`
@@ -966,8 +1189,15 @@ impl RasterSource {
                     let empty = band.no_data_value().unwrap_or(0.0) as f32;
                     let mut buf = vec![empty; ow * oh];
                     serialized(is_serial(ds), || {
-                        let alg =
-                            ((ow, oh) != (w, h)).then_some(gdal::raster::ResampleAlg::Average);
+                        // encoded heights cannot be averaged channel by channel: they are
+                        // decimated (nearest pixels) instead
+                        let alg = ((ow, oh) != (w, h)).then_some(
+                            if self.opts.height_encoding.is_some() {
+                                gdal::raster::ResampleAlg::NearestNeighbour
+                            } else {
+                                gdal::raster::ResampleAlg::Average
+                            },
+                        );
                         band.read_into_slice::<f32>(
                             (c0 as isize, r0 as isize),
                             (w, h),
@@ -985,6 +1215,24 @@ impl RasterSource {
             }
         };
         match self.role {
+            SampleRole::Height if let Some(enc) = self.opts.height_encoding => {
+                let raw: Vec<Vec<f32>> = info
+                    .bands
+                    .iter()
+                    .map(|&b| read_band(b))
+                    .collect::<Result<_>>()?;
+                let mut v = vec![f32::NAN; ow * oh];
+                for (i, h) in v.iter_mut().enumerate() {
+                    if raw.get(3).is_some_and(|a| a[i] <= 0.0) {
+                        continue;
+                    }
+                    let d = enc.decode(raw[0][i], raw[1][i], raw[2][i]);
+                    if !info.nodata.is_some_and(|nd| f64::from(d) == nd) {
+                        *h = d;
+                    }
+                }
+                Ok(vec![v])
+            }
             SampleRole::Height => {
                 let mut v = read_band(info.bands[0])?;
                 let int16 = info.data_type == "Int16";
@@ -1183,6 +1431,12 @@ fn open_gdal(path: &Path) -> Result<Dataset> {
     let vsi = match ext.as_deref() {
         Some("gz") => "/vsigzip/",
         Some("zip") => "/vsizip/",
+        Some("hgt") => {
+            return Err(usage(
+                path,
+                "not readable as an SRTM .hgt file: GDAL recognises those by their name, which says where they lie (e.g. N57E011.hgt, S07W006.hgt); give the file its tile's name",
+            ));
+        }
         _ => return Err(usage(path, "not a raster GDAL can read")),
     };
     let abs = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
@@ -1205,12 +1459,82 @@ fn check_size(path: &Path, w: u64, h: u64) -> Result<()> {
     Ok(())
 }
 
+/// Heights come from one band, or from three (four with alpha) 8-bit bands with
+/// `--height-encoding`; an RGB(A) 8-bit image given as heights without it is refused (its first
+/// band read as metres would be a silent 0..255 m relief).
+fn check_height_bands(
+    path: &Path,
+    ds: &Dataset,
+    bands: &[usize],
+    count: usize,
+    opts: &SourceOptions,
+) -> Result<()> {
+    let all_u8 = |bs: &[usize]| -> Result<bool> {
+        for &b in bs {
+            let band = ds.rasterband(b).map_err(gdal_err(path))?;
+            if band.band_type() != GdalDataType::UInt8 {
+                return Ok(false);
+            }
+        }
+        Ok(true)
+    };
+    match opts.height_encoding {
+        Some(enc) => {
+            if !all_u8(bands)? {
+                return Err(usage(
+                    path,
+                    format!(
+                        "--height-encoding {} needs 8-bit bands (R, G, B and optionally alpha)",
+                        enc.name()
+                    ),
+                ));
+            }
+        }
+        None => {
+            let every: Vec<usize> = (1..=count).collect();
+            if opts.bands.is_none() && (3..=4).contains(&count) && all_u8(&every)? {
+                return Err(usage(
+                    path,
+                    "an 8-bit RGB(A) image is not heights: if it holds encoded heights say how with --height-encoding terrain-rgb|terrarium|marble (or pick one band with --bands; --layer color for imagery)",
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 fn choose_bands(
     path: &Path,
     role: SampleRole,
     count: usize,
     asked: Option<&[usize]>,
+    encoding: Option<HeightEncoding>,
 ) -> Result<Vec<usize>> {
+    if let Some(enc) = encoding {
+        if role != SampleRole::Height {
+            return Err(usage(
+                path,
+                "--height-encoding is for the height layer (--layer height)",
+            ));
+        }
+        let b = asked.map_or_else(|| (1..=count.min(4)).collect::<Vec<_>>(), <[usize]>::to_vec);
+        if let Some(&bad) = b.iter().find(|&&b| b == 0 || b > count) {
+            return Err(usage(
+                path,
+                format!("--bands asks for band {bad} but the raster has bands 1..={count}"),
+            ));
+        }
+        if !(3..=4).contains(&b.len()) {
+            return Err(usage(
+                path,
+                format!(
+                    "--height-encoding {} needs three bands (R, G, B) or four (with alpha); the raster has {count}",
+                    enc.name()
+                ),
+            ));
+        }
+        return Ok(b);
+    }
     if let Some(b) = asked {
         if let Some(&bad) = b.iter().find(|&&b| b == 0 || b > count) {
             return Err(usage(
@@ -1239,6 +1563,85 @@ fn choose_bands(
         // multispectral (Landsat TM/ETM+: bands 1, 2, 3 = blue, green, red): true colour
         (SampleRole::Color, _) => vec![3, 2, 1],
     })
+}
+
+/// A coordinate for messages: at most six decimals, no trailing zeros.
+fn short(v: f64) -> String {
+    let s = format!("{v:.6}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    if s == "-0" { "0".into() } else { s.into() }
+}
+
+/// The multiple of 360° that moves longitude `west` into [−180°, 180°).
+fn wrap_shift_deg(west: f64) -> f64 {
+    -((west + 180.0) / 360.0).floor() * 360.0
+}
+
+/// Refuses lon/lat extents no raster can have (more than 360° of longitude, entirely beyond a
+/// pole) before anything is sized from them, and warns about rows beyond the poles and
+/// longitudes given in an unusual period (they are wrapped by whole turns).
+fn check_geographic_extent(info: &mut SourceInfo) -> Result<()> {
+    let gt = info.geotransform;
+    let (w, h) = (info.width as f64, info.height as f64);
+    let (xa, xb) = (gt[0], gt[0] + gt[1] * w);
+    let (ya, yb) = (gt[3], gt[3] + gt[5] * h);
+    let (west, east) = (xa.min(xb), xa.max(xb));
+    let (south, north) = (ya.min(yb), ya.max(yb));
+    let (px, py) = (gt[1].abs(), gt[5].abs());
+    let path = &info.path;
+    let extent = format!(
+        "longitude {}..{}, latitude {}..{}",
+        short(west),
+        short(east),
+        short(south),
+        short(north)
+    );
+    let is_4326 = "lon/lat (EPSG:4326)";
+    if ![west, east, south, north].iter().all(|v| v.is_finite()) || px == 0.0 || py == 0.0 {
+        return Err(usage(
+            path,
+            format!("the geotransform gives no usable {is_4326} extent"),
+        ));
+    }
+    if east - west > 360.0 + 1.01 * px {
+        return Err(usage(
+            path,
+            format!(
+                "the raster's extent ({extent}) spans {}° of longitude, more than the globe's 360°: these are not {is_4326} degrees; give the raster's real CRS with --src-srs",
+                short(east - west)
+            ),
+        ));
+    }
+    // node-registered global grids reach half a pixel beyond each pole
+    let tol = 0.51 * py;
+    if south >= 90.0 + tol || north <= -90.0 - tol {
+        return Err(usage(
+            path,
+            format!(
+                "the raster's extent ({extent}) lies entirely beyond the poles: these are not {is_4326} degrees; give the raster's real CRS with --src-srs"
+            ),
+        ));
+    }
+    if north > 90.0 + tol || south < -90.0 - tol {
+        let beyond = ((north - 90.0).max(0.0) + (-90.0 - south).max(0.0)) / py;
+        info.warnings.push(format!(
+            "about {:.0} of its {} rows lie beyond ±90° of latitude ({extent}); they fall off the globe and are ignored",
+            beyond.ceil(),
+            info.height
+        ));
+    }
+    let whole = info.lon_period_px.is_some() || east - west >= 360.0;
+    if !whole && (west < -180.0 - 0.51 * px || west >= 360.0) {
+        let shift = wrap_shift_deg(west);
+        info.warnings.push(format!(
+            "longitudes {}..{} are wrapped by {shift}° to {}..{}",
+            short(west),
+            short(east),
+            short(west + shift),
+            short(east + shift)
+        ));
+    }
+    Ok(())
 }
 
 /// Snaps global geographic grids and records wrapping and poles.

@@ -64,6 +64,11 @@ pub struct IngestArgs {
     /// Bands to use, 1-based, e.g. 3,2,1 (default: 1 for heights; grey/RGB/RGBA; 3,2,1 for 5+ bands).
     #[arg(long)]
     pub bands: Option<String>,
+    /// Heights packed into 8-bit RGB(A) images (web map terrain tiles): terrain-rgb (Mapbox:
+    /// −10000 + (R·65536 + G·256 + B)·0.1 m), terrarium (R·256 + G + B/256 − 32768 m) or marble
+    /// (G·256 + B as a signed 16-bit number, −32768 nodata); alpha 0 is nodata.
+    #[arg(long, value_enum)]
+    pub height_encoding: Option<HeightEncodingArg>,
     /// Priority of the inputs on the command line (higher wins where inputs overlap).
     #[arg(long, default_value_t = 0, allow_hyphen_values = true)]
     pub priority: i32,
@@ -276,6 +281,27 @@ impl From<Resampling> for Kernel {
             Resampling::Cubic => Kernel::Cubic,
             Resampling::Lanczos2 => Kernel::Lanczos2,
             Resampling::Lanczos3 => Kernel::Lanczos3,
+        }
+    }
+}
+
+/// `ingest --height-encoding`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum HeightEncodingArg {
+    /// Mapbox Terrain-RGB.
+    TerrainRgb,
+    /// Terrarium (Mapzen / AWS terrain tiles).
+    Terrarium,
+    /// KDE Marble's SRTM tiles.
+    Marble,
+}
+
+impl From<HeightEncodingArg> for sc_raster::HeightEncoding {
+    fn from(e: HeightEncodingArg) -> Self {
+        match e {
+            HeightEncodingArg::TerrainRgb => Self::TerrainRgb,
+            HeightEncodingArg::Terrarium => Self::Terrarium,
+            HeightEncodingArg::Marble => Self::Marble,
         }
     }
 }

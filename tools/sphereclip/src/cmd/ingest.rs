@@ -92,6 +92,7 @@ pub fn run(a: &IngestArgs) -> Result<ExitCode> {
             .as_deref()
             .map(|b| parse_list(b, "--bands"))
             .transpose()?,
+        height_encoding: a.height_encoding.map(Into::into),
     };
     let inputs = inputs(a, &options)?;
     let grid = GridSpec::new(a.tile_size).map_err(|e| anyhow::anyhow!("--tile-size: {e}"))?;
@@ -136,11 +137,29 @@ pub fn run(a: &IngestArgs) -> Result<ExitCode> {
     let summary = sc_ingest::run(&a.store, &plan, &|d, _| progress.set(d))
         .with_context(|| format!("ingest into {} stopped", a.store.display()))?;
     progress.finish();
+    for i in summary.inputs.iter().filter(|i| i.valid_texels == 0) {
+        eprintln!(
+            "warning: {}: contributes no data (every pixel it has on the globe is nodata, NaN or transparent)",
+            i.path
+        );
+    }
     if a.json {
         println!("{}", serde_json::to_string_pretty(&summary)?);
     } else {
+        for i in &summary.inputs {
+            let bbox = i.data_bbox.map_or_else(
+                || "no data".into(),
+                |[w, s, e, n]| format!("data within lon {w:.4}..{e:.4}, lat {s:.4}..{n:.4}"),
+            );
+            println!(
+                "  {} → level {}: {:.1} % of its footprint holds data, {bbox}",
+                i.path,
+                i.level,
+                i.coverage * 100.0
+            );
+        }
         println!(
-            "ingested {} input(s) into {}: {} shards written{}, {} tiles with data, coverage {:.1} %, values {}, {:.1} s",
+            "ingested {} input(s) into {}: {} shards written{}, {} tiles with data, {:.1} % of the inputs' footprints hold data, values {}, {:.1} s",
             plan.inputs.len(),
             a.store.display(),
             summary.shards_written,
