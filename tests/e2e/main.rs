@@ -4,6 +4,7 @@
 mod build;
 mod golden;
 mod ingest;
+mod ingest_edges;
 mod input_fuzz;
 mod inspect;
 mod render;

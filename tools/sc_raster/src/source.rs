@@ -12,8 +12,13 @@
 //!   (node-registered grids that include both pole rows get 180°/(H−1)). This fixes ETOPO5, whose
 //!   stored step drifts from 1/12°.
 //! - Pixel-is-point rasters (SRTM) are already shifted by half a pixel by GDAL; nothing to do.
-//! - Geographic CRSs of any datum are used as lon/lat directly (datum shifts of at most a few
-//!   hundred metres are ignored); projected CRSs go through PROJ.
+//! - Geographic CRSs of any datum in degrees from Greenwich are used as lon/lat directly (datum
+//!   shifts of at most a few hundred metres are ignored); projected CRSs, and geographic ones in
+//!   other units or from another prime meridian, go through PROJ.
+//! - Extents are checked before anything is sized from them: lon/lat ones may not span more than
+//!   360° or lie beyond a pole (longitudes of another period are wrapped, rows beyond a pole are
+//!   dropped, each with a warning); projected ones must have part of a 33×33 lattice that the CRS
+//!   places on the globe and brings back (a round trip within a hundredth of a pixel).
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
