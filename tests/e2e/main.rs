@@ -12,3 +12,4 @@ mod safety;
 mod store;
 mod tidy;
 mod util;
+mod view_data;

@@ -76,6 +76,28 @@ fn info_reports_levels_and_json() {
 }
 
 #[test]
+fn output_into_a_closed_pipe_ends_quietly() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let root = make_store(dir.path());
+    // `sphereclip info S | head -1`: the reader goes away after one line
+    let mut child = crate::util::bin()
+        .args(["info", root.to_str().expect("utf8")])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("spawns");
+    drop(child.stdout.take());
+    let o = child.wait_with_output().expect("waits");
+    let err = text(&o.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+    assert_eq!(
+        o.status.code(),
+        Some(141),
+        "the shell's code for SIGPIPE: {err}"
+    );
+}
+
+#[test]
 fn verify_names_a_flipped_byte_and_fails() {
     let dir = tempfile::tempdir().expect("tempdir");
     let root = make_store(dir.path());

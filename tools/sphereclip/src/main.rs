@@ -3,6 +3,7 @@
 
 mod cli;
 mod cmd;
+mod out;
 mod progress;
 
 use std::process::ExitCode;

@@ -348,8 +348,9 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
     }
 
     /// [`Self::locate_in`] over all levels, falling back level by level to coarser ones until the
-    /// four tiles of the bilinear footprint hold data (a regional fine level, e.g. SRTM at level
-    /// 10 over a global level 3, serves only where it has tiles).
+    /// four corners of the bilinear footprint hold data (a regional fine level, e.g. SRTM at
+    /// level 10 over a global level 3, serves only where it has data: its tiles are nodata
+    /// around the square it came from).
     fn locate_present(&mut self, lon: f64, colat: f64, win: LevelWindow) -> Footprint {
         let mut cap = self.levels.len() - 1;
         loop {
@@ -361,20 +362,12 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
         }
     }
 
-    /// Whether the four tiles of a footprint hold data.
+    /// Whether the four corners of a footprint hold data (their tiles exist and the texels are
+    /// not nodata).
     fn present(&mut self, f: &Footprint) -> bool {
-        [(0, 0), (1, 0), (0, 1), (1, 1)].iter().all(|&(dx, dy)| {
-            match self.tile_of(f.id, f.x0 + dx, f.y0 + dy) {
-                Some((tile, _)) => {
-                    if !self.tiles.contains_key(&tile) {
-                        self.bound_cache();
-                    }
-                    self.load(tile);
-                    self.tiles.get(&tile).is_some_and(|d| d.is_some())
-                }
-                None => false,
-            }
-        })
+        [(0, 0), (1, 0), (0, 1), (1, 1)]
+            .iter()
+            .all(|&(dx, dy)| self.texel(f, dx, dy).is_some_and(|s| !T::is_void(s)))
     }
 
     /// Loads `tile` into the cache (once; a damaged tile is recorded and reads as missing).
@@ -435,8 +428,8 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
     /// and [`Self::texel`] would point by point, with the same arithmetic and the same choice of
     /// level, but choosing the level once per row and looking tiles up once per store tile:
     /// `emit(k, corners, fx, fy)` for point `k`, corners in the order (x0, y0), (x0+1, y0),
-    /// (x0, y0+1), (x0+1, y0+1). Points whose footprint lacks data in the row's level are
-    /// sampled again from the next coarser level.
+    /// (x0, y0+1), (x0+1, y0+1). Points with a corner that lacks data in the row's level (no
+    /// tile, or a nodata texel) are sampled again from the next coarser level.
     fn sample_row(&mut self, lons: &[f64], colat: f64, win: LevelWindow, emit: &mut EmitFn<'_, T>) {
         let all: Vec<usize> = (0..lons.len()).collect();
         self.sample_points(lons, &all, colat, win, self.levels.len() - 1, emit);
@@ -510,7 +503,7 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
             } else {
                 for ((&k, &fx), &[a, b]) in which.iter().zip(&columns.fx).zip(&columns.corners) {
                     let c = [get(a, 0), get(b, 0), get(a, 1), get(b, 1)];
-                    if idx > 0 && c.iter().any(|c| c.is_none()) {
+                    if idx > 0 && c.iter().any(|c| c.is_none_or(T::is_void)) {
                         missing.push(k);
                     } else {
                         emit(k, c, fx, f.fy);
@@ -595,20 +588,31 @@ type Corners<'a, T> = [Option<&'a [T]>; 4];
 /// What receives the samples of a row: point index, corners, fx, fy.
 type EmitFn<'e, T> = dyn for<'a> FnMut(usize, Corners<'a, T>, f64, f64) + 'e;
 
-/// A zero sample of a store type (the buffer a tile is decoded into).
-trait ZeroedSample {
+/// A zero sample of a store type (the buffer a tile is decoded into), and what nodata is.
+trait ZeroedSample: Sized {
     fn zeroed_sample() -> Self;
+    /// Whether one texel's samples are nodata.
+    fn is_void(texel: &[Self]) -> bool;
 }
 
 impl ZeroedSample for f32 {
     fn zeroed_sample() -> Self {
         0.0
     }
+
+    fn is_void(texel: &[Self]) -> bool {
+        texel[0].is_nan()
+    }
 }
 
 impl ZeroedSample for u8 {
     fn zeroed_sample() -> Self {
         0
+    }
+
+    /// Transparent: alpha 0.
+    fn is_void(texel: &[Self]) -> bool {
+        texel[3] == 0
     }
 }
 

@@ -48,14 +48,14 @@ pub fn build(store: &Path, settings: Settings, json: bool) -> Result<sc_build::S
         );
     }
     if json {
-        println!("{}", serde_json::to_string_pretty(&summary)?);
+        crate::outln!("{}", serde_json::to_string_pretty(&summary)?);
     } else {
         let from: Vec<String> = plan
             .finest
             .iter()
             .map(|(k, l)| format!("{k} from level {l}"))
             .collect();
-        println!(
+        crate::outln!(
             "built {} level(s) of {} ({}): {} shards written, {} unchanged, {} without data, {:.1} Mtexel, {:.1} s",
             summary.levels.len(),
             store.display(),

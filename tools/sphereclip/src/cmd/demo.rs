@@ -130,13 +130,13 @@ pub fn run(a: &DemoArgs) -> Result<ExitCode> {
             st.layer, st.level, st.width, st.height, st.tiles_present, st.tiles_total
         );
     }
-    println!(
+    crate::outln!(
         "store:   {}  (try: sphereclip info {})",
         store.display(),
         store.display()
     );
-    println!("geotiff: {}", height.display());
-    println!("geotiff: {}", color.display());
+    crate::outln!("geotiff: {}", height.display());
+    crate::outln!("geotiff: {}", color.display());
     // quality near the poles of the heights' global levels
     let report = a.out.join("inspect");
     step(&[
@@ -167,7 +167,7 @@ pub fn run(a: &DemoArgs) -> Result<ExitCode> {
             out.as_os_str(),
         ])
         .with_context(|| format!("the {name} view"))?;
-        println!("view:    {}", out.display());
+        crate::outln!("view:    {}", out.display());
     }
     let display = ["DISPLAY", "WAYLAND_DISPLAY"]
         .iter()

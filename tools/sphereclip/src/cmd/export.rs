@@ -42,7 +42,7 @@ pub fn run(a: &ExportArgs) -> Result<ExitCode> {
     }
     .with_context(|| format!("cannot export {kind} level {}", a.level))?;
     p.finish();
-    println!(
+    crate::outln!(
         "wrote {} ({}x{}, {} tiles, {} missing as nodata)",
         a.out.display(),
         summary.width,

@@ -43,7 +43,7 @@ pub fn run(a: &InfoArgs) -> Result<ExitCode> {
             "bytes_on_disk": stats.iter().map(|s| s.bytes_on_disk).sum::<u64>(),
             "verify": report,
         });
-        println!("{}", serde_json::to_string_pretty(&v)?);
+        crate::outln!("{}", serde_json::to_string_pretty(&v)?);
     } else {
         print_text(&reader, &stats, report.as_ref());
     }
@@ -65,8 +65,8 @@ pub fn run(a: &InfoArgs) -> Result<ExitCode> {
 
 fn print_text(reader: &StoreReader, stats: &[LevelStats], report: Option<&VerifyReport>) {
     let m = reader.meta();
-    println!("store {}", reader.root().display());
-    println!(
+    crate::outln!("store {}", reader.root().display());
+    crate::outln!(
         "  format {}, {}, tiles {}x{} texels, shards {}x{} tiles, sphere radius {} m",
         m.format_version,
         if m.complete {
@@ -80,15 +80,21 @@ fn print_text(reader: &StoreReader, stats: &[LevelStats], report: Option<&Verify
         m.shard_tiles,
         m.radius_m
     );
-    println!("  crs: {}", m.crs);
+    crate::outln!("  crs: {}", m.crs);
     for (kind, layer) in &m.layers {
-        println!(
+        crate::outln!(
             "layer {kind} ({}, nodata {}, codec {})",
-            layer.units, layer.nodata, layer.codec
+            layer.units,
+            layer.nodata,
+            layer.codec
         );
-        println!(
+        crate::outln!(
             "  {:<6} {:>13} {:>15} {:>7} {:>10}  range",
-            "level", "texels", "tiles", "shards", "on disk"
+            "level",
+            "texels",
+            "tiles",
+            "shards",
+            "on disk"
         );
         for s in stats.iter().filter(|s| s.layer == *kind) {
             let range = s
@@ -103,7 +109,7 @@ fn print_text(reader: &StoreReader, stats: &[LevelStats], report: Option<&Verify
             } else {
                 String::new()
             };
-            println!(
+            crate::outln!(
                 "  {:<6} {:>13} {:>15} {:>7} {:>10}  {range}{bad}",
                 s.level.to_string(),
                 format!("{}x{}", s.width, s.height),
@@ -113,12 +119,12 @@ fn print_text(reader: &StoreReader, stats: &[LevelStats], report: Option<&Verify
             );
         }
     }
-    println!(
+    crate::outln!(
         "  total on disk: {}",
         human_bytes(stats.iter().map(|s| s.bytes_on_disk).sum())
     );
     for p in &m.provenance {
-        println!(
+        crate::outln!(
             "provenance: {} by {} at unix {} from {} input(s)",
             p.step,
             p.tool,
@@ -136,10 +142,12 @@ fn print_text(reader: &StoreReader, stats: &[LevelStats], report: Option<&Verify
         .unwrap_or_default();
     for j in journals {
         let step = j.trim_start_matches("journal-").trim_end_matches(".json");
-        println!("interrupted {step}: rerun the same `sphereclip {step}` command to resume it");
+        crate::outln!(
+            "interrupted {step}: rerun the same `sphereclip {step}` command to resume it"
+        );
     }
     if let Some(r) = report {
-        println!(
+        crate::outln!(
             "verify: {} shards, {} tiles checked, {} problem(s)",
             r.shards_checked,
             r.tiles_checked,

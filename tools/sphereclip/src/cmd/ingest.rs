@@ -144,21 +144,21 @@ pub fn run(a: &IngestArgs) -> Result<ExitCode> {
         );
     }
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&summary)?);
+        crate::outln!("{}", serde_json::to_string_pretty(&summary)?);
     } else {
         for i in &summary.inputs {
             let bbox = i.data_bbox.map_or_else(
                 || "no data".into(),
                 |[w, s, e, n]| format!("data within lon {w:.4}..{e:.4}, lat {s:.4}..{n:.4}"),
             );
-            println!(
+            crate::outln!(
                 "  {} → level {}: {:.1} % of its footprint holds data, {bbox}",
                 i.path,
                 i.level,
                 i.coverage * 100.0
             );
         }
-        println!(
+        crate::outln!(
             "ingested {} input(s) into {}: {} shards written{}, {} tiles with data, {:.1} % of the inputs' footprints hold data, values {}, {:.1} s",
             plan.inputs.len(),
             a.store.display(),

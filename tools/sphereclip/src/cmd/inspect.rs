@@ -252,9 +252,9 @@ pub fn run(a: &InspectArgs) -> Result<ExitCode> {
         )?
     };
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        crate::outln!("{}", serde_json::to_string_pretty(&report)?);
     } else {
-        println!(
+        crate::outln!(
             "inspected {} level(s) in {:.1} s: {}",
             report.levels.len(),
             report.seconds,
@@ -274,7 +274,7 @@ pub fn run(a: &InspectArgs) -> Result<ExitCode> {
                 .enumerate()
                 .map(|(m, name)| format!("{name} {:.1} %", worst(m) * 100.0))
                 .collect();
-            println!("{} (worst band): {}", t.title, cols.join(", "));
+            crate::outln!("{} (worst band): {}", t.title, cols.join(", "));
         }
     }
     Ok(ExitCode::SUCCESS)

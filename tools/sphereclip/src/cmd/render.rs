@@ -18,7 +18,7 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
     if let (Some(flight), Some(stats)) = (&a.flight, &a.stats) {
         let s = super::flight::run(&a.store, flight, (w, h), stats)?;
         for alt in &s.altitudes {
-            println!(
+            crate::outln!(
                 "{:>10} m: best {} altitudes/s",
                 alt.altitude_m,
                 alt.best_speed_alt_per_s.map_or(
@@ -27,7 +27,7 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
                 )
             );
         }
-        println!("stats: {}", stats.display());
+        crate::outln!("stats: {}", stats.display());
         return Ok(ExitCode::SUCCESS);
     }
     let (Some(camera), Some(out)) = (&a.camera, &a.out) else {
@@ -91,7 +91,7 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
         .context("cannot encode the PNG")?;
     sc_store::fault::write_atomic(out, &png)
         .with_context(|| format!("cannot write {}", out.display()))?;
-    println!(
+    crate::outln!(
         "rendered {} ({w}x{h}) on {}: levels {}..{}, {} triangles, complete after {complete_ms:.0} ms ({frames} frames); ground under the camera {:.1} m",
         out.display(),
         r.adapter,
@@ -101,7 +101,7 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
         r.ground,
     );
     if a.frames > 1 {
-        println!(
+        crate::outln!(
             "{} more frames of the complete view: frame median {:.1} ms (p95 {:.1}), CPU median {:.2} ms (p95 {:.2})",
             a.frames - 1,
             median(&frame_ms),

@@ -60,7 +60,7 @@ pub fn run(a: &ViewArgs) -> Result<ExitCode> {
     )?;
     if a.frames.is_some() || a.flight.is_some() {
         let c = report.cpu_ms.get(1..).unwrap_or_default();
-        println!(
+        crate::outln!(
             "{} frames on {}: frame median {:.1} ms (p95 {:.1}), CPU median {:.2} ms (p95 {:.2}); levels {}..{}, {} triangles; every level wanted drawn in {:.0} % of frames",
             report.frames,
             report.adapter,
@@ -74,7 +74,7 @@ pub fn run(a: &ViewArgs) -> Result<ExitCode> {
             100.0 * report.finest_frames as f64 / report.frames.max(1) as f64
         );
         if let Some(p) = &a.screenshot {
-            println!("screenshot: {}", p.display());
+            crate::outln!("screenshot: {}", p.display());
         }
     }
     Ok(ExitCode::SUCCESS)
