@@ -18,12 +18,15 @@ struct Frame {
     level_lo: u32,
     // 1 when the colour clipmap holds data
     has_color: u32,
-    // debug views: bit 0 tints each level
+    // bit 0 tints each level (debug view); bit 1: unlit, colour exactly as stored
     flags: u32,
-    _p1: u32,
-    _p2: u32,
+    // vertical scale of the heights
+    exaggeration: f32,
+    _p: u32,
     // view-space (viewer at the north pole, metres, relative to the camera) to clip space
     view_proj: mat4x4<f32>,
+    // towards the sun, view space (fixed in the world: the CPU turns it with the viewer)
+    sun: vec4<f32>,
 };
 
 // One clipmap level: where the viewer sits in it (texel coordinates, fractional) and how many
@@ -108,6 +111,7 @@ fn vs_main(v: VertexIn) -> VertexOut {
         tc = texel_of(l - 1u, off);
         h = mix(height_at(l - 1u, tc), h, a);
     }
+    h = h * frame.exaggeration;
     // view space relative to the camera: (R + h)·p̃ − (0, 0, R + h_cam), with
     // (R + h)(1 − c) − R − h_cam = h − h_cam − (R + h)·c (no large cancellation)
     let r = frame.radius + h;
@@ -142,7 +146,7 @@ fn color_at(l: u32, t: vec2<f32>) -> vec4<f32> {
 fn slope_at(l: u32, t: vec2<f32>) -> vec2<f32> {
     let dx = height_at(l, t + vec2<f32>(1.0, 0.0)) - height_at(l, t - vec2<f32>(1.0, 0.0));
     let dy = height_at(l, t + vec2<f32>(0.0, 1.0)) - height_at(l, t - vec2<f32>(0.0, 1.0));
-    return 0.5 * vec2<f32>(dx, dy) * levels[l].texels_per_rad;
+    return 0.5 * frame.exaggeration * vec2<f32>(dx, dy) * levels[l].texels_per_rad;
 }
 
 // The surface normal in view space from the height gradient (metres per radian of Δφ, Δθ) at the
@@ -174,7 +178,7 @@ fn level_tint(l: u32) -> vec3<f32> {
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     var albedo: vec3<f32>;
-    let t = clamp(in.height / 6000.0, -1.0, 1.0);
+    let t = clamp(in.height / (6000.0 * frame.exaggeration), -1.0, 1.0);
     let land = vec3<f32>(0.12 + 0.5 * t, 0.25 + 0.35 * t, 0.05 + 0.6 * t);
     let sea = vec3<f32>(0.02, 0.06 + 0.05 * (1.0 + t), 0.3);
     albedo = select(land, sea, t < 0.0);
@@ -193,13 +197,19 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     if ((frame.flags & 1u) != 0u) {
         albedo = mix(albedo, level_tint(l), 0.6);
     }
+    if ((frame.flags & 2u) != 0u) {
+        return vec4<f32>(albedo, 1.0);
+    }
     // smooth normals from the height clipmap (blended between levels like the heights)
     var slope = slope_at(l, tl);
     if (a < 1.0) {
         slope = mix(slope_at(l - 1u, texel_of(l - 1u, in.off)), slope, a);
     }
     let n = surface_normal(in.up, slope, in.height);
-    let sun = normalize(vec3<f32>(0.5, -0.4, 0.75));
-    let light = 0.3 + 0.7 * max(dot(n, sun), 0.0);
+    let sun = normalize(frame.sun.xyz);
+    // Lambert under a sun fixed in the world, a little sky light; the night side is dark
+    // (the sky light fades out with the sun's elevation over the sphere there)
+    let day = smoothstep(-0.1, 0.1, dot(normalize(in.up), sun));
+    let light = 0.04 + 0.16 * day + 0.8 * max(dot(n, sun), 0.0);
     return vec4<f32>(albedo * light, 1.0);
 }

@@ -9,6 +9,7 @@ mod input_fuzz;
 mod inspect;
 mod render;
 mod safety;
+mod shading;
 mod store;
 mod tidy;
 mod util;

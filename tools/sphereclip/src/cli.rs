@@ -184,6 +184,37 @@ pub struct RenderArgs {
     /// store if there is one, else the store's layers with a neutral colour filter.
     #[arg(long)]
     pub sources: Option<std::path::PathBuf>,
+    #[command(flatten)]
+    pub look: LookArgs,
+}
+
+/// How `render` and `view` draw the planet.
+#[derive(Debug, clap::Args)]
+pub struct LookArgs {
+    /// Shading: lit (a sun fixed in the world; the night side is dark) or none (colour exactly
+    /// as stored, for inspecting imagery).
+    #[arg(long, value_enum, default_value_t = Shading::Lit)]
+    pub shading: Shading,
+    /// Vertical exaggeration of the heights (1: true relief).
+    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
+    pub exaggeration: f64,
+    /// The sun as AZIMUTH,ELEVATION in degrees (azimuth clockwise from north) seen from the point
+    /// under the camera at the start; fixed in the world from then on [default: 135,50].
+    #[arg(long, allow_hyphen_values = true, conflicts_with = "time")]
+    pub sun: Option<String>,
+    /// Put the sun where it stands at this UTC time (e.g. 2026-06-21T12:00:00Z): straight above
+    /// its subsolar point.
+    #[arg(long)]
+    pub time: Option<String>,
+}
+
+/// `--shading`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Shading {
+    /// Lambert under the sun, with a little sky light on the day side.
+    Lit,
+    /// The stored colour, unlit.
+    None,
 }
 
 /// `sphereclip view`.
@@ -211,6 +242,8 @@ pub struct ViewArgs {
     /// at each speed, in real time) instead of mouse and keys; the window closes at its end.
     #[arg(long)]
     pub flight: Option<std::path::PathBuf>,
+    #[command(flatten)]
+    pub look: LookArgs,
 }
 
 /// `sphereclip info`.

@@ -297,7 +297,7 @@ impl ClipmapPass {
         camera: &Camera,
         size: (u32, u32),
     ) -> (f64, FrameStats) {
-        self.planner.level_colors = self.options.level_colors;
+        self.planner.options = self.options;
         let plan = self.planner.plan(heights, colors, camera, size);
         self.upload(&plan);
         (plan.ground, plan.stats)
@@ -314,7 +314,7 @@ impl ClipmapPass {
         deadline: Option<Instant>,
         wait: Duration,
     ) -> (f64, FrameStats) {
-        self.planner.level_colors = self.options.level_colors;
+        self.planner.options = self.options;
         let plan = self
             .planner
             .plan_streamed(streamer, sources, camera, size, deadline, wait);
@@ -547,6 +547,11 @@ const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
 pub const SPACE: [f64; 4] = [0.02, 0.02, 0.06, 1.0];
 
 impl Renderer {
+    /// Sets how to draw: shading, vertical scale, the sun.
+    pub fn set_options(&mut self, options: DrawOptions) {
+        self.pass.options = options;
+    }
+
     /// A renderer drawing `width × height` images of a sphere of `radius_m`, on the first adapter
     /// wgpu finds (a real GPU if any, else the CPU one).
     pub fn headless(width: u32, height: u32, radius_m: f64) -> Result<Self, RenderError> {

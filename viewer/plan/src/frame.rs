@@ -19,6 +19,7 @@ use crate::clipmap::{
 };
 use crate::geometry::{Hemisphere, HemisphereSpec, level_outer};
 use crate::stream::{Focus, GridId, Streamer, Task, Tile, TileData, TileKey};
+use crate::sun::Sun;
 use crate::transform::{Viewer, finest_level_in_view, visible_levels};
 
 /// The frame uniform of `shaders/clipmap.wgsl`, as plain numbers (its layout is checked against
@@ -36,12 +37,17 @@ pub struct FrameUniform {
     pub level_lo: u32,
     pub has_color: u32,
     pub flags: u32,
-    pub _p: [u32; 2],
+    pub exaggeration: f32,
+    pub _p: u32,
     pub view_proj: [[f32; 4]; 4],
+    /// Towards the sun, view space (w unused).
+    pub sun: [f32; 4],
 }
 
 /// `FrameUniform::flags`: tint each clipmap level (debug view).
 pub const FLAG_LEVEL_COLORS: u32 = 1;
+/// `FrameUniform::flags`: no lighting: colour exactly as stored (imagery inspection).
+pub const FLAG_UNLIT: u32 = 2;
 
 /// One clipmap level's uniform of `shaders/clipmap.wgsl`.
 #[repr(C)]
@@ -77,13 +83,31 @@ pub struct FrameStats {
     pub level_failed: bool,
 }
 
-/// How to draw (the viewer's debug toggles).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+/// How to draw: shading, vertical scale, the sun, and the viewer's debug toggles.
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DrawOptions {
     /// Triangle edges only (needs the adapter's line polygon mode; ignored without it).
     pub wireframe: bool,
     /// Tint each clipmap level.
     pub level_colors: bool,
+    /// Light the surface (false: colour exactly as stored).
+    pub lit: bool,
+    /// Vertical scale of the heights (1: true relief).
+    pub exaggeration: f64,
+    /// The sun, fixed in the world.
+    pub sun: Sun,
+}
+
+impl Default for DrawOptions {
+    fn default() -> Self {
+        Self {
+            wireframe: false,
+            level_colors: false,
+            lit: true,
+            exaggeration: 1.0,
+            sun: Sun::default_for(0.0, 0.0),
+        }
+    }
 }
 
 /// Levels finer than those drawn are prefetched only while the camera takes at least this many
@@ -166,8 +190,8 @@ pub struct FramePlanner {
     /// Per height tile seen lately, its highest height and largest step between neighbouring
     /// texels (not recomputed every frame).
     tile_top: HashMap<TileKey, (f32, f32)>,
-    /// Tint each clipmap level (debug view).
-    pub level_colors: bool,
+    /// Shading, vertical scale and sun of the frames planned.
+    pub options: DrawOptions,
 }
 
 impl FramePlanner {
@@ -184,7 +208,7 @@ impl FramePlanner {
             prev_viewer: None,
             ground_prev: 0.0,
             tile_top: HashMap::new(),
-            level_colors: false,
+            options: DrawOptions::default(),
         }
     }
 
@@ -266,7 +290,8 @@ impl FramePlanner {
                 {
                     bound = bound.min(f64::from(top) + f64::from(step));
                 }
-                bound - self.ground_prev
+                // drawn heights are scaled
+                (bound - self.ground_prev) * self.options.exaggeration
             })
             .collect()
     }
@@ -354,23 +379,24 @@ impl FramePlanner {
     ) -> FrameUniform {
         let (lo, hi) = (stats.level_lo, stats.level_hi);
         let u = viewer.uniforms();
+        let o = &self.options;
+        let [sx, sy, sz] = o.sun.in_view(viewer);
         FrameUniform {
             sin_v: u.sin_v,
             cos_v: u.cos_v,
             colat: u.colat,
             orient: u.orient,
-            cam_height: (ground + camera.alt) as f32,
+            cam_height: (ground * o.exaggeration + camera.alt) as f32,
             radius: self.radius as f32,
             level_hi: hi,
             level_lo: lo,
             has_color: u32::from(has_color),
-            flags: if self.level_colors {
-                FLAG_LEVEL_COLORS
-            } else {
-                0
-            },
-            _p: [0; 2],
+            flags: if o.level_colors { FLAG_LEVEL_COLORS } else { 0 }
+                | if o.lit { 0 } else { FLAG_UNLIT },
+            exaggeration: o.exaggeration as f32,
+            _p: 0,
             view_proj: view_projection(viewer, camera, w, h).to_cols_array_2d(),
+            sun: [sx, sy, sz, 0.0],
         }
     }
 

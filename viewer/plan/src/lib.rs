@@ -11,6 +11,7 @@ pub mod frame;
 pub mod geometry;
 pub mod graph;
 pub mod stream;
+pub mod sun;
 pub mod transform;
 
 use std::path::PathBuf;

@@ -19,9 +19,10 @@ use sc_view_gpu::render::{
     ClipmapPass, ImageReadback, RenderError, SPACE, begin_pass, depth_target, device_for,
 };
 use sc_view_plan::camera::{Camera, CameraScript, Controller, Input, Mode};
-use sc_view_plan::frame::{FrameStats, StreamSources};
+use sc_view_plan::frame::{DrawOptions, FrameStats, StreamSources};
 use sc_view_plan::graph::{FilterHandle, FilterParams};
 use sc_view_plan::stream::Streamer;
+use sc_view_plan::sun::Sun;
 
 /// How long a frame may spend updating clipmap levels before it draws what it has (Alg. 1).
 const UPDATE_BUDGET: std::time::Duration = std::time::Duration::from_millis(12);
@@ -42,6 +43,8 @@ pub struct ViewOptions {
     pub filters: Vec<FilterHandle>,
     /// A scripted camera (a flight) instead of mouse and keys.
     pub script: Option<CameraScript>,
+    /// Shading, vertical scale and the sun at the start (the panel changes them).
+    pub draw: DrawOptions,
 }
 
 impl std::fmt::Debug for ViewOptions {
@@ -54,6 +57,7 @@ impl std::fmt::Debug for ViewOptions {
             .field("title", &self.title)
             .field("filters", &self.filters.len())
             .field("script", &self.script.is_some())
+            .field("draw", &self.draw)
             .finish()
     }
 }
@@ -224,7 +228,8 @@ impl App<'_> {
             view_formats: vec![],
         };
         surface.configure(&device, &config);
-        let pass = ClipmapPass::new(&device, &queue, format, self.radius);
+        let mut pass = ClipmapPass::new(&device, &queue, format, self.radius);
+        pass.options = self.opts.draw;
         let egui_ctx = egui::Context::default();
         let egui_state = egui_winit::State::new(
             egui_ctx.clone(),
@@ -367,6 +372,21 @@ impl App<'_> {
                         egui::Checkbox::new(&mut options.wireframe, "wireframe (F)"),
                     );
                     ui.checkbox(&mut options.level_colors, "level colours (L)");
+                    ui.checkbox(&mut options.lit, "lit (off: colour as stored)");
+                    ui.add(
+                        egui::Slider::new(&mut options.exaggeration, 0.1..=50.0)
+                            .logarithmic(true)
+                            .text("vertical exaggeration"),
+                    );
+                    // the sun is fixed in the world; its sliders show and set where it stands
+                    // seen from the point under the camera
+                    let (mut az, mut el) = options.sun.az_el_at(camera.lat_deg, camera.lon_deg);
+                    let (az0, el0) = (az, el);
+                    ui.add(egui::Slider::new(&mut az, 0.0..=360.0).text("sun azimuth °"));
+                    ui.add(egui::Slider::new(&mut el, -90.0..=90.0).text("sun elevation °"));
+                    if az != az0 || el != el0 {
+                        options.sun = Sun::from_az_el(camera.lat_deg, camera.lon_deg, az, el);
+                    }
                     for (name, p) in &mut filters {
                         ui.collapsing(name.as_str(), |ui| {
                             ui.add(

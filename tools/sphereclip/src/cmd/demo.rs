@@ -69,6 +69,7 @@ pub fn run(a: &DemoArgs) -> Result<ExitCode> {
         "bluemarble_5400x2700.jpg",
         "N57E011.hgt.zip",
         "n07_w006_3arc_v2.tif",
+        "aletsch_dhm200_lv95.tif",
     ] {
         if !s.join(name).is_file() {
             bail!(
@@ -105,6 +106,8 @@ pub fn run(a: &DemoArgs) -> Result<ExitCode> {
         vec![
             input(s, "N57E011.hgt.zip", None),
             input(s, "n07_w006_3arc_v2.tif", None),
+            // the Aletsch glacier (Swiss LV95, 200 m): relief under the ground view in the Alps
+            input(s, "aletsch_dhm200_lv95.tif", None),
         ],
     )?;
     ingest(

@@ -12,7 +12,7 @@ mod view;
 
 use std::process::ExitCode;
 
-use anyhow::{Result, bail};
+use anyhow::{Context, Result, bail};
 
 use crate::cli::{Cli, Command};
 
@@ -83,4 +83,28 @@ pub fn check_output_file(out: &std::path::Path, what: &str) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// How `render` and `view` draw, from their shared options, with the sun placed for a camera
+/// that starts at `camera`.
+pub fn draw_options(
+    look: &crate::cli::LookArgs,
+    camera: &sc_view_plan::camera::Camera,
+) -> Result<sc_view_plan::frame::DrawOptions> {
+    use sc_view_plan::sun::{Sun, parse_utc};
+    let k = look.exaggeration;
+    if !(k.is_finite() && (0.01..=1000.0).contains(&k)) {
+        bail!("--exaggeration must be a number in 0.01..1000, found {k}");
+    }
+    let sun = match (&look.sun, &look.time) {
+        (Some(s), _) => Sun::parse_az_el(s, camera.lat_deg, camera.lon_deg).context("--sun")?,
+        (None, Some(t)) => Sun::at_unix_time(parse_utc(t).context("--time")?),
+        (None, None) => Sun::default_for(camera.lat_deg, camera.lon_deg),
+    };
+    Ok(sc_view_plan::frame::DrawOptions {
+        lit: look.shading == crate::cli::Shading::Lit,
+        exaggeration: k,
+        sun,
+        ..Default::default()
+    })
 }

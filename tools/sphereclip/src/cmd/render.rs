@@ -44,7 +44,9 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
         radius,
         ..
     } = streamer_for(&a.store, a.sources.as_deref())?;
+    let options = super::draw_options(&a.look, &camera)?;
     let mut r = Renderer::headless(w, h, radius)?;
+    r.set_options(options);
     if let Some(c) = &a.clear {
         let v: Vec<f64> = c
             .split(',')

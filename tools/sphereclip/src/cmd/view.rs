@@ -27,6 +27,7 @@ pub fn run(a: &ViewArgs) -> Result<ExitCode> {
     {
         anyhow::bail!("--screenshot is a folder, not a PNG file: {}", p.display());
     }
+    let draw = super::draw_options(&a.look, &camera)?;
     let flight = a.flight.as_deref().map(flight::parse).transpose()?;
     let StoreStreamer {
         streamer,
@@ -56,6 +57,7 @@ pub fn run(a: &ViewArgs) -> Result<ExitCode> {
             title,
             filters,
             script: flight.map(|f| flight::script(f, radius)),
+            draw,
         },
     )?;
     if a.frames.is_some() || a.flight.is_some() {
