@@ -2,6 +2,7 @@
 //! `tests/`): each module a command or a promise, `util` their shared helpers and fixtures.
 
 mod build;
+mod fidelity;
 mod golden;
 mod ingest;
 mod ingest_edges;

@@ -449,3 +449,25 @@ fn bad_flight_files_get_one_line_errors() {
         assert!(!stats.exists(), "no stats written for a bad flight");
     }
 }
+
+#[test]
+fn an_output_named_without_a_folder_lands_in_the_current_one() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let store = color_store(dir.path());
+    // `--out shot.png`: the parent of a bare name is the empty path, which is the current folder
+    let o = bin()
+        .current_dir(dir.path())
+        .args([
+            "render",
+            s(&store),
+            "--camera",
+            "0,0,8000000",
+            "--size",
+            "64x36",
+        ])
+        .args(["--out", "shot.png"])
+        .output()
+        .expect("runs");
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    assert!(dir.path().join("shot.png").is_file());
+}

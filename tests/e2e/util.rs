@@ -260,3 +260,37 @@ pub fn etopo20_level5_small_tiles() -> PathBuf {
     })
     .join("base.zarr")
 }
+
+/// A planet of flat heights (0 m at level 2) painted with the Blue Marble at level 4 (its own
+/// resolution: 5400 pixels round the equator, 8192 texels), pyramid built: what the renderer
+/// draws is then the stored colour alone, to compare with the CPU reference.
+pub fn flat_blue_marble() -> PathBuf {
+    fixture("flat-bluemarble-l4", |d| {
+        let store = d.join("flat.zarr");
+        let flat = d.join("flat.tif");
+        let o = Command::new("gdal_create")
+            .args([
+                "-q", "-outsize", "360", "180", "-bands", "1", "-ot", "Float32",
+            ])
+            .args(["-burn", "0", "-a_srs", "EPSG:4326"])
+            .args(["-a_ullr", "-180", "90", "180", "-90"])
+            .arg(&flat)
+            .output()
+            .expect("gdal_create runs");
+        assert!(o.status.success(), "{}", text(&o.stderr));
+        ok(&run(&["ingest", s(&store), s(&flat), "--level", "2"]));
+        ok(&run(&[
+            "ingest",
+            s(&store),
+            s(&sample("bluemarble_5400x2700.jpg")),
+            "--layer",
+            "color",
+            "--level",
+            "4",
+            "--bounds",
+            "-180,-90,180,90",
+        ]));
+        ok(&run(&["build", s(&store)]));
+    })
+    .join("flat.zarr")
+}

@@ -79,7 +79,11 @@ pub fn is_temp_name(name: &str) -> bool {
 /// fsync, rename, fsync of the folder. A crash leaves the old file or the new one. Creates the
 /// parent folder if needed.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    let parent = path.parent().unwrap_or(Path::new("."));
+    // a bare file name has the empty path as its parent: the current folder
+    let parent = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
     fs::create_dir_all(parent)?;
     let n = TEMP_COUNTER.fetch_add(1, Ordering::Relaxed);
     let name = path
@@ -110,7 +114,7 @@ pub fn remove_file(path: &Path) -> std::io::Result<()> {
         Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(e),
         _ => {}
     }
-    if let Some(parent) = path.parent()
+    if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty())
         && parent.is_dir()
     {
         File::open(parent)?.sync_all()?;

@@ -180,6 +180,11 @@ pub struct RenderArgs {
     /// (the image is the last frame).
     #[arg(long, default_value_t = 1)]
     pub frames: u32,
+    /// Draw with the CPU reference ray-caster instead of the GPU: f64 rays, N×N per pixel, the
+    /// colour bilinear in linear light from the finest stored level with data at each point,
+    /// unlit (the twin the renderer is tested against; slow).
+    #[arg(long, value_name = "N", conflicts_with = "frames")]
+    pub reference: Option<u32>,
     /// The image-source graph (TOML; see the README); default: STEM.sources.toml beside the
     /// store if there is one, else the store's layers with a neutral colour filter.
     #[arg(long)]

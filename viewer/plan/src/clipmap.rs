@@ -883,6 +883,30 @@ impl StoreColors {
     }
 }
 
+impl StoreColors {
+    /// The colour at `lon`, `colat` bilinear in linear light (RGB 0..1, alpha 0..1), as the GPU
+    /// interpolates sRGB textures, from the level [`ColorSource::color`] would use; corners the
+    /// store lacks count as transparent black.
+    pub fn color_linear(&mut self, lon: f64, colat: f64, texel: LevelWindow) -> [f64; 4] {
+        let f = self.0.locate_present(lon, colat, texel);
+        let mut acc = [0.0f64; 4];
+        for (dx, dy, wgt) in [
+            (0, 0, (1.0 - f.fx) * (1.0 - f.fy)),
+            (1, 0, f.fx * (1.0 - f.fy)),
+            (0, 1, (1.0 - f.fx) * f.fy),
+            (1, 1, f.fx * f.fy),
+        ] {
+            if let Some(p) = self.0.texel(&f, dx, dy) {
+                for c in 0..3 {
+                    acc[c] += wgt * f64::from(sc_core::color::srgb_to_linear(f32::from(p[c])));
+                }
+                acc[3] += wgt * f64::from(p[3]) / 255.0;
+            }
+        }
+        acc
+    }
+}
+
 impl ColorSource for StoreColors {
     fn color(&mut self, lon: f64, colat: f64, texel: LevelWindow) -> [u8; 4] {
         let f = self.0.locate_present(lon, colat, texel);

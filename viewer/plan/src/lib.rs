@@ -10,6 +10,7 @@ pub mod flight;
 pub mod frame;
 pub mod geometry;
 pub mod graph;
+pub mod reference;
 pub mod stream;
 pub mod sun;
 pub mod transform;

@@ -38,6 +38,23 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
     if !(1..=10_000).contains(&a.frames) {
         bail!("--frames must be 1..10000, found {}", a.frames);
     }
+    let clear = match &a.clear {
+        None => sc_view_gpu::render::SPACE,
+        Some(c) => {
+            let v: Vec<f64> = c
+                .split(',')
+                .map(|x| x.trim().parse::<f64>())
+                .collect::<Result<_, _>>()
+                .map_err(|_| anyhow::anyhow!("--clear: expected R,G,B in 0..1, found `{c}`"))?;
+            let [r0, g0, b0] = v[..] else {
+                bail!("--clear: expected R,G,B in 0..1, found `{c}`");
+            };
+            [r0, g0, b0, 1.0]
+        }
+    };
+    if let Some(n) = a.reference {
+        return reference(a, &camera, (w, h), n, clear, out);
+    }
     let sc_view_plan::graph::StoreStreamer {
         streamer,
         sources,
@@ -47,17 +64,7 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
     let options = super::draw_options(&a.look, &camera)?;
     let mut r = Renderer::headless(w, h, radius)?;
     r.set_options(options);
-    if let Some(c) = &a.clear {
-        let v: Vec<f64> = c
-            .split(',')
-            .map(|x| x.trim().parse::<f64>())
-            .collect::<Result<_, _>>()
-            .map_err(|_| anyhow::anyhow!("--clear: expected R,G,B in 0..1, found `{c}`"))?;
-        let [r0, g0, b0] = v[..] else {
-            bail!("--clear: expected R,G,B in 0..1, found `{c}`");
-        };
-        r.clear = [r0, g0, b0, 1.0];
-    }
+    r.clear = clear;
     // the complete view: frames until every visible level is there (the tiles are made by the
     // worker threads meanwhile); then --frames − 1 more of the still view for timing
     let start = Instant::now();
@@ -112,5 +119,45 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
             percentile(&cpu_ms, 0.95),
         );
     }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `render --reference N`: the CPU twin's picture of the store's colour.
+fn reference(
+    a: &RenderArgs,
+    camera: &Camera,
+    (w, h): (u32, u32),
+    n: u32,
+    clear: [f64; 4],
+    out: &std::path::Path,
+) -> Result<ExitCode> {
+    use sc_view_plan::clipmap::{StoreColors, StoreHeights};
+    if !(1..=16).contains(&n) {
+        bail!("--reference must be 1..16 rays per pixel side, found {n}");
+    }
+    let reader = sc_store::StoreReader::open(&a.store)
+        .with_context(|| format!("cannot read store {}", a.store.display()))?;
+    let radius = reader.meta().radius_m;
+    let colors = StoreColors::new(reader.clone())
+        .with_context(|| format!("the store has no colour layer: {}", a.store.display()))?;
+    let heights = StoreHeights::new(reader);
+    let options = super::draw_options(&a.look, camera)?;
+    let mut rc =
+        sc_view_plan::reference::RayCaster::new(colors, heights, radius, options.exaggeration);
+    // the clear colour is linear light, as the GPU's sRGB target takes it
+    let bg = clear.map(|v| sc_core::color::linear_to_srgb(v as f32));
+    let start = Instant::now();
+    let rgba = rc.render(camera, (w, h), n, bg);
+    let img = image::RgbaImage::from_raw(w, h, rgba).context("image size")?;
+    let mut png = Vec::new();
+    img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .context("cannot encode the PNG")?;
+    sc_store::fault::write_atomic(out, &png)
+        .with_context(|| format!("cannot write {}", out.display()))?;
+    crate::outln!(
+        "rendered {} ({w}x{h}) with the CPU reference, {n}x{n} rays per pixel, in {:.1} s",
+        out.display(),
+        start.elapsed().as_secs_f64()
+    );
     Ok(ExitCode::SUCCESS)
 }

@@ -1,0 +1,129 @@
+//! The renderer against its CPU twin (`render --reference`: f64 rays, the finest stored level per
+//! point, bilinear in linear light, supersampled) on a flat planet painted with the Blue Marble,
+//! unlit: how much of what the store holds reaches the screen, from orbit and over the poles.
+
+use std::path::Path;
+
+use crate::util::{flat_blue_marble, ok, run, s};
+
+/// Mean absolute difference (/255 per channel), the share of pixels off by more than 30/255 in
+/// any channel, and the renderer's edge sharpness relative to the twin's (mean gradient
+/// magnitude), over the pixels that are globe in both.
+struct Fidelity {
+    mad: f64,
+    off: f64,
+    sharpness: f64,
+}
+
+const SPACE_PX: [u8; 3] = [255, 0, 255];
+
+fn compare(gpu: &image::RgbaImage, twin: &image::RgbaImage) -> Fidelity {
+    let (w, h) = gpu.dimensions();
+    let globe = |x: u32, y: u32| {
+        gpu.get_pixel(x, y).0[..3] != SPACE_PX && twin.get_pixel(x, y).0[..3] != SPACE_PX
+    };
+    let grad = |img: &image::RgbaImage, x: u32, y: u32| -> f64 {
+        let l = |x: u32, y: u32| {
+            let p = img.get_pixel(x, y).0;
+            0.299 * f64::from(p[0]) + 0.587 * f64::from(p[1]) + 0.114 * f64::from(p[2])
+        };
+        (l(x + 1, y) - l(x, y)).hypot(l(x, y + 1) - l(x, y))
+    };
+    let (mut n, mut sum, mut off, mut ga, mut gb) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for y in 1..h - 2 {
+        for x in 1..w - 2 {
+            // inner globe pixels only: the rim mixes with space differently in the two
+            if !(globe(x, y)
+                && globe(x + 1, y)
+                && globe(x, y + 1)
+                && globe(x - 1, y)
+                && globe(x, y - 1))
+            {
+                continue;
+            }
+            let (a, b) = (gpu.get_pixel(x, y).0, twin.get_pixel(x, y).0);
+            let d: Vec<f64> = (0..3).map(|c| f64::from(a[c].abs_diff(b[c]))).collect();
+            sum += d.iter().sum::<f64>() / 3.0;
+            off += f64::from(u8::from(d.iter().any(|&v| v > 30.0)));
+            ga += grad(gpu, x, y);
+            gb += grad(twin, x, y);
+            n += 1.0;
+        }
+    }
+    assert!(n > 10_000.0, "{n} globe pixels");
+    Fidelity {
+        mad: sum / n,
+        off: off / n,
+        sharpness: ga / gb,
+    }
+}
+
+fn shot(store: &Path, out: &Path, camera: &str, extra: &[&str]) -> image::RgbaImage {
+    let mut args = vec![
+        "render",
+        s(store),
+        "--camera",
+        camera,
+        "--size",
+        "480x270",
+        "--out",
+        s(out),
+        "--clear",
+        "1,0,1",
+    ];
+    args.extend_from_slice(extra);
+    ok(&run(&args));
+    image::open(out).expect("png").to_rgba8()
+}
+
+/// Today's renderer takes texture detail from the clipmap ring a pixel lies in, not from the
+/// pixel's size on screen, so away from the point under the camera it shows coarser levels than
+/// the store holds. These bounds hold what it reaches now (measured: see the note printed) and
+/// fail if it gets worse; the targets (mean ≤ 1.0/255, ≤ 0.3 % off by > 30/255, sharpness ≥ 0.9)
+/// need colour levels chosen per pixel.
+#[test]
+fn orbit_and_pole_views_match_the_cpu_reference_within_todays_bounds() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let store = flat_blue_marble();
+    // (view, camera, today's mean, share off, sharpness; each 15 % worse than measured)
+    let views = [
+        ("orbit-asia", "30,80,8000000,0,-90,40", 3.94, 0.0231, 0.66),
+        (
+            "orbit-americas",
+            "10,-80,12000000,0,-90,50",
+            2.05,
+            0.0086,
+            0.79,
+        ),
+        ("north-pole", "90,0,3000000,0,-90,50", 8.10, 0.1002, 0.57),
+        ("south-pole", "-90,0,3000000,0,-90,50", 3.26, 0.0305, 0.66),
+    ];
+    for (name, cam, mad, off, sharp) in views {
+        let gpu = shot(
+            &store,
+            &dir.path().join(format!("{name}.png")),
+            cam,
+            &["--shading", "none"],
+        );
+        let twin = shot(
+            &store,
+            &dir.path().join(format!("{name}-ref.png")),
+            cam,
+            &["--reference", "2"],
+        );
+        let f = compare(&gpu, &twin);
+        eprintln!(
+            "{name}: mean |Δ| {:.2}/255, {:.2} % off by > 30/255, sharpness {:.2} of the reference",
+            f.mad,
+            f.off * 100.0,
+            f.sharpness
+        );
+        assert!(f.mad <= mad * 1.15, "{name}: mean {:.2}", f.mad);
+        assert!(f.off <= off * 1.15, "{name}: {:.2} % off", f.off * 100.0);
+        assert!(
+            f.sharpness >= sharp / 1.15,
+            "{name}: sharpness {:.2}",
+            f.sharpness
+        );
+    }
+}

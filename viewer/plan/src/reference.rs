@@ -1,0 +1,185 @@
+//! The renderer's CPU twin: a ray-caster in f64 that draws what a store holds with no clipmap,
+//! no level of detail and no GPU: each pixel is the average of `s × s` rays through its area,
+//! each ray meets the planet (the sphere raised by the height under it, found by fixed-point
+//! iteration) and takes the colour there bilinearly, in linear light, from the finest stored
+//! level that has data at that point. The camera is placed exactly as the renderer places it
+//! ([`crate::frame::view_projection`]: heading from north, pitch from the horizon, vertical field
+//! of view, the camera's height above the ground under it). Unlit, like `--shading none`: tests
+//! compare the renderer's picture of the stored colour with this one.
+
+use std::f64::consts::PI;
+
+use crate::camera::Camera;
+use crate::clipmap::{HeightSource, LevelWindow, StoreColors, StoreHeights};
+use crate::sun::unit_of;
+
+/// A clipmap texel finer than any stored level: the store's finest level with data serves.
+const FINEST: LevelWindow = LevelWindow {
+    texel_colat: 1e-12,
+    texel_lon: 1e-12,
+};
+
+/// Fixed-point steps from the sea-level sphere to the raised one.
+const HEIGHT_STEPS: usize = 4;
+
+/// The twin of the renderer on one store.
+#[derive(Debug)]
+pub struct RayCaster {
+    colors: StoreColors,
+    heights: Option<StoreHeights>,
+    radius: f64,
+    exaggeration: f64,
+}
+
+fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+
+fn scale(a: [f64; 3], k: f64) -> [f64; 3] {
+    [a[0] * k, a[1] * k, a[2] * k]
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+fn normalize(a: [f64; 3]) -> [f64; 3] {
+    scale(a, 1.0 / dot(a, a).sqrt())
+}
+
+/// The nearer positive distance along the unit ray `d` from `o` to the sphere of radius `r`.
+fn hit_sphere(o: [f64; 3], d: [f64; 3], r: f64) -> Option<f64> {
+    let b = dot(o, d);
+    let c = dot(o, o) - r * r;
+    let disc = b * b - c;
+    if disc < 0.0 {
+        return None;
+    }
+    let q = disc.sqrt();
+    // the stable form of the nearer root
+    let t = if b < 0.0 { c / (-b + q) } else { -b - q };
+    (t > 0.0).then_some(t)
+}
+
+impl RayCaster {
+    /// Over a store's colour levels (`colors`) and, if it has them, its height levels; heights
+    /// scaled by `exaggeration`, on a sphere of `radius` metres.
+    pub fn new(
+        colors: StoreColors,
+        heights: Option<StoreHeights>,
+        radius: f64,
+        exaggeration: f64,
+    ) -> Self {
+        Self {
+            colors,
+            heights,
+            radius,
+            exaggeration,
+        }
+    }
+
+    fn height_at(&mut self, p: [f64; 3]) -> f64 {
+        let Some(h) = self.heights.as_mut() else {
+            return 0.0;
+        };
+        let colat = p[2].atan2(p[0].hypot(p[1]));
+        let colat = PI / 2.0 - colat;
+        let lon = p[1].atan2(p[0]);
+        f64::from(h.height(lon, colat, FINEST)) * self.exaggeration
+    }
+
+    /// Draws `w × h` pixels (RGBA8, sRGB) with `s × s` rays each; pixels whose rays all miss
+    /// the planet are `background`, partly covered ones are blended with it in linear light.
+    pub fn render(
+        &mut self,
+        camera: &Camera,
+        (w, h): (u32, u32),
+        s: u32,
+        background: [u8; 4],
+    ) -> Vec<u8> {
+        let ground = {
+            let p = unit_of(camera.lat_deg, camera.lon_deg);
+            self.height_at(p)
+        };
+        let eye = scale(
+            unit_of(camera.lat_deg, camera.lon_deg),
+            self.radius + ground + camera.alt,
+        );
+        // the camera's frame, as `view_projection` builds it in the viewer's local frame
+        let (slat, clat) = camera.lat_deg.to_radians().sin_cos();
+        let (slon, clon) = camera.lon_deg.to_radians().sin_cos();
+        let north = [-slat * clon, -slat * slon, clat];
+        let east = [-slon, clon, 0.0];
+        let up = [clat * clon, clat * slon, slat];
+        let (sh, ch) = camera.heading.to_radians().sin_cos();
+        let pitch = camera.pitch.to_radians();
+        let horiz = add(scale(north, ch), scale(east, sh));
+        let forward = add(scale(horiz, pitch.cos()), scale(up, pitch.sin()));
+        let screen_up = if pitch.abs() > 1.5 { horiz } else { up };
+        let right = normalize(cross(forward, screen_up));
+        let true_up = cross(right, forward);
+        let ty = (camera.fov.to_radians() / 2.0).tan();
+        let tx = ty * f64::from(w) / f64::from(h);
+        let bg: [f64; 3] = std::array::from_fn(|c| {
+            f64::from(sc_core::color::srgb_to_linear(f32::from(background[c])))
+        });
+        let mut out = vec![0u8; (w * h * 4) as usize];
+        let n = f64::from(s * s);
+        for y in 0..h {
+            for x in 0..w {
+                let mut acc = [0.0f64; 3];
+                for sy in 0..s {
+                    for sx in 0..s {
+                        let fx =
+                            (f64::from(x) + (f64::from(sx) + 0.5) / f64::from(s)) / f64::from(w);
+                        let fy =
+                            (f64::from(y) + (f64::from(sy) + 0.5) / f64::from(s)) / f64::from(h);
+                        let d = normalize(add(
+                            forward,
+                            add(
+                                scale(right, (2.0 * fx - 1.0) * tx),
+                                scale(true_up, (1.0 - 2.0 * fy) * ty),
+                            ),
+                        ));
+                        let c = self.shade(eye, d).unwrap_or(bg);
+                        for k in 0..3 {
+                            acc[k] += c[k] / n;
+                        }
+                    }
+                }
+                let o = ((y * w + x) * 4) as usize;
+                for k in 0..3 {
+                    out[o + k] = sc_core::color::linear_to_srgb(acc[k] as f32);
+                }
+                out[o + 3] = 255;
+            }
+        }
+        out
+    }
+
+    /// The colour (linear light) where a ray meets the planet, or `None` if it misses.
+    fn shade(&mut self, eye: [f64; 3], d: [f64; 3]) -> Option<[f64; 3]> {
+        let mut r = self.radius;
+        let mut t = hit_sphere(eye, d, r)?;
+        for _ in 0..HEIGHT_STEPS {
+            let p = add(eye, scale(d, t));
+            r = self.radius + self.height_at(p);
+            t = hit_sphere(eye, d, r)?;
+        }
+        let p = add(eye, scale(d, t));
+        let colat = PI / 2.0 - (p[2] / r).clamp(-1.0, 1.0).asin();
+        let lon = p[1].atan2(p[0]);
+        let c = self.colors.color_linear(lon, colat, FINEST);
+        // where the colour is not opaque the renderer shows its height tint; the tests use
+        // opaque colour, and so does the comparison
+        Some([c[0], c[1], c[2]])
+    }
+}
