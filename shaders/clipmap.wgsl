@@ -103,13 +103,14 @@ fn vs_main(v: VertexIn) -> VertexOut {
     let off = map_offsets(view, v.pxy.x, v.pxy.y, v.one_minus_cos, v.seam);
     let l = min(v.level, frame.level_hi);
     let depth = select(v.depth, 1.0, v.level > frame.level_hi);
-    let t = texel_of(l, off);
-    let a = blend_of(l, depth);
-    var h = height_at(l, t);
-    var tc = t;
+    // the mesh carries the heights of the next coarser level (its texels are about as far apart
+    // as the ring's vertices; the level's own texels, twice as fine, go into the shading), with
+    // that level's blend into the one coarser still towards the ring's outer edge
+    let lv = max(l, frame.level_lo + 1u) - 1u;
+    let a = select(blend_of(l, depth), 1.0, lv <= frame.level_lo);
+    var h = height_at(lv, texel_of(lv, off));
     if (a < 1.0) {
-        tc = texel_of(l - 1u, off);
-        h = mix(height_at(l - 1u, tc), h, a);
+        h = mix(height_at(lv - 1u, texel_of(lv - 1u, off)), h, a);
     }
     h = h * frame.exaggeration;
     // view space relative to the camera: (R + h)·p̃ − (0, 0, R + h_cam), with
@@ -175,8 +176,27 @@ fn level_tint(l: u32) -> vec3<f32> {
     return vec3<f32>(0.5 + 0.5 * cos(1.05 * k), 0.5 + 0.5 * cos(1.05 * k + 2.1), 0.5 + 0.5 * cos(1.05 * k + 4.2));
 }
 
+// The continuous clipmap level at which one texel covers about one pixel here: the ring's level
+// `l` less log2 of the pixel's footprint in l's colatitude texels (a longitude texel counted at
+// its ground size, sin θ of its angle), never finer than the ring's own blend (`ring`, which
+// keeps neighbouring rings seamless where texels are larger than pixels) nor coarser than the
+// coarsest level drawn. Across a ring border both sides agree: l's texels are half l−1's.
+// `doff_x`, `doff_y`: screen derivatives of the map offsets.
+fn lod_level(l: u32, ring: f32, off: vec2<f32>, doff_x: vec2<f32>, doff_y: vec2<f32>) -> f32 {
+    let tpr = levels[l].texels_per_rad;
+    let s = abs(sin(frame.colat + frame.orient * off.y));
+    let k = vec2<f32>(tpr.y * s, tpr.y);
+    let rho = max(length(doff_x * k), length(doff_y * k));
+    // up to two texels a pixel before a coarser level takes over: sharper, barely aliased
+    let fine = f32(l) + 1.0 - log2(max(rho, 1e-6));
+    return clamp(min(ring, fine), f32(frame.level_lo), f32(l));
+}
+
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
+    // derivatives first, in uniform control flow
+    let doff_x = dpdx(in.off);
+    let doff_y = dpdy(in.off);
     var albedo: vec3<f32>;
     let t = clamp(in.height / (6000.0 * frame.exaggeration), -1.0, 1.0);
     let land = vec3<f32>(0.12 + 0.5 * t, 0.25 + 0.35 * t, 0.05 + 0.6 * t);
@@ -187,10 +207,15 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let l = u32(lf);
     let a = blend_of(l, in.lvl - lf);
     let tl = texel_of(l, in.off);
+    // the texture level by the pixel's footprint, trilinear between two clipmap levels
+    let ring = select(lf, lf - 1.0 + a, l > frame.level_lo);
+    let lc = lod_level(l, ring, in.off, doff_x, doff_y);
+    let l0 = u32(floor(lc));
+    let f1 = lc - floor(lc);
     if (frame.has_color == 1u) {
-        var c = color_at(l, tl);
-        if (a < 1.0) {
-            c = mix(color_at(l - 1u, texel_of(l - 1u, in.off)), c, a);
+        var c = color_at(l0, texel_of(l0, in.off));
+        if (f1 > 0.0 && l0 < l) {
+            c = mix(c, color_at(l0 + 1u, texel_of(l0 + 1u, in.off)), f1);
         }
         albedo = mix(albedo, c.rgb, clamp(c.a, 0.0, 1.0));
     }
@@ -201,9 +226,9 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
         return vec4<f32>(albedo, 1.0);
     }
     // smooth normals from the height clipmap (blended between levels like the heights)
-    var slope = slope_at(l, tl);
-    if (a < 1.0) {
-        slope = mix(slope_at(l - 1u, texel_of(l - 1u, in.off)), slope, a);
+    var slope = slope_at(l0, texel_of(l0, in.off));
+    if (f1 > 0.0 && l0 < l) {
+        slope = mix(slope, slope_at(l0 + 1u, texel_of(l0 + 1u, in.off)), f1);
     }
     let n = surface_normal(in.up, slope, in.height);
     let sun = normalize(frame.sun.xyz);

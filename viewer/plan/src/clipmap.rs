@@ -17,7 +17,7 @@ use crate::geometry::level_outer;
 use crate::transform::Viewer;
 
 /// Texels per side of a clipmap level.
-pub const CLIPMAP_N: u32 = 256;
+pub const CLIPMAP_N: u32 = 512;
 
 /// Most bytes of decoded store tiles one layer's reader keeps.
 pub const TILE_CACHE_BYTES: usize = 192 << 20;

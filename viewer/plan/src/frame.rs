@@ -341,8 +341,9 @@ impl FramePlanner {
             }
             self.level_uniforms[i as usize] = level_uniform(&p);
         }
-        // the ground under the camera: the finest level drawn, as drawn
-        let p = Placement::new(hi, &viewer, CLIPMAP_N);
+        // the ground under the camera, as drawn: the mesh there carries the heights of the level
+        // before the finest drawn (see `vertex_level`)
+        let p = Placement::new(vertex_level(hi, lo), &viewer, CLIPMAP_N);
         let ground = at_viewer(&p, |c, r| {
             let (lon, colat) = p.texel_centre(c.max(0) as u32, r.max(0) as u32);
             f64::from(heights.height(lon, colat, p.win))
@@ -552,30 +553,38 @@ impl FramePlanner {
                 break;
             }
         }
-        let (hi, ground) = match &drawn {
-            Some((i, p, quad)) => (*i, ground_from_quad(&quad[0], p, n)),
+        let hi = match &drawn {
+            Some((i, ..)) => *i,
             None => {
                 // nothing made yet (or the coarsest level failed): the sphere at sea level
                 if let Some(&(i, p, _)) = windows.first() {
                     self.level_uniforms[i as usize] = level_uniform(&p);
                 }
-                (lo, 0.0)
+                lo
             }
         };
-        // the ground under the camera from the finest level with its heights made, drawn or
-        // not (the same as a full render's once the prefetch is done)
+        // the ground under the camera, as the mesh there would carry it once the finest level
+        // with its heights made (drawn or not: the same as a full render's once the prefetch is
+        // done) is drawn: the heights of the level before it (`vertex_level`)
+        let height_quad = |i: u32| -> Option<(Placement, Vec<Tile>)> {
+            let &(_, p, grid) = windows.iter().find(|w| w.0 == i)?;
+            let quad: Option<Vec<Tile>> = quad_keys(sources.height, grid, &p, n)
+                .iter()
+                .map(|k| streamer.cache().get(k))
+                .collect();
+            quad.map(|q| (p, q))
+        };
         let ground = windows
             .iter()
             .rev()
-            .filter(|(i, ..)| *i > hi && *i <= sharpest)
-            .find_map(|&(_, p, grid)| {
-                let quad: Option<Vec<Tile>> = quad_keys(sources.height, grid, &p, n)
-                    .iter()
-                    .map(|k| streamer.cache().get(k))
-                    .collect();
-                quad.map(|q| ground_from_quad(&q, &p, n))
+            .map(|w| w.0)
+            .filter(|&i| i <= sharpest && (i > hi || (i == hi && drawn.is_some())))
+            .find_map(|i| {
+                height_quad(i)?;
+                let (p, q) = height_quad(vertex_level(i, lo))?;
+                Some(ground_from_quad(&q, &p, n))
             })
-            .unwrap_or(ground);
+            .unwrap_or(0.0);
         self.ground_prev = ground;
         let stats = FrameStats {
             level_lo: lo,
@@ -690,6 +699,13 @@ fn height_top_and_step(tile: &TileData, n: u32) -> (f32, f32) {
         }
     }
     (top, step)
+}
+
+/// The level whose heights the mesh of ring `i` carries (`shaders/clipmap.wgsl`, `vs_main`): the
+/// next coarser one, whose texels are about as far apart as the ring's vertices (the ring's own,
+/// twice as fine, shade it), or the coarsest level drawn.
+fn vertex_level(i: u32, lo: u32) -> u32 {
+    i.max(lo + 1) - 1
 }
 
 /// Height under the viewer, bilinear from a level's height quad.
