@@ -88,7 +88,13 @@ fn orbit_and_pole_views_match_the_cpu_reference_within_todays_bounds() {
     // (view, camera, today's mean, share off, sharpness; each 15 % worse than measured)
     let views = [
         ("orbit-asia", "30,80,8000000,0,-90,40", 2.00, 0.0045, 0.86),
-        ("orbit-americas", "10,-80,12000000,0,-90,50", 1.63, 0.0055, 0.90),
+        (
+            "orbit-americas",
+            "10,-80,12000000,0,-90,50",
+            1.63,
+            0.0055,
+            0.90,
+        ),
         ("north-pole", "90,0,3000000,0,-90,50", 4.51, 0.0410, 0.81),
         ("south-pole", "-90,0,3000000,0,-90,50", 1.70, 0.0131, 0.87),
     ];

@@ -9,17 +9,36 @@ use sc_view_plan::clipmap::{HeightSource, LevelWindow, StoreHeights};
 
 use crate::util::{copy_dir, etopo5_level4, ok, read_level, run, s, sample};
 
-/// Bilinear value of a whole level (row-major `w × h`) at a point, between texel centres.
-fn bilinear(level: &(usize, usize, Vec<f32>), lon: f64, lat: f64) -> f64 {
+/// A whole level's (row-major `w × h`) value at a point: Catmull-Rom through the 4×4 texel
+/// centres around it, as the viewer magnifies a level finer than it is stored.
+fn bicubic(level: &(usize, usize, Vec<f32>), lon: f64, lat: f64) -> f64 {
     let (w, h, v) = level;
     let x = (lon + 180.0) / 360.0 * *w as f64 - 0.5;
     let y = (90.0 - lat) / 180.0 * *h as f64 - 0.5;
-    let (x0, y0) = (x.floor(), y.floor());
-    let (fx, fy) = (x - x0, y - y0);
-    let at = |i: f64, j: f64| f64::from(v[j as usize * w + (i as usize).rem_euclid(*w)]);
-    let top = at(x0, y0) * (1.0 - fx) + at(x0 + 1.0, y0) * fx;
-    let bottom = at(x0, y0 + 1.0) * (1.0 - fx) + at(x0 + 1.0, y0 + 1.0) * fx;
-    top * (1.0 - fy) + bottom * fy
+    let (x0, y0) = (x.floor() as i64, y.floor() as i64);
+    let (fx, fy) = (x - x0 as f64, y - y0 as f64);
+    let at = |i: i64, j: i64| {
+        let j = j.clamp(0, *h as i64 - 1) as usize;
+        f64::from(v[j * w + i.rem_euclid(*w as i64) as usize])
+    };
+    // weights of the texels at −1, 0, 1, 2
+    let cr = |t: f64| {
+        let (t2, t3) = (t * t, t * t * t);
+        [
+            0.5 * (-t3 + 2.0 * t2 - t),
+            0.5 * (3.0 * t3 - 5.0 * t2 + 2.0),
+            0.5 * (-3.0 * t3 + 4.0 * t2 + t),
+            0.5 * (t3 - t2),
+        ]
+    };
+    let (wx, wy) = (cr(fx), cr(fy));
+    let mut acc = 0.0;
+    for (r, wr) in wy.iter().enumerate() {
+        for (c, wc) in wx.iter().enumerate() {
+            acc += wr * wc * at(x0 - 1 + c as i64, y0 - 1 + r as i64);
+        }
+    }
+    acc
 }
 
 #[test]
@@ -58,7 +77,7 @@ fn heights_fall_back_texel_by_texel_to_the_next_level_with_data_around_regional_
             if near {
                 continue;
             }
-            let want = bilinear(&etopo, lon, lat);
+            let want = bicubic(&etopo, lon, lat);
             let d = (f64::from(row[k]) - want).abs();
             worst = worst.max(d);
             assert!(

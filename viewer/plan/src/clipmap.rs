@@ -427,12 +427,19 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
     /// Samples one row of points (longitudes `lons`, all at `colat`) as [`Self::locate_present`]
     /// and [`Self::texel`] would point by point, with the same arithmetic and the same choice of
     /// level, but choosing the level once per row and looking tiles up once per store tile:
-    /// `emit(k, corners, fx, fy)` for point `k`, corners in the order (x0, y0), (x0+1, y0),
-    /// (x0, y0+1), (x0+1, y0+1). Points with a corner that lacks data in the row's level (no
-    /// tile, or a nodata texel) are sampled again from the next coarser level.
+    /// `emit(k, taps, fx, fy, magnified)` for point `k`, `taps[r][c]` the texel (x0 − 1 + c,
+    /// y0 − 1 + r) around the bilinear footprint's corners `taps[1..=2][1..=2]`, `magnified` when
+    /// the level's texels are larger than the clipmap's. Points with a corner that lacks data in
+    /// the row's level (no tile, or a nodata texel) are sampled again from the next coarser level.
     fn sample_row(&mut self, lons: &[f64], colat: f64, win: LevelWindow, emit: &mut EmitFn<'_, T>) {
         let all: Vec<usize> = (0..lons.len()).collect();
         self.sample_points(lons, &all, colat, win, self.levels.len() - 1, emit);
+    }
+
+    /// Whether level `id`'s rows are farther apart than a clipmap texel of `win` (the data is
+    /// magnified: it is interpolated smoothly then).
+    fn magnified(&self, id: LevelId, win: LevelWindow) -> bool {
+        PI / self.grid.height(id) as f64 > win.texel_colat * (1.0 + 1e-9)
     }
 
     fn sample_points(
@@ -448,6 +455,7 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
             return;
         };
         let (f, idx) = self.locate_in(lons[first], colat, win, cap);
+        let magnified = self.magnified(f.id, win);
         let (_, _, flip) = sc_core::pole::fold_lon_colat(0.0, colat);
         // the points' columns in this level: the same for every row of a tile, so a full row
         // reuses the previous row's when the level and the longitudes are the same
@@ -464,12 +472,9 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
         self.bound_cache();
         let h = self.grid.height(f.id) as i64;
         let t = u64::from(self.grid.tile_size());
-        let rows = [
-            f.y0.clamp(0, h - 1) as u64,
-            (f.y0 + 1).clamp(0, h - 1) as u64,
-        ];
+        let rows: [u64; 4] = std::array::from_fn(|r| (f.y0 - 1 + r as i64).clamp(0, h - 1) as u64);
         let cols = &columns.cols;
-        let mut ids = Vec::with_capacity(cols.len() * 2);
+        let mut ids = Vec::with_capacity(cols.len() * 4);
         for &j in &rows {
             for &tx in cols {
                 let id = TileId::new(self.grid, f.id, tx, j / t).ok();
@@ -483,16 +488,16 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
         let mut missing = Vec::new();
         {
             let tiles = &self.tiles;
-            // per row of the footprint, the touched tiles' data by slot, and the row's offset
-            let row_data: [Vec<Option<&[T]>>; 2] = [0, 1].map(|r| {
+            // per row of the neighbourhood, the touched tiles' data by slot, and the row's offset
+            let row_data: [Vec<Option<&[T]>>; 4] = std::array::from_fn(|r| {
                 ids[r * cols.len()..(r + 1) * cols.len()]
                     .iter()
                     .map(|id| id.and_then(|id| tiles.get(&id)).and_then(|d| d.as_deref()))
                     .collect()
             });
             let row_off = rows.map(|j| ((j & (t - 1)) * t) as usize);
-            let empty = row_data.iter().flatten().all(|d| d.is_none());
-            // a corner: None when its tile holds no data
+            let empty = row_data[1..=2].iter().flatten().all(|d| d.is_none());
+            // a texel: None when its tile holds no data
             let get = |(s, o): (usize, usize), r: usize| -> Option<&[T]> {
                 let k = (row_off[r] + o) * ch;
                 row_data[r][s].map(|d| &d[k..k + ch])
@@ -501,12 +506,13 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
                 // nothing here at this level (a regional level elsewhere): all fall back
                 missing.extend_from_slice(which);
             } else {
-                for ((&k, &fx), &[a, b]) in which.iter().zip(&columns.fx).zip(&columns.corners) {
-                    let c = [get(a, 0), get(b, 0), get(a, 1), get(b, 1)];
-                    if idx > 0 && c.iter().any(|c| c.is_none_or(T::is_void)) {
+                for ((&k, &fx), cs) in which.iter().zip(&columns.fx).zip(&columns.taps) {
+                    let taps: Taps<'_, T> = std::array::from_fn(|r| cs.map(|c| get(c, r)));
+                    let inner = [taps[1][1], taps[1][2], taps[2][1], taps[2][2]];
+                    if idx > 0 && inner.iter().any(|c| c.is_none_or(T::is_void)) {
                         missing.push(k);
                     } else {
-                        emit(k, c, fx, f.fy);
+                        emit(k, taps, fx, f.fy, magnified);
                     }
                 }
             }
@@ -520,6 +526,13 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
             self.sample_points(lons, &missing, colat, win, idx - 1, emit);
         }
     }
+
+    /// The 4×4 texels around a footprint, as [`Self::sample_row`] gives them.
+    fn taps(&mut self, f: &Footprint) -> [[Option<Vec<T>>; 4]; 4] {
+        std::array::from_fn(|r| {
+            std::array::from_fn(|c| self.texel(f, c as i64 - 1, r as i64 - 1).map(<[T]>::to_vec))
+        })
+    }
 }
 
 /// Column layouts [`StoreLevels`] keeps: a row may fall back through every level of the store
@@ -527,16 +540,16 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
 const COLUMN_MEMOS: usize = 32;
 
 /// Where a row's points fall in a level's columns: per point the fraction towards the next
-/// column and its two corner columns as (slot in `cols`, offset in the tile row); `cols` are
-/// the store tile columns touched. Rows of one clipmap tile share their longitudes, so this is
-/// computed once per tile and level rather than once per texel.
+/// column and its four columns x0 − 1 … x0 + 2 as (slot in `cols`, offset in the tile row);
+/// `cols` are the store tile columns touched. Rows of one clipmap tile share their longitudes,
+/// so this is computed once per tile and level rather than once per texel.
 #[derive(Debug)]
 struct Columns {
     lons: Vec<f64>,
     id: LevelId,
     flip: bool,
     fx: Vec<f64>,
-    corners: Vec<[(usize, usize); 2]>,
+    taps: Vec<[(usize, usize); 4]>,
     cols: Vec<u64>,
 }
 
@@ -560,33 +573,68 @@ impl Columns {
             (s, (i & (t - 1)) as usize)
         };
         let mut fx = Vec::with_capacity(which.len());
-        let mut corners = Vec::with_capacity(which.len());
+        let mut taps = Vec::with_capacity(which.len());
         for &k in which {
             let lon = lons[k];
             let lo = if flip { lon + PI } else { lon };
             let x = grid.column_of_lon_rad(id, lo);
             let x0 = x.floor();
             fx.push(x - x0);
-            let i0 = (x0 as i64).rem_euclid(wi);
-            let i1 = if i0 + 1 == wi { 0 } else { i0 + 1 };
-            corners.push([slot(i0), slot(i1)]);
+            let i0 = x0 as i64;
+            taps.push(std::array::from_fn(|c| {
+                slot((i0 - 1 + c as i64).rem_euclid(wi))
+            }));
         }
         Self {
             lons: lons.to_vec(),
             id,
             flip,
             fx,
-            corners,
+            taps,
             cols,
         }
     }
 }
 
-/// The four corner samples of a bilinear footprint (None: no data).
-type Corners<'a, T> = [Option<&'a [T]>; 4];
+/// The 4×4 texels around a point, `[row][column]` from (x0 − 1, y0 − 1); the bilinear corners
+/// are `[1..=2][1..=2]` (None: no data).
+type Taps<'a, T> = [[Option<&'a [T]>; 4]; 4];
 
-/// What receives the samples of a row: point index, corners, fx, fy.
-type EmitFn<'e, T> = dyn for<'a> FnMut(usize, Corners<'a, T>, f64, f64) + 'e;
+/// What receives the samples of a row: point index, taps, fx, fy, whether the level is
+/// magnified.
+type EmitFn<'e, T> = dyn for<'a> FnMut(usize, Taps<'a, T>, f64, f64, bool) + 'e;
+
+/// Catmull-Rom through `p` (texels at −1, 0, 1, 2) at fraction `t` between 0 and 1, in the
+/// form that returns a constant exactly.
+fn catmull_rom(p: [f32; 4], t: f32) -> f32 {
+    let [a, b, c, d] = p;
+    b + 0.5 * t * ((c - a) + t * ((2.0 * a - 5.0 * b + 4.0 * c - d) + t * (3.0 * (b - c) + d - a)))
+}
+
+/// A height from the 4×4 taps around it: Catmull-Rom (C¹, so normals taken from it have no
+/// creases on the data's texel lines) where the level is magnified and all sixteen hold data,
+/// else bilinear between the four corners, a corner without data read as sea level (or NaN
+/// with `keep`).
+fn height_from_taps(taps: Taps<'_, f32>, fx: f32, fy: f32, magnified: bool, keep: bool) -> f32 {
+    let raw = taps.map(|r| {
+        r.map(|t| match t {
+            Some([h]) => *h,
+            _ => f32::NAN,
+        })
+    });
+    if magnified && raw.iter().flatten().all(|h| !h.is_nan()) {
+        return catmull_rom(raw.map(|r| catmull_rom(r, fx)), fy);
+    }
+    let v = |h: f32| match h {
+        h if !h.is_nan() => h,
+        _ if keep => f32::NAN,
+        _ => 0.0,
+    };
+    let (a, b, c, d) = (v(raw[1][1]), v(raw[1][2]), v(raw[2][1]), v(raw[2][2]));
+    let top = a + (b - a) * fx;
+    let bottom = c + (d - c) * fx;
+    top + (bottom - top) * fy
+}
 
 /// A zero sample of a store type (the buffer a tile is decoded into), and what nodata is.
 trait ZeroedSample: Sized {
@@ -648,15 +696,6 @@ impl StoreHeights {
     pub fn errors(&self) -> &[String] {
         &self.0.errors
     }
-
-    fn texel(&mut self, f: &Footprint, dx: i64, dy: i64) -> f32 {
-        let keep = self.1;
-        match self.0.texel(f, dx, dy) {
-            Some([v]) if !v.is_nan() => *v,
-            _ if keep => f32::NAN,
-            _ => 0.0,
-        }
-    }
 }
 
 impl StoreHeights {
@@ -664,21 +703,12 @@ impl StoreHeights {
     /// values as [`HeightSource::height`] point by point, faster (tiles looked up per row).
     pub fn fill_row(&mut self, lons: &[f64], colat: f64, texel: LevelWindow, out: &mut Vec<f32>) {
         let keep = self.1;
-        let v = |s: Option<&[f32]>| match s {
-            Some([v]) if !v.is_nan() => *v,
-            _ if keep => f32::NAN,
-            _ => 0.0,
-        };
         let start = out.len();
         out.resize(start + lons.len(), 0.0);
         let row = &mut out[start..];
         self.0
-            .sample_row(lons, colat, texel, &mut |k, [a, b, c, d], fx, fy| {
-                let (fx, fy) = (fx as f32, fy as f32);
-                let (a, b, c, d) = (v(a), v(b), v(c), v(d));
-                let top = a + (b - a) * fx;
-                let bottom = c + (d - c) * fx;
-                row[k] = top + (bottom - top) * fy;
+            .sample_row(lons, colat, texel, &mut |k, taps, fx, fy, magnified| {
+                row[k] = height_from_taps(taps, fx as f32, fy as f32, magnified, keep);
             });
     }
 }
@@ -686,14 +716,11 @@ impl StoreHeights {
 impl HeightSource for StoreHeights {
     fn height(&mut self, lon: f64, colat: f64, texel: LevelWindow) -> f32 {
         let f = self.0.locate_present(lon, colat, texel);
-        let (fx, fy) = (f.fx as f32, f.fy as f32);
-        let a = self.texel(&f, 0, 0);
-        let b = self.texel(&f, 1, 0);
-        let c = self.texel(&f, 0, 1);
-        let d = self.texel(&f, 1, 1);
-        let top = a + (b - a) * fx;
-        let bottom = c + (d - c) * fx;
-        top + (bottom - top) * fy
+        let magnified = self.0.magnified(f.id, texel);
+        let owned = self.0.taps(&f);
+        let taps: Taps<'_, f32> =
+            std::array::from_fn(|r| std::array::from_fn(|c| owned[r][c].as_deref()));
+        height_from_taps(taps, f.fx as f32, f.fy as f32, magnified, self.1)
     }
 }
 
@@ -863,7 +890,8 @@ impl StoreColors {
         out.resize(start + lons.len() * 4, 0);
         let row = &mut out[start..];
         self.0
-            .sample_row(lons, colat, texel, &mut |k, corners, fx, fy| {
+            .sample_row(lons, colat, texel, &mut |k, taps, fx, fy, _| {
+                let corners = [taps[1][1], taps[1][2], taps[2][1], taps[2][2]];
                 let mut acc = [0.0f64; 4];
                 for (p, wgt) in corners.into_iter().zip([
                     (1.0 - fx) * (1.0 - fy),
