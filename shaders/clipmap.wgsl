@@ -37,6 +37,9 @@ struct Level {
     // texture size for toroidal addressing, and the world texel of the texture's origin modulo it
     size: vec2<u32>,
     origin: vec2<u32>,
+    // 0 … 1: how far the level has faded in since it was first drawn (over the coarser one)
+    fade: f32,
+    _p: f32,
 };
 
 @group(0) @binding(0) var<uniform> frame: Frame;
@@ -107,7 +110,8 @@ fn vs_main(v: VertexIn) -> VertexOut {
     // as the ring's vertices; the level's own texels, twice as fine, go into the shading), with
     // that level's blend into the one coarser still towards the ring's outer edge
     let lv = max(l, frame.level_lo + 1u) - 1u;
-    let a = select(blend_of(l, depth), 1.0, lv <= frame.level_lo);
+    // a ring drawn for the first time fades in from the heights the coarser level gave it
+    let a = select(blend_of(l, depth) * levels[l].fade, 1.0, lv <= frame.level_lo);
     var h = height_at(lv, texel_of(lv, off));
     if (a < 1.0) {
         h = mix(height_at(lv - 1u, texel_of(lv - 1u, off)), h, a);
@@ -209,7 +213,8 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let tl = texel_of(l, in.off);
     // the texture level by the pixel's footprint, trilinear between two clipmap levels
     let ring = select(lf, lf - 1.0 + a, l > frame.level_lo);
-    let lc = lod_level(l, ring, in.off, doff_x, doff_y);
+    // a level drawn for the first time fades in over the coarser one
+    let lc = min(lod_level(l, ring, in.off, doff_x, doff_y), max(lf - 1.0 + levels[l].fade, f32(frame.level_lo)));
     let l0 = u32(floor(lc));
     let f1 = lc - floor(lc);
     if (frame.has_color == 1u) {

@@ -109,7 +109,11 @@ fn a_still_camera_converges_to_the_synchronous_render() {
             // from the finest level, drawn or not) and the levels settled (which are in view
             // is judged from the terrain drawn the frame before)
             let levels = (stats.level_hi, stats.level_wanted);
-            if stats.level_hi == stats.level_wanted && streamer.idle() && prev == Some(levels) {
+            if stats.level_hi == stats.level_wanted
+                && !stats.fading
+                && streamer.idle()
+                && prev == Some(levels)
+            {
                 break (img, stats);
             }
             prev = Some(levels);
@@ -323,7 +327,7 @@ fn converge(r: &mut Renderer, s: &Streamer, camera: &Camera) -> image::RgbaImage
         let (img, stats, _) = r
             .render_streamed(s, SOURCES_FILTERED, camera, None)
             .expect("render");
-        if stats.level_hi == stats.level_wanted && s.idle() {
+        if stats.level_hi == stats.level_wanted && !stats.fading && s.idle() {
             return img;
         }
         settle(s);

@@ -57,7 +57,14 @@ pub struct LevelUniform {
     pub texels_per_rad: [f32; 2],
     pub size: [u32; 2],
     pub origin: [u32; 2],
+    /// How far the level has faded in since it was first drawn (0 … 1).
+    pub fade: f32,
+    pub _p: f32,
 }
+
+/// Frames over which a level newly drawn fades in over the coarser one (no pop when detail
+/// arrives).
+pub const FADE_FRAMES: u32 = 8;
 
 /// What one frame drew.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -81,6 +88,8 @@ pub struct FrameStats {
     /// levels show instead; with `level_hi == level_lo` and nothing drawn, a plain sphere). The
     /// view is as complete as it can get.
     pub level_failed: bool,
+    /// A level drawn is still fading in ([`FADE_FRAMES`]).
+    pub fading: bool,
 }
 
 /// How to draw: shading, vertical scale, the sun, and the viewer's debug toggles.
@@ -192,6 +201,8 @@ pub struct FramePlanner {
     tile_top: HashMap<TileKey, (f32, f32)>,
     /// Shading, vertical scale and sun of the frames planned.
     pub options: DrawOptions,
+    /// Per level, how far it has faded in (streamed frames).
+    fades: Vec<f32>,
 }
 
 impl FramePlanner {
@@ -209,6 +220,7 @@ impl FramePlanner {
             ground_prev: 0.0,
             tile_top: HashMap::new(),
             options: DrawOptions::default(),
+            fades: vec![0.0; levels],
         }
     }
 
@@ -356,6 +368,7 @@ impl FramePlanner {
             triangles: self.hemi.triangles(lo, hi),
             levels_filled: filled,
             level_failed: false,
+            fading: false,
         };
         let frame = self.frame_uniform(&viewer, camera, (w, h), ground, colors.is_some(), stats);
         FramePlan {
@@ -574,7 +587,7 @@ impl FramePlanner {
                 .collect();
             quad.map(|q| (p, q))
         };
-        let ground = windows
+        let (ground_level, ground) = windows
             .iter()
             .rev()
             .map(|w| w.0)
@@ -582,9 +595,38 @@ impl FramePlanner {
             .find_map(|i| {
                 height_quad(i)?;
                 let (p, q) = height_quad(vertex_level(i, lo))?;
-                Some(ground_from_quad(&q, &p, n))
+                Some((Some(i), ground_from_quad(&q, &p, n)))
             })
-            .unwrap_or(0.0);
+            .unwrap_or((None, 0.0));
+        // a level drawn for the first time fades in over the coarser one; the coarsest drawn is
+        // whole (nothing to fade from), levels not drawn start again from nothing
+        let mut fading = false;
+        for (i, f) in self.fades.iter_mut().enumerate() {
+            let i = i as u32;
+            *f = if drawn.is_none() || i < lo || i > hi {
+                0.0
+            } else if i == lo {
+                1.0
+            } else {
+                (*f + 1.0 / FADE_FRAMES as f32).min(1.0)
+            };
+            if let Some(u) = self.level_uniforms.get_mut(i as usize) {
+                u.fade = *f;
+            }
+            fading |= drawn.is_some() && (lo..=hi).contains(&i) && *f < 1.0;
+        }
+        // the ground as drawn while the finest level fades: its vertices blend from the heights
+        // of the level before their own
+        let ground = match (drawn.is_some(), vertex_level(hi, lo)) {
+            (true, v) if v > lo && ground_level == Some(hi) => {
+                let f = f64::from(self.fades[hi as usize]);
+                match height_quad(v - 1) {
+                    Some((p, q)) => ground_from_quad(&q, &p, n) * (1.0 - f) + ground * f,
+                    None => ground,
+                }
+            }
+            _ => ground,
+        };
         self.ground_prev = ground;
         let stats = FrameStats {
             level_lo: lo,
@@ -594,6 +636,7 @@ impl FramePlanner {
             triangles: self.hemi.triangles(lo, hi),
             levels_filled: filled,
             level_failed,
+            fading,
         };
         let frame = self.frame_uniform(
             &viewer,
@@ -632,6 +675,8 @@ fn level_uniform(p: &Placement) -> LevelUniform {
         ],
         size: [CLIPMAP_N, CLIPMAP_N],
         origin: p.origin(CLIPMAP_N),
+        fade: 1.0,
+        _p: 0.0,
     }
 }
 

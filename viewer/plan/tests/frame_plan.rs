@@ -236,3 +236,59 @@ fn a_failed_level_leaves_the_coarser_one_drawn_and_says_so() {
     assert!(f.stats.level_failed, "{:?}", f.stats);
     assert_eq!(f.frame.level_hi, 9);
 }
+
+/// A level drawn for the first time fades in over the coarser one in `FADE_FRAMES` frames,
+/// ground under the camera included (no pop when detail arrives); the coarsest is whole at once.
+#[test]
+fn a_level_drawn_for_the_first_time_fades_in() {
+    use sc_view_plan::frame::FADE_FRAMES;
+    let s = streamer(Box::new(FnHeightTiles(mountains)));
+    let mut p = FramePlanner::new(R);
+    let camera = Camera::parse("46.5,8.0,3000,0,-90,60").expect("camera");
+    // the first frames: levels arrive one by one as their tiles are made
+    let mut fades: Vec<Vec<f32>> = Vec::new();
+    let mut grounds = Vec::new();
+    let mut last = None;
+    for _ in 0..200 {
+        let f = plan(&mut p, &s, &camera);
+        let (lo, hi) = (f.stats.level_lo, f.stats.level_hi);
+        assert_eq!(
+            f.levels[lo as usize].fade, 1.0,
+            "the coarsest drawn is whole"
+        );
+        fades.push((lo..=hi).map(|i| f.levels[i as usize].fade).collect());
+        grounds.push(f.ground);
+        let done = hi == f.stats.level_wanted && !f.stats.fading && s.idle();
+        last = Some(f);
+        if done {
+            break;
+        }
+        settle(&s, last.as_ref().expect("plan"));
+    }
+    let last = last.expect("frames");
+    assert!(!last.stats.fading && last.stats.level_hi == last.stats.level_wanted);
+    assert!(
+        last.stats.level_hi > last.stats.level_lo + 2,
+        "{:?}",
+        last.stats
+    );
+    // each level's fade rises by 1/FADE_FRAMES a frame from the frame it is first drawn
+    let step = 1.0 / FADE_FRAMES as f32;
+    for w in fades.windows(2) {
+        for (i, &now) in w[1].iter().enumerate().skip(1) {
+            let before = w[0].get(i).copied().unwrap_or(0.0);
+            assert!(
+                (now - (before + step).min(1.0)).abs() < 1e-6,
+                "fade {before} then {now}"
+            );
+        }
+    }
+    // the ground under the camera moves by small steps, not in one jump per level
+    let jumps: Vec<f64> = grounds.windows(2).map(|g| (g[1] - g[0]).abs()).collect();
+    let total: f64 = jumps.iter().sum();
+    let largest = jumps.iter().copied().fold(0.0, f64::max);
+    assert!(
+        total == 0.0 || largest <= 0.5 * total,
+        "ground steps {jumps:?}"
+    );
+}

@@ -73,7 +73,10 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
         let (img, stats, _) = r.render_streamed(&streamer, sources, &camera, None)?;
         frames += 1;
         // a level with a failed tile is as complete as it gets: the coarser levels show there
-        if (stats.level_hi == stats.level_wanted || stats.level_failed) && streamer.idle() {
+        if (stats.level_hi == stats.level_wanted || stats.level_failed)
+            && !stats.fading
+            && streamer.idle()
+        {
             break (img, stats);
         }
         if frames >= 10_000 {
