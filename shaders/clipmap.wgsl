@@ -182,18 +182,40 @@ fn level_tint(l: u32) -> vec3<f32> {
 
 // The continuous clipmap level at which one texel covers about one pixel here: the ring's level
 // `l` less log2 of the pixel's footprint in l's colatitude texels (a longitude texel counted at
-// its ground size, sin θ of its angle), never finer than the ring's own blend (`ring`, which
-// keeps neighbouring rings seamless where texels are larger than pixels) nor coarser than the
-// coarsest level drawn. Across a ring border both sides agree: l's texels are half l−1's.
-// `doff_x`, `doff_y`: screen derivatives of the map offsets.
-fn lod_level(l: u32, ring: f32, off: vec2<f32>, doff_x: vec2<f32>, doff_y: vec2<f32>) -> f32 {
+// its ground size, sin θ of its angle), plus one (up to two texels a pixel: sharper, barely
+// aliased), within `cap` and the levels drawn. Across a ring border both sides agree: l's texels
+// are half l−1's. `doff_x`, `doff_y`: screen derivatives of the map offsets.
+fn lod_level(l: u32, cap: f32, off: vec2<f32>, doff_x: vec2<f32>, doff_y: vec2<f32>) -> f32 {
     let tpr = levels[l].texels_per_rad;
     let s = abs(sin(frame.colat + frame.orient * off.y));
     let k = vec2<f32>(tpr.y * s, tpr.y);
     let rho = max(length(doff_x * k), length(doff_y * k));
-    // up to two texels a pixel before a coarser level takes over: sharper, barely aliased
     let fine = f32(l) + 1.0 - log2(max(rho, 1e-6));
-    return clamp(min(ring, fine), f32(frame.level_lo), f32(l));
+    return clamp(min(cap, fine), f32(frame.level_lo), f32(frame.level_hi));
+}
+
+// The finest continuous level whose data a fragment of ring `l` (continuous ring level `ring`)
+// may show: the ring's own, or up to two finer levels where their windows reach the fragment
+// (a ring's points east and west of the viewer often lie in the next finer window, whose
+// longitude span is rounded up), fading in over 16 texels inside a window's edge; each level
+// capped by how far it has faded in since it was first drawn.
+fn level_cap(l: u32, ring: f32, off: vec2<f32>) -> f32 {
+    var cap = min(ring, f32(l) - 1.0 + levels[l].fade);
+    // level k only where k − 1 is wholly available
+    for (var k = l + 1u; k <= min(l + 2u, frame.level_hi); k = k + 1u) {
+        let t = texel_of(k, off);
+        let size = vec2<f32>(levels[k].size);
+        let edge = min(min(t.x, size.x - t.x), min(t.y, size.y - t.y));
+        let inside = min(clamp((edge - 4.0) / 16.0, 0.0, 1.0), levels[k].fade);
+        if (inside <= 0.0) {
+            break;
+        }
+        cap = max(cap, f32(k) - 1.0 + inside);
+        if (inside < 1.0) {
+            break;
+        }
+    }
+    return cap;
 }
 
 @fragment
@@ -214,12 +236,12 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     // the texture level by the pixel's footprint, trilinear between two clipmap levels
     let ring = select(lf, lf - 1.0 + a, l > frame.level_lo);
     // a level drawn for the first time fades in over the coarser one
-    let lc = min(lod_level(l, ring, in.off, doff_x, doff_y), max(lf - 1.0 + levels[l].fade, f32(frame.level_lo)));
+    let lc = lod_level(l, level_cap(l, ring, in.off), in.off, doff_x, doff_y);
     let l0 = u32(floor(lc));
     let f1 = lc - floor(lc);
     if (frame.has_color == 1u) {
         var c = color_at(l0, texel_of(l0, in.off));
-        if (f1 > 0.0 && l0 < l) {
+        if (f1 > 0.0 && l0 < frame.level_hi) {
             c = mix(c, color_at(l0 + 1u, texel_of(l0 + 1u, in.off)), f1);
         }
         albedo = mix(albedo, c.rgb, clamp(c.a, 0.0, 1.0));
@@ -232,7 +254,7 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     }
     // smooth normals from the height clipmap (blended between levels like the heights)
     var slope = slope_at(l0, texel_of(l0, in.off));
-    if (f1 > 0.0 && l0 < l) {
+    if (f1 > 0.0 && l0 < frame.level_hi) {
         slope = mix(slope, slope_at(l0 + 1u, texel_of(l0 + 1u, in.off)), f1);
     }
     let n = surface_normal(in.up, slope, in.height);
