@@ -127,3 +127,129 @@ fn orbit_and_pole_views_match_the_cpu_reference_within_todays_bounds() {
         );
     }
 }
+
+/// A flat planet painted with a checkerboard of 1° squares (Blue Marble's place, level 4).
+fn checkerboard_store(dir: &Path) -> std::path::PathBuf {
+    let store = dir.join("check.zarr");
+    let png = dir.join("check.png");
+    let img = image::RgbImage::from_fn(3600, 1800, |x, y| {
+        if (x / 10 + y / 10) % 2 == 0 {
+            image::Rgb([230, 230, 230])
+        } else {
+            image::Rgb([20, 20, 20])
+        }
+    });
+    img.save(&png).expect("png");
+    let flat = dir.join("flat.tif");
+    let o = std::process::Command::new("gdal_create")
+        .args([
+            "-q", "-outsize", "360", "180", "-bands", "1", "-ot", "Float32",
+        ])
+        .args([
+            "-burn",
+            "0",
+            "-a_srs",
+            "EPSG:4326",
+            "-a_ullr",
+            "-180",
+            "90",
+            "180",
+            "-90",
+        ])
+        .arg(&flat)
+        .output()
+        .expect("gdal_create runs");
+    assert!(o.status.success());
+    ok(&run(&["ingest", s(&store), s(&flat), "--level", "2"]));
+    ok(&run(&[
+        "ingest",
+        s(&store),
+        s(&png),
+        "--layer",
+        "color",
+        "--level",
+        "4",
+        "--bounds",
+        "-180,-90,180,90",
+    ]));
+    ok(&run(&["build", s(&store), "--layer", "color"]));
+    store
+}
+
+/// Stair-steps are edges drawn from texels coarser than the pixels: against the twin, both
+/// blurred by a 3×3 box (filtering differences of a pixel fade, steps of several survive), the
+/// pixels that still differ by more than 30/255, by distance from the point under the camera in
+/// four rings of the globe's disc.
+#[test]
+fn a_checkerboard_has_no_stair_steps_at_any_distance_from_the_nadir() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let store = checkerboard_store(dir.path());
+    let cam = "20,10,8000000,0,-90,40";
+    let gpu = shot(
+        &store,
+        &dir.path().join("c.png"),
+        cam,
+        &["--shading", "none"],
+    );
+    let twin = shot(
+        &store,
+        &dir.path().join("c-ref.png"),
+        cam,
+        &["--reference", "2"],
+    );
+    let (w, h) = gpu.dimensions();
+    let (cx, cy) = (f64::from(w) / 2.0, f64::from(h) / 2.0);
+    // the disc's radius: the farthest globe pixel from the centre along the middle row
+    let radius = (0..w)
+        .filter(|&x| twin.get_pixel(x, h / 2).0[..3] != SPACE_PX)
+        .map(|x| (f64::from(x) - cx).abs())
+        .fold(0.0, f64::max);
+    // a 3×3 box over both: filtering differences of a pixel fade, steps of several survive
+    let blur = |img: &image::RgbaImage, x: u32, y: u32| -> Option<[f64; 3]> {
+        let mut acc = [0.0; 3];
+        for dy in 0..3 {
+            for dx in 0..3 {
+                let p = img.get_pixel(x + dx - 1, y + dy - 1).0;
+                if p[..3] == SPACE_PX {
+                    return None;
+                }
+                for c in 0..3 {
+                    acc[c] += f64::from(p[c]) / 9.0;
+                }
+            }
+        }
+        Some(acc)
+    };
+    let mut rings = [(0usize, 0usize); 4];
+    for y in 1..h - 1 {
+        for x in 1..w - 1 {
+            let (Some(a), Some(b)) = (blur(&gpu, x, y), blur(&twin, x, y)) else {
+                continue;
+            };
+            let r = (f64::from(x) - cx).hypot(f64::from(y) - cy) / radius;
+            // the limb (beyond 0.95 of the radius) is foreshortened to a few pixels
+            if r >= 0.95 {
+                continue;
+            }
+            let ring = ((r / 0.95) * 4.0) as usize;
+            let off = (0..3).any(|c| (a[c] - b[c]).abs() > 30.0);
+            rings[ring.min(3)].0 += usize::from(off);
+            rings[ring.min(3)].1 += 1;
+        }
+    }
+    for (k, (off, n)) in rings.iter().enumerate() {
+        let share = *off as f64 / *n as f64;
+        eprintln!(
+            "ring {k}: {:.2} % of {n} pixels off by > 30/255",
+            share * 100.0
+        );
+        assert!(*n > 1000);
+        assert!(share <= BOUND[k], "ring {k}: {:.2} % off", share * 100.0);
+    }
+}
+
+/// Per ring of the disc (centre outwards), today's share of checkerboard pixels off by more
+/// than 30/255 after the 3×3 box, 15 % worse than measured (0.20, 0.29, 2.89, 10.0 %; with
+/// windows of 256 texels and the ring's level it was 0.03, 10.6, 43.5, 43.0 %). The outer
+/// rings are not free of steps yet: their windows' texels are still coarser than the pixels.
+const BOUND: [f64; 4] = [0.0023, 0.0033, 0.0332, 0.115];
