@@ -475,9 +475,13 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
         let rows: [u64; 4] = std::array::from_fn(|r| (f.y0 - 1 + r as i64).clamp(0, h - 1) as u64);
         let cols = &columns.cols;
         let mut ids = Vec::with_capacity(cols.len() * 4);
-        for &j in &rows {
+        for (r, &j) in rows.iter().enumerate() {
+            // the outer rows only where they are used (magnified heights)
+            let used = magnified || (1..=2).contains(&r);
             for &tx in cols {
-                let id = TileId::new(self.grid, f.id, tx, j / t).ok();
+                let id = used
+                    .then(|| TileId::new(self.grid, f.id, tx, j / t).ok())
+                    .flatten();
                 if let Some(id) = id {
                     self.load(id);
                 }
@@ -507,12 +511,22 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
                 missing.extend_from_slice(which);
             } else {
                 for ((&k, &fx), cs) in which.iter().zip(&columns.fx).zip(&columns.taps) {
-                    let taps: Taps<'_, T> = std::array::from_fn(|r| cs.map(|c| get(c, r)));
+                    // the outer twelve only where they are used (magnified heights)
+                    let taps: Taps<'_, T> = if magnified {
+                        std::array::from_fn(|r| cs.map(|c| get(c, r)))
+                    } else {
+                        std::array::from_fn(|r| {
+                            std::array::from_fn(|c| {
+                                let inner = (1..=2).contains(&r) && (1..=2).contains(&c);
+                                inner.then(|| get(cs[c], r)).flatten()
+                            })
+                        })
+                    };
                     let inner = [taps[1][1], taps[1][2], taps[2][1], taps[2][2]];
                     if idx > 0 && inner.iter().any(|c| c.is_none_or(T::is_void)) {
                         missing.push(k);
                     } else {
-                        emit(k, taps, fx, f.fy, magnified);
+                        emit(k, taps, fx, f.fy, magnified, (idx, *cs));
                     }
                 }
             }
@@ -600,9 +614,13 @@ impl Columns {
 /// are `[1..=2][1..=2]` (None: no data).
 type Taps<'a, T> = [[Option<&'a [T]>; 4]; 4];
 
+/// Which texel columns a point's taps come from: the level's index and, per column, (tile
+/// slot, offset) — equal for the points of a row that share a column (see [`Columns`]).
+type ColumnIds = (usize, [(usize, usize); 4]);
+
 /// What receives the samples of a row: point index, taps, fx, fy, whether the level is
-/// magnified.
-type EmitFn<'e, T> = dyn for<'a> FnMut(usize, Taps<'a, T>, f64, f64, bool) + 'e;
+/// magnified, and the taps' columns.
+type EmitFn<'e, T> = dyn for<'a> FnMut(usize, Taps<'a, T>, f64, f64, bool, ColumnIds) + 'e;
 
 /// Catmull-Rom through `p` (texels at −1, 0, 1, 2) at fraction `t` between 0 and 1, in the
 /// form that returns a constant exactly.
@@ -616,21 +634,45 @@ fn catmull_rom(p: [f32; 4], t: f32) -> f32 {
 /// else bilinear between the four corners, a corner without data read as sea level (or NaN
 /// with `keep`).
 fn height_from_taps(taps: Taps<'_, f32>, fx: f32, fy: f32, magnified: bool, keep: bool) -> f32 {
-    let raw = taps.map(|r| {
-        r.map(|t| match t {
-            Some([h]) => *h,
-            _ => f32::NAN,
-        })
-    });
-    if magnified && raw.iter().flatten().all(|h| !h.is_nan()) {
-        return catmull_rom(raw.map(|r| catmull_rom(r, fx)), fy);
+    height_from_columns(taps, fx, fy, magnified, keep, |_, column| column())
+}
+
+/// A tap's value, NaN where it has none.
+fn tap_value(t: Option<&[f32]>) -> f32 {
+    match t {
+        Some([h]) => *h,
+        _ => f32::NAN,
     }
-    let v = |h: f32| match h {
+}
+
+/// [`height_from_taps`] with the Catmull-Rom of each column (down the four rows, at `fy`) asked
+/// of `column(c, compute)`, which may return a value it computed for the same column before
+/// (the points of a row share their columns and `fy`).
+fn height_from_columns(
+    taps: Taps<'_, f32>,
+    fx: f32,
+    fy: f32,
+    magnified: bool,
+    keep: bool,
+    mut column: impl FnMut(usize, &dyn Fn() -> f32) -> f32,
+) -> f32 {
+    if magnified {
+        let v: [f32; 4] = std::array::from_fn(|c| {
+            column(c, &|| {
+                catmull_rom(std::array::from_fn(|r| tap_value(taps[r][c])), fy)
+            })
+        });
+        // a NaN tap makes its column NaN
+        if v.iter().all(|h| !h.is_nan()) {
+            return catmull_rom(v, fx);
+        }
+    }
+    let v = |t: Option<&[f32]>| match tap_value(t) {
         h if !h.is_nan() => h,
         _ if keep => f32::NAN,
         _ => 0.0,
     };
-    let (a, b, c, d) = (v(raw[1][1]), v(raw[1][2]), v(raw[2][1]), v(raw[2][2]));
+    let (a, b, c, d) = (v(taps[1][1]), v(taps[1][2]), v(taps[2][1]), v(taps[2][2]));
     let top = a + (b - a) * fx;
     let bottom = c + (d - c) * fx;
     top + (bottom - top) * fy
@@ -706,10 +748,36 @@ impl StoreHeights {
         let start = out.len();
         out.resize(start + lons.len(), 0.0);
         let row = &mut out[start..];
-        self.0
-            .sample_row(lons, colat, texel, &mut |k, taps, fx, fy, magnified| {
-                row[k] = height_from_taps(taps, fx as f32, fy as f32, magnified, keep);
-            });
+        // the points of a row share store columns (many a column when magnified), and within a
+        // level the same rows: each column's Catmull-Rom down the rows is kept for the next
+        // points
+        type Key = (usize, (usize, usize));
+        let mut memo: [(Option<Key>, f32); 8] = [(None, f32::NAN); 8];
+        let mut next = 0;
+        self.0.sample_row(
+            lons,
+            colat,
+            texel,
+            &mut |k, taps, fx, fy, magnified, (level, cols)| {
+                row[k] = height_from_columns(
+                    taps,
+                    fx as f32,
+                    fy as f32,
+                    magnified,
+                    keep,
+                    |c, compute| {
+                        let key = Some((level, cols[c]));
+                        if let Some(m) = memo.iter().find(|m| m.0 == key) {
+                            return m.1;
+                        }
+                        let v = compute();
+                        memo[next] = (key, v);
+                        next = (next + 1) % memo.len();
+                        v
+                    },
+                );
+            },
+        );
     }
 }
 
@@ -890,7 +958,7 @@ impl StoreColors {
         out.resize(start + lons.len() * 4, 0);
         let row = &mut out[start..];
         self.0
-            .sample_row(lons, colat, texel, &mut |k, taps, fx, fy, _| {
+            .sample_row(lons, colat, texel, &mut |k, taps, fx, fy, _, _| {
                 let corners = [taps[1][1], taps[1][2], taps[2][1], taps[2][2]];
                 let mut acc = [0.0f64; 4];
                 for (p, wgt) in corners.into_iter().zip([

@@ -105,6 +105,9 @@ pub struct DrawOptions {
     pub exaggeration: f64,
     /// The sun, fixed in the world.
     pub sun: Sun,
+    /// Fade newly drawn levels in over [`FADE_FRAMES`] frames (a moving view); off, a level
+    /// shows whole as soon as it is drawn (a still picture wants the final frame at once).
+    pub fade_in: bool,
 }
 
 impl Default for DrawOptions {
@@ -115,6 +118,7 @@ impl Default for DrawOptions {
             lit: true,
             exaggeration: 1.0,
             sun: Sun::default_for(0.0, 0.0),
+            fade_in: true,
         }
     }
 }
@@ -605,7 +609,7 @@ impl FramePlanner {
             let i = i as u32;
             *f = if drawn.is_none() || i < lo || i > hi {
                 0.0
-            } else if i == lo {
+            } else if i == lo || !self.options.fade_in {
                 1.0
             } else {
                 (*f + 1.0 / FADE_FRAMES as f32).min(1.0)

@@ -61,7 +61,11 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
         radius,
         ..
     } = streamer_for(&a.store, a.sources.as_deref())?;
-    let options = super::draw_options(&a.look, &camera)?;
+    // a still picture: each level whole as soon as it is drawn
+    let options = sc_view_plan::frame::DrawOptions {
+        fade_in: false,
+        ..super::draw_options(&a.look, &camera)?
+    };
     let mut r = Renderer::headless(w, h, radius)?;
     r.set_options(options);
     r.clear = clear;
