@@ -11,7 +11,7 @@ use std::collections::HashMap;
 use std::f64::consts::PI;
 
 use sc_core::{GridSpec, LevelId, TileId};
-use sc_store::{StoreReader, TileRead, TileSample};
+use sc_store::{LayerKind, StoreReader, TileRead, TileSample};
 
 use crate::geometry::level_outer;
 use crate::transform::Viewer;
@@ -455,7 +455,8 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
             return;
         };
         let (f, idx) = self.locate_in(lons[first], colat, win, cap);
-        let magnified = self.magnified(f.id, win);
+        // only heights are interpolated from more than their four corners
+        let magnified = T::KIND == LayerKind::Height && self.magnified(f.id, win);
         let (_, _, flip) = sc_core::pole::fold_lon_colat(0.0, colat);
         // the points' columns in this level: the same for every row of a tile, so a full row
         // reuses the previous row's when the level and the longitudes are the same
