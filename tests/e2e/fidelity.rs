@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use crate::util::{flat_blue_marble, ok, run, s};
+use crate::util::{flat_blue_marble, global_raster, ok, render_png, run, s};
 
 /// Mean absolute difference (/255 per channel), the share of pixels off by more than 30/255 in
 /// any channel, and the renderer's edge sharpness relative to the twin's (mean gradient
@@ -59,21 +59,7 @@ fn compare(gpu: &image::RgbaImage, twin: &image::RgbaImage) -> Fidelity {
 }
 
 fn shot(store: &Path, out: &Path, camera: &str, extra: &[&str]) -> image::RgbaImage {
-    let mut args = vec![
-        "render",
-        s(store),
-        "--camera",
-        camera,
-        "--size",
-        "480x270",
-        "--out",
-        s(out),
-        "--clear",
-        "1,0,1",
-    ];
-    args.extend_from_slice(extra);
-    ok(&run(&args));
-    image::open(out).expect("png").to_rgba8()
+    render_png(store, out, camera, "480x270", extra)
 }
 
 /// The renderer's colour comes from clipmap windows of 512 texels, the level chosen per pixel
@@ -141,25 +127,7 @@ fn checkerboard_store(dir: &Path) -> std::path::PathBuf {
     });
     img.save(&png).expect("png");
     let flat = dir.join("flat.tif");
-    let o = std::process::Command::new("gdal_create")
-        .args([
-            "-q", "-outsize", "360", "180", "-bands", "1", "-ot", "Float32",
-        ])
-        .args([
-            "-burn",
-            "0",
-            "-a_srs",
-            "EPSG:4326",
-            "-a_ullr",
-            "-180",
-            "90",
-            "180",
-            "-90",
-        ])
-        .arg(&flat)
-        .output()
-        .expect("gdal_create runs");
-    assert!(o.status.success());
+    global_raster(&flat, &["-bands", "1", "-ot", "Float32", "-burn", "0"]);
     ok(&run(&["ingest", s(&store), s(&flat), "--level", "2"]));
     ok(&run(&[
         "ingest",

@@ -1,20 +1,9 @@
 //! `sphereclip ingest` end to end: bad input leaves the store alone with a one-line error, and a
 //! run killed with SIGKILL resumes to the same bytes as an uninterrupted run.
 
-use std::path::Path;
-use std::process::Output;
 use std::time::{Duration, Instant};
 
-use crate::util::{bin, read_level, s, sample, snapshot, text};
-
-fn ingest(store: &Path, args: &[&str]) -> Output {
-    bin()
-        .arg("ingest")
-        .arg(store)
-        .args(args)
-        .output()
-        .expect("runs")
-}
+use crate::util::{bin, ingest, read_level, s, sample, snapshot, text};
 
 #[test]
 fn bad_input_is_one_line_and_leaves_the_store_unchanged() {

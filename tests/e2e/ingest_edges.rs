@@ -10,16 +10,9 @@ use sc_core::{GridSpec, LevelId, TileId};
 use sc_raster::HeightEncoding;
 use sc_store::{LayerKind, StoreReader, TileRead};
 
-use crate::util::{bin, copy_dir, one_line_failure, s, same_files, sample, snapshot, text};
-
-fn ingest(store: &Path, args: &[&str]) -> Output {
-    bin()
-        .arg("ingest")
-        .arg(store)
-        .args(args)
-        .output()
-        .expect("runs")
-}
+use crate::util::{
+    copy_dir, gdal_create, ingest, one_line_failure, s, same_files, sample, snapshot, text,
+};
 
 /// `gdal_translate -q ARGS… SRC DST`.
 fn translate(src: &Path, dst: &Path, args: &[&str]) {
@@ -30,17 +23,6 @@ fn translate(src: &Path, dst: &Path, args: &[&str]) {
         .arg(dst)
         .output()
         .expect("gdal_translate runs");
-    assert!(o.status.success(), "{}", text(&o.stderr));
-}
-
-/// `gdal_create -q ARGS… DST`.
-fn create(dst: &Path, args: &[&str]) {
-    let o = Command::new("gdal_create")
-        .arg("-q")
-        .args(args)
-        .arg(dst)
-        .output()
-        .expect("gdal_create runs");
     assert!(o.status.success(), "{}", text(&o.stderr));
 }
 
@@ -298,7 +280,7 @@ fn inputs_without_a_valid_pixel_warn_and_none_at_all_is_an_error_that_keeps_the_
         let mut a = vec!["-outsize", "64", "64"];
         a.extend_from_slice(args);
         a.extend_from_slice(&ullr);
-        create(&p, &a);
+        gdal_create(&p, &a);
         p
     };
     let cases = [
@@ -515,55 +497,36 @@ fn sixteen_bit_imagery_is_stretched_over_its_valid_pixels() {
     let dir = tempfile::tempdir().expect("tempdir");
     let level = LevelId::iso(7).expect("level");
     let inner = [10.5, 40.5, 13.5, 43.5];
-    // values 7000 + 35·(47..255) = 8645..15925 inside a border of 0 = nodata
-    let vrt = uint16_vrt(dir.path(), "l8.vrt", 7000.0, 35.0);
-    let store = dir.path().join("s.zarr");
-    let o = ingest(
-        &store,
-        &[
+    // ingests a VRT as colour at level 7 with 0 as nodata: its warnings and the valid greys
+    let stretched = |vrt: &Path, store: &str| {
+        let store = dir.path().join(store);
+        let args = [
             "--layer",
             "color",
             "--level",
             "7",
             "--src-nodata",
             "0",
-            s(&vrt),
-        ],
-    );
-    assert!(o.status.success(), "{}", text(&o.stderr));
-    assert!(
-        text(&o.stderr).contains("8645..15925"),
-        "{}",
-        text(&o.stderr)
-    );
-    let greys = greys_in(&store, level, inner);
+            s(vrt),
+        ];
+        let o = ingest(&store, &args);
+        assert!(o.status.success(), "{}", text(&o.stderr));
+        (text(&o.stderr), greys_in(&store, level, inner))
+    };
+    // values 7000 + 35·(47..255) = 8645..15925 inside a border of 0 = nodata
+    let (err, greys) = stretched(&uint16_vrt(dir.path(), "l8.vrt", 7000.0, 35.0), "s.zarr");
+    assert!(err.contains("8645..15925"), "{err}");
     assert!(greys.len() > 1000, "{}", greys.len());
     // the darkest valid pixel maps to black, not to 8645/15925 of white
     let darkest = *greys.iter().min().expect("some");
     assert!(darkest < 40, "darkest valid texel {darkest}");
 
     // one value everywhere: mid-grey, said in a warning
-    let flat = uint16_vrt(dir.path(), "flat.vrt", 5000.0, 0.0);
-    let store = dir.path().join("flat.zarr");
-    let o = ingest(
-        &store,
-        &[
-            "--layer",
-            "color",
-            "--level",
-            "7",
-            "--src-nodata",
-            "0",
-            s(&flat),
-        ],
+    let (err, greys) = stretched(
+        &uint16_vrt(dir.path(), "flat.vrt", 5000.0, 0.0),
+        "flat.zarr",
     );
-    assert!(o.status.success(), "{}", text(&o.stderr));
-    assert!(
-        text(&o.stderr).contains("one value 5000, mid-grey"),
-        "{}",
-        text(&o.stderr)
-    );
-    let greys = greys_in(&store, level, inner);
+    assert!(err.contains("one value 5000, mid-grey"), "{err}");
     assert!(greys.len() > 1000);
     assert!(
         greys.iter().all(|&g| (127..=129).contains(&g)),

@@ -2,23 +2,15 @@
 //! scales the relief as a sphere of known size checks, and the sun stays fixed in the world.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
-use crate::util::{ok, run, s, text};
+use crate::util::{global_raster, ok, render_png, run, s, text};
 
 /// A planet of constant height `h` metres and constant colour `rgb`, at level 2.
 fn flat_store(dir: &Path, h: f64, rgb: [u8; 3]) -> PathBuf {
     let store = dir.join("flat.zarr");
     let make = |name: &str, args: &[&str]| {
         let p = dir.join(name);
-        let o = Command::new("gdal_create")
-            .args(["-q", "-outsize", "360", "180"])
-            .args(args)
-            .args(["-a_srs", "EPSG:4326", "-a_ullr", "-180", "90", "180", "-90"])
-            .arg(&p)
-            .output()
-            .expect("gdal_create runs");
-        assert!(o.status.success(), "{}", text(&o.stderr));
+        global_raster(&p, args);
         p
     };
     let hs = h.to_string();
@@ -44,21 +36,7 @@ fn flat_store(dir: &Path, h: f64, rgb: [u8; 3]) -> PathBuf {
 }
 
 fn render(store: &Path, out: &Path, camera: &str, extra: &[&str]) -> image::RgbaImage {
-    let mut args = vec![
-        "render",
-        s(store),
-        "--camera",
-        camera,
-        "--size",
-        "320x180",
-        "--out",
-        s(out),
-        "--clear",
-        "1,0,1",
-    ];
-    args.extend_from_slice(extra);
-    ok(&run(&args));
-    image::open(out).expect("a PNG").to_rgba8()
+    render_png(store, out, camera, "320x180", extra)
 }
 
 const SPACE: [u8; 3] = [255, 0, 255];

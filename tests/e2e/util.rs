@@ -261,6 +261,62 @@ pub fn etopo20_level5_small_tiles() -> PathBuf {
     .join("base.zarr")
 }
 
+/// `sphereclip ingest STORE ARGS…`, to its end.
+pub fn ingest(store: &Path, args: &[&str]) -> Output {
+    bin()
+        .arg("ingest")
+        .arg(store)
+        .args(args)
+        .output()
+        .expect("runs")
+}
+
+/// `gdal_create -q ARGS… DST`.
+pub fn gdal_create(dst: &Path, args: &[&str]) {
+    let o = Command::new("gdal_create")
+        .arg("-q")
+        .args(args)
+        .arg(dst)
+        .output()
+        .expect("gdal_create runs");
+    assert!(o.status.success(), "{}", text(&o.stderr));
+}
+
+/// A whole-globe lon/lat raster of 360×180 one-degree pixels, each band one value:
+/// `gdal_create` with `args` (bands, type, `-burn` values).
+pub fn global_raster(dst: &Path, args: &[&str]) {
+    let mut a = vec!["-outsize", "360", "180"];
+    a.extend_from_slice(args);
+    a.extend_from_slice(&["-a_srs", "EPSG:4326", "-a_ullr", "-180", "90", "180", "-90"]);
+    gdal_create(dst, &a);
+}
+
+/// `sphereclip render STORE --camera CAMERA --size SIZE --out OUT --clear 1,0,1 EXTRA…` (space
+/// magenta), the picture read back.
+pub fn render_png(
+    store: &Path,
+    out: &Path,
+    camera: &str,
+    size: &str,
+    extra: &[&str],
+) -> image::RgbaImage {
+    let mut args = vec![
+        "render",
+        s(store),
+        "--camera",
+        camera,
+        "--size",
+        size,
+        "--out",
+        s(out),
+        "--clear",
+        "1,0,1",
+    ];
+    args.extend_from_slice(extra);
+    ok(&run(&args));
+    image::open(out).expect("a PNG").to_rgba8()
+}
+
 /// A planet of flat heights (0 m at level 2) painted with the Blue Marble at level 4 (its own
 /// resolution: 5400 pixels round the equator, 8192 texels), pyramid built: what the renderer
 /// draws is then the stored colour alone, to compare with the CPU reference.
@@ -268,16 +324,7 @@ pub fn flat_blue_marble() -> PathBuf {
     fixture("flat-bluemarble-l4", |d| {
         let store = d.join("flat.zarr");
         let flat = d.join("flat.tif");
-        let o = Command::new("gdal_create")
-            .args([
-                "-q", "-outsize", "360", "180", "-bands", "1", "-ot", "Float32",
-            ])
-            .args(["-burn", "0", "-a_srs", "EPSG:4326"])
-            .args(["-a_ullr", "-180", "90", "180", "-90"])
-            .arg(&flat)
-            .output()
-            .expect("gdal_create runs");
-        assert!(o.status.success(), "{}", text(&o.stderr));
+        global_raster(&flat, &["-bands", "1", "-ot", "Float32", "-burn", "0"]);
         ok(&run(&["ingest", s(&store), s(&flat), "--level", "2"]));
         ok(&run(&[
             "ingest",

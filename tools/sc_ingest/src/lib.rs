@@ -90,15 +90,15 @@ impl InputCounts {
         let (ox, oy) = tile.origin_texel(grid);
         self.footprint += u64::from(samples.footprint);
         self.covered += u64::from(samples.covered);
+        let grow = |span: Option<(u64, u64)>, v: u64| {
+            Some(span.map_or((v, v), |(a, b)| (a.min(v), b.max(v))))
+        };
         for (k, v) in samples.planes[0].iter().enumerate() {
             if v.is_nan() {
                 continue;
             }
             self.valid += 1;
             let (c, r) = (ox + k as u64 % t, oy + k as u64 / t);
-            let grow = |span: Option<(u64, u64)>, v: u64| {
-                Some(span.map_or((v, v), |(a, b)| (a.min(v), b.max(v))))
-            };
             self.cols = grow(self.cols, c);
             self.rows = grow(self.rows, r);
         }

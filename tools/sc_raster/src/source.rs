@@ -885,10 +885,17 @@ impl RasterSource {
             (0.0, 1.0),
             (1.0, 1.0),
         ];
-        for (fx, fy) in candidates {
-            // one pixel step each way, kept inside the raster
-            let (c, r) = ((fx * w).clamp(0.0, w - 1.0), (fy * h).clamp(0.0, h - 1.0));
-            let p = self.pixels_to_lonlat(&[(c, r), (c + 1.0, r), (c, r + 1.0)])?;
+        // each candidate and one pixel step from it each way (kept inside the raster), all
+        // through one transform
+        let points: Vec<(f64, f64)> = candidates
+            .iter()
+            .flat_map(|&(fx, fy)| {
+                let (c, r) = ((fx * w).clamp(0.0, w - 1.0), (fy * h).clamp(0.0, h - 1.0));
+                [(c, r), (c + 1.0, r), (c, r + 1.0)]
+            })
+            .collect();
+        let lonlat = self.pixels_to_lonlat(&points)?;
+        for p in lonlat.chunks_exact(3) {
             if let [Some(o), Some(ex), Some(ey)] = p[..] {
                 let at = |p: (f64, f64)| sc_core::LonLat::new(p.0, p.1);
                 let step_x = at(o).angle_to_rad(at(ex)).to_degrees();

@@ -75,15 +75,19 @@ pub fn is_temp_name(name: &str) -> bool {
             .is_some_and(|base| !base.is_empty())
 }
 
+/// The folder a file lies in: its parent, or the current folder for a bare name (whose parent
+/// is the empty path).
+pub fn folder_of(path: &Path) -> &Path {
+    path.parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."))
+}
+
 /// Replaces `path` by `bytes` atomically and durably: a temp file `NAME.tmp.PID.N` beside it,
 /// fsync, rename, fsync of the folder. A crash leaves the old file or the new one. Creates the
 /// parent folder if needed.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    // a bare file name has the empty path as its parent: the current folder
-    let parent = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
+    let parent = folder_of(path);
     fs::create_dir_all(parent)?;
     let n = TEMP_COUNTER.fetch_add(1, Ordering::Relaxed);
     let name = path
@@ -114,9 +118,8 @@ pub fn remove_file(path: &Path) -> std::io::Result<()> {
         Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(e),
         _ => {}
     }
-    if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty())
-        && parent.is_dir()
-    {
+    let parent = folder_of(path);
+    if parent.is_dir() {
         File::open(parent)?.sync_all()?;
     }
     step("removed", path);

@@ -961,21 +961,7 @@ impl StoreColors {
         self.0
             .sample_row(lons, colat, texel, &mut |k, taps, fx, fy, _, _| {
                 let corners = [taps[1][1], taps[1][2], taps[2][1], taps[2][2]];
-                let mut acc = [0.0f64; 4];
-                for (p, wgt) in corners.into_iter().zip([
-                    (1.0 - fx) * (1.0 - fy),
-                    fx * (1.0 - fy),
-                    (1.0 - fx) * fy,
-                    fx * fy,
-                ]) {
-                    if let Some(p) = p {
-                        for (a, &v) in acc.iter_mut().zip(p) {
-                            *a += wgt * f64::from(v);
-                        }
-                    }
-                }
-                row[k * 4..k * 4 + 4]
-                    .copy_from_slice(&acc.map(|v| v.round().clamp(0.0, 255.0) as u8));
+                row[k * 4..k * 4 + 4].copy_from_slice(&blend_rgba(corners, fx, fy));
             });
     }
 }
@@ -987,12 +973,7 @@ impl StoreColors {
     pub fn color_linear(&mut self, lon: f64, colat: f64, texel: LevelWindow) -> [f64; 4] {
         let f = self.0.locate_present(lon, colat, texel);
         let mut acc = [0.0f64; 4];
-        for (dx, dy, wgt) in [
-            (0, 0, (1.0 - f.fx) * (1.0 - f.fy)),
-            (1, 0, f.fx * (1.0 - f.fy)),
-            (0, 1, (1.0 - f.fx) * f.fy),
-            (1, 1, f.fx * f.fy),
-        ] {
+        for ((dx, dy), wgt) in CORNERS.into_iter().zip(bilinear_weights(f.fx, f.fy)) {
             if let Some(p) = self.0.texel(&f, dx, dy) {
                 for c in 0..3 {
                     acc[c] += wgt * f64::from(sc_core::color::srgb_to_linear(f32::from(p[c])));
@@ -1007,19 +988,35 @@ impl StoreColors {
 impl ColorSource for StoreColors {
     fn color(&mut self, lon: f64, colat: f64, texel: LevelWindow) -> [u8; 4] {
         let f = self.0.locate_present(lon, colat, texel);
-        let mut acc = [0.0f64; 4];
-        for (dx, dy, wgt) in [
-            (0, 0, (1.0 - f.fx) * (1.0 - f.fy)),
-            (1, 0, f.fx * (1.0 - f.fy)),
-            (0, 1, (1.0 - f.fx) * f.fy),
-            (1, 1, f.fx * f.fy),
-        ] {
-            if let Some(p) = self.0.texel(&f, dx, dy) {
-                for (a, &v) in acc.iter_mut().zip(p) {
-                    *a += wgt * f64::from(v);
-                }
+        let corners = CORNERS.map(|(dx, dy)| self.0.texel(&f, dx, dy).map(<[u8]>::to_vec));
+        blend_rgba(corners.each_ref().map(Option::as_deref), f.fx, f.fy)
+    }
+}
+
+/// The bilinear corners of a footprint as (dx, dy), in the order of [`bilinear_weights`].
+const CORNERS: [(i64, i64); 4] = [(0, 0), (1, 0), (0, 1), (1, 1)];
+
+/// The weights of the corners (x0, y0), (x0+1, y0), (x0, y0+1), (x0+1, y0+1) at fractions
+/// `fx`, `fy`.
+fn bilinear_weights(fx: f64, fy: f64) -> [f64; 4] {
+    [
+        (1.0 - fx) * (1.0 - fy),
+        fx * (1.0 - fy),
+        (1.0 - fx) * fy,
+        fx * fy,
+    ]
+}
+
+/// Bilinear RGBA8 from four corners (in the order of [`CORNERS`]); a corner the store lacks
+/// counts as transparent black.
+fn blend_rgba(corners: [Option<&[u8]>; 4], fx: f64, fy: f64) -> [u8; 4] {
+    let mut acc = [0.0f64; 4];
+    for (p, wgt) in corners.into_iter().zip(bilinear_weights(fx, fy)) {
+        if let Some(p) = p {
+            for (a, &v) in acc.iter_mut().zip(p) {
+                *a += wgt * f64::from(v);
             }
         }
-        acc.map(|v| v.round().clamp(0.0, 255.0) as u8)
     }
+    acc.map(|v| v.round().clamp(0.0, 255.0) as u8)
 }

@@ -71,10 +71,7 @@ pub fn check_output_file(out: &std::path::Path, what: &str) -> Result<()> {
     if out.is_dir() {
         bail!("{what} is a folder, not a file: {}", out.display());
     }
-    let parent = out
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(std::path::Path::new("."));
+    let parent = sc_store::fault::folder_of(out);
     if !parent.is_dir() {
         bail!(
             "{what}: the folder {} does not exist: {}",

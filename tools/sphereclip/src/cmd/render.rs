@@ -105,13 +105,7 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
         cpu_ms.push(cpu * 1e3);
         (img, stats) = (i, s);
     }
-    // encoded in memory, then written the way every file is (a temp file of our own name, fsync,
-    // rename): a failure leaves the previous file
-    let mut png = Vec::new();
-    img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
-        .context("cannot encode the PNG")?;
-    sc_store::fault::write_atomic(out, &png)
-        .with_context(|| format!("cannot write {}", out.display()))?;
+    write_png(&img, out)?;
     crate::outln!(
         "rendered {} ({w}x{h}) on {}: levels {}..{}, {} triangles, complete after {complete_ms:.0} ms ({frames} frames); ground under the camera {:.1} m",
         out.display(),
@@ -161,15 +155,21 @@ fn reference(
     let start = Instant::now();
     let rgba = rc.render(camera, (w, h), n, bg);
     let img = image::RgbaImage::from_raw(w, h, rgba).context("image size")?;
-    let mut png = Vec::new();
-    img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
-        .context("cannot encode the PNG")?;
-    sc_store::fault::write_atomic(out, &png)
-        .with_context(|| format!("cannot write {}", out.display()))?;
+    write_png(&img, out)?;
     crate::outln!(
         "rendered {} ({w}x{h}) with the CPU reference, {n}x{n} rays per pixel, in {:.1} s",
         out.display(),
         start.elapsed().as_secs_f64()
     );
     Ok(ExitCode::SUCCESS)
+}
+
+/// Writes a picture as PNG: encoded in memory, then written the way every file is (a temp file
+/// of our own name, fsync, rename), so a failure leaves the previous file.
+fn write_png(img: &image::RgbaImage, out: &std::path::Path) -> Result<()> {
+    let mut png = Vec::new();
+    img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .context("cannot encode the PNG")?;
+    sc_store::fault::write_atomic(out, &png)
+        .with_context(|| format!("cannot write {}", out.display()))
 }
