@@ -205,6 +205,18 @@ mod tests {
     }
 
     #[test]
+    fn bad_sun_positions_are_refused_in_one_line() {
+        for bad in ["90", "90,100", "x,10", "10,-91", "nan,10", "1,2,3"] {
+            let e = Sun::parse_az_el(bad, 0.0, 0.0).expect_err(bad).to_string();
+            assert!(
+                e.contains("AZIMUTH,ELEVATION") && !e.contains('\n'),
+                "{bad}: {e}"
+            );
+        }
+        assert!(Sun::parse_az_el("270,-5", 0.0, 0.0).is_ok());
+    }
+
+    #[test]
     fn azimuth_and_elevation_round_trip() {
         for (lat, lon, az, el) in [(47.0, 8.0, 135.0, 50.0), (-70.0, 170.0, 10.0, 5.0)] {
             let s = Sun::from_az_el(lat, lon, az, el);
