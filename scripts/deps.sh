@@ -7,8 +7,9 @@ set -euo pipefail
 # libgdal-dev + pkg-config: the gdal crate links GDAL 3.x; gdal-bin: gdalinfo/gdalwarp/gdaladdo for
 # tests and benchmarks; netcdf/jpeg support comes with libgdal; mesa-vulkan-drivers: lavapipe, the
 # CPU Vulkan adapter the headless renderer and GPU tests use; xvfb + xauth: a display for the
-# windowed viewer on machines without one; time: /usr/bin/time, which the memory-bound test reads.
-PACKAGES=(pkg-config libgdal-dev gdal-bin mesa-vulkan-drivers libvulkan1 xvfb xauth time)
+# windowed viewer on machines without one; time: /usr/bin/time, which the memory-bound test reads;
+# python3 + python3-venv: the environment (scripts/pyenv.sh) the interoperability test reads stores with.
+PACKAGES=(pkg-config libgdal-dev gdal-bin mesa-vulkan-drivers libvulkan1 xvfb xauth time python3 python3-venv)
 
 missing=()
 for p in "${PACKAGES[@]}"; do

@@ -8,6 +8,7 @@ mod ingest;
 mod ingest_edges;
 mod input_fuzz;
 mod inspect;
+mod interop;
 mod render;
 mod safety;
 mod shading;

@@ -561,6 +561,7 @@ fn run_steps(
         // steps with fewer shards than threads split each shard's tile rows between threads
         let inner = (threads / step.shards.len().max(1)).max(1);
         let do_shard = |shard: ShardId| -> Result<()> {
+            tracing::debug!(layer = %step.layer, %shard, "build: filtering shard");
             let deps = footprint(
                 plan.grid,
                 plan.shard_tiles,

@@ -732,6 +732,7 @@ fn write_shard(
         range: None,
         inputs: BTreeMap::new(),
     };
+    tracing::debug!(layer = %plan.settings.layer, %shard, tiles = tiles.len(), "ingest: resampling shard");
     match plan.settings.layer {
         LayerKind::Height => {
             let mut sw = writer.shard_writer::<f32>(shard)?;
@@ -822,5 +823,6 @@ fn write_shard(
             sw.finish()?;
         }
     }
+    tracing::debug!(%shard, tiles_with_data = st.tiles, "ingest: shard done");
     Ok(st)
 }

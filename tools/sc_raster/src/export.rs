@@ -80,34 +80,215 @@ fn write_then_rename<T>(out: &Path, write: impl FnOnce(&Path) -> Result<T>) -> R
     result
 }
 
-/// Writes `level` of layer `kind` as a tiled, DEFLATE-compressed GeoTIFF in EPSG:4326 with the
-/// level's geotransform; heights are one Float32 band with nodata NaN, colour is RGBA bytes.
-/// `on_row(done, total)` reports progress per tile row.
-pub fn export_geotiff(
+/// The part of a level an export writes, and the store levels its overviews come from.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExportRegion {
+    /// The level.
+    pub level: LevelId,
+    /// First column and row of the window in the level.
+    pub x0: u64,
+    /// First row.
+    pub y0: u64,
+    /// Columns.
+    pub width: u64,
+    /// Rows.
+    pub height: u64,
+    /// The coarser isotropic levels written as overviews, finest first (ℓ−1, ℓ−2, …).
+    pub overviews: Vec<LevelId>,
+    /// Lon/lat edges W, S, E, N of the window (texel edges).
+    pub bounds: [f64; 4],
+}
+
+impl ExportRegion {
+    /// Bytes of samples the export writes, base and overviews, before compression.
+    pub fn raw_bytes(&self, kind: LayerKind) -> u64 {
+        let per = match kind {
+            LayerKind::Height => 4,
+            LayerKind::Color => 4,
+        };
+        let base = self.width * self.height * per;
+        // each overview a quarter of the one before
+        base + (0..self.overviews.len() as u32)
+            .map(|k| base >> (2 * (k + 1)))
+            .sum::<u64>()
+    }
+}
+
+/// Plans an export of `level`: the whole level, or the texels that `bounds` (W, S, E, N in
+/// degrees) touch, snapped outward so that every overview window is whole texels of its level;
+/// overviews are the store's coarser isotropic levels (`with_overviews`; anisotropic levels have
+/// none), down to a window of at most 256 texels a side or the coarsest level the store holds.
+pub fn plan_export(
     reader: &StoreReader,
     kind: LayerKind,
     level: LevelId,
-    out: &Path,
-    on_row: &dyn Fn(u64, u64),
-) -> Result<ExportSummary> {
+    bounds: Option<[f64; 4]>,
+    with_overviews: bool,
+) -> Result<ExportRegion> {
     check_level(reader, kind, level)?;
-    write_then_rename(out, |tmp| {
-        write_geotiff(reader, kind, level, tmp, out, on_row)
+    let grid = reader.meta().grid;
+    let (w, h) = (grid.width(level), grid.height(level));
+    let (dx, dy) = grid.texel_deg(level);
+    let (mut x0, mut x1, mut y0, mut y1) = (0u64, w, 0u64, h);
+    if let Some([west, south, east, north]) = bounds {
+        let ok = [west, south, east, north].iter().all(|v| v.is_finite())
+            && (-180.0..=180.0).contains(&west)
+            && (-180.0..=180.0).contains(&east)
+            && (-90.0..=90.0).contains(&south)
+            && (-90.0..=90.0).contains(&north)
+            && west < east
+            && south < north;
+        if !ok {
+            return Err(RasterError::Usage(format!(
+                "--bounds {west},{south},{east},{north}: expected W,S,E,N with -180 <= W < E <= 180 and -90 <= S < N <= 90 (export a region crossing the antimeridian as two)"
+            )));
+        }
+        x0 = ((west + 180.0) / dx).floor().max(0.0) as u64;
+        x1 = (((east + 180.0) / dx).ceil() as u64).min(w);
+        y0 = ((90.0 - north) / dy).floor().max(0.0) as u64;
+        y1 = (((90.0 - south) / dy).ceil() as u64).min(h);
+    }
+    let mut overviews = Vec::new();
+    if with_overviews && level.is_iso() {
+        let have = reader.meta().levels(kind);
+        let mut k = 0u32;
+        while (x1 - x0).max(y1 - y0) >> k > 256 && k < level.level {
+            let coarser = LevelId {
+                level: level.level - k - 1,
+                aniso: 0,
+            };
+            if !have.contains(&coarser) {
+                break;
+            }
+            overviews.push(coarser);
+            k += 1;
+        }
+        // whole texels of the coarsest overview
+        let m = 1u64 << k;
+        x0 = x0 / m * m;
+        y0 = y0 / m * m;
+        x1 = x1.div_ceil(m) * m;
+        y1 = y1.div_ceil(m) * m;
+    }
+    Ok(ExportRegion {
+        level,
+        x0,
+        y0,
+        width: x1 - x0,
+        height: y1 - y0,
+        overviews,
+        bounds: [
+            -180.0 + x0 as f64 * dx,
+            90.0 - y1 as f64 * dy,
+            -180.0 + x1 as f64 * dx,
+            90.0 - y0 as f64 * dy,
+        ],
     })
 }
 
-fn write_geotiff(
+/// Writes `region` of layer `kind` as a Cloud Optimized GeoTIFF in EPSG:4326 (DEFLATE, tiled
+/// 256², the level's geotransform shifted to the window): heights are one Float32 band with
+/// nodata NaN, unit `m` and a description; colour is RGBA bytes. Its internal overviews are the
+/// store's own coarser levels (filtered on the sphere), not resampled by GDAL. `options` are
+/// further GDAL COG creation options (`KEY=VALUE`, later ones win). `on_row(done, total)`
+/// reports progress per tile row of the base and the overviews.
+///
+/// The file is written beside `out` under a temporary name and renamed at the end; the
+/// temporary files are removed on failure, and on SIGINT/SIGTERM (see [`remove_on_signal`]).
+pub fn export_geotiff(
     reader: &StoreReader,
     kind: LayerKind,
-    level: LevelId,
-    tmp: &Path,
+    region: &ExportRegion,
+    options: &[String],
     out: &Path,
     on_row: &dyn Fn(u64, u64),
 ) -> Result<ExportSummary> {
-    let gerr = |e: gdal::errors::GdalError| RasterError::Gdal {
+    check_level(reader, kind, region.level)?;
+    for o in options {
+        if !o.contains('=') {
+            return Err(RasterError::Usage(format!(
+                "-co {o}: expected KEY=VALUE (a GDAL COG creation option)"
+            )));
+        }
+    }
+    let stage = tmp_path(&out.with_extension("stage.tif"));
+    let _guard = TempGuard::new(vec![stage.clone(), tmp_path(out)]);
+    let result = (|| {
+        let summary = write_staged(reader, kind, region, &stage, out, on_row)?;
+        write_then_rename(out, |tmp| write_cog(&stage, tmp, out, options))?;
+        Ok(summary)
+    })();
+    let _ = std::fs::remove_file(&stage);
+    result
+}
+
+/// Temporary files removed when dropped, and by the signal handler while they exist.
+struct TempGuard {
+    paths: Vec<PathBuf>,
+}
+
+impl TempGuard {
+    fn new(paths: Vec<PathBuf>) -> Self {
+        let mut live = LIVE_TEMPS.lock().unwrap_or_else(|e| e.into_inner());
+        live.extend(paths.iter().cloned());
+        Self { paths }
+    }
+}
+
+impl Drop for TempGuard {
+    fn drop(&mut self) {
+        let mut live = LIVE_TEMPS.lock().unwrap_or_else(|e| e.into_inner());
+        live.retain(|p| !self.paths.contains(p));
+        for p in &self.paths {
+            let _ = std::fs::remove_file(p);
+        }
+    }
+}
+
+static LIVE_TEMPS: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+/// Removes the temporary files of the exports under way; a SIGINT/SIGTERM handler calls it
+/// before the process exits.
+pub fn remove_on_signal() {
+    // try_lock: the signal may arrive while a guard holds the list
+    if let Ok(live) = LIVE_TEMPS.try_lock() {
+        for p in live.iter() {
+            let _ = std::fs::remove_file(p);
+        }
+    }
+}
+
+/// Sets a band's unit: the gdal crate has no setter, so this is the workspace's one call into
+/// GDAL's C API.
+#[allow(unsafe_code)]
+fn set_unit(band: &gdal::raster::RasterBand<'_>, unit: &str) {
+    let Ok(c) = std::ffi::CString::new(unit) else {
+        return;
+    };
+    // SAFETY: the band handle is valid while `band` lives; GDAL copies the string
+    unsafe {
+        gdal_sys::GDALSetRasterUnitType(band.c_rasterband(), c.as_ptr());
+    }
+}
+
+fn gdal_err(out: &Path) -> impl Fn(gdal::errors::GdalError) -> RasterError + '_ {
+    move |e| RasterError::Gdal {
         detail: e.to_string(),
         path: out.to_path_buf(),
-    };
+    }
+}
+
+/// The tiled GeoTIFF with the base window and its overviews filled from the store, which the
+/// COG driver then lays out.
+fn write_staged(
+    reader: &StoreReader,
+    kind: LayerKind,
+    region: &ExportRegion,
+    stage: &Path,
+    out: &Path,
+    on_row: &dyn Fn(u64, u64),
+) -> Result<ExportSummary> {
+    let gerr = gdal_err(out);
     // a block GDAL writes back from its cache (on a full disk, say) fails without a return value:
     // its error handler keeps it, and it is checked after every row and after closing
     crate::quiet_gdal();
@@ -121,124 +302,206 @@ fn write_geotiff(
     };
     let meta = reader.meta();
     let grid = meta.grid;
-    let (w, h) = (grid.width(level), grid.height(level));
-    let t = grid.tile_size() as usize;
-    let driver = DriverManager::get_driver_by_name("GTiff").map_err(gerr)?;
-    let block = t.min(512).to_string();
-    let mut opts: Vec<String> = vec![
-        "TILED=YES".into(),
-        format!("BLOCKXSIZE={block}"),
-        format!("BLOCKYSIZE={block}"),
-        "COMPRESS=DEFLATE".into(),
-        "BIGTIFF=IF_SAFER".into(),
-        "NUM_THREADS=ALL_CPUS".into(),
+    let (w, h) = (region.width as usize, region.height as usize);
+    let driver = DriverManager::get_driver_by_name("GTiff").map_err(&gerr)?;
+    let opts: Vec<&str> = vec![
+        "TILED=YES",
+        "BLOCKXSIZE=256",
+        "BLOCKYSIZE=256",
+        "COMPRESS=ZSTD",
+        "ZSTD_LEVEL=1",
+        "BIGTIFF=YES",
+        "INTERLEAVE=BAND",
     ];
+    let o: RasterCreationOptions = opts.into_iter().collect();
     let mut ds = match kind {
         LayerKind::Height => {
-            opts.push("PREDICTOR=3".into());
-            let o: RasterCreationOptions = opts.iter().map(String::as_str).collect();
-            driver.create_with_band_type_with_options::<f32, _>(tmp, w as usize, h as usize, 1, &o)
+            driver.create_with_band_type_with_options::<f32, _>(stage, w, h, 1, &o)
+        }
+        LayerKind::Color => driver.create_with_band_type_with_options::<u8, _>(stage, w, h, 4, &o),
+    }
+    .map_err(&gerr)?;
+    let mut gt = grid.geotransform(region.level);
+    gt[0] = region.bounds[0];
+    gt[3] = region.bounds[3];
+    ds.set_geo_transform(&gt).map_err(&gerr)?;
+    let mut srs = SpatialRef::from_epsg(4326).map_err(&gerr)?;
+    srs.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
+    ds.set_spatial_ref(&srs).map_err(&gerr)?;
+    ds.set_metadata_item("SPHERECLIP_LEVEL", &region.level.to_string(), "")
+        .map_err(&gerr)?;
+    ds.set_metadata_item("SPHERECLIP_SPHERE_RADIUS_M", &meta.radius_m.to_string(), "")
+        .map_err(&gerr)?;
+    ds.set_metadata_item(
+        "SPHERECLIP_OVERVIEWS",
+        &region
+            .overviews
+            .iter()
+            .map(|l| l.key())
+            .collect::<Vec<_>>()
+            .join(" "),
+        "",
+    )
+    .map_err(&gerr)?;
+    match kind {
+        LayerKind::Height => {
+            let mut b = ds.rasterband(1).map_err(&gerr)?;
+            b.set_no_data_value(Some(f64::NAN)).map_err(&gerr)?;
+            b.set_description("height above the sphere (mean sea level)")
+                .map_err(&gerr)?;
+            set_unit(&b, "m");
         }
         LayerKind::Color => {
-            opts.extend([
-                "PREDICTOR=2".into(),
-                "PHOTOMETRIC=RGB".into(),
-                "ALPHA=YES".into(),
-            ]);
-            let o: RasterCreationOptions = opts.iter().map(String::as_str).collect();
-            driver.create_with_band_type_with_options::<u8, _>(tmp, w as usize, h as usize, 4, &o)
+            let bands = [
+                (ColorInterpretation::RedBand, "red"),
+                (ColorInterpretation::GreenBand, "green"),
+                (ColorInterpretation::BlueBand, "blue"),
+                (ColorInterpretation::AlphaBand, "alpha (0: no data)"),
+            ];
+            for (i, (ci, name)) in bands.into_iter().enumerate() {
+                let mut b = ds.rasterband(i + 1).map_err(&gerr)?;
+                b.set_color_interpretation(ci).map_err(&gerr)?;
+                b.set_description(name).map_err(&gerr)?;
+            }
         }
     }
-    .map_err(gerr)?;
-    ds.set_geo_transform(&grid.geotransform(level))
-        .map_err(gerr)?;
-    let mut srs = SpatialRef::from_epsg(4326).map_err(gerr)?;
-    srs.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
-    ds.set_spatial_ref(&srs).map_err(gerr)?;
-    ds.set_metadata_item("SPHERECLIP_LEVEL", &level.to_string(), "")
-        .map_err(gerr)?;
-    ds.set_metadata_item("SPHERECLIP_SPHERE_RADIUS_M", &meta.radius_m.to_string(), "")
-        .map_err(gerr)?;
+    if !region.overviews.is_empty() {
+        let factors: Vec<i32> = (1..=region.overviews.len() as u32)
+            .map(|k| 1 << k)
+            .collect();
+        ds.build_overviews("NONE", &factors, &[]).map_err(&gerr)?;
+    }
+    let t = u64::from(grid.tile_size());
+    // every window of the export: the base, then each overview (factor 2^k)
+    let windows: Vec<(LevelId, u32)> = std::iter::once((region.level, 0))
+        .chain(
+            region
+                .overviews
+                .iter()
+                .enumerate()
+                .map(|(k, &l)| (l, k as u32 + 1)),
+        )
+        .collect();
+    let rows_total: u64 = windows
+        .iter()
+        .map(|&(_, k)| {
+            let (y0, y1) = (region.y0 >> k, (region.y0 + region.height) >> k);
+            y1.div_ceil(t) - y0 / t
+        })
+        .sum();
+    let mut rows_done = 0;
     let mut summary = ExportSummary {
-        width: w,
-        height: h,
+        width: region.width,
+        height: region.height,
         tiles_present: 0,
         tiles_missing: 0,
     };
-    let (tx, ty) = (grid.tiles_x(level), grid.tiles_y(level));
-    match kind {
-        LayerKind::Height => {
-            ds.rasterband(1)
-                .and_then(|mut b| b.set_no_data_value(Some(f64::NAN)))
-                .map_err(gerr)?;
-            let mut tile = vec![0f32; t * t];
-            for y in 0..ty {
-                for x in 0..tx {
-                    let id = TileId { level, x, y };
-                    match reader.read_tile(id, &mut tile)? {
+    let c = kind.channels();
+    let mut tile_f = vec![0f32; (t * t) as usize];
+    let mut tile_u = vec![0u8; (t * t) as usize * 4];
+    for &(level, k) in &windows {
+        let (x0, y0) = (region.x0 >> k, region.y0 >> k);
+        let (x1, y1) = (
+            (region.x0 + region.width) >> k,
+            (region.y0 + region.height) >> k,
+        );
+        for ty in y0 / t..y1.div_ceil(t) {
+            for tx in x0 / t..x1.div_ceil(t) {
+                let id = TileId {
+                    level,
+                    x: tx,
+                    y: ty,
+                };
+                let present = match kind {
+                    LayerKind::Height => reader.read_tile(id, &mut tile_f)?,
+                    LayerKind::Color => reader.read_tile(id, &mut tile_u)?,
+                };
+                if k == 0 {
+                    match present {
                         TileRead::Present => summary.tiles_present += 1,
-                        TileRead::Missing => {
-                            summary.tiles_missing += 1;
-                            tile.fill(f32::NAN);
-                        }
-                    }
-                    let mut buf = Buffer::new((t, t), tile.clone());
-                    let mut band = ds.rasterband(1).map_err(gerr)?;
-                    band.write(
-                        ((x as usize * t) as isize, (y as usize * t) as isize),
-                        (t, t),
-                        &mut buf,
-                    )
-                    .map_err(gerr)?;
-                }
-                failed()?;
-                on_row(y + 1, ty);
-            }
-        }
-        LayerKind::Color => {
-            let interp = [
-                ColorInterpretation::RedBand,
-                ColorInterpretation::GreenBand,
-                ColorInterpretation::BlueBand,
-                ColorInterpretation::AlphaBand,
-            ];
-            for (i, ci) in interp.into_iter().enumerate() {
-                ds.rasterband(i + 1)
-                    .and_then(|mut b| b.set_color_interpretation(ci))
-                    .map_err(gerr)?;
-            }
-            let mut tile = vec![0u8; t * t * 4];
-            for y in 0..ty {
-                for x in 0..tx {
-                    let id = TileId { level, x, y };
-                    match reader.read_tile(id, &mut tile)? {
-                        TileRead::Present => summary.tiles_present += 1,
-                        TileRead::Missing => {
-                            summary.tiles_missing += 1;
-                            tile.fill(0);
-                        }
-                    }
-                    for c in 0..4 {
-                        let plane: Vec<u8> = tile.iter().skip(c).step_by(4).copied().collect();
-                        let mut buf = Buffer::new((t, t), plane);
-                        let mut band = ds.rasterband(c + 1).map_err(gerr)?;
-                        band.write(
-                            ((x as usize * t) as isize, (y as usize * t) as isize),
-                            (t, t),
-                            &mut buf,
-                        )
-                        .map_err(gerr)?;
+                        TileRead::Missing => summary.tiles_missing += 1,
                     }
                 }
-                failed()?;
-                on_row(y + 1, ty);
+                if present == TileRead::Missing {
+                    tile_f.fill(f32::NAN);
+                    tile_u.fill(0);
+                }
+                // the part of the tile inside the window
+                let (cx0, cx1) = ((tx * t).max(x0), ((tx + 1) * t).min(x1));
+                let (cy0, cy1) = ((ty * t).max(y0), ((ty + 1) * t).min(y1));
+                let (cw, ch) = ((cx1 - cx0) as usize, (cy1 - cy0) as usize);
+                let at = ((cx0 - x0) as isize, (cy0 - y0) as isize);
+                let src = |r: usize, col: usize| -> usize {
+                    ((cy0 - ty * t) as usize + r) * t as usize + (cx0 - tx * t) as usize + col
+                };
+                for band_no in 0..c {
+                    let band = ds.rasterband(band_no + 1).map_err(&gerr)?;
+                    let mut target = if k == 0 {
+                        band
+                    } else {
+                        band.overview(k as usize - 1).map_err(&gerr)?
+                    };
+                    match kind {
+                        LayerKind::Height => {
+                            let mut v: Vec<f32> = Vec::with_capacity(cw * ch);
+                            for r in 0..ch {
+                                v.extend_from_slice(&tile_f[src(r, 0)..src(r, 0) + cw]);
+                            }
+                            let mut buf = Buffer::new((cw, ch), v);
+                            target.write(at, (cw, ch), &mut buf).map_err(&gerr)?;
+                        }
+                        LayerKind::Color => {
+                            let mut v: Vec<u8> = Vec::with_capacity(cw * ch);
+                            for r in 0..ch {
+                                let i = src(r, 0);
+                                v.extend(
+                                    tile_u[i * 4..(i + cw) * 4].iter().skip(band_no).step_by(4),
+                                );
+                            }
+                            let mut buf = Buffer::new((cw, ch), v);
+                            target.write(at, (cw, ch), &mut buf).map_err(&gerr)?;
+                        }
+                    }
+                }
             }
+            failed()?;
+            rows_done += 1;
+            on_row(rows_done, rows_total);
         }
     }
-    ds.flush_cache().map_err(gerr)?;
+    ds.flush_cache().map_err(&gerr)?;
     drop(ds);
     failed()?;
     Ok(summary)
+}
+
+/// Lays the staged GeoTIFF out as a COG, keeping its overviews as they are.
+fn write_cog(stage: &Path, tmp: &Path, out: &Path, options: &[String]) -> Result<()> {
+    let gerr = gdal_err(out);
+    let src = gdal::Dataset::open(stage).map_err(&gerr)?;
+    let mut opts: Vec<String> = vec![
+        "COMPRESS=DEFLATE".into(),
+        "PREDICTOR=YES".into(),
+        "BLOCKSIZE=256".into(),
+        "OVERVIEWS=FORCE_USE_EXISTING".into(),
+        "BIGTIFF=IF_SAFER".into(),
+        "NUM_THREADS=ALL_CPUS".into(),
+    ];
+    // an option the user gives replaces ours (GDAL reads the first of a key)
+    let key = |o: &str| o.split('=').next().unwrap_or("").to_ascii_uppercase();
+    opts.retain(|d| !options.iter().any(|u| key(u) == key(d)));
+    opts.extend(options.iter().cloned());
+    let o: RasterCreationOptions = opts.iter().map(String::as_str).collect();
+    let driver = DriverManager::get_driver_by_name("COG").map_err(&gerr)?;
+    let ds = src.create_copy(&driver, tmp, &o).map_err(&gerr)?;
+    drop(ds);
+    match crate::take_gdal_failure() {
+        Some(detail) => Err(RasterError::Gdal {
+            detail,
+            path: out.to_path_buf(),
+        }),
+        None => Ok(()),
+    }
 }
 
 /// Writes a height level as a single-channel (`Y`) f32 OpenEXR image, row 0 at +90°, column 0 at

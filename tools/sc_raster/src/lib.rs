@@ -15,7 +15,10 @@ mod source;
 pub use sc_core::color::{linear_to_srgb, srgb_to_linear};
 use std::path::PathBuf;
 
-pub use export::{EXR_MAX_TEXELS, ExportSummary, export_exr, export_geotiff};
+pub use export::{
+    EXR_MAX_TEXELS, ExportRegion, ExportSummary, export_exr, export_geotiff, plan_export,
+    remove_on_signal,
+};
 pub use global::{GLOBAL_MAX_TEXELS, GlobalLevel, read_global_levels};
 pub use source::{
     AVERAGED_WINDOW, HeightEncoding, LonLatBox, MAX_CACHED_SAMPLES, MAX_PIXELS, MAX_SIDE,

@@ -56,7 +56,7 @@ pub(crate) fn builder(
         }
     }
     builder.dimension_names(Some(dims));
-    let mut attrs = serde_json::Map::new();
+    let mut attrs = crate::geozarr::data_array_attrs(kind);
     attrs.insert(
         "sphereclip".into(),
         serde_json::json!({
@@ -68,6 +68,21 @@ pub(crate) fn builder(
     );
     builder.attributes(attrs);
     Ok(builder)
+}
+
+/// The folder of a level below the store root: a group (format 2) or the data array itself
+/// (format 1).
+pub(crate) fn level_dir(kind: LayerKind, level: LevelId) -> String {
+    format!("{}/{}", kind.name(), level.key())
+}
+
+/// The zarr path of a level's data array in a store of format `major`.
+pub(crate) fn data_array_path(major: u32, kind: LayerKind, level: LevelId) -> String {
+    if major < 2 {
+        format!("/{}", level_dir(kind, level))
+    } else {
+        format!("/{}/{}", level_dir(kind, level), kind.name())
+    }
 }
 
 /// The height codec a store's metadata names.
@@ -144,7 +159,9 @@ pub(crate) fn check_file(
     level: LevelId,
     meta: &StoreMeta,
 ) -> Result<(), String> {
-    let path = root.join(kind.name()).join(level.key()).join("zarr.json");
+    let path = root
+        .join(data_array_path(meta.format_major(), kind, level).trim_start_matches('/'))
+        .join("zarr.json");
     let bytes = std::fs::read(&path).map_err(|e| format!("cannot read array metadata: {e}"))?;
     let v: serde_json::Value =
         serde_json::from_slice(&bytes).map_err(|e| format!("array metadata is not JSON: {e}"))?;

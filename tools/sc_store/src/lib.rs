@@ -11,6 +11,7 @@
 
 mod durable;
 pub mod fault;
+pub mod geozarr;
 mod layout;
 mod meta;
 mod reader;
@@ -27,7 +28,7 @@ pub use meta::{
 pub use reader::{StoreReader, TileRead};
 pub use sample::{LayerKind, TileSample};
 pub use verify::{LevelStats, Problem, VerifyReport};
-pub use writer::{HeightCodec, ShardWriter, StoreConfig, StoreWriter};
+pub use writer::{HeightCodec, ShardWriter, StoreConfig, StoreWriter, UpgradeReport, upgrade};
 
 /// Errors of the store. Messages are one line, lowercase, with the path last.
 #[derive(Debug, thiserror::Error)]

@@ -8,7 +8,7 @@ use sc_core::{GridSpec, LevelId};
 use crate::{LayerKind, Result, StoreError};
 
 /// Major format version: readers refuse stores with a larger one.
-pub const FORMAT_MAJOR: u32 = 1;
+pub const FORMAT_MAJOR: u32 = 2;
 /// Minor format version: additions a reader of the same major may ignore.
 pub const FORMAT_MINOR: u32 = 0;
 
@@ -177,6 +177,16 @@ impl StoreMeta {
             }
         }
         Ok(meta)
+    }
+
+    /// The major format version (1: a level is one array; 2: a level is a group holding the
+    /// data array, its coordinates and its grid mapping).
+    pub fn format_major(&self) -> u32 {
+        self.format_version
+            .split('.')
+            .next()
+            .and_then(|m| m.parse().ok())
+            .unwrap_or(FORMAT_MAJOR)
     }
 
     /// The levels of a layer, ordered.

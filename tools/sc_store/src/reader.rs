@@ -57,10 +57,6 @@ pub(crate) fn local_tile_number(tile: TileId, shard_tiles: u64) -> usize {
     ((tile.y % shard_tiles) * shard_tiles + tile.x % shard_tiles) as usize
 }
 
-pub(crate) fn level_array_path(kind: LayerKind, level: LevelId) -> String {
-    format!("/{}/{}", kind.name(), level.key())
-}
-
 pub(crate) fn open_fs(root: &Path) -> Result<Arc<FilesystemStore>> {
     FilesystemStore::new(root)
         .map(Arc::new)
@@ -119,7 +115,7 @@ impl StoreReader {
         let mut levels = HashMap::new();
         for (&kind, layer) in &meta.layers {
             for lm in layer.levels.values() {
-                let path = level_array_path(kind, lm.level);
+                let path = crate::layout::data_array_path(meta.format_major(), kind, lm.level);
                 let damaged = |what: String| StoreError::Format {
                     what: format!("damaged store: {kind} level {}: {what}", lm.level.key()),
                     path: root.join(path.trim_start_matches('/')).join("zarr.json"),
@@ -199,6 +195,7 @@ impl StoreReader {
         if let Some(i) = cached {
             return Ok(i);
         }
+        tracing::trace!(layer = %kind, %shard, "store: reading shard index");
         let i = Arc::new(
             ShardIndex::read(&self.shard_path(kind, tile)?, (s * s) as usize)
                 .map_err(|detail| self.corrupt(kind, tile, None, &detail))?,

@@ -9,12 +9,11 @@ use std::sync::{Arc, Mutex, PoisonError};
 use sc_core::{GridSpec, LevelId, ShardId, TileId};
 use zarrs::array::Array;
 use zarrs::filesystem::FilesystemStore;
-use zarrs::group::GroupBuilder;
 
 use crate::durable::DurableFs;
 use crate::layout::MAX_SHARD_SAMPLES;
 use crate::meta::{BuildRecord, LayerMeta, LevelMeta, StoreMeta};
-use crate::reader::{level_array_path, open_fs, read_meta};
+use crate::reader::{open_fs, read_meta};
 use crate::{LayerKind, Result, StoreError, TileSample, io_err};
 
 /// How height tiles are compressed (chosen by measurement, see BENCHMARKS.md).
@@ -133,6 +132,21 @@ fn check_new_root(root: &Path) -> Result<()> {
     Ok(())
 }
 
+/// Refuses to write into a store of an older format (it is read, and `upgrade` converts it).
+fn check_writable(root: &Path, meta: &StoreMeta) -> Result<()> {
+    if meta.format_major() < crate::meta::FORMAT_MAJOR {
+        return Err(StoreError::Format {
+            what: format!(
+                "store format {} is read but not written by this sphereclip; convert it first with `sphereclip upgrade {}`",
+                meta.format_version,
+                root.display()
+            ),
+            path: root.to_path_buf(),
+        });
+    }
+    Ok(())
+}
+
 impl StoreConfig {
     /// Checks that a store with these settings can be written (shard size within the limit,
     /// a real sphere).
@@ -203,8 +217,8 @@ impl StoreWriter {
         }
         match (exists, config) {
             (true, _) => {
-                // refuse non-stores before leaving a lock file in them
-                read_meta(root)?;
+                // refuse non-stores and old formats before leaving a lock file in them
+                check_writable(root, &read_meta(root)?.1)?;
             }
             (false, None) => {
                 read_meta(root)?;
@@ -225,6 +239,7 @@ impl StoreWriter {
                 )));
             }
             let (_, meta) = read_meta(root)?;
+            check_writable(root, &meta)?;
             let codec = crate::layout::height_codec_of(&meta);
             let w = Self::with_meta(root, meta, codec, lock)?;
             // we hold the lock: our temp files left behind are from writers that died mid-write
@@ -291,6 +306,9 @@ impl StoreWriter {
         self.initial.complete
     }
 
+    /// Writes the root group's metadata. A complete store of the current format also gets, first,
+    /// each layer group's `multiscales` and consolidated metadata, then its own consolidated
+    /// metadata: what readers outside sphereclip use (see [`crate::geozarr`]).
     fn write_group_meta(&self) -> Result<()> {
         let meta = self.lock_meta().clone();
         let mut attrs = serde_json::Map::new();
@@ -298,13 +316,62 @@ impl StoreWriter {
             "sphereclip".into(),
             serde_json::to_value(&meta).map_err(|e| StoreError::Usage(e.to_string()))?,
         );
-        let group = GroupBuilder::new()
-            .attributes(attrs)
-            .build(self.durable.clone(), "/")
-            .map_err(|e| zarr_err(&self.root)(e.to_string()))?;
-        group
-            .store_metadata()
-            .map_err(|e| zarr_err(&self.root)(e.to_string()))
+        let consolidated = if meta.complete && meta.format_major() >= 2 {
+            crate::geozarr::publish_layers(&self.root, &meta)?;
+            Some(
+                crate::geozarr::consolidated(&self.root)
+                    .map_err(|what| zarr_err(&self.root)(what))?,
+            )
+        } else {
+            None
+        };
+        let path = self.root.join("zarr.json");
+        crate::geozarr::write_group(&path, attrs, consolidated).map_err(io_err(&path))
+    }
+
+    /// Removes the levels that hold no shard (a level is made before its first shard is
+    /// written, and a step may find nothing to write there): readers see only levels with data.
+    fn prune_empty_levels(&self) -> Result<()> {
+        let major = self.lock_meta().format_major();
+        let levels: Vec<(LayerKind, LevelId)> = {
+            let m = self.lock_meta();
+            m.layers
+                .iter()
+                .flat_map(|(&k, l)| l.levels.values().map(move |lm| (k, lm.level)))
+                .collect()
+        };
+        let empty: Vec<(LayerKind, LevelId)> = levels
+            .into_iter()
+            .filter(|&(kind, level)| {
+                let array = crate::layout::data_array_path(major, kind, level);
+                !crate::geozarr::has_files(&self.root.join(array.trim_start_matches('/')).join("c"))
+            })
+            .collect();
+        if empty.is_empty() {
+            return Ok(());
+        }
+        {
+            let mut m = self.lock_meta();
+            for (kind, level) in &empty {
+                if let Some(l) = m.layers.get_mut(kind) {
+                    l.levels.remove(&level.key());
+                }
+            }
+            m.layers.retain(|_, l| !l.levels.is_empty());
+        }
+        // the metadata stops listing them before their folders go
+        self.write_group_meta()?;
+        for (kind, level) in empty {
+            self.arrays
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .remove(&(kind, level));
+            let dir = self.root.join(crate::layout::level_dir(kind, level));
+            if dir.join("zarr.json").is_file() {
+                fs::remove_dir_all(&dir).map_err(io_err(&dir))?;
+            }
+        }
+        Ok(())
     }
 
     fn codec_name(&self, kind: LayerKind) -> &'static str {
@@ -371,13 +438,13 @@ impl StoreWriter {
         if let Some(a) = arrays.get(&(kind, level)) {
             return Ok(a.clone());
         }
-        let path = level_array_path(kind, level);
+        let (grid, shard_tiles, radius_m, major) = {
+            let m = self.lock_meta();
+            (m.grid, m.shard_tiles, m.radius_m, m.format_major())
+        };
+        let path = crate::layout::data_array_path(major, kind, level);
         let fs_path = self.root.join(path.trim_start_matches('/'));
         let zerr = zarr_err(&fs_path);
-        let (grid, shard_tiles) = {
-            let m = self.lock_meta();
-            (m.grid, m.shard_tiles)
-        };
         let exists = fs_path.join("zarr.json").exists();
         let write = if exists {
             let meta = self.meta();
@@ -388,16 +455,30 @@ impl StoreWriter {
         } else {
             let builder = crate::layout::builder(kind, level, grid, shard_tiles, self.height_codec)
                 .map_err(&zerr)?;
-            // the layer's group first (Zarr v3 has no implicit groups)
-            GroupBuilder::new()
-                .build(self.durable.clone(), &format!("/{}", kind.name()))
-                .map_err(|e| zerr(e.to_string()))?
-                .store_metadata()
-                .map_err(|e| zerr(e.to_string()))?;
+            // the groups first (Zarr v3 has no implicit groups): the layer's, then the level's
+            // with its coordinates and grid mapping, then the data array
+            let layer_meta = self.root.join(kind.name()).join("zarr.json");
+            if !layer_meta.exists() {
+                crate::geozarr::write_group(&layer_meta, serde_json::Map::new(), None)
+                    .map_err(io_err(&layer_meta))?;
+            }
+            crate::geozarr::write_level_group(
+                &self.durable,
+                &self.root,
+                kind,
+                level,
+                grid,
+                radius_m,
+            )
+            .map_err(&zerr)?;
             let array = builder
                 .build(self.durable.clone(), &path)
                 .map_err(|e| zerr(e.to_string()))?;
             array.store_metadata().map_err(|e| zerr(e.to_string()))?;
+            if major >= 2 {
+                crate::geozarr::consolidate_level_group(&self.root, kind, level, grid, radius_m)
+                    .map_err(&zerr)?;
+            }
             array
         };
         let read = Array::open(self.fs.clone(), &path).map_err(|e| zerr(e.to_string()))?;
@@ -672,7 +753,7 @@ impl StoreWriter {
         self.write_group_meta()?;
         for (kind, level) in added {
             // arrays this run created: the metadata no longer lists them
-            let p = self.root.join(kind.name()).join(level.key());
+            let p = self.root.join(crate::layout::level_dir(kind, level));
             self.arrays
                 .lock()
                 .unwrap_or_else(PoisonError::into_inner)
@@ -681,6 +762,8 @@ impl StoreWriter {
                 fs::remove_dir_all(&p).map_err(io_err(&p))?;
             }
         }
+        // the consolidated metadata of the store as it is now
+        self.write_group_meta()?;
         self.drop_undo()
     }
 
@@ -726,8 +809,9 @@ impl StoreWriter {
             if let Some(r) = record.filter(|r| m.provenance.last() != Some(r)) {
                 m.provenance.push(r);
             }
-            m.complete = true;
         }
+        self.prune_empty_levels()?;
+        self.lock_meta().complete = true;
         self.write_group_meta()
     }
 }
@@ -876,6 +960,7 @@ impl<T: TileSample> ShardWriter<'_, T> {
                 what: format!("writing {} {}: {e}", T::KIND, self.shard),
                 path: self.path.clone(),
             })?;
+        tracing::debug!(layer = %T::KIND, shard = %self.shard, path = %self.path.display(), "store: shard written");
         if let Some((lo, hi)) = self.range {
             let mut ranges = self
                 .writer
@@ -895,4 +980,153 @@ impl<T: TileSample> Drop for ShardWriter<'_, T> {
     fn drop(&mut self) {
         self.writer.release(T::KIND, self.shard);
     }
+}
+
+/// What [`upgrade`] did.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct UpgradeReport {
+    /// The format the store had.
+    pub from: String,
+    /// Levels converted (a resumed upgrade counts only the ones it converted).
+    pub converted: usize,
+    /// Levels without data removed.
+    pub pruned: usize,
+}
+
+/// Converts a store of format 1 (a level is one array `LAYER/LEVEL`) to the current format
+/// (a level is a group `LAYER/LEVEL` holding the data array `LAYER/LEVEL/LAYER`, its `lat`/`lon`
+/// coordinates and its `spatial_ref`), in place, under the store's lock.
+///
+/// Every step is atomic (renames and atomic file writes) and the store reads as incomplete until
+/// the last one, which writes the new format version: a killed upgrade is finished by running it
+/// again. No shard is rewritten; levels holding no shard are removed. `on_level(done, total)`
+/// reports progress. A store of the current format is left as it is.
+pub fn upgrade(root: &Path, on_level: &dyn Fn(usize, usize)) -> Result<UpgradeReport> {
+    let (_, mut meta) = read_meta(root)?;
+    let from = meta.format_version.clone();
+    if meta.format_major() >= crate::meta::FORMAT_MAJOR {
+        return Ok(UpgradeReport {
+            from,
+            converted: 0,
+            pruned: 0,
+        });
+    }
+    let _lock = lock_store(root)?;
+    let (_, m) = read_meta(root)?;
+    meta = m;
+    let was_complete = meta.complete;
+    // from here on the store reads as incomplete until the new version is written
+    let mut upgrading = meta.clone();
+    upgrading.complete = false;
+    write_meta_only(root, &upgrading)?;
+    let levels: Vec<(LayerKind, LevelId)> = meta
+        .layers
+        .iter()
+        .flat_map(|(&k, l)| l.levels.values().map(move |lm| (k, lm.level)))
+        .collect();
+    let mut converted = 0;
+    let mut empty = Vec::new();
+    for (i, &(kind, level)) in levels.iter().enumerate() {
+        on_level(i, levels.len());
+        let dir = root.join(crate::layout::level_dir(kind, level));
+        let parked = root
+            .join(kind.name())
+            .join(format!(".{}.upgrading", level.key()));
+        let node_type = |p: &Path| -> Option<String> {
+            let v: serde_json::Value = serde_json::from_slice(&fs::read(p).ok()?).ok()?;
+            v.get("node_type")?.as_str().map(str::to_string)
+        };
+        if node_type(&dir.join("zarr.json")).as_deref() == Some("array") {
+            fs::rename(&dir, &parked).map_err(io_err(&dir))?;
+            crate::fault::step("level parked", &parked);
+        }
+        let data = dir.join(kind.name());
+        if parked.exists() {
+            fs::create_dir_all(&dir).map_err(io_err(&dir))?;
+            fs::rename(&parked, &data).map_err(io_err(&data))?;
+            File::open(&dir)
+                .and_then(|d| d.sync_all())
+                .map_err(io_err(&dir))?;
+            converted += 1;
+        }
+        if node_type(&data.join("zarr.json")).as_deref() != Some("array") {
+            return Err(StoreError::Format {
+                what: format!("damaged store: {kind} level {level} has no data array"),
+                path: data,
+            });
+        }
+        if !crate::geozarr::has_files(&data.join("c")) {
+            empty.push((kind, level));
+            continue;
+        }
+        // the data array gets the attributes of the current format (the rest is unchanged)
+        let array_meta = data.join("zarr.json");
+        let mut v: serde_json::Value = serde_json::from_slice(
+            &fs::read(&array_meta).map_err(io_err(&array_meta))?,
+        )
+        .map_err(|e| StoreError::Format {
+            what: format!("array metadata is not JSON: {e}"),
+            path: array_meta.clone(),
+        })?;
+        if let Some(attrs) = v.get_mut("attributes").and_then(|a| a.as_object_mut()) {
+            attrs.extend(crate::geozarr::data_array_attrs(kind));
+        }
+        let bytes = serde_json::to_vec_pretty(&v).map_err(|e| StoreError::Usage(e.to_string()))?;
+        crate::fault::write_atomic(&array_meta, &bytes).map_err(io_err(&array_meta))?;
+        let durable = Arc::new(DurableFs::new(root));
+        let zerr = zarr_err(&dir);
+        crate::geozarr::write_level_group(&durable, root, kind, level, meta.grid, meta.radius_m)
+            .map_err(&zerr)?;
+        crate::geozarr::consolidate_level_group(root, kind, level, meta.grid, meta.radius_m)
+            .map_err(&zerr)?;
+    }
+    on_level(levels.len(), levels.len());
+    for (kind, level) in &empty {
+        if let Some(l) = upgrading.layers.get_mut(kind) {
+            l.levels.remove(&level.key());
+        }
+    }
+    upgrading.layers.retain(|_, l| !l.levels.is_empty());
+    write_meta_only(root, &upgrading)?;
+    for (kind, level) in &empty {
+        let dir = root.join(crate::layout::level_dir(*kind, *level));
+        fs::remove_dir_all(&dir).map_err(io_err(&dir))?;
+    }
+    upgrading.format_version = format!(
+        "{}.{}",
+        crate::meta::FORMAT_MAJOR,
+        crate::meta::FORMAT_MINOR
+    );
+    upgrading.complete = was_complete;
+    if was_complete {
+        crate::geozarr::publish_layers(root, &upgrading)?;
+    }
+    let consolidated = if was_complete {
+        Some(crate::geozarr::consolidated(root).map_err(|what| zarr_err(root)(what))?)
+    } else {
+        None
+    };
+    let mut attrs = serde_json::Map::new();
+    attrs.insert(
+        "sphereclip".into(),
+        serde_json::to_value(&upgrading).map_err(|e| StoreError::Usage(e.to_string()))?,
+    );
+    let path = root.join("zarr.json");
+    crate::geozarr::write_group(&path, attrs, consolidated).map_err(io_err(&path))?;
+    Ok(UpgradeReport {
+        from,
+        converted,
+        pruned: empty.len(),
+    })
+}
+
+/// Writes the root group with `meta` and nothing else.
+fn write_meta_only(root: &Path, meta: &StoreMeta) -> Result<()> {
+    let mut attrs = serde_json::Map::new();
+    attrs.insert(
+        "sphereclip".into(),
+        serde_json::to_value(meta).map_err(|e| StoreError::Usage(e.to_string()))?,
+    );
+    let path = root.join("zarr.json");
+    crate::geozarr::write_group(&path, attrs, None).map_err(io_err(&path))
 }

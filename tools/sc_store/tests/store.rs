@@ -196,7 +196,7 @@ fn a_store_reads_incomplete_until_commit() {
     drop(w);
     assert!(StoreReader::open(&root).expect("open").meta().complete);
     // a writer killed mid-write leaves its temp file; the next writer removes it
-    let stale = root.join("height/L02/c/0/0.tmp.99999.3");
+    let stale = root.join("height/L02/height/c/0/0.tmp.99999.3");
     std::fs::write(&stale, b"half a shard").expect("write");
     drop(StoreWriter::open(&root).expect("open for writing"));
     assert!(!stale.exists());
@@ -327,12 +327,12 @@ fn not_a_store_and_newer_versions_are_refused() {
     let text = std::fs::read_to_string(&zj).expect("read");
     std::fs::write(
         &zj,
-        text.replace("\"format_version\": \"1.0\"", "\"format_version\": \"2.0\""),
+        text.replace("\"format_version\": \"2.0\"", "\"format_version\": \"3.0\""),
     )
     .expect("write");
     let e = StoreReader::open(&root).expect_err("newer");
     assert!(matches!(e, StoreError::UnsupportedVersion { .. }), "{e}");
-    assert!(e.to_string().contains("2.0"), "{e}");
+    assert!(e.to_string().contains("3.0"), "{e}");
     let e = StoreWriter::open(&root).expect_err("newer");
     assert!(matches!(e, StoreError::UnsupportedVersion { .. }), "{e}");
 }

@@ -162,10 +162,24 @@ fn mutate_json(v: &mut serde_json::Value, rng: &mut StdRng, depth: usize) {
     }
 }
 
-/// Damages one file of the store; returns what was done.
+/// Whether sphereclip's reader reads `p`: the root metadata and the data arrays
+/// (`LAYER/LEVEL/LAYER/…`). Level and layer groups, coordinates and grid mappings are there for
+/// other readers (their damage changes nothing this reader returns).
+fn read_by_sphereclip(root: &Path, p: &Path) -> bool {
+    let rel: Vec<String> = p
+        .strip_prefix(root)
+        .expect("in")
+        .components()
+        .map(|c| c.as_os_str().to_string_lossy().into_owned())
+        .collect();
+    rel == ["zarr.json"] || (rel.len() > 3 && rel[2] == rel[0])
+}
+
+/// Damages one file of the store that sphereclip reads; returns what was done.
 fn damage(root: &Path, rng: &mut StdRng) -> String {
     let mut all = Vec::new();
     files(root, &mut all);
+    all.retain(|p| read_by_sphereclip(root, p));
     all.sort();
     let json: Vec<&PathBuf> = all.iter().filter(|p| p.ends_with("zarr.json")).collect();
     let shards: Vec<&PathBuf> = all

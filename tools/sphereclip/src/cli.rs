@@ -12,6 +12,13 @@ pub struct Cli {
     /// What to do.
     #[command(subcommand)]
     pub command: Command,
+    /// Print nothing but warnings and errors (no progress, no summary).
+    #[arg(short, long, global = true)]
+    pub quiet: bool,
+    /// More log detail on stderr: -v info, -vv debug (tile and shard work), -vvv trace;
+    /// RUST_LOG (e.g. `RUST_LOG=sc_store=debug`) overrides it.
+    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
+    pub verbose: u8,
 }
 
 /// Subcommands.
@@ -33,6 +40,15 @@ pub enum Command {
     Export(ExportArgs),
     /// Run the demo on the bundled samples (what exists so far).
     Demo(DemoArgs),
+    /// Convert a store of an older format to the current one, in place (resumable).
+    Upgrade(UpgradeArgs),
+}
+
+/// `sphereclip upgrade`.
+#[derive(Debug, clap::Args)]
+pub struct UpgradeArgs {
+    /// The store folder.
+    pub store: PathBuf,
 }
 
 /// `sphereclip ingest`.
@@ -82,6 +98,10 @@ pub struct IngestArgs {
     /// Tile size of a new store.
     #[arg(long, default_value_t = 256)]
     pub tile_size: u32,
+    /// Codec of the height tiles of a new store: pcodec (smallest; readers need pcodec, e.g.
+    /// `pip install "numcodecs[pcodec]"`) or zstd (readable by every Zarr v3 reader with zstd).
+    #[arg(long, value_enum, default_value_t = CodecArg::Pcodec)]
+    pub codec: CodecArg,
     /// Print a JSON summary at the end.
     #[arg(long)]
     pub json: bool,
@@ -259,6 +279,9 @@ pub struct InfoArgs {
     /// Read every shard and tile and check its crc32c; exit 1 naming each bad shard/tile.
     #[arg(long)]
     pub verify: bool,
+    /// Also print the table of levels (texels, tiles, shards, size on disk, value range).
+    #[arg(long)]
+    pub levels: bool,
     /// Print JSON instead of text.
     #[arg(long)]
     pub json: bool,
@@ -275,8 +298,21 @@ pub struct ExportArgs {
     /// Level as `L` or `L,A` (anisotropic), e.g. 4 or 4,2.
     #[arg(long)]
     pub level: LevelId,
-    /// Output file: `.tif`/`.tiff` (GeoTIFF) or `.exr` (heights only).
+    /// Output file: `.tif`/`.tiff` (Cloud Optimized GeoTIFF) or `.exr` (heights only).
     pub out: PathBuf,
+    /// Only the texels this box touches, W,S,E,N in degrees (snapped outward to whole texels of
+    /// the coarsest overview), e.g. -6,7,-5,8.
+    #[arg(long, allow_hyphen_values = true)]
+    pub bounds: Option<String>,
+    /// A GDAL COG creation option KEY=VALUE (repeat for more), e.g. `-co COMPRESS=ZSTD`.
+    #[arg(long = "co", value_name = "KEY=VALUE")]
+    pub creation_options: Vec<String>,
+    /// No overviews (by default the store's coarser levels become the COG's overviews).
+    #[arg(long)]
+    pub no_overviews: bool,
+    /// Write even when the export is larger than the limit (4 GiB of samples before compression).
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// `sphereclip demo`.
@@ -291,6 +327,24 @@ pub struct DemoArgs {
     /// Do not open the viewer at the end even when a display is there.
     #[arg(long)]
     pub no_view: bool,
+}
+
+/// `ingest --codec`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum CodecArg {
+    /// pcodec, numeric compression for f32 (the measured default).
+    Pcodec,
+    /// zstd level 3.
+    Zstd,
+}
+
+impl From<CodecArg> for sc_store::HeightCodec {
+    fn from(c: CodecArg) -> Self {
+        match c {
+            CodecArg::Pcodec => sc_store::HeightCodec::Pcodec,
+            CodecArg::Zstd => sc_store::HeightCodec::Zstd,
+        }
+    }
 }
 
 /// `ingest --resampling`: a 1-D kernel, applied separably along the footprint's axes (lon/lat

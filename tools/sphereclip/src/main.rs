@@ -11,7 +11,9 @@ use std::process::ExitCode;
 use clap::Parser;
 
 fn main() -> ExitCode {
-    let cli = match cli::Cli::try_parse() {
+    // GDAL's spelling of creation options (`-co KEY=VALUE`) is accepted as `--co`
+    let args = std::env::args_os().map(|a| if a == "-co" { "--co".into() } else { a });
+    let cli = match cli::Cli::try_parse_from(args) {
         Ok(cli) => cli,
         Err(e) if !e.use_stderr() => e.exit(), // --help, --version
         Err(e) => {
@@ -26,6 +28,8 @@ fn main() -> ExitCode {
             return ExitCode::from(2);
         }
     };
+    out::set_quiet(cli.quiet);
+    init_logging(cli.quiet, cli.verbose);
     match cmd::run(cli) {
         Ok(code) => code,
         Err(e) => {
@@ -34,4 +38,25 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// Logs (tracing) go to stderr: warnings by default, more with `-v`, none but errors with `-q`;
+/// `RUST_LOG` overrides both.
+fn init_logging(quiet: bool, verbose: u8) {
+    use tracing_subscriber::EnvFilter;
+    let default = match (quiet, verbose) {
+        (true, _) => "error",
+        (false, 0) => "warn",
+        (false, 1) => "info",
+        (false, 2) => "debug",
+        _ => "trace",
+    };
+    let filter = EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new(default));
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
+        .with_target(true)
+        .without_time()
+        .try_init();
 }

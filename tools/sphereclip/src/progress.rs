@@ -10,15 +10,17 @@ use indicatif::{ProgressBar, ProgressStyle};
 pub struct Progress {
     bar: Option<ProgressBar>,
     what: String,
-    total: u64,
+    total: AtomicU64,
     done: AtomicU64,
     last_decile: AtomicU64,
+    quiet: bool,
 }
 
 impl Progress {
     /// A bar on a terminal (stderr), plain lines at every 10 % elsewhere.
     pub fn new(what: &str, total: u64) -> Self {
-        let bar = std::io::stderr().is_terminal().then(|| {
+        let quiet = crate::out::quiet();
+        let bar = (!quiet && std::io::stderr().is_terminal()).then(|| {
             let b = ProgressBar::new(total);
             if let Ok(style) = ProgressStyle::with_template(
                 "{msg:>10} [{elapsed_precise}] {wide_bar} {pos}/{len} ETA {eta}",
@@ -31,9 +33,10 @@ impl Progress {
         Self {
             bar,
             what: what.to_string(),
-            total,
+            total: AtomicU64::new(total),
             done: AtomicU64::new(0),
             last_decile: AtomicU64::new(0),
+            quiet,
         }
     }
 
@@ -42,12 +45,21 @@ impl Progress {
         self.done.store(done, Ordering::Relaxed);
         match &self.bar {
             Some(b) => b.set_position(done),
+            None if self.quiet => {}
             None => {
-                let decile = done * 10 / self.total.max(1);
+                let decile = done * 10 / self.total.load(Ordering::Relaxed).max(1);
                 if self.last_decile.fetch_max(decile, Ordering::Relaxed) < decile {
                     eprintln!("{}: {}%", self.what, decile * 10);
                 }
             }
+        }
+    }
+
+    /// Sets the number of steps (when it is known only once the work started).
+    pub fn set_total(&self, total: u64) {
+        self.total.store(total, Ordering::Relaxed);
+        if let Some(b) = &self.bar {
+            b.set_length(total);
         }
     }
 

@@ -41,11 +41,11 @@ pub fn build(store: &Path, settings: Settings, json: bool) -> Result<sc_build::S
         );
     }
     if summary.shards_repaired > 0 {
-        eprintln!(
+        crate::cmd::info_line(format_args!(
             "repaired {} damaged shard(s) of {}",
             summary.shards_repaired,
             store.display()
-        );
+        ));
     }
     if json {
         crate::outln!("{}", serde_json::to_string_pretty(&summary)?);

@@ -41,12 +41,12 @@ fn ingest(store: &Path, layer: LayerKind, level: LevelChoice, inputs: Vec<Input>
     let p = Progress::new(&format!("ingest {layer}"), plan.shards.len() as u64);
     let s = sc_ingest::run(store, &plan, &|d, _| p.set(d))?;
     p.finish();
-    eprintln!(
+    crate::cmd::info_line(format_args!(
         "demo: {layer} from {} → level(s) {} in {:.1} s",
         names.join(", "),
         s.levels.join(" "),
         s.seconds
-    );
+    ));
     Ok(())
 }
 
@@ -125,8 +125,10 @@ pub fn run(a: &DemoArgs) -> Result<ExitCode> {
     let height = a.out.join("height_level3.tif");
     let color = a.out.join("color_level3.tif");
     let l = LevelId::iso(3)?;
-    sc_raster::export_geotiff(&reader, LayerKind::Height, l, &height, &|_, _| {})?;
-    sc_raster::export_geotiff(&reader, LayerKind::Color, l, &color, &|_, _| {})?;
+    for (kind, out) in [(LayerKind::Height, &height), (LayerKind::Color, &color)] {
+        let region = sc_raster::plan_export(&reader, kind, l, None, true)?;
+        sc_raster::export_geotiff(&reader, kind, &region, &[], out, &|_, _| {})?;
+    }
     for st in reader.level_stats()? {
         eprintln!(
             "demo: {} level {}: {}x{} texels, {}/{} tiles",
@@ -176,14 +178,16 @@ pub fn run(a: &DemoArgs) -> Result<ExitCode> {
         .iter()
         .any(|v| std::env::var_os(v).is_some_and(|x| !x.is_empty()));
     if a.no_view || !display {
-        eprintln!(
+        crate::cmd::info_line(format_args!(
             "demo: no display{}; the six golden views above are headless renders (open the viewer with: sphereclip view {})",
             if a.no_view { " wanted (--no-view)" } else { "" },
             store.display()
-        );
+        ));
         return Ok(ExitCode::SUCCESS);
     }
-    eprintln!("demo: opening the viewer (drag, W/A/S/D, wheel; 1/2/3 orbit/fly/walk; Esc quits)");
+    crate::cmd::info_line(format_args!(
+        "demo: opening the viewer (drag, W/A/S/D, wheel; 1/2/3 orbit/fly/walk; Esc quits)"
+    ));
     step(&["view".as_ref(), store.as_os_str()])?;
     Ok(ExitCode::SUCCESS)
 }

@@ -1,4 +1,4 @@
-//! `sphereclip export STORE --layer L --level ℓ[,a] OUT.tif|OUT.exr`.
+//! `sphereclip export STORE --layer L --level ℓ[,a] [--bounds W,S,E,N] OUT.tif|OUT.exr`.
 
 use std::process::ExitCode;
 
@@ -9,6 +9,22 @@ use crate::cli::ExportArgs;
 use crate::cmd::parse_layer;
 use crate::progress::Progress;
 
+/// Largest export written without `--force`: samples before compression.
+const EXPORT_LIMIT_BYTES: u64 = 4 << 30;
+
+/// `W,S,E,N` in degrees.
+fn parse_bounds(s: &str) -> Result<[f64; 4]> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|p| p.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| anyhow::anyhow!("--bounds: expected W,S,E,N in degrees, found `{s}`"))?;
+    match v[..] {
+        [w, so, e, n] => Ok([w, so, e, n]),
+        _ => bail!("--bounds: expected W,S,E,N in degrees, found `{s}`"),
+    }
+}
+
 /// Runs `export`.
 pub fn run(a: &ExportArgs) -> Result<ExitCode> {
     let kind = parse_layer(&a.layer)?;
@@ -18,6 +34,7 @@ pub fn run(a: &ExportArgs) -> Result<ExitCode> {
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase)
         .unwrap_or_default();
+    let bounds = a.bounds.as_deref().map(parse_bounds).transpose()?;
     let reader = StoreReader::open(&a.store).context("cannot read store")?;
     if !reader.meta().complete {
         eprintln!(
@@ -25,14 +42,61 @@ pub fn run(a: &ExportArgs) -> Result<ExitCode> {
             a.store.display()
         );
     }
-    let rows = reader.meta().grid.tiles_y(a.level);
-    let p = Progress::new("export", rows);
+    // temp files go on SIGINT/SIGTERM too
+    ctrlc::set_handler(|| {
+        sc_raster::remove_on_signal();
+        std::process::exit(130);
+    })
+    .context("cannot install the interrupt handler")?;
     let summary = match ext.as_str() {
         "tif" | "tiff" => {
-            sc_raster::export_geotiff(&reader, kind, a.level, &a.out, &|d, _| p.set(d))
+            let region = sc_raster::plan_export(&reader, kind, a.level, bounds, !a.no_overviews)
+                .with_context(|| format!("cannot export {kind} level {}", a.level))?;
+            let bytes = region.raw_bytes(kind);
+            let [w, s, e, n] = region.bounds;
+            crate::cmd::info_line(format_args!(
+                "export: {}x{} texels of {kind} level {} within {w:.6},{s:.6},{e:.6},{n:.6}, {} overview(s) ({}), {} before compression",
+                region.width,
+                region.height,
+                a.level,
+                region.overviews.len(),
+                region
+                    .overviews
+                    .iter()
+                    .map(|l| l.key())
+                    .collect::<Vec<_>>()
+                    .join(" "),
+                crate::cmd::human_bytes(bytes)
+            ));
+            if bytes > EXPORT_LIMIT_BYTES && !a.force {
+                bail!(
+                    "the export would write {} of samples, above the limit of {}; choose a region with --bounds, a coarser --level, or pass --force",
+                    crate::cmd::human_bytes(bytes),
+                    crate::cmd::human_bytes(EXPORT_LIMIT_BYTES)
+                );
+            }
+            let p = Progress::new("export", 1);
+            sc_raster::export_geotiff(
+                &reader,
+                kind,
+                &region,
+                &a.creation_options,
+                &a.out,
+                &|d, t| {
+                    p.set_total(t);
+                    p.set(d);
+                },
+            )
+            .inspect(|_| p.finish())
         }
         "exr" if kind == LayerKind::Height => {
+            if bounds.is_some() {
+                bail!("--bounds is for GeoTIFF exports; EXR export writes the whole level");
+            }
+            let rows = reader.meta().grid.tiles_y(a.level);
+            let p = Progress::new("export", rows);
             sc_raster::export_exr(&reader, a.level, &a.out, &|d, _| p.set(d))
+                .inspect(|_| p.finish())
         }
         "exr" => bail!("EXR export holds heights only; use .tif for the {kind} layer"),
         _ => bail!(
@@ -41,7 +105,6 @@ pub fn run(a: &ExportArgs) -> Result<ExitCode> {
         ),
     }
     .with_context(|| format!("cannot export {kind} level {}", a.level))?;
-    p.finish();
     crate::outln!(
         "wrote {} ({}x{}, {} tiles, {} missing as nodata)",
         a.out.display(),

@@ -26,7 +26,8 @@ pub fn run(store: &Path, flight_path: &Path, (w, h): (u32, u32), out: &Path) -> 
         &store.display().to_string(),
         &mut |alt, run| {
             eprintln!(
-                "flight: {alt} m at {} alt/s ({:.0} m/s): {} frames, finest level in {:.0} %, frame p50 {:.0} ms, {:.0} tiles/s, workers busy {:.0} %",
+                "flight: {} at {} alt/s ({:.0} m/s): {} frames, finest level in {:.0} %, frame p50 {:.0} ms, {:.0} tiles/s, workers busy {:.0} %",
+                crate::cmd::human_metres(alt),
                 run.speed_alt_per_s,
                 run.speed_m_per_s,
                 run.frames,

@@ -3,24 +3,50 @@
 use std::process::ExitCode;
 
 use anyhow::{Context, Result};
-use sc_store::{LevelStats, StoreReader, VerifyReport};
+use sc_core::LevelId;
+use sc_store::{LayerKind, LevelStats, StoreReader, VerifyReport};
 
 use crate::cli::InfoArgs;
 use crate::progress::Progress;
 
-fn human_bytes(b: u64) -> String {
-    const UNITS: [&str; 5] = ["B", "KiB", "MiB", "GiB", "TiB"];
-    let mut v = b as f64;
-    let mut u = 0;
-    while v >= 1024.0 && u + 1 < UNITS.len() {
-        v /= 1024.0;
-        u += 1;
+use crate::cmd::{human_bytes, human_metres};
+
+/// A provenance time as RFC 3339 (UTC).
+fn rfc3339(unix_s: u64) -> String {
+    humantime::format_rfc3339_seconds(
+        std::time::UNIX_EPOCH + std::time::Duration::from_secs(unix_s),
+    )
+    .to_string()
+}
+
+/// Lon/lat box W, S, E, N of the tiles `level` holds (tile edges).
+fn data_box(reader: &StoreReader, kind: LayerKind, level: LevelId) -> Option<[f64; 4]> {
+    let grid = reader.meta().grid;
+    let s = reader.meta().shard_tiles;
+    let (mut x0, mut x1, mut y0, mut y1) = (u64::MAX, 0, u64::MAX, 0);
+    for shard in reader.shards_on_disk(kind, level).ok()? {
+        for tile in shard.tiles(grid, s) {
+            if reader.has_tile(kind, tile).unwrap_or(false) {
+                (x0, x1, y0, y1) = (
+                    x0.min(tile.x),
+                    x1.max(tile.x),
+                    y0.min(tile.y),
+                    y1.max(tile.y),
+                );
+            }
+        }
     }
-    if u == 0 {
-        format!("{b} B")
-    } else {
-        format!("{v:.1} {}", UNITS[u])
+    if x0 > x1 {
+        return None;
     }
+    let (dx, dy) = grid.texel_deg(level);
+    let t = f64::from(grid.tile_size());
+    Some([
+        -180.0 + x0 as f64 * t * dx,
+        90.0 - (y1 + 1) as f64 * t * dy,
+        -180.0 + (x1 + 1) as f64 * t * dx,
+        90.0 - y0 as f64 * t * dy,
+    ])
 }
 
 /// Runs `info`.
@@ -45,7 +71,7 @@ pub fn run(a: &InfoArgs) -> Result<ExitCode> {
         });
         crate::outln!("{}", serde_json::to_string_pretty(&v)?);
     } else {
-        print_text(&reader, &stats, report.as_ref());
+        print_text(&reader, &stats, report.as_ref(), a.levels);
     }
     Ok(match report {
         Some(r) if !r.problems.is_empty() => {
@@ -63,72 +89,126 @@ pub fn run(a: &InfoArgs) -> Result<ExitCode> {
     })
 }
 
-fn print_text(reader: &StoreReader, stats: &[LevelStats], report: Option<&VerifyReport>) {
+fn print_text(
+    reader: &StoreReader,
+    stats: &[LevelStats],
+    report: Option<&VerifyReport>,
+    table: bool,
+) {
     let m = reader.meta();
-    crate::outln!("store {}", reader.root().display());
+    let total: u64 = stats.iter().map(|s| s.bytes_on_disk).sum();
     crate::outln!(
-        "  format {}, {}, tiles {}x{} texels, shards {}x{} tiles, sphere radius {} m",
+        "store {}: format {}, {}, {} on disk",
+        reader.root().display(),
         m.format_version,
         if m.complete {
             "complete"
         } else {
             "INCOMPLETE (a writer did not commit)"
         },
-        m.grid.tile_size(),
-        m.grid.tile_size(),
-        m.shard_tiles,
-        m.shard_tiles,
-        m.radius_m
+        human_bytes(total)
     );
-    crate::outln!("  crs: {}", m.crs);
-    for (kind, layer) in &m.layers {
+    crate::outln!(
+        "  grid: latitude/longitude (WGS 84 values) on a sphere of radius {:.1} km; tiles {}x{} texels, shards {}x{} tiles",
+        m.radius_m / 1e3,
+        m.grid.tile_size(),
+        m.grid.tile_size(),
+        m.shard_tiles,
+        m.shard_tiles
+    );
+    for (&kind, layer) in &m.layers {
+        let levels = m.levels(kind);
+        let isos: Vec<u32> = levels
+            .iter()
+            .filter(|l| l.is_iso())
+            .map(|l| l.level)
+            .collect();
+        let anisos = levels.len() - isos.len();
+        let (Some(&lo), Some(&hi)) = (isos.iter().min(), isos.iter().max()) else {
+            continue;
+        };
+        let finest = LevelId {
+            level: hi,
+            aniso: 0,
+        };
+        let spacing = std::f64::consts::PI * m.radius_m / m.grid.height(finest) as f64;
+        let tiles: u64 = stats
+            .iter()
+            .filter(|s| s.layer == kind)
+            .map(|s| s.tiles_present)
+            .sum();
+        let bytes: u64 = stats
+            .iter()
+            .filter(|s| s.layer == kind)
+            .map(|s| s.bytes_on_disk)
+            .sum();
+        let bbox = data_box(reader, kind, finest)
+            .map(|[w, s, e, n]| format!("lon {w:.4}..{e:.4}, lat {s:.4}..{n:.4}"))
+            .unwrap_or_else(|| "none".into());
+        let range = layer
+            .levels
+            .get(&finest.key())
+            .and_then(|l| l.value_range)
+            .map(|(a, b)| format!(", values {a:.1} .. {b:.1} {}", layer.units))
+            .unwrap_or_default();
         crate::outln!(
-            "layer {kind} ({}, nodata {}, codec {})",
-            layer.units,
-            layer.nodata,
+            "  {kind}: levels {lo}..{hi} (+{anisos} anisotropic), finest {}x{} texels of {}, {tiles} tiles, {} ({})",
+            m.grid.width(finest),
+            m.grid.height(finest),
+            human_metres(spacing),
+            human_bytes(bytes),
             layer.codec
         );
-        crate::outln!(
-            "  {:<6} {:>13} {:>15} {:>7} {:>10}  range",
-            "level",
-            "texels",
-            "tiles",
-            "shards",
-            "on disk"
-        );
-        for s in stats.iter().filter(|s| s.layer == *kind) {
-            let range = s
-                .value_range
-                .map(|(lo, hi)| format!("{lo:.1} .. {hi:.1}"))
-                .unwrap_or_else(|| "-".into());
-            let bad = if s.unreadable_shards > 0 {
-                format!(
-                    "  ({} unreadable shards: run --verify)",
-                    s.unreadable_shards
-                )
-            } else {
-                String::new()
-            };
-            crate::outln!(
-                "  {:<6} {:>13} {:>15} {:>7} {:>10}  {range}{bad}",
-                s.level.to_string(),
-                format!("{}x{}", s.width, s.height),
-                format!("{}/{}", s.tiles_present, s.tiles_total),
-                s.shards,
-                human_bytes(s.bytes_on_disk),
-            );
-        }
+        crate::outln!("    data at level {hi}: {bbox}{range}");
     }
-    crate::outln!(
-        "  total on disk: {}",
-        human_bytes(stats.iter().map(|s| s.bytes_on_disk).sum())
-    );
+    if table {
+        for (kind, layer) in &m.layers {
+            crate::outln!(
+                "layer {kind} ({}, nodata {}, codec {})",
+                layer.units,
+                layer.nodata,
+                layer.codec
+            );
+            crate::outln!(
+                "  {:<6} {:>13} {:>15} {:>7} {:>10}  range",
+                "level",
+                "texels",
+                "tiles",
+                "shards",
+                "on disk"
+            );
+            for s in stats.iter().filter(|s| s.layer == *kind) {
+                let range = s
+                    .value_range
+                    .map(|(lo, hi)| format!("{lo:.1} .. {hi:.1}"))
+                    .unwrap_or_else(|| "-".into());
+                let bad = if s.unreadable_shards > 0 {
+                    format!(
+                        "  ({} unreadable shards: run --verify)",
+                        s.unreadable_shards
+                    )
+                } else {
+                    String::new()
+                };
+                crate::outln!(
+                    "  {:<6} {:>13} {:>15} {:>7} {:>10}  {range}{bad}",
+                    s.level.to_string(),
+                    format!("{}x{}", s.width, s.height),
+                    format!("{}/{}", s.tiles_present, s.tiles_total),
+                    s.shards,
+                    human_bytes(s.bytes_on_disk),
+                );
+            }
+        }
+    } else {
+        crate::outln!("  (the table of levels: sphereclip info --levels)");
+    }
     for p in &m.provenance {
         crate::outln!(
-            "provenance: {} by {} at unix {} from {} input(s)",
+            "made by: {} ({}) at {} from {} input(s)",
             p.step,
             p.tool,
-            p.unix_time_s,
+            rfc3339(p.unix_time_s),
             p.inputs.len()
         );
     }

@@ -103,6 +103,7 @@ pub fn run(a: &IngestArgs) -> Result<ExitCode> {
         feather_texels: a.feather,
         new_store: StoreConfig {
             grid,
+            height_codec: a.codec.into(),
             ..StoreConfig::default()
         },
     };
@@ -121,7 +122,7 @@ pub fn run(a: &IngestArgs) -> Result<ExitCode> {
         for w in &p.info.warnings {
             eprintln!("warning: {}: {w}", p.input.path.display());
         }
-        eprintln!(
+        crate::cmd::info_line(format_args!(
             "{} ({}x{}, {}) → level {} ({} m per texel)",
             p.input.path.display(),
             p.info.width,
@@ -131,7 +132,7 @@ pub fn run(a: &IngestArgs) -> Result<ExitCode> {
             plan.grid
                 .iso_spacing_m(p.level, sc_core::EARTH_RADIUS_M)
                 .round()
-        );
+        ));
     }
     let progress = Progress::new("ingest", plan.shards.len() as u64);
     let summary = sc_ingest::run(&a.store, &plan, &|d, _| progress.set(d))

@@ -444,7 +444,9 @@ fn test_signal(out: &Path, target: u32, gdal: bool) -> Result<(Vec<LevelInput>, 
             pictures.push(as_input(format!("{to} ours, stop-band wave"), &ours));
         }
         if gdal {
-            sc_raster::export_geotiff(&reader, LayerKind::Height, fine, &tif, &|_, _| {})?;
+            // no overviews: gdaladdo makes them
+            let region = sc_raster::plan_export(&reader, LayerKind::Height, fine, None, false)?;
+            sc_raster::export_geotiff(&reader, LayerKind::Height, &region, &[], &tif, &|_, _| {})?;
             let k = methods.len() - 2;
             let lz = gdal_overview(out, &tif, "lanczos", &factors)?;
             worst(&mut table[k], &score(&lz, to));

@@ -8,6 +8,7 @@ mod info;
 mod ingest;
 mod inspect;
 mod render;
+mod upgrade;
 mod view;
 
 use std::process::ExitCode;
@@ -27,6 +28,37 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::Inspect(a) => inspect::run(&a),
         Command::View(a) => view::run(&a),
         Command::Render(a) => render::run(&a),
+        Command::Upgrade(a) => upgrade::run(&a),
+    }
+}
+
+/// A byte count for humans: `512 B`, `3.4 kB`, `12.0 MB`, `2.1 GB` (powers of 1000).
+pub fn human_bytes(b: u64) -> String {
+    let b = b as f64;
+    match b {
+        _ if b < 1e3 => format!("{b} B"),
+        _ if b < 1e6 => format!("{:.1} kB", b / 1e3),
+        _ if b < 1e9 => format!("{:.1} MB", b / 1e6),
+        _ if b < 1e12 => format!("{:.1} GB", b / 1e9),
+        _ => format!("{:.1} TB", b / 1e12),
+    }
+}
+
+/// A length for humans: `850 m`, `12.0 km`, `12 000 km`.
+pub fn human_metres(m: f64) -> String {
+    if m.abs() < 1e3 {
+        format!("{m:.0} m")
+    } else if m.abs() < 1e5 {
+        format!("{:.1} km", m / 1e3)
+    } else {
+        format!("{:.0} km", m / 1e3)
+    }
+}
+
+/// A line of progress information on stderr (not with `--quiet`).
+pub fn info_line(args: std::fmt::Arguments<'_>) {
+    if !crate::out::quiet() {
+        eprintln!("{args}");
     }
 }
 

@@ -19,8 +19,8 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
         let s = super::flight::run(&a.store, flight, (w, h), stats)?;
         for alt in &s.altitudes {
             crate::outln!(
-                "{:>10} m: best {} altitudes/s",
-                alt.altitude_m,
+                "{:>10}: best {} altitudes/s",
+                crate::cmd::human_metres(alt.altitude_m),
                 alt.best_speed_alt_per_s.map_or(
                     "— (finest level < 95 % of frames at every speed)".into(),
                     |v| format!("{v}")

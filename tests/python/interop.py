@@ -1,0 +1,89 @@
+"""Reads a sphereclip store the way a Python/GIS user would, and checks what they rely on.
+
+Usage: interop.py STORE COLOR_EXPORT.tif COLOR_LEVEL
+
+- every level of both layers opens with `xarray.open_datatree(STORE, engine="zarr")`, with 1-D
+  `lat`/`lon` coordinates at the texel centres the level's `spatial:transform` gives, CF units,
+  and a CRS rioxarray reads (geographic, on the store's sphere), and a window of it decodes;
+- no zarr warning about objects it does not recognise (our bookkeeping files);
+- the layer groups list their levels with `multiscales`, coarse to fine;
+- Everest is found above 5 km, in the finest level with data there, by `.sel(lat=27.99, lon=86.93, method="nearest")`;
+- the colour level equals the GeoTIFF `sphereclip export` wrote of it (read by rasterio's GDAL).
+
+Prints one line of JSON with what it measured; any failed check raises (exit 1).
+"""
+
+import json
+import sys
+import warnings
+
+import numpy as np
+import rioxarray  # noqa: F401  (registers .rio)
+import xarray as xr
+import zarr
+
+
+def main() -> None:
+    store, export, color_level = sys.argv[1], sys.argv[2], sys.argv[3]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        tree = xr.open_datatree(store, engine="zarr")
+        root = zarr.open_group(store, mode="r")
+    unrecognised = [str(w.message) for w in caught if "not recognized" in str(w.message)]
+    assert not unrecognised, unrecognised
+    assert set(tree.children) == {"height", "color"}, list(tree.children)
+
+    opened = 0
+    for layer in ("height", "color"):
+        attrs = root[layer].attrs
+        layout = [e["asset"] for e in attrs["multiscales"]["layout"]]
+        isos = sorted(k for k in tree[layer].children if "A" not in k)
+        assert layout == isos, (layout, isos)
+        for key in tree[layer].children:
+            ds = tree[f"{layer}/{key}"].to_dataset()
+            var = ds[layer]
+            h, w = root[f"{layer}/{key}"].attrs["spatial:shape"]
+            a, _, c, _, e, f = root[f"{layer}/{key}"].attrs["spatial:transform"]
+            assert var.sizes["lat"] == h and var.sizes["lon"] == w, (key, var.sizes)
+            np.testing.assert_allclose(ds.lat.values[[0, -1]], [f + e / 2, f + e * (h - 0.5)])
+            np.testing.assert_allclose(ds.lon.values[[0, -1]], [c + a / 2, c + a * (w - 0.5)])
+            assert ds.lat.attrs["units"] == "degrees_north", ds.lat.attrs
+            assert ds.lon.attrs["standard_name"] == "longitude", ds.lon.attrs
+            crs = var.rio.crs
+            assert crs is not None and crs.is_geographic, (key, crs)
+            assert "sphere" in crs.to_wkt(), crs.to_wkt()
+            if layer == "height":
+                assert var.attrs["units"] == "m", var.attrs
+                assert np.isnan(var.rio.nodata), var.rio.nodata
+            var.isel(lat=slice(h // 2, h // 2 + 4), lon=slice(w // 2, w // 2 + 4)).load()
+            opened += 1
+
+    # the finest level with data there (regional inputs leave finer levels empty elsewhere)
+    everest, finest = float("nan"), None
+    for key in sorted((k for k in tree["height"].children if "A" not in k), reverse=True):
+        ds = tree[f"height/{key}"].to_dataset()
+        everest = float(ds["height"].sel(lat=27.99, lon=86.93, method="nearest"))
+        if not np.isnan(everest):
+            finest = key
+            break
+    assert everest > 5000.0, everest
+
+    ours = tree[f"color/{color_level}"].to_dataset()["color"]
+    gdal = rioxarray.open_rasterio(export)
+    assert gdal.rio.crs.is_geographic
+    rows, cols = ours.sizes["lat"], ours.sizes["lon"]
+    assert gdal.shape == (4, rows, cols), gdal.shape
+    # one 256 x 256 tile in the middle of the level, all four bands
+    y0, x0 = rows // 2, cols // 2
+    tile = ours.isel(lat=slice(y0, y0 + 256), lon=slice(x0, x0 + 256)).values
+    theirs = gdal.isel(y=slice(y0, y0 + 256), x=slice(x0, x0 + 256)).values.transpose(1, 2, 0)
+    assert np.array_equal(tile, theirs), "colour tile differs from the export"
+    np.testing.assert_allclose(
+        gdal.x.values[[x0, x0 + 255]], ours.lon.values[[x0, x0 + 255]], rtol=0, atol=1e-9
+    )
+
+    print(json.dumps({"levels_opened": opened, "everest_m": everest, "finest": finest}))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,32 @@
+//! `sphereclip upgrade STORE`: a store of an older format converted in place.
+
+use std::process::ExitCode;
+
+use anyhow::{Context, Result};
+
+use crate::cli::UpgradeArgs;
+use crate::progress::Progress;
+
+/// Runs `upgrade`.
+pub fn run(a: &UpgradeArgs) -> Result<ExitCode> {
+    let p = Progress::new("upgrade", 0);
+    let report = sc_store::upgrade(&a.store, &|done, total| {
+        p.set_total(total as u64);
+        p.set(done as u64);
+    })
+    .with_context(|| format!("cannot upgrade {}", a.store.display()))?;
+    p.finish();
+    let now = format!("{}.{}", sc_store::FORMAT_MAJOR, sc_store::FORMAT_MINOR);
+    if report.from == now {
+        crate::outln!("{} is already format {now}", a.store.display());
+    } else {
+        crate::outln!(
+            "upgraded {} from format {} to {now}: {} level(s) converted, {} without data removed",
+            a.store.display(),
+            report.from,
+            report.converted,
+            report.pruned
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}
