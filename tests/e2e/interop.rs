@@ -160,3 +160,218 @@ fn a_regional_pyramid_lists_only_levels_that_hold_data_and_zstd_stores_need_no_p
         "L07"
     );
 }
+
+/// The SRTM square of the samples at level 10 (1464² texels) with its pyramid, 64-texel tiles.
+fn srtm_level10() -> PathBuf {
+    fixture("srtm-l10", |d| {
+        let store = d.join("s.zarr");
+        ok(&ingest(
+            &store,
+            &[s(&sample("n07_w006_3arc_v2.tif")), "--level", "10"],
+        ));
+        ok(&run(&["build", s(&store)]));
+    })
+    .join("s.zarr")
+}
+
+/// A height texel of the store (NaN where the tile is missing).
+fn store_texel(r: &sc_store::StoreReader, level: sc_core::LevelId, x: u64, y: u64) -> f32 {
+    let g = r.meta().grid;
+    let t = u64::from(g.tile_size());
+    let tile = sc_core::TileId::new(g, level, x / t, y / t).expect("tile");
+    let mut buf = vec![0f32; (t * t) as usize];
+    match r.read_tile(tile, &mut buf).expect("read") {
+        sc_store::TileRead::Present => buf[((y % t) * t + x % t) as usize],
+        sc_store::TileRead::Missing => f32::NAN,
+    }
+}
+
+#[test]
+fn export_of_a_region_is_a_valid_cog_whose_overviews_are_the_stores_levels() {
+    use gdal::Metadata;
+    let store = srtm_level10();
+    let dir = tempfile::tempdir().expect("tempdir");
+    let tif = dir.path().join("square.tif");
+    let o = run(&[
+        "export",
+        s(&store),
+        "--level",
+        "10",
+        "--bounds",
+        "-6,7,-5,8",
+        s(&tif),
+        "-co",
+        "COMPRESS=ZSTD",
+    ]);
+    ok(&o);
+    // only the square: 1° of 360/524288° texels, snapped outward to 8 texels (three overviews)
+    let ds = gdal::Dataset::open(&tif).expect("gdal opens it");
+    let (w, h) = ds.raster_size();
+    assert!(
+        (1456..=1480).contains(&w) && (1456..=1480).contains(&h),
+        "{w}x{h}"
+    );
+    assert_eq!(
+        ds.metadata_item("COMPRESSION", "IMAGE_STRUCTURE")
+            .as_deref(),
+        Some("ZSTD")
+    );
+    let band = ds.rasterband(1).expect("band");
+    assert_eq!(band.unit(), "m");
+    assert!(band.description().expect("description").contains("height"));
+    // GDAL's own COG validator: valid, no warning
+    let v = Command::new("/usr/bin/python3")
+        .args([
+            "-m",
+            "osgeo_utils.samples.validate_cloud_optimized_geotiff",
+            s(&tif),
+        ])
+        .output()
+        .expect("the validator runs (python3-gdal)");
+    let said = format!("{}{}", text(&v.stdout), text(&v.stderr));
+    assert!(v.status.success(), "{said}");
+    assert!(
+        said.contains("is a valid cloud optimized GeoTIFF"),
+        "{said}"
+    );
+    assert!(!said.to_lowercase().contains("warning"), "{said}");
+    let info = Command::new("gdalinfo")
+        .arg(&tif)
+        .output()
+        .expect("gdalinfo");
+    assert!(
+        text(&info.stdout).contains("Overviews:"),
+        "{}",
+        text(&info.stdout)
+    );
+    // the overviews are the store's levels 9, 8, 7 in the same window
+    let gt = ds.geo_transform().expect("gt");
+    let d = 360.0 / 524_288.0;
+    let (x0, y0) = (
+        ((gt[0] + 180.0) / d).round() as u64,
+        ((90.0 - gt[3]) / d).round() as u64,
+    );
+    assert_eq!((x0 % 8, y0 % 8), (0, 0));
+    let reader = sc_store::StoreReader::open(&store).expect("open");
+    assert_eq!(band.overview_count().expect("count"), 3);
+    for k in 0..3usize {
+        let ov = band.overview(k).expect("overview");
+        let (ow, oh) = ov.size();
+        assert_eq!((ow, oh), (w >> (k + 1), h >> (k + 1)));
+        let got = ov
+            .read_as::<f32>((0, 0), (ow, oh), (ow, oh), None)
+            .expect("read");
+        let level = sc_core::LevelId::iso(9 - k as u32).expect("level");
+        let (ox, oy) = (x0 >> (k + 1), y0 >> (k + 1));
+        let mut compared = 0;
+        for j in (0..oh).step_by(7) {
+            for i in (0..ow).step_by(5) {
+                let want = store_texel(&reader, level, ox + i as u64, oy + j as u64);
+                let have = got.data()[j * ow + i];
+                assert!(
+                    have == want || (have.is_nan() && want.is_nan()),
+                    "overview {k} texel ({i}, {j}): {have} in the COG, {want} in the store"
+                );
+                compared += 1;
+            }
+        }
+        assert!(compared > 100);
+    }
+    // the whole level (550 GB of samples) is refused before anything is written
+    let big = dir.path().join("all.tif");
+    let o = run(&["export", s(&store), "--level", "10", s(&big)]);
+    let e = one_line_failure(&o, "whole level");
+    assert!(e.contains("--bounds") && e.contains("--force"), "{e}");
+    assert!(!big.exists());
+}
+
+#[test]
+fn an_interrupted_export_leaves_no_temp_files() {
+    let store = srtm_level10();
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("x.tif");
+    let go = dir.path().join("never");
+    let mut c = bin();
+    c.args([
+        "export",
+        s(&store),
+        "--level",
+        "10",
+        "--bounds",
+        "-6,7,-5,8",
+        s(&out),
+    ])
+    .env("SPHERECLIP_PAUSE", format!("export-staged:{}", s(&go)))
+    .stdout(std::process::Stdio::null())
+    .stderr(std::process::Stdio::null());
+    let mut child = c.spawn().expect("spawns");
+    // wait for the staged file, then interrupt
+    let start = std::time::Instant::now();
+    while std::fs::read_dir(dir.path()).expect("ls").count() == 0 {
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "no temp file appeared"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    std::thread::sleep(Duration::from_millis(200));
+    let k = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .expect("kill");
+    assert!(k.success());
+    let status = child.wait().expect("wait");
+    assert_eq!(status.code(), Some(130));
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .expect("ls")
+        .flatten()
+        .map(|e| e.file_name())
+        .collect();
+    assert!(left.is_empty(), "left behind: {left:?}");
+}
+
+#[test]
+fn quiet_prints_nothing_and_rust_log_debug_shows_the_shard_work() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let store = dir.path().join("s.zarr");
+    let o = run(&[
+        "ingest",
+        "-q",
+        s(&store),
+        s(&sample("n07_w006_3arc_v2.tif")),
+        "--level",
+        "7",
+    ]);
+    ok(&o);
+    assert_eq!(text(&o.stdout) + &text(&o.stderr), "");
+    let o = run(&["--quiet", "build", s(&store)]);
+    ok(&o);
+    assert_eq!(text(&o.stdout) + &text(&o.stderr), "");
+    let mut c = bin();
+    c.args([
+        "ingest",
+        s(&store),
+        s(&sample("n07_w006_3arc_v2.tif")),
+        "--level",
+        "8",
+    ])
+    .env("RUST_LOG", "debug");
+    let o = run_within(c, Duration::from_secs(120));
+    ok(&o);
+    let err = text(&o.stderr);
+    assert!(
+        err.contains("shard written") && err.contains("/height/L08/height/c/"),
+        "{err}"
+    );
+    assert!(err.contains("ingest: resampling shard"), "{err}");
+    // without RUST_LOG none of it
+    let o = run(&[
+        "ingest",
+        s(&store),
+        s(&sample("n07_w006_3arc_v2.tif")),
+        "--level",
+        "8",
+    ]);
+    ok(&o);
+    assert!(!text(&o.stderr).contains("DEBUG"), "{}", text(&o.stderr));
+}

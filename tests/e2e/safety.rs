@@ -85,7 +85,7 @@ fn a_folder_that_is_not_a_store_is_refused_and_foreign_files_are_never_deleted()
     for k in &keep {
         std::fs::write(k, b"theirs").expect("write");
     }
-    let ours = store.join("height/L05/c/0/0.tmp.4242.7");
+    let ours = store.join("height/L05/height/c/0/0.tmp.4242.7");
     std::fs::write(&ours, b"half a shard").expect("write");
     ok(&run(&[
         "ingest",
@@ -335,19 +335,19 @@ fn damaged_metadata_is_one_line_for_verify_export_and_render() {
     type Damage = fn(&Path);
     let cases: [(&str, Damage); 8] = [
         ("big-endian shard index", |p| {
-            edit_json(&p.join("height/L05/zarr.json"), |v| {
+            edit_json(&p.join("height/L05/height/zarr.json"), |v| {
                 v["codecs"][0]["configuration"]["index_codecs"][0]["configuration"]["endian"] =
                     "big".into();
             })
         }),
         ("index without crc32c", |p| {
-            edit_json(&p.join("height/L05/zarr.json"), |v| {
+            edit_json(&p.join("height/L05/height/zarr.json"), |v| {
                 let ic = &mut v["codecs"][0]["configuration"]["index_codecs"];
                 ic.as_array_mut().expect("list").truncate(1);
             })
         }),
         ("chunk key separator", |p| {
-            edit_json(&p.join("height/L05/zarr.json"), |v| {
+            edit_json(&p.join("height/L05/height/zarr.json"), |v| {
                 v["chunk_key_encoding"]["configuration"]["separator"] = ".".into();
             })
         }),
@@ -584,7 +584,7 @@ fn build_repairs_a_damaged_derived_shard_on_request() {
     // a level only build wrote: recomputed to the bytes of the undamaged pyramid
     let store = dir.path().join("derived.zarr");
     copy_dir(base_store(), &store);
-    flip_middle(&store.join("height/L03/c/0/1"));
+    flip_middle(&store.join("height/L03/height/c/0/1"));
     let before = snapshot_with(&store, true);
     let line = one_line_failure(&run(&["build", s(&store)]), "build over a damaged shard");
     assert!(
@@ -617,7 +617,7 @@ fn build_repairs_a_damaged_derived_shard_on_request() {
         "3",
     ]));
     ok(&run(&["build", s(&store)]));
-    flip_middle(&store.join("height/L03/c/0/1"));
+    flip_middle(&store.join("height/L03/height/c/0/1"));
     let line = one_line_failure(&run(&["build", s(&store)]), "a damaged ingested level");
     assert!(line.contains("also holds ingested data"), "{line}");
     let o = run(&["build", s(&store), "--repair"]);

@@ -63,6 +63,14 @@ fn info_reports_levels_and_json() {
     assert!(o.status.success(), "{}", text(&o.stderr));
     let out = text(&o.stdout);
     assert!(out.contains("complete"), "{out}");
+    // a summary by default; the table of levels on request
+    assert!(
+        out.contains("levels 0..") && !out.contains("32/32"),
+        "{out}"
+    );
+    let o = run(&["info", "--levels", root.to_str().expect("utf8")]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let out = text(&o.stdout);
     assert!(out.contains("2,1") && out.contains("32/32"), "{out}");
     let o = run(&["info", "--json", "--verify", root.to_str().expect("utf8")]);
     assert!(o.status.success(), "{}", text(&o.stderr));
@@ -167,7 +175,7 @@ fn bad_stores_get_one_line_errors() {
     let t = std::fs::read_to_string(&zj).expect("read");
     std::fs::write(
         &zj,
-        t.replace("\"format_version\": \"1.0\"", "\"format_version\": \"7.2\""),
+        t.replace("\"format_version\": \"2.0\"", "\"format_version\": \"7.2\""),
     )
     .expect("write");
     let o = run(&["info", root.to_str().expect("utf8")]);

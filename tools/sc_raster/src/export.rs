@@ -215,6 +215,7 @@ pub fn export_geotiff(
     let _guard = TempGuard::new(vec![stage.clone(), tmp_path(out)]);
     let result = (|| {
         let summary = write_staged(reader, kind, region, &stage, out, on_row)?;
+        sc_store::fault::pause("export-staged");
         write_then_rename(out, |tmp| write_cog(&stage, tmp, out, options))?;
         Ok(summary)
     })();

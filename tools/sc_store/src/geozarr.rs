@@ -448,10 +448,20 @@ fn build_kernel(meta: &crate::StoreMeta) -> String {
         .unwrap_or_else(|| "none (levels ingested)".into())
 }
 
-/// Writes each layer group: its `multiscales` attributes, then its consolidated metadata.
+/// Writes each level group with its consolidated metadata, then each layer group with its
+/// `multiscales` attributes and its consolidated metadata (all from what is on disk, so a
+/// resumed writer publishes the same bytes as an uninterrupted one).
 pub(crate) fn publish_layers(root: &Path, meta: &crate::StoreMeta) -> crate::Result<()> {
     let kernel = build_kernel(meta);
     for &kind in meta.layers.keys() {
+        for level in meta.levels(kind) {
+            consolidate_level_group(root, kind, level, meta.grid, meta.radius_m).map_err(
+                |what| crate::StoreError::Format {
+                    what,
+                    path: root.join(crate::layout::level_dir(kind, level)),
+                },
+            )?;
+        }
         let dir = root.join(kind.name());
         let path = dir.join("zarr.json");
         let attrs = layer_group_attrs(meta.grid, &meta.levels(kind), &kernel, meta.radius_m);

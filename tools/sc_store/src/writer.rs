@@ -475,10 +475,6 @@ impl StoreWriter {
                 .build(self.durable.clone(), &path)
                 .map_err(|e| zerr(e.to_string()))?;
             array.store_metadata().map_err(|e| zerr(e.to_string()))?;
-            if major >= 2 {
-                crate::geozarr::consolidate_level_group(&self.root, kind, level, grid, radius_m)
-                    .map_err(&zerr)?;
-            }
             array
         };
         let read = Array::open(self.fs.clone(), &path).map_err(|e| zerr(e.to_string()))?;

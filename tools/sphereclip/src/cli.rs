@@ -42,6 +42,16 @@ pub enum Command {
     Demo(DemoArgs),
     /// Convert a store of an older format to the current one, in place (resumable).
     Upgrade(UpgradeArgs),
+    /// Print a shell completion script, e.g. `sphereclip completions bash > /etc/bash_completion.d/sphereclip`.
+    Completions(CompletionsArgs),
+}
+
+/// `sphereclip completions`.
+#[derive(Debug, clap::Args)]
+pub struct CompletionsArgs {
+    /// The shell.
+    #[arg(value_enum)]
+    pub shell: clap_complete::Shell,
 }
 
 /// `sphereclip upgrade`.

@@ -129,11 +129,23 @@ pub fn run(a: &DemoArgs) -> Result<ExitCode> {
         let region = sc_raster::plan_export(&reader, kind, l, None, true)?;
         sc_raster::export_geotiff(&reader, kind, &region, &[], out, &|_, _| {})?;
     }
-    for st in reader.level_stats()? {
-        eprintln!(
-            "demo: {} level {}: {}x{} texels, {}/{} tiles",
-            st.layer, st.level, st.width, st.height, st.tiles_present, st.tiles_total
-        );
+    let stats = reader.level_stats()?;
+    for kind in LayerKind::ALL {
+        let of: Vec<_> = stats.iter().filter(|s| s.layer == kind).collect();
+        let finest = of
+            .iter()
+            .filter(|s| s.level.is_iso())
+            .max_by_key(|s| s.level.level);
+        if let Some(f) = finest {
+            crate::cmd::info_line(format_args!(
+                "demo: {kind}: {} levels with data (finest {}: {}x{} texels), {} tiles",
+                of.len(),
+                f.level,
+                f.width,
+                f.height,
+                of.iter().map(|s| s.tiles_present).sum::<u64>()
+            ));
+        }
     }
     crate::outln!(
         "store:   {}  (try: sphereclip info {})",

@@ -48,26 +48,28 @@ pub fn run(a: &ExportArgs) -> Result<ExitCode> {
         std::process::exit(130);
     })
     .context("cannot install the interrupt handler")?;
+    let mut overview_note = String::new();
     let summary = match ext.as_str() {
         "tif" | "tiff" => {
             let region = sc_raster::plan_export(&reader, kind, a.level, bounds, !a.no_overviews)
                 .with_context(|| format!("cannot export {kind} level {}", a.level))?;
             let bytes = region.raw_bytes(kind);
             let [w, s, e, n] = region.bounds;
-            crate::cmd::info_line(format_args!(
-                "export: {}x{} texels of {kind} level {} within {w:.6},{s:.6},{e:.6},{n:.6}, {} overview(s) ({}), {} before compression",
+            let overviews: Vec<String> = region.overviews.iter().map(|l| l.key()).collect();
+            tracing::info!(
+                "export: {}x{} texels of {kind} level {} within {w:.6},{s:.6},{e:.6},{n:.6}, overviews [{}], {} before compression",
                 region.width,
                 region.height,
                 a.level,
-                region.overviews.len(),
-                region
-                    .overviews
-                    .iter()
-                    .map(|l| l.key())
-                    .collect::<Vec<_>>()
-                    .join(" "),
+                overviews.join(" "),
                 crate::cmd::human_bytes(bytes)
-            ));
+            );
+            overview_note = format!(
+                ", {} overview(s) from the store's levels {}, {} before compression",
+                overviews.len(),
+                overviews.join(" "),
+                crate::cmd::human_bytes(bytes)
+            );
             if bytes > EXPORT_LIMIT_BYTES && !a.force {
                 bail!(
                     "the export would write {} of samples, above the limit of {}; choose a region with --bounds, a coarser --level, or pass --force",
@@ -106,7 +108,7 @@ pub fn run(a: &ExportArgs) -> Result<ExitCode> {
     }
     .with_context(|| format!("cannot export {kind} level {}", a.level))?;
     crate::outln!(
-        "wrote {} ({}x{}, {} tiles, {} missing as nodata)",
+        "wrote {} ({}x{}, {} tiles, {} missing as nodata{overview_note})",
         a.out.display(),
         summary.width,
         summary.height,

@@ -29,6 +29,13 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::View(a) => view::run(&a),
         Command::Render(a) => render::run(&a),
         Command::Upgrade(a) => upgrade::run(&a),
+        Command::Completions(a) => {
+            let mut cmd = <Cli as clap::CommandFactory>::command();
+            let mut out = Vec::new();
+            clap_complete::generate(a.shell, &mut cmd, "sphereclip", &mut out);
+            crate::outln!("{}", String::from_utf8_lossy(&out).trim_end());
+            Ok(ExitCode::SUCCESS)
+        }
     }
 }
 
