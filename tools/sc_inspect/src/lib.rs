@@ -81,6 +81,8 @@ pub struct LevelReport {
     pub against: Option<Difference>,
     /// Picture files, relative to the report folder.
     pub pictures: Pictures,
+    /// The values at the ends of the pictures' colour ramp (heights; none for colour).
+    pub ramp: Option<(f64, f64)>,
 }
 
 /// Picture files of a level.
@@ -213,15 +215,18 @@ pub fn write_report(
                 peak,
             )
         });
-        let samples = match &l.rgba {
-            Some(rgba) => Samples::Color { data: rgba },
-            None => Samples::Height {
+        let ramp = l.rgba.is_none().then(|| {
+            l.range.unwrap_or(if stats.min.is_finite() {
+                (stats.min, stats.max)
+            } else {
+                (0.0, 1.0)
+            })
+        });
+        let samples = match (&l.rgba, ramp) {
+            (Some(rgba), _) => Samples::Color { data: rgba },
+            (None, range) => Samples::Height {
                 data: &l.values,
-                range: l.range.unwrap_or(if stats.min.is_finite() {
-                    (stats.min, stats.max)
-                } else {
-                    (0.0, 1.0)
-                }),
+                range: range.unwrap_or((0.0, 1.0)),
             },
         };
         let base = format!("level-{}", slug(&l.name));
@@ -239,6 +244,7 @@ pub fn write_report(
                 north,
                 opts.polar_radius_deg,
                 opts.polar_size,
+                true,
             );
             save_png(&img, &out.join(file))?;
         }
@@ -263,6 +269,7 @@ pub fn write_report(
             bands,
             against,
             pictures: pics,
+            ramp,
         });
     }
     let plots = write_plots(out, &reports, &test_signal)?;
@@ -280,7 +287,72 @@ pub fn write_report(
         .map_err(|e| io_err(&out.join("report.json"))(std::io::Error::other(e)))?;
     write(&out.join("report.json"), &json)?;
     write(&out.join("index.html"), html(&report).as_bytes())?;
+    write(&out.join("bands.csv"), bands_csv(&report).as_bytes())?;
     Ok(report)
+}
+
+/// The per-band metrics of every level as CSV (one row per level and band; empty cells where a
+/// band has no measurable rows).
+fn bands_csv(r: &Report) -> String {
+    let mut s = String::from(
+        "level,lat_from_deg,lat_to_deg,rows,lon_energy_above_nyquist,lon_top_octave,lat_top_octave,eff_res_lon_m,eff_res_lat_m,nominal_m,valid_fraction\n",
+    );
+    let num = |v: f64| {
+        if v.is_finite() {
+            format!("{v}")
+        } else {
+            String::new()
+        }
+    };
+    for l in &r.levels {
+        for b in &l.bands {
+            let m = |v: f64| if b.rows == 0 { String::new() } else { num(v) };
+            let _ = writeln!(
+                s,
+                "{},{},{},{},{},{},{},{},{},{},{}",
+                l.level,
+                b.lat0,
+                b.lat1.min(90.0),
+                b.rows,
+                m(b.lon_above_nyquist),
+                m(b.lon_top_octave),
+                m(b.lat_top_octave),
+                m(b.eff_res_lon_m),
+                m(b.eff_res_lat_m),
+                num(b.nominal_m),
+                num(b.valid_fraction)
+            );
+        }
+    }
+    s
+}
+
+/// What each column of a level's table means, and the value a pyramid filtered on the sphere
+/// should show.
+const METRICS_HTML: &str = "<h2>What the numbers mean</h2><dl>\
+<dt>lon energy above Nyquist</dt><dd>Share of the rows' variance along longitude at ground frequencies the sphere cannot carry at this level (wavenumber above H·cos(lat)): longitude striping and moiré near the poles. <b>Target: ≈ 0 (below 1 %)</b>; pixel-space overviews (gdaladdo) keep it high near the poles.</dd>\
+<dt>lon / lat top octave</dt><dd>Share of the variance in the top octave below that Nyquist, along longitude and along latitude. <b>Target: about equal</b> (an isotropic band limit); lon far above lat means longitude detail the level should not hold.</dd>\
+<dt>eff. res. lon / lat (m)</dt><dd>Half the ground wavelength where the spectrum falls 20 dB below the power law of its lower band. <b>Target: ≈ the level's nominal spacing</b> (π·R/H, in each level's heading) in both directions; far below nominal = aliased detail, far above = over-smoothed.</dd>\
+<dt>valid</dt><dd>Share of the band's texels holding data. Bands without measurable rows say <i>no data</i>.</dd>\
+<dt>pictures</dt><dd>Each pole in azimuthal equidistant projection out to the report's polar radius, pole in the centre, 0° longitude down (north) or up (south), graticule every 10° of latitude and 30° of longitude; then the level in plate carrée and its coverage. Magenta is no data.</dd></dl>";
+
+/// A colour bar of the height ramp from `lo` to `hi` (HTML: a CSS gradient with its ends).
+fn colour_bar(lo: f64, hi: f64) -> String {
+    let stops: Vec<String> = (0..=20)
+        .map(|k| {
+            let v = lo + (hi - lo) * f64::from(k) / 20.0;
+            let c = if lo < 0.0 && lo == -hi {
+                pictures::diverging(v, (lo, hi))
+            } else {
+                pictures::ramp(v, (lo, hi))
+            };
+            format!("rgb({},{},{}) {}%", c[0], c[1], c[2], k * 5)
+        })
+        .collect();
+    format!(
+        "<div style=\"display:flex;align-items:center;gap:6px;margin:4px 0\"><span>{lo:.0}</span><div style=\"width:300px;height:14px;border:1px solid #999;background:linear-gradient(to right,{})\"></div><span>{hi:.0}</span><span style=\"margin-left:12px\">magenta: no data</span></div>",
+        stops.join(",")
+    )
 }
 
 fn mid(b: &BandMetrics) -> f64 {
@@ -446,6 +518,8 @@ fn html(r: &Report) -> String {
             s.push_str("</table>");
         }
     }
+    s.push_str(METRICS_HTML);
+    s.push_str("<p>The per-band metrics as a table: <a href=\"bands.csv\">bands.csv</a>.</p>");
     s.push_str("<h2>Plots</h2>");
     for p in &r.plots {
         let _ = write!(s, "<img src=\"{p}\" alt=\"{p}\">");
@@ -471,24 +545,61 @@ fn html(r: &Report) -> String {
                 d.ws_rms, d.ws_psnr_db, d.max_abs
             );
         }
-        let _ = write!(
-            s,
-            "</p><img src=\"{}\" width=\"300\" title=\"north pole\"><img src=\"{}\" width=\"300\" title=\"south pole\"><img src=\"{}\" width=\"600\" title=\"map\"><img src=\"{}\" width=\"300\" title=\"coverage\">",
-            l.pictures.north, l.pictures.south, l.pictures.map, l.pictures.coverage
-        );
+        s.push_str("</p>");
+        if let Some((lo, hi)) = l.ramp.filter(|(lo, hi)| hi > lo) {
+            s.push_str(&colour_bar(lo, hi));
+        }
+        let fig = |src: &str, width: u32, caption: &str| {
+            format!(
+                "<figure style=\"display:inline-block;margin:4px\"><img src=\"{src}\" width=\"{width}\" alt=\"{caption}\"><figcaption>{caption}</figcaption></figure>"
+            )
+        };
+        s.push_str(&fig(
+            &l.pictures.north,
+            300,
+            "north pole (0° down, graticule 10°/30°)",
+        ));
+        s.push_str(&fig(
+            &l.pictures.south,
+            300,
+            "south pole (0° up, graticule 10°/30°)",
+        ));
+        s.push_str(&fig(&l.pictures.map, 600, "plate carrée, 180°W at the left"));
+        s.push_str(&fig(
+            &l.pictures.coverage,
+            300,
+            "coverage (grey: data, magenta: none)",
+        ));
         s.push_str("<table><tr><th>|lat|</th><th>rows</th><th>lon energy above Nyquist</th><th>lon top octave</th><th>lat top octave</th><th>eff. res. lon (m)</th><th>eff. res. lat (m)</th><th>valid</th></tr>");
         for b in &l.bands {
+            if b.rows == 0 {
+                let _ = write!(
+                    s,
+                    "<tr><td>{}–{}°</td><td>0</td><td colspan=\"5\" style=\"text-align:center\">no data</td><td>{}</td></tr>",
+                    b.lat0,
+                    b.lat1.min(90.0),
+                    pct(b.valid_fraction)
+                );
+                continue;
+            }
+            let m = |v: f64| {
+                if v.is_finite() {
+                    format!("{v:.0}")
+                } else {
+                    "–".into()
+                }
+            };
             let _ = write!(
                 s,
-                "<tr><td>{}–{}°</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.0}</td><td>{:.0}</td><td>{}</td></tr>",
+                "<tr><td>{}–{}°</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
                 b.lat0,
                 b.lat1.min(90.0),
                 b.rows,
                 pct(b.lon_above_nyquist),
                 pct(b.lon_top_octave),
                 pct(b.lat_top_octave),
-                b.eff_res_lon_m,
-                b.eff_res_lat_m,
+                m(b.eff_res_lon_m),
+                m(b.eff_res_lat_m),
                 pct(b.valid_fraction)
             );
         }
@@ -500,7 +611,11 @@ fn html(r: &Report) -> String {
 
 /// A report folder's files, for callers that list them.
 pub fn report_files(out: &Path, r: &Report) -> Vec<PathBuf> {
-    let mut v = vec![out.join("report.json"), out.join("index.html")];
+    let mut v = vec![
+        out.join("report.json"),
+        out.join("index.html"),
+        out.join("bands.csv"),
+    ];
     for l in &r.levels {
         for p in [
             &l.pictures.north,

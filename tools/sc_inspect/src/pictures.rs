@@ -116,9 +116,13 @@ fn texel(s: Samples, k: usize) -> Rgb<u8> {
     }
 }
 
+/// Colour of the graticule lines.
+const GRATICULE: Rgb<u8> = Rgb([40, 40, 40]);
+
 /// One pole (`north`) of a `w × h` level in azimuthal equidistant projection out to `radius_deg`
 /// from the pole, `size × size` pixels, nearest texel (what the level holds, unsmoothed).
 /// Longitude 0° points down for the north pole and up for the south pole (as seen from above).
+/// With `graticule`, a one-pixel line every 10° of latitude and every 30° of longitude.
 pub fn polar_view(
     s: Samples,
     w: usize,
@@ -126,8 +130,11 @@ pub fn polar_view(
     north: bool,
     radius_deg: f64,
     size: u32,
+    graticule: bool,
 ) -> RgbImage {
     let c = f64::from(size) / 2.0;
+    // degrees of colatitude per pixel
+    let px_deg = radius_deg / c;
     RgbImage::from_fn(size, size, |x, y| {
         let dx = (f64::from(x) + 0.5 - c) / c;
         let dy = (f64::from(y) + 0.5 - c) / c;
@@ -142,6 +149,15 @@ pub fn polar_view(
         } else {
             dx.atan2(-dy).to_degrees()
         };
+        if graticule {
+            // within half a pixel of a parallel (every 10°) or a meridian (every 30°)
+            let to_parallel = (colat / 10.0 - (colat / 10.0).round()).abs() * 10.0;
+            let to_meridian_deg = (lon / 30.0 - (lon / 30.0).round()).abs() * 30.0;
+            let to_meridian_px = to_meridian_deg.to_radians() * r * c;
+            if (colat > 0.0 && to_parallel < px_deg / 2.0) || to_meridian_px < 0.5 {
+                return GRATICULE;
+            }
+        }
         let i = (((lon + 180.0) / 360.0 * w as f64).floor() as i64).rem_euclid(w as i64) as usize;
         let j = (((90.0 - lat) / 180.0 * h as f64).floor() as usize).min(h - 1);
         texel(s, j * w + i)
@@ -194,6 +210,7 @@ mod tests {
             true,
             30.0,
             101,
+            false,
         );
         // straight down from the centre is longitude 0 → the middle of the ramp
         let below = img.get_pixel(50, 90);
@@ -201,5 +218,29 @@ mod tests {
         assert_eq!(*below, diverging(0.5, (-180.0, 180.0)));
         assert_ne!(*below, diverging(-90.0, (-180.0, 180.0)));
         assert_eq!(*img.get_pixel(0, 0), OUTSIDE);
+    }
+
+    #[test]
+    fn the_graticule_marks_every_tenth_parallel_and_thirtieth_meridian() {
+        let data = vec![100f32; 360 * 180];
+        let img = polar_view(
+            Samples::Height {
+                data: &data,
+                range: (0.0, 1000.0),
+            },
+            360,
+            180,
+            true,
+            30.0,
+            301,
+            true,
+        );
+        let plain = ramp(100.0, (0.0, 1000.0));
+        // 80°N is a third of the radius from the centre (150.5 px): 50 px straight up
+        assert_eq!(*img.get_pixel(150, 100), GRATICULE);
+        // between parallels and off the meridians: the data
+        assert_eq!(*img.get_pixel(150 + 40, 150 - 75), plain);
+        // the 90°E meridian runs to the right of the centre (north pole, 0° down)
+        assert_eq!(*img.get_pixel(150 + 75, 150), GRATICULE);
     }
 }

@@ -12,6 +12,9 @@ pub struct Series {
     pub points: Vec<(f64, f64)>,
 }
 
+/// Dash patterns of the series, one per pass through the palette.
+const DASHES: [&str; 3] = ["none", "6 3", "2 2"];
+
 const PALETTE: [&str; 8] = [
     "#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf",
 ];
@@ -45,7 +48,12 @@ pub fn svg(title: &str, x_label: &str, y_label: &str, series: &[Series]) -> Stri
     if !y1.is_finite() || y1 <= y0 {
         y1 = y0 + 1.0;
     }
-    y1 += (y1 - y0) * 0.05;
+    // axes on round numbers: ticks at multiples of 1, 2 or 5 × 10^k
+    let (xstep, ystep) = (nice_step(x1 - x0), nice_step((y1 - y0) * 1.05));
+    x0 = (x0 / xstep).floor() * xstep;
+    x1 = (x1 / xstep).ceil() * xstep;
+    y0 = (y0 / ystep).floor() * ystep;
+    y1 = ((y1 + (y1 - y0) * 0.05) / ystep).ceil() * ystep;
     let px = |x: f64| l + (x - x0) / (x1 - x0) * (w - l - r);
     let py = |y: f64| h - b - (y - y0) / (y1 - y0) * (h - t - b);
     let mut s = String::new();
@@ -67,18 +75,24 @@ pub fn svg(title: &str, x_label: &str, y_label: &str, series: &[Series]) -> Stri
         h - b,
         w - r
     );
-    for k in 0..=5 {
-        let x = x0 + (x1 - x0) * f64::from(k) / 5.0;
-        let y = y0 + (y1 - y0) * f64::from(k) / 5.0;
+    for x in ticks(x0, x1, xstep) {
         let _ = write!(
             s,
-            r##"<text x="{:.1}" y="{}" text-anchor="middle">{}</text><text x="{}" y="{:.1}" text-anchor="end">{}</text><path d="M{l} {:.1} H{}" stroke="#ddd"/>"##,
+            r##"<text x="{:.1}" y="{}" text-anchor="middle">{}</text><path d="M{:.1} {} v5" stroke="black"/>"##,
             px(x),
-            h - b + 16.0,
-            fmt_num(x),
+            h - b + 18.0,
+            fmt_num(x, xstep),
+            px(x),
+            h - b
+        );
+    }
+    for y in ticks(y0, y1, ystep) {
+        let _ = write!(
+            s,
+            r##"<text x="{}" y="{:.1}" text-anchor="end">{}</text><path d="M{l} {:.1} H{}" stroke="#ddd"/>"##,
             l - 6.0,
             py(y) + 4.0,
-            fmt_num(y),
+            fmt_num(y, ystep),
             py(y),
             w - r
         );
@@ -95,6 +109,8 @@ pub fn svg(title: &str, x_label: &str, y_label: &str, series: &[Series]) -> Stri
     );
     for (k, ser) in series.iter().enumerate() {
         let colour = PALETTE[k % PALETTE.len()];
+        // beyond the palette, lines are told apart by their dashes
+        let dash = DASHES[(k / PALETTE.len()) % DASHES.len()];
         let mut d = String::new();
         let mut pen = false;
         for &(x, y) in &ser.points {
@@ -113,7 +129,7 @@ pub fn svg(title: &str, x_label: &str, y_label: &str, series: &[Series]) -> Stri
         }
         let _ = write!(
             s,
-            r##"<path d="{}" stroke="{colour}" stroke-width="2" fill="none"/>"##,
+            r##"<path d="{}" stroke="{colour}" stroke-width="2" stroke-dasharray="{dash}" fill="none"/>"##,
             d.trim()
         );
         for &(x, y) in ser.points.iter().filter(|p| p.1.is_finite()) {
@@ -127,7 +143,7 @@ pub fn svg(title: &str, x_label: &str, y_label: &str, series: &[Series]) -> Stri
         let ly = t + 10.0 + 18.0 * k as f64;
         let _ = write!(
             s,
-            r##"<path d="M{} {ly} h20" stroke="{colour}" stroke-width="2"/><text x="{}" y="{}">{}</text>"##,
+            r##"<path d="M{} {ly} h20" stroke="{colour}" stroke-width="2" stroke-dasharray="{dash}"/><text x="{}" y="{}">{}</text>"##,
             w - r + 10.0,
             w - r + 36.0,
             ly + 4.0,
@@ -138,14 +154,71 @@ pub fn svg(title: &str, x_label: &str, y_label: &str, series: &[Series]) -> Stri
     s
 }
 
-fn fmt_num(v: f64) -> String {
-    if v == 0.0 {
-        "0".into()
-    } else if v.abs() >= 1000.0 || v.abs() < 0.01 {
-        format!("{v:.2e}")
-    } else if v.abs() >= 10.0 {
-        format!("{v:.0}")
+/// A round step for about five ticks over `span`: 1, 2 or 5 × 10^k.
+fn nice_step(span: f64) -> f64 {
+    if !(span.is_finite() && span > 0.0) {
+        return 1.0;
+    }
+    let raw = span / 5.0;
+    let mag = 10f64.powf(raw.log10().floor());
+    let f = raw / mag;
+    mag * if f <= 1.0 {
+        1.0
+    } else if f <= 2.0 {
+        2.0
+    } else if f <= 5.0 {
+        5.0
     } else {
-        format!("{v:.2}")
+        10.0
+    }
+}
+
+/// The multiples of `step` from `a` to `b`.
+fn ticks(a: f64, b: f64, step: f64) -> Vec<f64> {
+    let first = (a / step - 1e-9).ceil() as i64;
+    let last = (b / step + 1e-9).floor() as i64;
+    (first..=last).map(|k| k as f64 * step).collect()
+}
+
+/// A tick label with as many decimals as the step needs (no exponents below 10^7).
+fn fmt_num(v: f64, step: f64) -> String {
+    if v.abs() >= 1e7 {
+        return format!("{v:.1e}");
+    }
+    let decimals = if step >= 1.0 {
+        0
+    } else {
+        (-step.log10().floor()) as usize
+    };
+    format!("{v:.decimals$}")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ticks_fall_on_round_numbers_with_the_decimals_they_need() {
+        assert_eq!(nice_step(87.3), 20.0);
+        assert_eq!(nice_step(0.9), 0.2);
+        assert_eq!(nice_step(41_000.0), 10_000.0);
+        assert_eq!(ticks(0.0, 90.0, 20.0), [0.0, 20.0, 40.0, 60.0, 80.0]);
+        assert_eq!(fmt_num(0.4, 0.2), "0.4");
+        assert_eq!(fmt_num(0.25, 0.05), "0.25");
+        assert_eq!(fmt_num(30_000.0, 10_000.0), "30000");
+        let svg = svg(
+            "t",
+            "x",
+            "y",
+            &(0..10)
+                .map(|k| Series {
+                    name: format!("s{k}"),
+                    points: vec![(0.0, f64::from(k)), (90.0, 1234.5)],
+                })
+                .collect::<Vec<_>>(),
+        );
+        // no exponents on the axes; series past the palette are dashed
+        assert!(!svg.contains("e3<") && svg.contains(">1500<"), "{svg}");
+        assert!(svg.contains("stroke-dasharray=\"6 3\""));
     }
 }
