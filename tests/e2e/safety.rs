@@ -6,6 +6,7 @@
 //! Kill points are deterministic: `SPHERECLIP_FAULT_AFTER=N` ends the process right after its N-th
 //! durable step (see `sc_store::fault`), for every N of a small job.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::sync::OnceLock;
@@ -104,6 +105,13 @@ fn a_folder_that_is_not_a_store_is_refused_and_foreign_files_are_never_deleted()
 /// (`None`: no store yet), reruns it, and compares with an uninterrupted run. Returns the
 /// number of kill points.
 fn every_kill_point_resumes(base: Option<&Path>, args: &[&str], what: &str) -> u64 {
+    kill_points_resume(base, args, what, 1)
+}
+
+/// [`every_kill_point_resumes`] at every `stride`-th durable step (1, 1 + stride, …): for
+/// commands with hundreds of steps in a short cycle, a stride prime to the cycle still kills at
+/// every kind of step.
+fn kill_points_resume(base: Option<&Path>, args: &[&str], what: &str, stride: u64) -> u64 {
     let dir = tempfile::tempdir().expect("tempdir");
     let fresh = |name: &str| {
         let p = dir.path().join(name);
@@ -133,7 +141,7 @@ fn every_kill_point_resumes(base: Option<&Path>, args: &[&str], what: &str) -> u
             .any(|k| k.starts_with(".sphereclip/undo") || k.ends_with("journal-ingest.json")),
         "{what}: a finished run leaves no undo or journal"
     );
-    for n in 1.. {
+    for n in (1..).step_by(stride as usize) {
         let store = fresh(&format!("kill{n}.zarr"));
         let a = with_store(&store);
         let a: Vec<&str> = a.iter().map(String::as_str).collect();
@@ -629,4 +637,119 @@ fn build_repairs_a_damaged_derived_shard_on_request() {
         "{err}"
     );
     ok(&run(&["info", "--verify", s(&store)]));
+}
+
+/// A store written by sphereclip before format 2 (tests/data/format1.zarr, see its README).
+fn format1_store(dir: &Path) -> PathBuf {
+    let p = dir.join("old.zarr");
+    copy_dir(&crate::util::repo("tests/data/format1.zarr"), &p);
+    p
+}
+
+/// Every tile of every level a store lists, by layer, level key and tile.
+fn all_tiles(store: &Path) -> BTreeMap<(String, String, u64, u64), Vec<u8>> {
+    let r = sc_store::StoreReader::open(store).expect("open");
+    let g = r.meta().grid;
+    let t = g.tile_size() as usize;
+    let mut out = BTreeMap::new();
+    for kind in sc_store::LayerKind::ALL {
+        for level in r.meta().levels(kind) {
+            for y in 0..g.tiles_y(level) {
+                for x in 0..g.tiles_x(level) {
+                    let tile = sc_core::TileId { level, x, y };
+                    let bytes = match kind {
+                        sc_store::LayerKind::Height => {
+                            let mut b = vec![0f32; t * t];
+                            (r.read_tile(tile, &mut b).expect("read")
+                                == sc_store::TileRead::Present)
+                                .then(|| b.iter().flat_map(|v| v.to_le_bytes()).collect())
+                        }
+                        sc_store::LayerKind::Color => {
+                            let mut b = vec![0u8; t * t * 4];
+                            (r.read_tile(tile, &mut b).expect("read")
+                                == sc_store::TileRead::Present)
+                                .then_some(b)
+                        }
+                    };
+                    if let Some(b) = bytes {
+                        out.insert((kind.name().to_string(), level.key(), x, y), b);
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn a_format_1_store_is_read_as_before_and_upgraded_in_place_resumably() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let old = format1_store(dir.path());
+    // read as before: info and export
+    let o = run(&["info", s(&old)]);
+    ok(&o);
+    assert!(
+        text(&o.stdout).contains("format 1.0"),
+        "{}",
+        text(&o.stdout)
+    );
+    ok(&run(&[
+        "export",
+        s(&old),
+        "--level",
+        "2",
+        s(&dir.path().join("l2.tif")),
+    ]));
+    let tiles = all_tiles(&old);
+    assert!(!tiles.is_empty());
+    // not written before it is upgraded: one line naming the command, nothing changed
+    let before = snapshot_with(&old, true);
+    let line = one_line_failure(
+        &run(&["ingest", s(&old), s(&sample("etopo20.cdf")), "--level", "2"]),
+        "ingest into a format-1 store",
+    );
+    assert!(line.contains("sphereclip upgrade"), "{line}");
+    same_files(&before, &snapshot_with(&old, true), "a refused ingest");
+    // upgraded: the same tiles, levels without any gone
+    let o = run(&["upgrade", s(&old)]);
+    ok(&o);
+    let said = text(&o.stdout);
+    assert!(said.contains("from format 1.0 to 2.0"), "{said}");
+    let after = all_tiles(&old);
+    assert_eq!(tiles, after, "the tiles are those the format-1 store held");
+    let meta: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(old.join("zarr.json")).expect("read")).expect("json");
+    assert_eq!(meta["attributes"]["sphereclip"]["format_version"], "2.0");
+    assert_eq!(meta["attributes"]["sphereclip"]["complete"], true);
+    assert!(meta["consolidated_metadata"]["metadata"]["height/L02/lat"].is_object());
+    let levels = meta["attributes"]["sphereclip"]["layers"]["height"]["levels"]
+        .as_object()
+        .expect("levels");
+    for key in levels.keys() {
+        assert!(
+            tiles.keys().any(|(l, k, _, _)| l == "height" && k == key),
+            "{key} is listed without data"
+        );
+    }
+    assert!(!old.join(".sphereclip/upgrade.json").exists());
+    ok(&run(&["info", "--verify", s(&old)]));
+    // and written again
+    ok(&run(&[
+        "ingest",
+        s(&old),
+        s(&sample("terra_elev_luxembourg.tif")),
+        "--level",
+        "8",
+    ]));
+    let o = run(&["upgrade", s(&old)]);
+    ok(&o);
+    assert!(text(&o.stdout).contains("already format 2.0"));
+    // killed after any step, a rerun finishes with the same bytes
+    let n = kill_points_resume(
+        Some(&format1_store(&dir.path().join("base"))),
+        &["upgrade", "STORE"],
+        "upgrade",
+        7,
+    );
+    assert!(n >= 300, "{n}");
 }

@@ -564,7 +564,11 @@ fn html(r: &Report) -> String {
             300,
             "south pole (0° up, graticule 10°/30°)",
         ));
-        s.push_str(&fig(&l.pictures.map, 600, "plate carrée, 180°W at the left"));
+        s.push_str(&fig(
+            &l.pictures.map,
+            600,
+            "plate carrée, 180°W at the left",
+        ));
         s.push_str(&fig(
             &l.pictures.coverage,
             300,

@@ -1008,9 +1008,25 @@ pub fn upgrade(root: &Path, on_level: &dyn Fn(usize, usize)) -> Result<UpgradeRe
         });
     }
     let _lock = lock_store(root)?;
+    // we hold the lock: temp files are from a killed run
+    remove_stale_temp_files(root);
     let (_, m) = read_meta(root)?;
     meta = m;
-    let was_complete = meta.complete;
+    // whether the store was complete before the upgrade began (a resumed upgrade finds it
+    // marked incomplete by the first run, which noted the original state)
+    let marker = root.join(".sphereclip").join("upgrade.json");
+    let was_complete = match fs::read(&marker) {
+        Ok(b) => serde_json::from_slice::<serde_json::Value>(&b)
+            .ok()
+            .and_then(|v| v.get("complete").and_then(|c| c.as_bool()))
+            .unwrap_or(false),
+        Err(_) => {
+            let note = serde_json::json!({"from": meta.format_version, "complete": meta.complete});
+            crate::fault::write_atomic(&marker, note.to_string().as_bytes())
+                .map_err(io_err(&marker))?;
+            meta.complete
+        }
+    };
     // from here on the store reads as incomplete until the new version is written
     let mut upgrading = meta.clone();
     upgrading.complete = false;
@@ -1084,9 +1100,27 @@ pub fn upgrade(root: &Path, on_level: &dyn Fn(usize, usize)) -> Result<UpgradeRe
     }
     upgrading.layers.retain(|_, l| !l.levels.is_empty());
     write_meta_only(root, &upgrading)?;
-    for (kind, level) in &empty {
-        let dir = root.join(crate::layout::level_dir(*kind, *level));
-        fs::remove_dir_all(&dir).map_err(io_err(&dir))?;
+    // the empty levels, and those a killed run stopped listing but had not removed yet: level
+    // folders the metadata does not list and that hold no shard
+    for kind in LayerKind::ALL {
+        let Ok(rd) = fs::read_dir(root.join(kind.name())) else {
+            continue;
+        };
+        for e in rd.flatten() {
+            let name = e.file_name().to_string_lossy().into_owned();
+            let Some(level) = LevelId::from_key(&name) else {
+                continue;
+            };
+            let listed = upgrading.levels(kind).contains(&level);
+            let dir = e.path();
+            if !listed
+                && dir.join("zarr.json").is_file()
+                && !crate::geozarr::has_files(&dir.join(kind.name()).join("c"))
+                && !crate::geozarr::has_files(&dir.join("c"))
+            {
+                fs::remove_dir_all(&dir).map_err(io_err(&dir))?;
+            }
+        }
     }
     upgrading.format_version = format!(
         "{}.{}",
@@ -1109,6 +1143,7 @@ pub fn upgrade(root: &Path, on_level: &dyn Fn(usize, usize)) -> Result<UpgradeRe
     );
     let path = root.join("zarr.json");
     crate::geozarr::write_group(&path, attrs, consolidated).map_err(io_err(&path))?;
+    crate::fault::remove_file(&marker).map_err(io_err(&marker))?;
     Ok(UpgradeReport {
         from,
         converted,
