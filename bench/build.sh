@@ -7,7 +7,7 @@ cd "$(dirname "$0")/.."
 out=${1:-bench/out}
 mkdir -p "$out"
 cargo build --release --quiet --bin sphereclip -p sphereclip
-sc=target/release/sphereclip
+sc=${SPHERECLIP:-target/release/sphereclip}
 now() { date +%s.%N; }
 secs() { echo "$2 - $1" | bc -l; }
 ratio() { echo "scale=2; $1 / $2" | bc -l; }
@@ -15,7 +15,8 @@ ratio() { echo "scale=2; $1 / $2" | bc -l; }
 base="$out/build-etopo5-l4.zarr"
 [ -d "$base" ] || $sc ingest "$base" samples/etopo5.cdf.gz --level 4 >/dev/null 2>&1
 rm -rf "$out/build.zarr" && cp -r "$base" "$out/build.zarr"
-$sc export "$base" --level 4 "$out/build-l4.tif" >/dev/null 2>&1
+# no overviews: gdaladdo makes its own
+$sc export "$base" --level 4 --no-overviews "$out/build-l4.tif" >/dev/null 2>&1
 
 echo "== build: ETOPO5 level 4 (8192x4096) down to level 0 + anisotropic levels vs gdaladdo 2 4 8 16 (DEFLATE overviews)"
 t0=$(now); $sc build "$out/build.zarr" --json > "$out/build.json" 2>/dev/null; t1=$(now)

@@ -8,7 +8,7 @@ out=${1:-bench/out}
 mkdir -p "$out"
 cargo build --release --quiet --bin sphereclip -p sphereclip
 cargo build --release --quiet --bin store_bench -p sc_bench
-sc=target/release/sphereclip
+sc=${SPHERECLIP:-target/release/sphereclip}
 now() { date +%s.%N; }
 secs() { echo "$2 - $1" | bc -l; }
 ratio() { echo "scale=2; $1 / $2" | bc -l; }
@@ -24,25 +24,27 @@ target/release/store_bench "$out" "$raw" 4320 2161 0 --level 5 --workers 2 --rea
 target/release/store_bench "$out" "$raw" 4320 2161 0 --level 3 --workers 2 --reads 2000
 echo "== store: smooth synthetic field (no repeated samples)"
 target/release/store_bench "$out" --level 5 --workers 2 --reads 2000
-# leave a level-4 store for the export comparison
-target/release/store_bench "$out" "$raw" 4320 2161 0 --level 4 --workers 2 --reads 100 >/dev/null
-store="$out/bench-pcodec.zarr"
 
-echo "== export level 4 (8192x4096 f32) to a tiled DEFLATE GeoTIFF vs gdal_translate of the same grid"
-rm -f "$out/ours.tif" "$out/gdal.tif" "$out/gdal-mt.tif" "$out/src.tif"
-t0=$(now); $sc export "$store" --level 4 "$out/ours.tif" >/dev/null 2>&1; t1=$(now)
+echo "== export level 4 (8192x4096 f32) to a Cloud Optimized GeoTIFF vs gdal_translate -of COG of the same grid"
+rm -f "$out/ours.tif" "$out/ours-ovr.tif" "$out/gdal.tif" "$out/gdal-ovr.tif" "$out/src.tif"
+# a store with its pyramid, so that the COG's overviews can come from it
+store="$out/export-etopo5.zarr"
+[ -d "$store" ] || { $sc ingest "$store" samples/etopo5.cdf.gz --level 4 -q && $sc build "$store" -q; }
+# the fastest source GDAL could read (GDAL 3.6 cannot read our Zarr v3 store): uncompressed, tiled
+$sc export "$store" --level 4 --no-overviews "$out/ours.tif" >/dev/null 2>&1
 gdal_translate -q -co COMPRESS=NONE -co TILED=YES "$out/ours.tif" "$out/src.tif"
-t2=$(now)
-gdal_translate -q -co TILED=YES -co BLOCKXSIZE=256 -co BLOCKYSIZE=256 -co COMPRESS=DEFLATE -co PREDICTOR=3 \
-  "$out/src.tif" "$out/gdal.tif"
-t3=$(now)
-gdal_translate -q -co TILED=YES -co BLOCKXSIZE=256 -co BLOCKYSIZE=256 -co COMPRESS=DEFLATE -co PREDICTOR=3 \
-  -co NUM_THREADS=ALL_CPUS "$out/src.tif" "$out/gdal-mt.tif"
-t4=$(now)
-ours=$(secs "$t0" "$t1"); theirs=$(secs "$t2" "$t3"); theirs_mt=$(secs "$t3" "$t4")
-printf 'sphereclip export: %.2f s | gdal_translate from an uncompressed GeoTIFF: %.2f s (ratio gdal/ours %sx), with NUM_THREADS=ALL_CPUS: %.2f s (ratio %sx)\n' \
-  "$ours" "$theirs" "$(ratio "$theirs" "$ours")" "$theirs_mt" "$(ratio "$theirs_mt" "$ours")"
-printf 'sizes: ours %s bytes, gdal %s bytes\n' "$(stat -c %s "$out/ours.tif")" "$(stat -c %s "$out/gdal.tif")"
+cog="-of COG -co BLOCKSIZE=256 -co COMPRESS=DEFLATE -co PREDICTOR=YES -co NUM_THREADS=ALL_CPUS"
+t0=$(now); $sc export "$store" --level 4 --no-overviews "$out/ours.tif" >/dev/null 2>&1; t1=$(now)
+# shellcheck disable=SC2086
+gdal_translate -q $cog -co OVERVIEWS=NONE "$out/src.tif" "$out/gdal.tif"; t2=$(now)
+$sc export "$store" --level 4 "$out/ours-ovr.tif" >/dev/null 2>&1; t3=$(now)
+# shellcheck disable=SC2086
+gdal_translate -q $cog -co OVERVIEWS=AUTO -co RESAMPLING=CUBIC "$out/src.tif" "$out/gdal-ovr.tif"; t4=$(now)
+a=$(secs "$t0" "$t1"); b=$(secs "$t1" "$t2"); c=$(secs "$t2" "$t3"); d=$(secs "$t3" "$t4")
+printf 'no overviews:   sphereclip export %.2f s | gdal_translate -of COG %.2f s | ratio gdal/ours %sx\n' "$a" "$b" "$(ratio "$b" "$a")"
+printf 'with overviews: sphereclip export (the store levels 3..0) %.2f s | gdal_translate -of COG (cubic overviews) %.2f s | ratio %sx\n' "$c" "$d" "$(ratio "$d" "$c")"
+printf 'sizes: ours %s / %s bytes, gdal %s / %s bytes\n' "$(stat -c %s "$out/ours.tif")" "$(stat -c %s "$out/ours-ovr.tif")" \
+  "$(stat -c %s "$out/gdal.tif")" "$(stat -c %s "$out/gdal-ovr.tif")"
 
 echo "== ingest vs gdalwarp -r cubic -wo NUM_THREADS=2 -multi, same grid, compressed output for both"
 bench_ingest() { # name, sphereclip args..., -- gdalwarp args...

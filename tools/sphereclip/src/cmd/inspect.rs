@@ -114,7 +114,8 @@ impl Source {
         }
     }
 
-    /// The default levels: isotropic levels up to 2^25 texels (store), every level (raster).
+    /// The default levels: isotropic levels with data up to 2^25 texels (store), every level
+    /// (raster).
     fn default_levels(&self) -> Vec<String> {
         match self {
             Source::Store(r, kind) => {
@@ -123,6 +124,8 @@ impl Source {
                     .levels(*kind)
                     .into_iter()
                     .filter(|l| l.is_iso() && g.width(*l) * g.height(*l) <= 1 << 25)
+                    // a format-1 store lists levels without data too
+                    .filter(|l| r.shards_on_disk(*kind, *l).is_ok_and(|s| !s.is_empty()))
                     .map(|l| l.to_string())
                     .collect()
             }
