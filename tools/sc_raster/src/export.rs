@@ -280,7 +280,8 @@ fn gdal_err(out: &Path) -> impl Fn(gdal::errors::GdalError) -> RasterError + '_ 
 }
 
 /// The tiled GeoTIFF with the base window and its overviews filled from the store, which the
-/// COG driver then lays out.
+/// COG driver then lays out. Uncompressed: a staged file costs disk space of the samples (at most
+/// the export limit without `--force`) but no compression pass (measured: 10–15 % of the export).
 fn write_staged(
     reader: &StoreReader,
     kind: LayerKind,
@@ -309,8 +310,7 @@ fn write_staged(
         "TILED=YES",
         "BLOCKXSIZE=256",
         "BLOCKYSIZE=256",
-        "COMPRESS=ZSTD",
-        "ZSTD_LEVEL=1",
+        "COMPRESS=NONE",
         "BIGTIFF=YES",
         "INTERLEAVE=BAND",
     ];
