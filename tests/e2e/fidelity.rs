@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use crate::util::{flat_blue_marble, global_raster, ok, render_png, run, s};
+use crate::util::{flat_blue_marble, flat_planet, render_png};
 
 /// Mean absolute difference (/255 per channel), the share of pixels off by more than 30/255 in
 /// any channel, and the renderer's edge sharpness relative to the twin's (mean gradient
@@ -126,21 +126,7 @@ fn checkerboard_store(dir: &Path) -> std::path::PathBuf {
         }
     });
     img.save(&png).expect("png");
-    let flat = dir.join("flat.tif");
-    global_raster(&flat, &["-bands", "1", "-ot", "Float32", "-burn", "0"]);
-    ok(&run(&["ingest", s(&store), s(&flat), "--level", "2"]));
-    ok(&run(&[
-        "ingest",
-        s(&store),
-        s(&png),
-        "--layer",
-        "color",
-        "--level",
-        "4",
-        "--bounds",
-        "-180,-90,180,90",
-    ]));
-    ok(&run(&["build", s(&store), "--layer", "color"]));
+    flat_planet(&store, &png, &["--layer", "color"]);
     store
 }
 

@@ -322,11 +322,7 @@ fn an_interrupted_export_leaves_no_temp_files() {
     assert!(k.success());
     let status = child.wait().expect("wait");
     assert_eq!(status.code(), Some(130));
-    let left: Vec<_> = std::fs::read_dir(dir.path())
-        .expect("ls")
-        .flatten()
-        .map(|e| e.file_name())
-        .collect();
+    let left = file_names(dir.path());
     assert!(left.is_empty(), "left behind: {left:?}");
 }
 

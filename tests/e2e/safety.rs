@@ -13,7 +13,8 @@ use std::sync::OnceLock;
 use std::time::Duration;
 
 use crate::util::{
-    copy_dir, ok, one_line_failure, run_within, s, same_files, sample, snapshot_with, text, xdg,
+    copy_dir, file_names, ok, one_line_failure, run_within, s, same_files, sample, snapshot_with,
+    text, xdg,
 };
 
 /// The binary, on one thread: the N-th durable step is then the same step on every run.
@@ -476,11 +477,9 @@ fn render_of_a_damaged_store_terminates_and_leaves_no_temp_file() {
     .env("XDG_RUNTIME_DIR", xdg());
     let o = run_within(c, Duration::from_secs(60));
     one_line_failure(&o, "unwritable png");
-    let left: Vec<_> = std::fs::read_dir(dir.path())
-        .expect("read_dir")
-        .flatten()
-        .map(|e| e.file_name())
-        .filter(|n| n.to_string_lossy().contains(".tmp"))
+    let left: Vec<String> = file_names(dir.path())
+        .into_iter()
+        .filter(|n| n.contains(".tmp"))
         .collect();
     assert!(left.is_empty(), "{left:?}");
 }
@@ -568,10 +567,8 @@ fn a_full_disk_fails_exports_and_renders_in_one_line_and_keeps_the_old_file() {
             b"the user's previous file",
             "{a:?} damaged the old file"
         );
-        let left: Vec<_> = std::fs::read_dir(dir.path())
-            .expect("read_dir")
-            .flatten()
-            .map(|e| e.file_name().to_string_lossy().into_owned())
+        let left: Vec<String> = file_names(dir.path())
+            .into_iter()
             .filter(|n| !n.starts_with("old."))
             .collect();
         assert!(left.is_empty(), "{a:?} left {left:?}");

@@ -322,22 +322,44 @@ pub fn render_png(
 /// draws is then the stored colour alone, to compare with the CPU reference.
 pub fn flat_blue_marble() -> PathBuf {
     fixture("flat-bluemarble-l4", |d| {
-        let store = d.join("flat.zarr");
-        let flat = d.join("flat.tif");
-        global_raster(&flat, &["-bands", "1", "-ot", "Float32", "-burn", "0"]);
-        ok(&run(&["ingest", s(&store), s(&flat), "--level", "2"]));
-        ok(&run(&[
-            "ingest",
-            s(&store),
-            s(&sample("bluemarble_5400x2700.jpg")),
-            "--layer",
-            "color",
-            "--level",
-            "4",
-            "--bounds",
-            "-180,-90,180,90",
-        ]));
-        ok(&run(&["build", s(&store)]));
+        flat_planet(
+            &d.join("flat.zarr"),
+            &sample("bluemarble_5400x2700.jpg"),
+            &[],
+        );
     })
     .join("flat.zarr")
+}
+
+/// A store of flat heights (0 m at level 2) painted with the global picture `colour` at level 4,
+/// then `build STORE BUILD_ARGS…`; scratch files go beside the store.
+pub fn flat_planet(store: &Path, colour: &Path, build_args: &[&str]) {
+    let flat = store.with_extension("heights.tif");
+    global_raster(&flat, &["-bands", "1", "-ot", "Float32", "-burn", "0"]);
+    ok(&run(&["ingest", s(store), s(&flat), "--level", "2"]));
+    ok(&run(&[
+        "ingest",
+        s(store),
+        s(colour),
+        "--layer",
+        "color",
+        "--level",
+        "4",
+        "--bounds",
+        "-180,-90,180,90",
+    ]));
+    let mut build = vec!["build", s(store)];
+    build.extend_from_slice(build_args);
+    ok(&run(&build));
+}
+
+/// The names of the entries of a folder, sorted.
+pub fn file_names(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .expect("read_dir")
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
 }

@@ -101,12 +101,9 @@ pub struct ExportRegion {
 
 impl ExportRegion {
     /// Bytes of samples the export writes, base and overviews, before compression.
-    pub fn raw_bytes(&self, kind: LayerKind) -> u64 {
-        let per = match kind {
-            LayerKind::Height => 4,
-            LayerKind::Color => 4,
-        };
-        let base = self.width * self.height * per;
+    pub fn raw_bytes(&self) -> u64 {
+        // an f32 height or four colour bytes a texel
+        let base = self.width * self.height * 4;
         // each overview a quarter of the one before
         base + (0..self.overviews.len() as u32)
             .map(|k| base >> (2 * (k + 1)))

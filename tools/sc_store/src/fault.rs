@@ -112,6 +112,19 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     result
 }
 
+/// Renames `from` to `to` (a file or a folder), durably: the folders of both names are fsynced
+/// after the rename, and the folder of `to` is created if needed.
+pub fn rename_durably(from: &Path, to: &Path) -> std::io::Result<()> {
+    let (old, new) = (folder_of(from), folder_of(to));
+    fs::create_dir_all(new)?;
+    fs::rename(from, to)?;
+    File::open(new)?.sync_all()?;
+    if old != new {
+        File::open(old)?.sync_all()?;
+    }
+    Ok(())
+}
+
 /// Removes a bookkeeping file we wrote (missing is fine), durably.
 pub fn remove_file(path: &Path) -> std::io::Result<()> {
     match fs::remove_file(path) {

@@ -306,27 +306,10 @@ impl StoreWriter {
         self.initial.complete
     }
 
-    /// Writes the root group's metadata. A complete store of the current format also gets, first,
-    /// each layer group's `multiscales` and consolidated metadata, then its own consolidated
-    /// metadata: what readers outside sphereclip use (see [`crate::geozarr`]).
+    /// Writes the root group's metadata (see [`write_root_meta`]).
     fn write_group_meta(&self) -> Result<()> {
         let meta = self.lock_meta().clone();
-        let mut attrs = serde_json::Map::new();
-        attrs.insert(
-            "sphereclip".into(),
-            serde_json::to_value(&meta).map_err(|e| StoreError::Usage(e.to_string()))?,
-        );
-        let consolidated = if meta.complete && meta.format_major() >= 2 {
-            crate::geozarr::publish_layers(&self.root, &meta)?;
-            Some(
-                crate::geozarr::consolidated(&self.root)
-                    .map_err(|what| zarr_err(&self.root)(what))?,
-            )
-        } else {
-            None
-        };
-        let path = self.root.join("zarr.json");
-        crate::geozarr::write_group(&path, attrs, consolidated).map_err(io_err(&path))
+        write_root_meta(&self.root, &meta)
     }
 
     /// Removes the levels that hold no shard (a level is made before its first shard is
@@ -701,13 +684,8 @@ impl StoreWriter {
         let arrays = self.level_arrays(kind, shard.level)?;
         let indices = kind.chunk_indices(shard.x, shard.y);
         let shard_path = self.root.join(arrays.read.chunk_key(&indices).as_str());
-        let parent = shard_path.parent().unwrap_or(&self.root).to_path_buf();
         if u.exists() {
-            fs::create_dir_all(&parent).map_err(io_err(&parent))?;
-            fs::rename(&u, &shard_path).map_err(io_err(&shard_path))?;
-            File::open(&parent)
-                .and_then(|d| d.sync_all())
-                .map_err(io_err(&parent))?;
+            crate::fault::rename_durably(&u, &shard_path).map_err(io_err(&shard_path))?;
             crate::fault::step("undo restored", &shard_path);
         } else if absent.exists() {
             match fs::remove_file(&shard_path) {
@@ -1030,12 +1008,13 @@ pub fn upgrade(root: &Path, on_level: &dyn Fn(usize, usize)) -> Result<UpgradeRe
     // from here on the store reads as incomplete until the new version is written
     let mut upgrading = meta.clone();
     upgrading.complete = false;
-    write_meta_only(root, &upgrading)?;
+    write_root_meta(root, &upgrading)?;
     let levels: Vec<(LayerKind, LevelId)> = meta
         .layers
         .iter()
         .flat_map(|(&k, l)| l.levels.values().map(move |lm| (k, lm.level)))
         .collect();
+    let durable = Arc::new(DurableFs::new(root));
     let mut converted = 0;
     let mut empty = Vec::new();
     for (i, &(kind, level)) in levels.iter().enumerate() {
@@ -1049,16 +1028,12 @@ pub fn upgrade(root: &Path, on_level: &dyn Fn(usize, usize)) -> Result<UpgradeRe
             v.get("node_type")?.as_str().map(str::to_string)
         };
         if node_type(&dir.join("zarr.json")).as_deref() == Some("array") {
-            fs::rename(&dir, &parked).map_err(io_err(&dir))?;
+            crate::fault::rename_durably(&dir, &parked).map_err(io_err(&dir))?;
             crate::fault::step("level parked", &parked);
         }
         let data = dir.join(kind.name());
         if parked.exists() {
-            fs::create_dir_all(&dir).map_err(io_err(&dir))?;
-            fs::rename(&parked, &data).map_err(io_err(&data))?;
-            File::open(&dir)
-                .and_then(|d| d.sync_all())
-                .map_err(io_err(&dir))?;
+            crate::fault::rename_durably(&parked, &data).map_err(io_err(&data))?;
             converted += 1;
         }
         if node_type(&data.join("zarr.json")).as_deref() != Some("array") {
@@ -1085,12 +1060,8 @@ pub fn upgrade(root: &Path, on_level: &dyn Fn(usize, usize)) -> Result<UpgradeRe
         }
         let bytes = serde_json::to_vec_pretty(&v).map_err(|e| StoreError::Usage(e.to_string()))?;
         crate::fault::write_atomic(&array_meta, &bytes).map_err(io_err(&array_meta))?;
-        let durable = Arc::new(DurableFs::new(root));
-        let zerr = zarr_err(&dir);
         crate::geozarr::write_level_group(&durable, root, kind, level, meta.grid, meta.radius_m)
-            .map_err(&zerr)?;
-        crate::geozarr::consolidate_level_group(root, kind, level, meta.grid, meta.radius_m)
-            .map_err(&zerr)?;
+            .map_err(zarr_err(&dir))?;
     }
     on_level(levels.len(), levels.len());
     for (kind, level) in &empty {
@@ -1099,7 +1070,7 @@ pub fn upgrade(root: &Path, on_level: &dyn Fn(usize, usize)) -> Result<UpgradeRe
         }
     }
     upgrading.layers.retain(|_, l| !l.levels.is_empty());
-    write_meta_only(root, &upgrading)?;
+    write_root_meta(root, &upgrading)?;
     // the empty levels, and those a killed run stopped listing but had not removed yet: level
     // folders the metadata does not list and that hold no shard
     for kind in LayerKind::ALL {
@@ -1128,21 +1099,7 @@ pub fn upgrade(root: &Path, on_level: &dyn Fn(usize, usize)) -> Result<UpgradeRe
         crate::meta::FORMAT_MINOR
     );
     upgrading.complete = was_complete;
-    if was_complete {
-        crate::geozarr::publish_layers(root, &upgrading)?;
-    }
-    let consolidated = if was_complete {
-        Some(crate::geozarr::consolidated(root).map_err(|what| zarr_err(root)(what))?)
-    } else {
-        None
-    };
-    let mut attrs = serde_json::Map::new();
-    attrs.insert(
-        "sphereclip".into(),
-        serde_json::to_value(&upgrading).map_err(|e| StoreError::Usage(e.to_string()))?,
-    );
-    let path = root.join("zarr.json");
-    crate::geozarr::write_group(&path, attrs, consolidated).map_err(io_err(&path))?;
+    write_root_meta(root, &upgrading)?;
     crate::fault::remove_file(&marker).map_err(io_err(&marker))?;
     Ok(UpgradeReport {
         from,
@@ -1151,13 +1108,21 @@ pub fn upgrade(root: &Path, on_level: &dyn Fn(usize, usize)) -> Result<UpgradeRe
     })
 }
 
-/// Writes the root group with `meta` and nothing else.
-fn write_meta_only(root: &Path, meta: &StoreMeta) -> Result<()> {
+/// Writes the root group's metadata. A complete store of the current format also gets, first,
+/// each layer group's `multiscales` and the consolidated metadata of its levels and layers, then
+/// its own consolidated metadata: what readers outside sphereclip use (see [`crate::geozarr`]).
+fn write_root_meta(root: &Path, meta: &StoreMeta) -> Result<()> {
     let mut attrs = serde_json::Map::new();
     attrs.insert(
         "sphereclip".into(),
         serde_json::to_value(meta).map_err(|e| StoreError::Usage(e.to_string()))?,
     );
+    let consolidated = if meta.complete && meta.format_major() >= 2 {
+        crate::geozarr::publish_layers(root, meta)?;
+        Some(crate::geozarr::consolidated(root).map_err(|what| zarr_err(root)(what))?)
+    } else {
+        None
+    };
     let path = root.join("zarr.json");
-    crate::geozarr::write_group(&path, attrs, None).map_err(io_err(&path))
+    crate::geozarr::write_group(&path, attrs, consolidated).map_err(io_err(&path))
 }

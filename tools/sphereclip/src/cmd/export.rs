@@ -53,7 +53,7 @@ pub fn run(a: &ExportArgs) -> Result<ExitCode> {
         "tif" | "tiff" => {
             let region = sc_raster::plan_export(&reader, kind, a.level, bounds, !a.no_overviews)
                 .with_context(|| format!("cannot export {kind} level {}", a.level))?;
-            let bytes = region.raw_bytes(kind);
+            let bytes = region.raw_bytes();
             let [w, s, e, n] = region.bounds;
             let overviews: Vec<String> = region.overviews.iter().map(|l| l.key()).collect();
             tracing::info!(
