@@ -371,3 +371,46 @@ fn quiet_prints_nothing_and_rust_log_debug_shows_the_shard_work() {
     ok(&o);
     assert!(!text(&o.stderr).contains("DEBUG"), "{}", text(&o.stderr));
 }
+
+#[test]
+fn bad_export_and_upgrade_arguments_are_one_line_errors_and_write_nothing() {
+    let store = sample_planet();
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("x.tif");
+    let bad = [
+        (vec!["--bounds", "1,2,3"], "W,S,E,N"),
+        (vec!["--bounds", "a,b,c,d"], "W,S,E,N"),
+        (vec!["--bounds", "10,0,5,5"], "W < E"),
+        (vec!["--bounds", "0,-95,5,5"], "-90 <= S"),
+        (vec!["--co", "COMPRESS"], "KEY=VALUE"),
+    ];
+    for (args, says) in bad {
+        let mut a = vec!["export", s(&store), "--level", "3"];
+        a.extend(args.iter().copied());
+        a.push(s(&out));
+        let line = one_line_failure(&run(&a), &format!("{args:?}"));
+        assert!(line.contains(says), "{args:?}: {line}");
+        assert!(
+            file_names(dir.path()).is_empty(),
+            "{args:?} wrote something"
+        );
+    }
+    let exr = dir.path().join("x.exr");
+    let line = one_line_failure(
+        &run(&[
+            "export",
+            s(&store),
+            "--level",
+            "3",
+            "--bounds",
+            "0,0,5,5",
+            s(&exr),
+        ]),
+        "bounds with exr",
+    );
+    assert!(line.contains("GeoTIFF"), "{line}");
+    // upgrade of something that is not a store
+    let line = one_line_failure(&run(&["upgrade", s(dir.path())]), "upgrade a folder");
+    assert!(line.contains("not a sphereclip store"), "{line}");
+    assert!(file_names(dir.path()).is_empty());
+}
