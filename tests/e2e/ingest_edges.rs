@@ -583,3 +583,52 @@ fn messages_name_the_crs_and_the_hgt_naming_rule() {
         "{line}"
     );
 }
+
+/// A gzipped input is read decompressed once in memory: it gives the level the plain file gives.
+/// A damaged one is a one-line error naming the file, and the store is left as it was.
+#[test]
+fn gzipped_inputs_read_as_the_plain_file_and_damaged_ones_fail_in_one_line() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let plain = sample("etopo20.cdf");
+    let gz = dir.path().join("etopo20.cdf.gz");
+    let o = Command::new("gzip")
+        .arg("-c")
+        .arg(&plain)
+        .output()
+        .expect("gzip");
+    assert!(o.status.success());
+    std::fs::write(&gz, &o.stdout).expect("write");
+    let level = LevelId::iso(2).expect("level");
+    let mut levels = Vec::new();
+    for (name, input) in [("plain", &plain), ("gz", &gz)] {
+        let store = dir.path().join(format!("{name}.zarr"));
+        let o = ingest(&store, &[s(input), "--level", "2", "-q"]);
+        assert!(o.status.success(), "{name}: {}", text(&o.stderr));
+        let r = StoreReader::open(&store).expect("open");
+        levels.push(crate::util::read_level(&r, level).2);
+    }
+    let valid = levels[0].iter().filter(|v| !v.is_nan()).count();
+    assert!(valid > 1000, "{valid} texels with data");
+    assert!(
+        levels[0]
+            .iter()
+            .zip(&levels[1])
+            .all(|(a, b)| a.to_bits() == b.to_bits()),
+        "the gzipped input gave other heights"
+    );
+    // cut off mid-stream: the decompressor sees the end too early
+    let damaged = dir.path().join("damaged.cdf.gz");
+    std::fs::write(&damaged, &o.stdout[..o.stdout.len() / 2]).expect("write");
+    let store = dir.path().join("plain.zarr");
+    let before = snapshot(&store);
+    let o = ingest(&store, &[s(&damaged), "--level", "2"]);
+    let err = one_line_failure(&o, "damaged gzip");
+    assert!(
+        err.contains("damaged gzip data") && err.contains("damaged.cdf.gz"),
+        "{err}"
+    );
+    assert!(
+        snapshot(&store) == before,
+        "the failed ingest changed the store"
+    );
+}

@@ -1440,6 +1440,16 @@ fn open_gdal(path: &Path) -> Result<Dataset> {
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
+    if ext.as_deref() == Some("gz")
+        && let Some(mem) = gunzipped(path)?
+    {
+        return Dataset::open(&mem).map_err(|_| {
+            usage(
+                path,
+                "not a raster GDAL can read (also not after decompressing it)",
+            )
+        });
+    }
     let vsi = match ext.as_deref() {
         Some("gz") => "/vsigzip/",
         Some("zip") => "/vsizip/",
@@ -1459,6 +1469,42 @@ fn open_gdal(path: &Path) -> Result<Dataset> {
             "not a raster GDAL can read (also not inside the archive)",
         )
     })
+}
+
+/// Largest decompressed `.gz` input held in memory; larger ones are read through `/vsigzip/`.
+const MAX_GUNZIPPED_BYTES: u64 = 1 << 30;
+
+/// `.gz` inputs decompressed into GDAL's memory files, by input path: made once per process and
+/// kept for its life, so every handle (one per worker) opens the same bytes.
+static GUNZIPPED: std::sync::Mutex<Vec<(PathBuf, PathBuf)>> = std::sync::Mutex::new(Vec::new());
+
+/// A `/vsimem/` copy of the decompressed contents of `path`, named like the file without `.gz`
+/// (drivers look at the name). Reading a gzip stream through `/vsigzip/` costs a fresh
+/// decompression at each backward seek, and drivers that read rows bottom-up (NetCDF) seek back
+/// at every row: decompressing once is ten times faster for the ETOPO5 sample. `None` when the
+/// contents exceed [`MAX_GUNZIPPED_BYTES`].
+fn gunzipped(path: &Path) -> Result<Option<PathBuf>> {
+    use std::io::Read;
+    let mut done = GUNZIPPED.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some((_, mem)) = done.iter().find(|(p, _)| p == path) {
+        return Ok(Some(mem.clone()));
+    }
+    let file = std::fs::File::open(path).map_err(|e| usage(path, format!("cannot open: {e}")))?;
+    let mut data = Vec::new();
+    let read = flate2::read::MultiGzDecoder::new(std::io::BufReader::new(file))
+        .take(MAX_GUNZIPPED_BYTES + 1)
+        .read_to_end(&mut data)
+        .map_err(|e| usage(path, format!("damaged gzip data ({e})")))?;
+    if read as u64 > MAX_GUNZIPPED_BYTES {
+        return Ok(None);
+    }
+    let name = path
+        .file_stem()
+        .map_or_else(|| "input".into(), |s| s.to_string_lossy().into_owned());
+    let mem = PathBuf::from(format!("/vsimem/sphereclip-gunzip/{}/{name}", done.len()));
+    gdal::vsi::create_mem_file(&mem, data).map_err(gdal_err(path))?;
+    done.push((path.to_path_buf(), mem.clone()));
+    Ok(Some(mem))
 }
 
 fn check_size(path: &Path, w: u64, h: u64) -> Result<()> {
