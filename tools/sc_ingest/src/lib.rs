@@ -803,7 +803,12 @@ fn write_shard(
                             let old_a = f32::from(px[3]) / 255.0;
                             let out_a = a + old_a * (1.0 - a);
                             for c in 0..3 {
-                                let old = sc_raster::srgb_to_linear(f32::from(px[c]));
+                                // (over nothing, the old colour counts for nothing)
+                                let old = if px[3] == 0 {
+                                    0.0
+                                } else {
+                                    sc_core::color::srgb_byte_to_linear(px[c])
+                                };
                                 let lin =
                                     (planes[c][k] * a + old * old_a * (1.0 - a)) / out_a.max(1e-6);
                                 px[c] = linear_to_srgb(lin);

@@ -741,9 +741,14 @@ impl RowPass {
                 }
             }
         }
-        // horizontal pass: each texel's columns
+        // horizontal pass: each texel's columns. Where no sample of the span is missing, every
+        // column carries the same weight sums, so only the values need a dot product
+        let (whole_w, whole_p) = (self.weights[0], self.positive[0]);
+        let whole = self.weights.iter().all(|&w| w == whole_w)
+            && self.positive.iter().all(|&p| p == whole_p);
         let inv_su = 1.0 / su;
         let mut acc = [0f64; 4];
+        let mut wx = [0f64; SEP_MAX];
         for (i, &x) in xs.iter().enumerate() {
             if !x.is_finite() {
                 continue;
@@ -754,29 +759,43 @@ impl RowPass {
             if n <= 0 || n > SEP_MAX as i64 {
                 continue;
             }
-            acc.iter_mut().for_each(|a| *a = 0.0);
-            let (mut wx_pos, mut wsum, mut wpos_valid, mut sampled) = (0.0, 0.0, 0.0, false);
-            for c in c0..=c1 {
-                let wgt = lut.weight((c as f64 + 0.5 - u) * inv_su);
-                wx_pos += wgt.max(0.0);
-                if c < ca || c > cb {
-                    continue;
-                }
-                sampled = true;
-                let q = (c - ca) as usize;
-                wsum += wgt * self.weights[q];
-                wpos_valid += wgt.max(0.0) * self.positive[q];
-                for (a, sp) in acc.iter_mut().zip(&self.sums) {
-                    *a += wgt * sp[q];
-                }
+            let n = n as usize;
+            let d0 = (c0 as f64 + 0.5 - u) * inv_su;
+            let mut wx_pos = 0.0;
+            for (k, w) in wx[..n].iter_mut().enumerate() {
+                *w = lut.weight(d0 + k as f64 * inv_su);
+                wx_pos += w.max(0.0);
             }
+            // the taps inside the span (all of them but near the samples' edges)
+            let (k0, k1) = (
+                (ca - c0).max(0) as usize,
+                ((cb - c0 + 1).max(0) as usize).min(n),
+            );
+            if k0 >= k1 {
+                continue;
+            }
+            let (q0, taps) = ((c0 + k0 as i64 - ca) as usize, &wx[k0..k1]);
+            let dot = |v: &[f64]| -> f64 { taps.iter().zip(&v[q0..]).map(|(w, v)| w * v).sum() };
+            let (wsum, wpos_valid) = if whole {
+                let pos: f64 = taps.iter().map(|w| w.max(0.0)).sum();
+                (whole_w * taps.iter().sum::<f64>(), whole_p * pos)
+            } else {
+                let pos: f64 = taps
+                    .iter()
+                    .zip(&self.positive[q0..])
+                    .map(|(w, p)| w.max(0.0) * p)
+                    .sum();
+                (dot(&self.weights), pos)
+            };
             let wpos_all = wx_pos * wy_pos;
-            if !sampled
-                || wpos_all <= 0.0
+            if wpos_all <= 0.0
                 || wpos_valid < MIN_COVERAGE * wpos_all
                 || wsum.abs() < 1e-6 * wpos_all
             {
                 continue;
+            }
+            for (a, sp) in acc.iter_mut().zip(&self.sums) {
+                *a = dot(sp);
             }
             for (plane, a) in out.iter_mut().zip(&acc) {
                 plane[base + i] = (a / wsum) as f32;

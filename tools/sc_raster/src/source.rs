@@ -999,18 +999,28 @@ impl RasterSource {
         let memory = self.reserve(w, h, rw, rh)?;
         let mut planes = vec![vec![f32::NAN; w * h]; nplanes];
         let raw = self.read_cached(cmin, rmin, rw, rh)?;
+        // the source column of each window column (index into a row of `raw`), once per side
+        // of the pole rather than once per row
+        let col_map = |flipped: bool| -> Vec<Option<usize>> {
+            (0..w as i64)
+                .map(|j| {
+                    map_col(c0 + j, flipped)
+                        .filter(|sc| (cmin..=cmax).contains(sc))
+                        .map(|sc| (sc - cmin) as usize)
+                })
+                .collect()
+        };
+        let mut cols: [Option<Vec<Option<usize>>>; 2] = [None, None];
         for (k, row) in rows.iter().enumerate() {
             let Some((sr, flipped)) = *row else { continue };
-            for j in 0..w {
-                let Some(sc) = map_col(c0 + j as i64, flipped) else {
-                    continue;
-                };
-                if sc < cmin || sc > cmax {
-                    continue;
-                }
-                let src = (sr - rmin) as usize * rw + (sc - cmin) as usize;
-                for (p, plane) in planes.iter_mut().enumerate() {
-                    plane[k * w + j] = raw[p][src];
+            let cols = cols[usize::from(flipped)].get_or_insert_with(|| col_map(flipped));
+            let base = (sr - rmin) as usize * rw;
+            for (p, plane) in planes.iter_mut().enumerate() {
+                let (out, src) = (&mut plane[k * w..(k + 1) * w], &raw[p][base..base + rw]);
+                for (o, c) in out.iter_mut().zip(cols.iter()) {
+                    if let Some(c) = c {
+                        *o = src[*c];
+                    }
                 }
             }
         }
