@@ -654,10 +654,11 @@ fn run_steps(
         let mut lost = std::mem::take(&mut c.lost);
         lost.sort();
         summary.tiles_lost.extend(lost);
-        summary.step_seconds.push((
-            format!("{} {}", step.layer, step.out),
-            step_start.elapsed().as_secs_f64(),
-        ));
+        let seconds = step_start.elapsed().as_secs_f64();
+        tracing::debug!(layer = %step.layer, level = %step.out, seconds, "build: level done");
+        summary
+            .step_seconds
+            .push((format!("{} {}", step.layer, step.out), seconds));
     }
     let record = BuildRecord {
         step: "build".into(),

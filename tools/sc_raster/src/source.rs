@@ -1485,8 +1485,11 @@ fn open_gdal(path: &Path) -> Result<Dataset> {
 const MAX_GUNZIPPED_BYTES: u64 = 1 << 30;
 
 /// `.gz` inputs decompressed into GDAL's memory files, by input path: made once per process and
-/// kept for its life, so every handle (one per worker) opens the same bytes.
-static GUNZIPPED: std::sync::Mutex<Vec<(PathBuf, PathBuf)>> = std::sync::Mutex::new(Vec::new());
+/// kept for its life, so every handle (one per worker) opens the same bytes. GDAL borrows the
+/// bytes (they stay ours: GDAL never frees memory our allocator gave).
+#[allow(clippy::type_complexity)] // a registry read right below
+static GUNZIPPED: std::sync::Mutex<Vec<(PathBuf, gdal::vsi::MemFileRef<'static>, PathBuf)>> =
+    std::sync::Mutex::new(Vec::new());
 
 /// A `/vsimem/` copy of the decompressed contents of `path`, named like the file without `.gz`
 /// (drivers look at the name). Reading a gzip stream through `/vsigzip/` costs a fresh
@@ -1496,7 +1499,7 @@ static GUNZIPPED: std::sync::Mutex<Vec<(PathBuf, PathBuf)>> = std::sync::Mutex::
 fn gunzipped(path: &Path) -> Result<Option<PathBuf>> {
     use std::io::Read;
     let mut done = GUNZIPPED.lock().unwrap_or_else(|e| e.into_inner());
-    if let Some((_, mem)) = done.iter().find(|(p, _)| p == path) {
+    if let Some((_, _, mem)) = done.iter().find(|(p, _, _)| p == path) {
         return Ok(Some(mem.clone()));
     }
     let file = std::fs::File::open(path).map_err(|e| usage(path, format!("cannot open: {e}")))?;
@@ -1512,8 +1515,8 @@ fn gunzipped(path: &Path) -> Result<Option<PathBuf>> {
         .file_stem()
         .map_or_else(|| "input".into(), |s| s.to_string_lossy().into_owned());
     let mem = PathBuf::from(format!("/vsimem/sphereclip-gunzip/{}/{name}", done.len()));
-    gdal::vsi::create_mem_file(&mem, data).map_err(gdal_err(path))?;
-    done.push((path.to_path_buf(), mem.clone()));
+    let file = gdal::vsi::create_mem_file_from_ref(&mem, data.leak()).map_err(gdal_err(path))?;
+    done.push((path.to_path_buf(), file, mem.clone()));
     Ok(Some(mem))
 }
 
