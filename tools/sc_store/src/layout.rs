@@ -9,6 +9,7 @@ use std::sync::Arc;
 use sc_core::{GridSpec, LevelId};
 use zarrs::array::ArrayBuilder;
 use zarrs::array::codec::{Crc32cCodec, PcodecCodec, ZstdCodec};
+use zarrs::metadata_ext::codec::pcodec::{PcodecCodecConfiguration, PcodecCodecConfigurationV1};
 
 use crate::LayerKind;
 use crate::meta::StoreMeta;
@@ -46,8 +47,15 @@ pub(crate) fn builder(
         Arc::new(Crc32cCodec::new());
     match (kind, height_codec) {
         (LayerKind::Height, HeightCodec::Pcodec) => {
-            let pco = PcodecCodec::new_with_configuration(&Default::default())
-                .map_err(|e| e.to_string())?;
+            let pco = PcodecCodec::new_with_configuration(&PcodecCodecConfiguration::V1(
+                PcodecCodecConfigurationV1 {
+                    level: PCODEC_LEVEL
+                        .try_into()
+                        .map_err(|l| format!("pcodec level {l}"))?,
+                    ..Default::default()
+                },
+            ))
+            .map_err(|e| e.to_string())?;
             builder.array_to_bytes_codec(Arc::new(pco));
             builder.bytes_to_bytes_codecs(vec![crc]);
         }
@@ -84,6 +92,11 @@ pub(crate) fn data_array_path(major: u32, kind: LayerKind, level: LevelId) -> St
         format!("/{}/{}", level_dir(kind, level), kind.name())
     }
 }
+
+/// pcodec's compression level for new height levels: 6 writes ETOPO5's level 4 15 % faster than
+/// pcodec's default 8 for 1.5 % more bytes. Readers do not need it; levels written at another
+/// level keep theirs (see [`check`]).
+const PCODEC_LEVEL: u8 = 6;
 
 /// The height codec a store's metadata names.
 pub(crate) fn height_codec_of(meta: &StoreMeta) -> HeightCodec {
@@ -122,16 +135,18 @@ pub(crate) fn check(
         if k == "attributes" {
             continue;
         }
-        match found.get(k) {
-            None => return Err(format!("array metadata has no `{k}`")),
-            Some(f) if f != w => {
+        match found.get(k).map(|f| (f, k == "codecs")) {
+            // the compression level is the writer's choice: levels written at any read alike
+            Some((f, true)) if without_compression_level(f) == without_compression_level(w) => {}
+            Some((f, _)) if f != w => {
                 return Err(format!(
                     "array metadata `{k}` is {} where the store's grid needs {}",
                     short(f),
                     short(w)
                 ));
             }
-            _ => {}
+            Some(_) => {}
+            None => return Err(format!("array metadata has no `{k}`")),
         }
     }
     if let Some(k) = found
@@ -141,6 +156,27 @@ pub(crate) fn check(
         return Err(format!("array metadata has an unexpected field `{k}`"));
     }
     Ok(())
+}
+
+/// A codec list with the `level` of each pcodec codec (at any depth: inside sharding) removed.
+fn without_compression_level(v: &serde_json::Value) -> serde_json::Value {
+    match v {
+        serde_json::Value::Array(a) => a.iter().map(without_compression_level).collect(),
+        serde_json::Value::Object(o) => {
+            let pcodec = o.get("name").and_then(|n| n.as_str()) == Some("numcodecs.pcodec");
+            o.iter()
+                .map(|(k, v)| match (pcodec, k.as_str(), v) {
+                    (true, "configuration", serde_json::Value::Object(c)) => {
+                        let mut c = c.clone();
+                        c.remove("level");
+                        (k.clone(), serde_json::Value::Object(c))
+                    }
+                    _ => (k.clone(), without_compression_level(v)),
+                })
+                .collect()
+        }
+        _ => v.clone(),
+    }
 }
 
 fn short(v: &serde_json::Value) -> String {

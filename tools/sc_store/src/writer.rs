@@ -527,7 +527,8 @@ impl StoreWriter {
         let indices = kind.chunk_indices(shard.x, shard.y);
         let shard_path = self.root.join(arrays.read.chunk_key(&indices).as_str());
         let t = self.lock_meta().shard_tiles;
-        if !load {
+        // a shard without a file holds nodata: nothing to decode
+        if !load || !shard_path.exists() {
             let n = (t * u64::from(grid.tile_size())).pow(2) as usize * kind.channels();
             return Ok(ShardWriter {
                 writer: self,

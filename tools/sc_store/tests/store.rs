@@ -365,3 +365,52 @@ fn the_same_tiles_give_the_same_bytes() {
         );
     }
 }
+
+/// pcodec's compression level is the writer's choice: a level written at another one (as an
+/// older sphereclip did, at pcodec's default 8) reads and takes new shards; another codec is
+/// damage.
+#[test]
+fn levels_written_at_another_pcodec_level_read_and_extend() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let root = dir.path().join("s.zarr");
+    let level = LevelId::iso(2).expect("valid");
+    let t = 32;
+    let first = TileId { level, x: 0, y: 0 };
+    {
+        let w = StoreWriter::create(&root, config()).expect("create");
+        let mut sw = w.shard_writer::<f32>(first.shard(2)).expect("claim");
+        sw.put_tile(first, &height_tile(first, t)).expect("put");
+        sw.finish().expect("finish");
+        w.commit(None).expect("commit");
+    }
+    let meta = root.join("height/L02/height/zarr.json");
+    let mut json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&meta).expect("read")).expect("json");
+    // sharding_indexed → its inner codecs → pcodec
+    let pco = &mut json["codecs"][0]["configuration"]["codecs"][0];
+    assert_eq!(pco["name"], "numcodecs.pcodec");
+    assert_ne!(pco["configuration"]["level"], 8);
+    pco["configuration"]["level"] = 8.into();
+    let older = serde_json::to_string_pretty(&json).expect("json");
+    std::fs::write(&meta, &older).expect("write");
+    let second = TileId { level, x: 4, y: 2 };
+    {
+        let w = StoreWriter::open(&root).expect("open");
+        let mut sw = w.shard_writer::<f32>(second.shard(2)).expect("claim");
+        sw.put_tile(second, &height_tile(second, t)).expect("put");
+        sw.finish().expect("finish");
+        w.commit(None).expect("commit");
+    }
+    let r = StoreReader::open(&root).expect("open");
+    for tile in [first, second] {
+        let mut got = vec![0f32; t * t];
+        r.read_tile(tile, &mut got).expect("read");
+        assert!(same_bits(&got, &height_tile(tile, t)), "{tile:?}");
+    }
+    // another codec is not a choice of level
+    std::fs::write(&meta, older.replace("numcodecs.pcodec", "numcodecs.zfpy")).expect("write");
+    let err = StoreWriter::open(&root)
+        .and_then(|w| w.shard_writer::<f32>(first.shard(2)).map(|_| ()))
+        .expect_err("another codec");
+    assert!(err.to_string().contains("codecs"), "{err}");
+}
