@@ -20,7 +20,9 @@ use sc_core::{GridSpec, Kernel, LevelId, ShardId, TileId};
 use sc_raster::{
     LonLatBox, RasterError, RasterSource, SampleRole, SourceInfo, SourceOptions, linear_to_srgb,
 };
-use sc_store::{BuildRecord, InputRecord, LayerKind, StoreConfig, StoreError, StoreWriter};
+use sc_store::{
+    BuildRecord, InputRecord, LayerKind, StoreConfig, StoreError, StoreWriter, TileSample,
+};
 use sha2::{Digest, Sha256};
 
 use crate::journal::Journal;
@@ -90,17 +92,20 @@ impl InputCounts {
         let (ox, oy) = tile.origin_texel(grid);
         self.footprint += u64::from(samples.footprint);
         self.covered += u64::from(samples.covered);
-        let grow = |span: Option<(u64, u64)>, v: u64| {
-            Some(span.map_or((v, v), |(a, b)| (a.min(v), b.max(v))))
+        let grow = |span: Option<(u64, u64)>, (lo, hi): (u64, u64)| {
+            Some(span.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))))
         };
-        for (k, v) in samples.planes[0].iter().enumerate() {
-            if v.is_nan() {
+        for (r, row) in samples.planes[0].chunks_exact(t as usize).enumerate() {
+            let valid = row.iter().filter(|v| !v.is_nan()).count() as u64;
+            if valid == 0 {
                 continue;
             }
-            self.valid += 1;
-            let (c, r) = (ox + k as u64 % t, oy + k as u64 / t);
-            self.cols = grow(self.cols, c);
-            self.rows = grow(self.rows, r);
+            self.valid += valid;
+            let first = row.iter().position(|v| !v.is_nan()).unwrap_or(0) as u64;
+            let last = row.iter().rposition(|v| !v.is_nan()).unwrap_or(0) as u64;
+            self.cols = grow(self.cols, (ox + first, ox + last));
+            let r = oy + r as u64;
+            self.rows = grow(self.rows, (r, r));
         }
     }
 }
@@ -761,17 +766,13 @@ fn write_shard(
                         }
                     }
                 }
-                let valid: Vec<f64> = cur
-                    .iter()
-                    .filter(|v| !v.is_nan())
-                    .map(|&v| f64::from(v))
-                    .collect();
-                if !valid.is_empty() {
+                let range = f32::value_range(&cur);
+                if range.is_some() {
                     st.tiles += 1;
                 }
                 if changed {
-                    for v in valid {
-                        st.range = Some(st.range.map_or((v, v), |(a, b)| (a.min(v), b.max(v))));
+                    if let Some((lo, hi)) = range {
+                        st.range = Some(st.range.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
                     }
                     sw.put_tile(tile, &cur)?;
                 }

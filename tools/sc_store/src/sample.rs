@@ -100,13 +100,13 @@ impl TileSample for f32 {
     const KIND: LayerKind = LayerKind::Height;
     const FILL: Self = f32::NAN;
     fn value_range(samples: &[Self]) -> Option<(f64, f64)> {
-        samples
+        // `min`/`max` pass NaN over, so nodata needs no branch
+        let (lo, hi) = samples
             .iter()
-            .filter(|v| !v.is_nan())
-            .fold(None, |acc, &v| {
-                let v = f64::from(v);
-                Some(acc.map_or((v, v), |(lo, hi): (f64, f64)| (lo.min(v), hi.max(v))))
-            })
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
+                (lo.min(v), hi.max(v))
+            });
+        (lo <= hi).then(|| (f64::from(lo), f64::from(hi)))
     }
 }
 
