@@ -416,13 +416,13 @@ impl Texel<'_> {
                 // texel costs a bounded number of taps at any latitude
                 Some((sx, sy)) => {
                     let step = win.step as f64;
-                    let mip = mips.view(win, mip_level(sx / step), mip_level(sy / step));
+                    let mip = mips.view(win, mip_level(sx / step), mip_level(sy / step), ALL);
                     separable(mip, &kernels.separable, x, y, (sx, sy), acc, rows)
                 }
                 None => {
                     let (hx, hy) = self.half;
                     let step = 8.0 * win.step as f64;
-                    let mip = mips.view(win, mip_level(hx / step), mip_level(hy / step));
+                    let mip = mips.view(win, mip_level(hx / step), mip_level(hy / step), ALL);
                     filtered(mip, f, &kernels.radial, x, y, self.half, acc)
                 }
             },
@@ -607,7 +607,30 @@ fn resample_lonlat(
         match axes.foot[j].as_ref().and_then(|f| f.axis_scales()) {
             Some((sx, sy)) => {
                 let step = win.step as f64;
-                let mip = mips.view(&win, mip_level(sx / step), mip_level(sy / step));
+                let (mx, my) = (mip_level(sx / step), mip_level(sy / step));
+                // the level's rows under the footprint
+                let ystep = step * f64::from(1u32 << my.min(MIP_SIDE as u32 - 1));
+                let (v, sv) = ((y - win.r0 as f64) / ystep, sy / ystep);
+                let s = lut.kernel().support();
+                // (a sample wider each way than the filter finds by its own rounding)
+                let rows = ceil(v - 0.5 - s * sv) - 1..floor(v - 0.5 + s * sv) + 2;
+                // and the columns under the row's footprints
+                let xstep = step * f64::from(1u32 << mx.min(MIP_SIDE as u32 - 1));
+                let reach = s * sx / xstep;
+                let (lo, hi) = axes
+                    .x
+                    .iter()
+                    .filter(|x| x.is_finite())
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+                        (a.min(x), b.max(x))
+                    });
+                let cols = if lo <= hi {
+                    let u = |x: f64| (x - win.c0 as f64) / xstep;
+                    ceil(u(lo) - 0.5 - reach) - 1..floor(u(hi) - 0.5 + reach) + 2
+                } else {
+                    0..0
+                };
+                let mip = mips.view(&win, mx, my, (rows, cols));
                 pass.filter_row(mip, lut, &axes.x, y, (sx, sy), &mut out, j * t);
             }
             None => {
@@ -704,7 +727,7 @@ impl RowPass {
             return;
         }
         let nc = (cb - ca + 1) as usize;
-        let nplanes = mip.planes.len();
+        let nplanes = mip.nplanes;
         self.sums.resize_with(nplanes, Vec::new);
         for v in self
             .sums
@@ -720,8 +743,8 @@ impl RowPass {
             if wy == 0.0 || r < 0 || r >= mh {
                 continue;
             }
-            let start = (r * mw + ca) as usize;
-            let row0 = &mip.planes[0][start..start + nc];
+            let span = ca as usize..ca as usize + nc;
+            let row0 = &mip.row(0, r as usize)[span.clone()];
             let wp = wy.max(0.0);
             let (s0, rest) = self.sums.split_first_mut().expect("one plane at least");
             for (c, &v0) in row0.iter().enumerate() {
@@ -732,8 +755,8 @@ impl RowPass {
                 self.weights[c] += wy;
                 self.positive[c] += wp;
             }
-            for (sp, plane) in rest.iter_mut().zip(&mip.planes[1..]) {
-                let rowp = &plane[start..start + nc];
+            for (p, sp) in rest.iter_mut().enumerate() {
+                let rowp = &mip.row(p + 1, r as usize)[span.clone()];
                 for c in 0..nc {
                     if !row0[c].is_nan() {
                         sp[c] += wy * f64::from(rowp[c]);
@@ -827,12 +850,17 @@ struct Mip {
     r0: f64,
     w: usize,
     h: usize,
-    /// Planes as filtering sees them (plane 0 NaN where coverage < ½).
-    planes: Vec<Vec<f32>>,
-    /// Means of the valid pixels of each block (NaN only where none is valid).
-    raw: Vec<Vec<f32>>,
-    /// Fraction of each block that is valid.
-    cov: Vec<f32>,
+    /// Rows made so far (in part).
+    rows: Vec<Option<MipRow>>,
+}
+
+/// One row of an averaged level: `[planes as filtering sees them (plane 0 NaN where coverage
+/// < ½) | means of the valid pixels of each block (NaN only where none is valid) | fraction of
+/// each block that is valid]`, `w` samples per part, made over the columns `made`.
+#[derive(Debug, Clone)]
+struct MipRow {
+    data: Vec<f32>,
+    made: std::ops::Range<usize>,
 }
 
 /// A borrowed view of a window or one of its averaged levels.
@@ -843,10 +871,34 @@ struct MipView<'a> {
     r0: f64,
     w: usize,
     h: usize,
-    planes: &'a [Vec<f32>],
+    nplanes: usize,
+    data: MipData<'a>,
 }
 
-/// The averaged levels of one window, made on demand; level (0, 0) is the window itself.
+#[derive(Debug, Clone, Copy)]
+enum MipData<'a> {
+    /// The window itself: planes row-major.
+    Window(&'a [Vec<f32>]),
+    /// An averaged level: the rows and columns asked for are made.
+    Rows(&'a [Option<MipRow>]),
+}
+
+impl<'a> MipView<'a> {
+    /// Row `r` of plane `p` (made: the caller asked for it).
+    fn row(&self, p: usize, r: usize) -> &'a [f32] {
+        let w = self.w;
+        match self.data {
+            MipData::Window(planes) => &planes[p][r * w..(r + 1) * w],
+            MipData::Rows(rows) => match &rows[r] {
+                Some(row) => &row.data[p * w..(p + 1) * w],
+                None => unreachable!("row {r} of an averaged level read before it was made"),
+            },
+        }
+    }
+}
+
+/// The averaged levels of one window, made on demand row by row (a tile's rows near a pole
+/// need coarse levels, the others fine ones); level (0, 0) is the window itself.
 #[derive(Debug, Default)]
 struct Mips {
     levels: Vec<Option<Mip>>,
@@ -854,9 +906,20 @@ struct Mips {
 
 const MIP_SIDE: usize = 24;
 
+/// Every sample of a level.
+const ALL: (std::ops::Range<i64>, std::ops::Range<i64>) = (0..i64::MAX, 0..i64::MAX);
+
 impl Mips {
-    fn view<'a>(&'a mut self, win: &'a Window, mx: u32, my: u32) -> MipView<'a> {
+    /// Level (mx, my) of `win` with columns `cols` of rows `rows` (clamped to the level) made.
+    fn view<'a>(
+        &'a mut self,
+        win: &'a Window,
+        mx: u32,
+        my: u32,
+        (rows, cols): (std::ops::Range<i64>, std::ops::Range<i64>),
+    ) -> MipView<'a> {
         let (mx, my) = (mx.min(MIP_SIDE as u32 - 1), my.min(MIP_SIDE as u32 - 1));
+        let nplanes = win.planes.len();
         if mx == 0 && my == 0 {
             return MipView {
                 step: (win.step as f64, win.step as f64),
@@ -864,10 +927,25 @@ impl Mips {
                 r0: win.r0 as f64,
                 w: win.w,
                 h: win.h,
-                planes: &win.planes,
+                nplanes,
+                data: MipData::Window(&win.planes),
             };
         }
-        self.make(win, mx, my);
+        let (w, h) = {
+            let m = self.level(win, mx, my);
+            (m.w as i64, m.h as i64)
+        };
+        let (p0, p1) = (rows.start.clamp(0, h), rows.end.clamp(0, h));
+        let (q0, q1) = (cols.start.clamp(0, w), cols.end.clamp(0, w));
+        if p0 < p1 && q0 < q1 {
+            self.make(
+                win,
+                mx,
+                my,
+                p0 as usize..p1 as usize,
+                q0 as usize..q1 as usize,
+            );
+        }
         let m = self.levels[mx as usize * MIP_SIDE + my as usize]
             .as_ref()
             .expect("made above");
@@ -877,104 +955,190 @@ impl Mips {
             r0: m.r0,
             w: m.w,
             h: m.h,
-            planes: &m.planes,
+            nplanes,
+            data: MipData::Rows(&m.rows),
         }
     }
 
-    fn make(&mut self, win: &Window, mx: u32, my: u32) {
+    /// The level's geometry, its rows not made yet.
+    fn level(&mut self, win: &Window, mx: u32, my: u32) -> &Mip {
         if self.levels.is_empty() {
             self.levels.resize_with(MIP_SIDE * MIP_SIDE, || None);
         }
         let k = mx as usize * MIP_SIDE + my as usize;
-        if self.levels[k].is_some() || (mx == 0 && my == 0) {
+        if self.levels[k].is_none() {
+            // halved along x from (mx − 1, my), else along y from (0, my − 1)
+            let (mut w, mut h, mut step) = (win.w, win.h, (win.step as f64, win.step as f64));
+            for _ in 0..my {
+                (h, step.1) = ((h / 2).max(1), step.1 * 2.0);
+            }
+            for _ in 0..mx {
+                (w, step.0) = ((w / 2).max(1), step.0 * 2.0);
+            }
+            self.levels[k] = Some(Mip {
+                step,
+                c0: win.c0 as f64,
+                r0: win.r0 as f64,
+                w,
+                h,
+                rows: vec![None; h],
+            });
+        }
+        self.levels[k].as_ref().expect("made above")
+    }
+
+    /// Makes columns `cols` of rows `rows` of level (mx, my) > (0, 0), and the samples of the
+    /// finer levels they come from.
+    fn make(
+        &mut self,
+        win: &Window,
+        mx: u32,
+        my: u32,
+        rows: std::ops::Range<usize>,
+        cols: std::ops::Range<usize>,
+    ) {
+        let k = mx as usize * MIP_SIDE + my as usize;
+        let w = self.level(win, mx, my).w;
+        let cols = cols.start.min(w)..cols.end.min(w);
+        if cols.is_empty() {
             return;
         }
+        // per row, the columns still to make: what the row lacks of `cols` (the row's made
+        // columns stay one interval: the hull)
+        let mut todo = Vec::new();
+        {
+            let m = self.levels[k].as_ref().expect("made above");
+            for p in rows {
+                let made = m.rows[p].as_ref().map_or(0..0, |r| r.made.clone());
+                let hull = if made.is_empty() {
+                    cols.clone()
+                } else {
+                    made.start.min(cols.start)..made.end.max(cols.end)
+                };
+                let parts = [
+                    hull.start..made.start.max(hull.start),
+                    made.end.max(hull.start)..hull.end,
+                ];
+                let parts: Vec<_> = if made.is_empty() {
+                    vec![hull.clone()]
+                } else {
+                    parts.into_iter().filter(|r| !r.is_empty()).collect()
+                };
+                if !parts.is_empty() {
+                    todo.push((p, hull, parts));
+                }
+            }
+        }
+        let (Some(first), Some(last)) = (todo.first(), todo.last()) else {
+            return;
+        };
+        let (first, last) = (first.0, last.0);
+        let (qa, qb) = todo
+            .iter()
+            .flat_map(|(_, _, parts)| parts)
+            .fold((usize::MAX, 0), |(a, b), r| (a.min(r.start), b.max(r.end)));
         // from the next finer level along x if mx > 0, else along y
         let (pmx, pmy, along_x) = if mx > 0 {
             (mx - 1, my, true)
         } else {
             (mx, my - 1, false)
         };
-        self.make(win, pmx, pmy);
-        // the finer level's raw means and coverage (level 0: the window, coverage 1 or 0)
-        #[allow(clippy::type_complexity)] // a tuple read once, right below
-        let (pw, ph, pstep, praw, pcov): (
-            usize,
-            usize,
-            (f64, f64),
-            &[Vec<f32>],
-            Option<&[f32]>,
-        ) = if pmx == 0 && pmy == 0 {
-            (
-                win.w,
-                win.h,
-                (win.step as f64, win.step as f64),
-                &win.planes,
-                None,
-            )
+        let parent_at_origin = pmx == 0 && pmy == 0;
+        let (pw, ph) = if parent_at_origin {
+            (win.w, win.h)
         } else {
-            let m = self.levels[pmx as usize * MIP_SIDE + pmy as usize]
-                .as_ref()
-                .expect("made above");
-            (m.w, m.h, m.step, &m.raw, Some(&m.cov))
+            let m = self.level(win, pmx, pmy);
+            (m.w, m.h)
         };
-        let (w, h) = if along_x {
-            ((pw / 2).max(1), ph)
-        } else {
-            (pw, (ph / 2).max(1))
-        };
-        let np = praw.len();
-        let mut raw = vec![vec![f32::NAN; w * h]; np];
-        let mut planes = vec![vec![f32::NAN; w * h]; np];
-        let mut cov = vec![0f32; w * h];
-        for p in 0..h {
-            for q in 0..w {
-                let (a, b) = if along_x {
-                    (p * pw + 2 * q, p * pw + (2 * q + 1).min(pw - 1))
-                } else {
-                    (2 * p * pw + q, ((2 * p + 1).min(ph - 1)) * pw + q)
-                };
-                let c_of = |i: usize| match pcov {
-                    Some(c) => c[i],
-                    None => f32::from(u8::from(!praw[0][i].is_nan())),
-                };
-                let (ca, cb) = (c_of(a), c_of(b));
-                let k = p * w + q;
-                cov[k] = 0.5 * (ca + cb);
-                if ca + cb <= 0.0 {
-                    continue;
-                }
-                for (pl, src) in praw.iter().enumerate() {
-                    let (va, vb) = (src[a], src[b]);
-                    let v = match (ca > 0.0, cb > 0.0) {
-                        (true, true) => (va * ca + vb * cb) / (ca + cb),
-                        (true, false) => va,
-                        _ => vb,
-                    };
-                    raw[pl][k] = v;
-                    if cov[k] >= 0.5 {
-                        planes[pl][k] = v;
+        if !parent_at_origin {
+            let (need_rows, need_cols) = if along_x {
+                (first..last + 1, 2 * qa..(2 * qb).min(pw))
+            } else {
+                (2 * first..(2 * last + 2).min(ph), qa..qb)
+            };
+            self.make(win, pmx, pmy, need_rows, need_cols);
+        }
+        let np = win.planes.len();
+        let mut made = Vec::with_capacity(todo.len());
+        {
+            let parent = (!parent_at_origin)
+                .then(|| self.levels[pmx as usize * MIP_SIDE + pmy as usize].as_ref())
+                .flatten();
+            // the finer level's raw means of plane `pl` in row r (level 0: the window) and
+            // their coverage (level 0: 1 or 0)
+            let raw = |pl: usize, r: usize| -> &[f32] {
+                match parent {
+                    None => &win.planes[pl][r * pw..(r + 1) * pw],
+                    Some(m) => {
+                        let row = &m.rows[r].as_ref().expect("made above").data;
+                        &row[(np + pl) * pw..(np + pl + 1) * pw]
                     }
                 }
+            };
+            let cov = |r: usize| -> Option<&[f32]> {
+                parent.map(|m| &m.rows[r].as_ref().expect("made above").data[2 * np * pw..])
+            };
+            let m = self.levels[k].as_ref().expect("made above");
+            for (p, hull, parts) in todo {
+                let mut row = match &m.rows[p] {
+                    Some(r) => r.data.clone(),
+                    None => vec![f32::NAN; (2 * np + 1) * w],
+                };
+                // the two finer rows each sample comes from (the same row along x)
+                let (ra, rb) = if along_x {
+                    (p, p)
+                } else {
+                    (2 * p, (2 * p + 1).min(ph - 1))
+                };
+                let (cov_a, cov_b) = (cov(ra), cov(rb));
+                let coverage = |c: Option<&[f32]>, plane0: &[f32], i: usize| match c {
+                    Some(c) => c[i],
+                    None => f32::from(u8::from(!plane0[i].is_nan())),
+                };
+                let raws: Vec<(&[f32], &[f32])> =
+                    (0..np).map(|pl| (raw(pl, ra), raw(pl, rb))).collect();
+                let (out, covs) = row.split_at_mut(2 * np * w);
+                for q in parts.into_iter().flatten() {
+                    let (ia, ib) = if along_x {
+                        (2 * q, (2 * q + 1).min(pw - 1))
+                    } else {
+                        (q, q)
+                    };
+                    let (ca, cb) = (
+                        coverage(cov_a, raws[0].0, ia),
+                        coverage(cov_b, raws[0].1, ib),
+                    );
+                    let c = 0.5 * (ca + cb);
+                    covs[q] = c;
+                    if ca + cb <= 0.0 {
+                        continue;
+                    }
+                    for (pl, (a, b)) in raws.iter().enumerate() {
+                        let (va, vb) = (a[ia], b[ib]);
+                        let v = match (ca > 0.0, cb > 0.0) {
+                            (true, true) => (va * ca + vb * cb) / (ca + cb),
+                            (true, false) => va,
+                            _ => vb,
+                        };
+                        out[(np + pl) * w + q] = v;
+                        if c >= 0.5 {
+                            out[pl * w + q] = v;
+                        }
+                    }
+                }
+                made.push((
+                    p,
+                    MipRow {
+                        data: row,
+                        made: hull,
+                    },
+                ));
             }
         }
-        let prev_step = pstep;
-        let step = if along_x {
-            (prev_step.0 * 2.0, prev_step.1)
-        } else {
-            (prev_step.0, prev_step.1 * 2.0)
-        };
-        let (c0, r0) = (win.c0 as f64, win.r0 as f64);
-        self.levels[k] = Some(Mip {
-            step,
-            c0,
-            r0,
-            w,
-            h,
-            planes,
-            raw,
-            cov,
-        });
+        let m = self.levels[k].as_mut().expect("made above");
+        for (p, row) in made {
+            m.rows[p] = Some(row);
+        }
     }
 }
 
@@ -1042,7 +1206,7 @@ fn separable(
     if i0 >= i1 {
         return false;
     }
-    let nplanes = mip.planes.len();
+    let nplanes = mip.nplanes;
     for (j, &wyj) in wy.iter().enumerate().take(nr) {
         if wyj == 0.0 {
             continue;
@@ -1052,9 +1216,8 @@ fn separable(
             continue;
         }
         // c0 + i ≥ 0 for i ≥ i0, so every index below is in the row
-        let base = r * mw + c0;
-        let at = |i: usize| (base + i as i64) as usize;
-        let row0 = &mip.planes[0][at(i0)..at(i1)];
+        let at = |i: usize| (c0 + i as i64) as usize;
+        let row0 = &mip.row(0, r as usize)[at(i0)..at(i1)];
         // one horizontal pass per row, then weight the row by wy
         let (mut sv, mut sw, mut sp) = (0.0f64, 0.0f64, 0.0f64);
         let mut sv_other = [0.0f64; 3];
@@ -1068,7 +1231,7 @@ fn separable(
             sw += w;
             sp += w.max(0.0);
             for (p, acc_p) in sv_other.iter_mut().enumerate().take(nplanes - 1) {
-                *acc_p += w * f64::from(mip.planes[p + 1][at(i)]);
+                *acc_p += w * f64::from(mip.row(p + 1, r as usize)[at(i)]);
             }
         }
         acc[0] += wyj * sv;
@@ -1213,8 +1376,8 @@ fn filtered(
             if !row_ok || q < 0 || q >= mip.w as i64 {
                 continue;
             }
-            let idx = p as usize * mip.w + q as usize;
-            let v0 = mip.planes[0][idx];
+            let (row, col) = (p as usize, q as usize);
+            let v0 = mip.row(0, row)[col];
             if v0.is_nan() {
                 continue;
             }
@@ -1224,7 +1387,7 @@ fn filtered(
             wsum += wgt;
             acc[0] += wgt * f64::from(v0);
             for (k, a) in acc.iter_mut().enumerate().skip(1) {
-                *a += wgt * f64::from(mip.planes[k][idx]);
+                *a += wgt * f64::from(mip.row(k, row)[col]);
             }
         }
     }
