@@ -366,9 +366,8 @@ fn the_same_tiles_give_the_same_bytes() {
     }
 }
 
-/// pcodec's compression level is the writer's choice: a level written at another one (as an
-/// older sphereclip did, at pcodec's default 8) reads and takes new shards; another codec is
-/// damage.
+/// pcodec's compression level is the writer's choice: a level written at another one reads
+/// and takes new shards; another codec is damage.
 #[test]
 fn levels_written_at_another_pcodec_level_read_and_extend() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -389,10 +388,10 @@ fn levels_written_at_another_pcodec_level_read_and_extend() {
     // sharding_indexed → its inner codecs → pcodec
     let pco = &mut json["codecs"][0]["configuration"]["codecs"][0];
     assert_eq!(pco["name"], "numcodecs.pcodec");
-    assert_ne!(pco["configuration"]["level"], 8);
-    pco["configuration"]["level"] = 8.into();
-    let older = serde_json::to_string_pretty(&json).expect("json");
-    std::fs::write(&meta, &older).expect("write");
+    assert_ne!(pco["configuration"]["level"], 3);
+    pco["configuration"]["level"] = 3.into();
+    let other = serde_json::to_string_pretty(&json).expect("json");
+    std::fs::write(&meta, &other).expect("write");
     let second = TileId { level, x: 4, y: 2 };
     {
         let w = StoreWriter::open(&root).expect("open");
@@ -408,7 +407,7 @@ fn levels_written_at_another_pcodec_level_read_and_extend() {
         assert!(same_bits(&got, &height_tile(tile, t)), "{tile:?}");
     }
     // another codec is not a choice of level
-    std::fs::write(&meta, older.replace("numcodecs.pcodec", "numcodecs.zfpy")).expect("write");
+    std::fs::write(&meta, other.replace("numcodecs.pcodec", "numcodecs.zfpy")).expect("write");
     let err = StoreWriter::open(&root)
         .and_then(|w| w.shard_writer::<f32>(first.shard(2)).map(|_| ()))
         .expect_err("another codec");
