@@ -111,14 +111,7 @@ impl Kernel {
         match self {
             Kernel::Nearest => 1.0,
             Kernel::Bilinear => 1.0 - d,
-            Kernel::Cubic => {
-                const A: f64 = -0.5;
-                if d <= 1.0 {
-                    ((A + 2.0) * d - (A + 3.0)) * d * d + 1.0
-                } else {
-                    ((A * d - 5.0 * A) * d + 8.0 * A) * d - 4.0 * A
-                }
-            }
+            Kernel::Cubic => keys_cubic(d),
             Kernel::Lanczos2 => sinc(d) * sinc(d / 2.0),
             Kernel::Lanczos3 => sinc(d) * sinc(d / 3.0),
             Kernel::Gauss => (-2.0 * d * d).exp(),
@@ -135,7 +128,8 @@ pub struct KernelLut {
     kernel: Kernel,
     support2: f64,
     scale: f64,
-    table: Vec<f64>,
+    /// A fixed size, so the lookup's indices need no bounds check.
+    table: Box<[f64; KernelLut::N + 2]>,
 }
 
 impl KernelLut {
@@ -144,9 +138,9 @@ impl KernelLut {
     /// Tabulates `kernel`.
     pub fn new(kernel: Kernel) -> Self {
         let s = kernel.support();
-        let table = (0..=Self::N + 1)
-            .map(|i| kernel.weight(i as f64 * s / Self::N as f64))
-            .collect();
+        let table = Box::new(std::array::from_fn(|i| {
+            kernel.weight(i as f64 * s / Self::N as f64)
+        }));
         Self {
             kernel,
             support2: s * s,
@@ -174,14 +168,37 @@ impl KernelLut {
         self.lookup(d2.sqrt())
     }
 
-    /// Weight at normalised distance `d` (either sign; 0 beyond the support).
+    /// Weight at normalised distance `d` (either sign; 0 beyond the support): exact for the
+    /// polynomial kernels, tabulated for the others.
     #[inline]
     pub fn weight(&self, d: f64) -> f64 {
+        if matches!(self.kernel, Kernel::Bilinear | Kernel::Cubic) {
+            return self.kernel.weight(d);
+        }
         let d = d.abs();
         if d * d >= self.support2 {
             return 0.0;
         }
         self.lookup(d)
+    }
+
+    /// `out[k]` = the weight at `d0 + k·step`, as [`Self::weight`] gives it, in one loop per
+    /// kernel (the taps of one texel along one axis).
+    #[inline]
+    pub fn weights_into(&self, d0: f64, step: f64, out: &mut [f64]) {
+        let at = |k: usize| d0 + k as f64 * step;
+        match self.kernel {
+            Kernel::Cubic => {
+                for (k, w) in out.iter_mut().enumerate() {
+                    *w = keys_cubic(at(k).abs());
+                }
+            }
+            _ => {
+                for (k, w) in out.iter_mut().enumerate() {
+                    *w = self.weight(at(k));
+                }
+            }
+        }
     }
 
     #[inline]
@@ -190,6 +207,22 @@ impl KernelLut {
         let i = (f as usize).min(Self::N);
         let t = f - i as f64;
         self.table[i] + t * (self.table[i + 1] - self.table[i])
+    }
+}
+
+/// Keys' cubic (a = −0.5) at distance `d ≥ 0`: both pieces evaluated and one picked, so a run
+/// of taps has no branch.
+#[inline]
+fn keys_cubic(d: f64) -> f64 {
+    const A: f64 = -0.5;
+    let near = ((A + 2.0) * d - (A + 3.0)) * d * d + 1.0;
+    let far = ((A * d - 5.0 * A) * d + 8.0 * A) * d - 4.0 * A;
+    if d <= 1.0 {
+        near
+    } else if d < 2.0 {
+        far
+    } else {
+        0.0
     }
 }
 

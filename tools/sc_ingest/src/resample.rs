@@ -580,6 +580,14 @@ fn resample_lonlat(
     let mut acc = vec![0f64; nplanes];
     let mut rows = RowWeights::default();
     let mut pole_values: [Option<Option<Vec<f64>>>; 2] = [None, None];
+    // the span of the tile's source columns (the same for every row)
+    let (lo, hi) = axes
+        .x
+        .iter()
+        .filter(|x| x.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+            (a.min(x), b.max(x))
+        });
     for j in 0..t {
         let y = axes.y[j];
         let row = j * t..(j + 1) * t;
@@ -617,13 +625,6 @@ fn resample_lonlat(
                 // and the columns under the row's footprints
                 let xstep = step * f64::from(1u32 << mx.min(MIP_SIDE as u32 - 1));
                 let reach = s * sx / xstep;
-                let (lo, hi) = axes
-                    .x
-                    .iter()
-                    .filter(|x| x.is_finite())
-                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
-                        (a.min(x), b.max(x))
-                    });
                 let cols = if lo <= hi {
                     let u = |x: f64| (x - win.c0 as f64) / xstep;
                     ceil(u(lo) - 0.5 - reach) - 1..floor(u(hi) - 0.5 + reach) + 2
@@ -784,11 +785,8 @@ impl RowPass {
             }
             let n = n as usize;
             let d0 = (c0 as f64 + 0.5 - u) * inv_su;
-            let mut wx_pos = 0.0;
-            for (k, w) in wx[..n].iter_mut().enumerate() {
-                *w = lut.weight(d0 + k as f64 * inv_su);
-                wx_pos += w.max(0.0);
-            }
+            lut.weights_into(d0, inv_su, &mut wx[..n]);
+            let wx_pos: f64 = wx[..n].iter().map(|w| w.max(0.0)).sum();
             // the taps inside the span (all of them but near the samples' edges)
             let (k0, k1) = (
                 (ca - c0).max(0) as usize,
@@ -800,8 +798,13 @@ impl RowPass {
             let (q0, taps) = ((c0 + k0 as i64 - ca) as usize, &wx[k0..k1]);
             let dot = |v: &[f64]| -> f64 { taps.iter().zip(&v[q0..]).map(|(w, v)| w * v).sum() };
             let (wsum, wpos_valid) = if whole {
-                let pos: f64 = taps.iter().map(|w| w.max(0.0)).sum();
-                (whole_w * taps.iter().sum::<f64>(), whole_p * pos)
+                // the taps' sums, with every tap inside the span (all but near its edges)
+                let (sum, pos) = if k1 - k0 == n {
+                    (taps.iter().sum::<f64>(), wx_pos)
+                } else {
+                    (taps.iter().sum(), taps.iter().map(|w| w.max(0.0)).sum())
+                };
+                (whole_w * sum, whole_p * pos)
             } else {
                 let pos: f64 = taps
                     .iter()
