@@ -574,6 +574,13 @@ fn resample_lonlat(
     )?;
     let nplanes = win.planes.len();
     let mut out = vec![vec![f32::NAN; t * t]; nplanes];
+    // an opaque colour source (every valid sample has alpha 1) needs no alpha filtered
+    let opaque = nplanes == 4
+        && win.planes[0]
+            .iter()
+            .zip(&win.planes[3])
+            .all(|(v, a)| v.is_nan() || *a == 1.0);
+    let filtered = if opaque { 3 } else { nplanes };
     let mut inside = vec![false; t * t];
     let mut mips = Mips::default();
     let mut pass = RowPass::default();
@@ -632,7 +639,7 @@ fn resample_lonlat(
                     0..0
                 };
                 let mip = mips.view(&win, mx, my, (rows, cols));
-                pass.filter_row(mip, lut, &axes.x, y, (sx, sy), &mut out, j * t);
+                pass.filter_row(mip, lut, &axes.x, y, (sx, sy), &mut out[..filtered], j * t);
             }
             None => {
                 for (i, &x) in axes.x.iter().enumerate() {
@@ -651,6 +658,14 @@ fn resample_lonlat(
                         }
                     }
                 }
+            }
+        }
+    }
+    if opaque {
+        let (colour, alpha) = out.split_at_mut(3);
+        for (a, v) in alpha[0].iter_mut().zip(&colour[0]) {
+            if !v.is_nan() {
+                *a = 1.0;
             }
         }
     }
@@ -728,8 +743,9 @@ impl RowPass {
             return;
         }
         let nc = (cb - ca + 1) as usize;
-        let nplanes = mip.nplanes;
+        let nplanes = out.len().min(mip.nplanes);
         self.sums.resize_with(nplanes, Vec::new);
+        self.sums.truncate(nplanes);
         for v in self
             .sums
             .iter_mut()
