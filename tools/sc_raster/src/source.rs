@@ -1481,42 +1481,50 @@ fn open_gdal(path: &Path) -> Result<Dataset> {
     })
 }
 
-/// Largest decompressed `.gz` input held in memory; larger ones are read through `/vsigzip/`.
-const MAX_GUNZIPPED_BYTES: u64 = 1 << 30;
+/// Decompressed `.gz` inputs held in memory, all together; the ones that do not fit are read
+/// through `/vsigzip/`.
+const GUNZIP_BUDGET_BYTES: u64 = 1 << 30;
 
-/// `.gz` inputs decompressed into GDAL's memory files, by input path: made once per process and
-/// kept for its life, so every handle (one per worker) opens the same bytes. GDAL borrows the
-/// bytes (they stay ours: GDAL never frees memory our allocator gave).
-#[allow(clippy::type_complexity)] // a registry read right below
-static GUNZIPPED: std::sync::Mutex<Vec<(PathBuf, gdal::vsi::MemFileRef<'static>, PathBuf)>> =
-    std::sync::Mutex::new(Vec::new());
+/// A `.gz` input as it is opened: its GDAL memory file, or `None` where it did not fit.
+type Gunzipped = Option<(gdal::vsi::MemFileRef<'static>, PathBuf)>;
+
+/// `.gz` inputs decompressed into GDAL's memory files, by input path, and the bytes they hold:
+/// made once per process and kept for its life, so every handle (one per worker) opens the same
+/// bytes. GDAL borrows the bytes (they stay ours: GDAL never frees memory our allocator gave).
+static GUNZIPPED: std::sync::Mutex<(Vec<(PathBuf, Gunzipped)>, u64)> =
+    std::sync::Mutex::new((Vec::new(), 0));
 
 /// A `/vsimem/` copy of the decompressed contents of `path`, named like the file without `.gz`
 /// (drivers look at the name). Reading a gzip stream through `/vsigzip/` costs a fresh
 /// decompression at each backward seek, and drivers that read rows bottom-up (NetCDF) seek back
 /// at every row: decompressing once is ten times faster for the ETOPO5 sample. `None` when the
-/// contents exceed [`MAX_GUNZIPPED_BYTES`].
+/// contents do not fit in what is left of [`GUNZIP_BUDGET_BYTES`].
 fn gunzipped(path: &Path) -> Result<Option<PathBuf>> {
     use std::io::Read;
-    let mut done = GUNZIPPED.lock().unwrap_or_else(|e| e.into_inner());
-    if let Some((_, _, mem)) = done.iter().find(|(p, _, _)| p == path) {
-        return Ok(Some(mem.clone()));
+    let mut registry = GUNZIPPED.lock().unwrap_or_else(|e| e.into_inner());
+    let (done, used) = &mut *registry;
+    if let Some((_, known)) = done.iter().find(|(p, _)| p == path) {
+        return Ok(known.as_ref().map(|(_, mem)| mem.clone()));
     }
+    let left = GUNZIP_BUDGET_BYTES.saturating_sub(*used);
     let file = std::fs::File::open(path).map_err(|e| usage(path, format!("cannot open: {e}")))?;
     let mut data = Vec::new();
     let read = flate2::read::MultiGzDecoder::new(std::io::BufReader::new(file))
-        .take(MAX_GUNZIPPED_BYTES + 1)
+        .take(left + 1)
         .read_to_end(&mut data)
-        .map_err(|e| usage(path, format!("damaged gzip data ({e})")))?;
-    if read as u64 > MAX_GUNZIPPED_BYTES {
+        .map_err(|e| usage(path, format!("damaged gzip data ({e})")))? as u64;
+    if read > left {
+        done.push((path.to_path_buf(), None));
         return Ok(None);
     }
     let name = path
         .file_stem()
         .map_or_else(|| "input".into(), |s| s.to_string_lossy().into_owned());
     let mem = PathBuf::from(format!("/vsimem/sphereclip-gunzip/{}/{name}", done.len()));
+    data.shrink_to_fit();
     let file = gdal::vsi::create_mem_file_from_ref(&mem, data.leak()).map_err(gdal_err(path))?;
-    done.push((path.to_path_buf(), file, mem.clone()));
+    *used += read;
+    done.push((path.to_path_buf(), Some((file, mem.clone()))));
     Ok(Some(mem))
 }
 
