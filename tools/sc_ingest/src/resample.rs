@@ -48,6 +48,48 @@ impl PixelSource for RasterSource {
     }
 }
 
+/// A texel's reach along x (source pixels): a texel of a wrapping source reaches at most half
+/// the circle, and a pole texel the whole circle of longitudes, whatever its kernel's reach.
+fn reach_x(hx: f64, period: Option<f64>, pole: bool) -> f64 {
+    match period {
+        Some(p) if pole => p / 2.0,
+        Some(p) => hx.min(p / 2.0),
+        None => hx,
+    }
+}
+
+/// Reads the source window a tile's footprints reach (`cols`, `rows`: pixel bounds, infinite
+/// where none reaches the source), clamped to one pixel beyond the edges the source does not wrap
+/// or cross; `None` where no footprint reaches the source.
+fn read_reach(
+    src: &dyn PixelSource,
+    (mut cmin, mut cmax): (f64, f64),
+    (mut rmin, mut rmax): (f64, f64),
+) -> Result<Option<Window>> {
+    if !cmin.is_finite() {
+        return Ok(None);
+    }
+    let info = src.info();
+    let (w, h) = (info.width as f64, info.height as f64);
+    if info.lon_period_px.is_none() {
+        cmin = cmin.max(-1.0);
+        cmax = cmax.min(w + 1.0);
+    }
+    if info.north_pole_y.is_none() {
+        rmin = rmin.max(-1.0);
+    }
+    if info.south_pole_y.is_none() {
+        rmax = rmax.min(h + 1.0);
+    }
+    src.read_region(
+        cmin as i64,
+        rmin as i64,
+        (cmax - cmin + 1.0) as usize,
+        (rmax - rmin + 1.0) as usize,
+    )
+    .map(Some)
+}
+
 /// Per-texel geometry: source pixel position and footprint.
 struct TexelMap {
     x: Vec<f64>,
@@ -297,18 +339,11 @@ fn resample_texels(
             half.push((0.0, 0.0));
             continue;
         }
-        let (mut hx, hy) = match &map.foot[k] {
+        let (hx, hy) = match &map.foot[k] {
             Some(f) => f.half_extent(support),
             None => (0.5, 0.5),
         };
-        if let Some(p) = period {
-            // a pole texel needs the full circle of longitudes, whatever its kernel's reach
-            hx = if pole_of(k).is_some() {
-                p / 2.0
-            } else {
-                hx.min(p / 2.0)
-            };
-        }
+        let hx = reach_x(hx, period, pole_of(k).is_some());
         half.push((hx, hy));
         // skip texels whose whole footprint misses a non-wrapping source
         let wraps_x = period.is_some();
@@ -323,26 +358,10 @@ fn resample_texels(
         rmin = rmin.min((y - hy).floor());
         rmax = rmax.max((y + hy).ceil());
     }
-    if !cmin.is_finite() {
-        // no footprint reaches the source, so no texel centre lies inside it either
+    // no footprint reaches the source: no texel centre lies inside it either
+    let Some(win) = read_reach(src, (cmin, cmax), (rmin, rmax))? else {
         return Ok(None);
-    }
-    if period.is_none() {
-        cmin = cmin.max(-1.0);
-        cmax = cmax.min(w + 1.0);
-    }
-    if info.north_pole_y.is_none() {
-        rmin = rmin.max(-1.0);
-    }
-    if info.south_pole_y.is_none() {
-        rmax = rmax.min(h + 1.0);
-    }
-    let win = src.read_region(
-        cmin as i64,
-        rmin as i64,
-        (cmax - cmin + 1.0) as usize,
-        (rmax - rmin + 1.0) as usize,
-    )?;
+    };
     let nplanes = win.planes.len();
     let mut out = vec![vec![f32::NAN; t * t]; nplanes];
     let mut acc = vec![0f64; nplanes];
@@ -525,15 +544,8 @@ fn resample_lonlat(
     );
     for j in 0..t {
         let y = axes.y[j];
-        let (mut hx, hy) = axes.foot[j].map_or((0.5, 0.5), |f| f.half_extent(support));
-        if let Some(p) = period {
-            // a pole texel needs the full circle of longitudes, whatever its kernel's reach
-            hx = if pole_of(j).is_some() {
-                p / 2.0
-            } else {
-                hx.min(p / 2.0)
-            };
-        }
+        let (hx, hy) = axes.foot[j].map_or((0.5, 0.5), |f| f.half_extent(support));
+        let hx = reach_x(hx, period, pole_of(j).is_some());
         half.push((hx, hy));
         if !y.is_finite() || (!reaches_pole && (y + hy < 0.0 || y - hy > h)) {
             continue;
@@ -553,25 +565,10 @@ fn resample_lonlat(
             rmax = rmax.max((y + hy).ceil());
         }
     }
-    if !cmin.is_finite() {
+    // no footprint reaches the source: no texel centre lies inside it either
+    let Some(win) = read_reach(src, (cmin, cmax), (rmin, rmax))? else {
         return Ok(None);
-    }
-    if period.is_none() {
-        cmin = cmin.max(-1.0);
-        cmax = cmax.min(w + 1.0);
-    }
-    if info.north_pole_y.is_none() {
-        rmin = rmin.max(-1.0);
-    }
-    if info.south_pole_y.is_none() {
-        rmax = rmax.min(h + 1.0);
-    }
-    let win = src.read_region(
-        cmin as i64,
-        rmin as i64,
-        (cmax - cmin + 1.0) as usize,
-        (rmax - rmin + 1.0) as usize,
-    )?;
+    };
     let nplanes = win.planes.len();
     let mut out = vec![vec![f32::NAN; t * t]; nplanes];
     // an opaque colour source (every valid sample has alpha 1) needs no alpha filtered
