@@ -58,36 +58,62 @@ fn reach_x(hx: f64, period: Option<f64>, pole: bool) -> f64 {
     }
 }
 
-/// Reads the source window a tile's footprints reach (`cols`, `rows`: pixel bounds, infinite
-/// where none reaches the source), clamped to one pixel beyond the edges the source does not wrap
-/// or cross; `None` where no footprint reaches the source.
-fn read_reach(
-    src: &dyn PixelSource,
-    (mut cmin, mut cmax): (f64, f64),
-    (mut rmin, mut rmax): (f64, f64),
-) -> Result<Option<Window>> {
-    if !cmin.is_finite() {
-        return Ok(None);
+/// The source pixels a tile's footprints reach: the bounds of `[x − hx, x + hx] × [y − hy,
+/// y + hy]` over its texels (infinite while none reaches the source).
+struct Reach {
+    cols: (f64, f64),
+    rows: (f64, f64),
+}
+
+impl Default for Reach {
+    fn default() -> Self {
+        Self {
+            cols: (f64::INFINITY, f64::NEG_INFINITY),
+            rows: (f64::INFINITY, f64::NEG_INFINITY),
+        }
     }
-    let info = src.info();
-    let (w, h) = (info.width as f64, info.height as f64);
-    if info.lon_period_px.is_none() {
-        cmin = cmin.max(-1.0);
-        cmax = cmax.min(w + 1.0);
+}
+
+impl Reach {
+    /// Texels at source x `x0..=x1` and source y `y` with reach `(hx, hy)`.
+    fn add(&mut self, (x0, x1): (f64, f64), (hx, hy): (f64, f64), y: f64) {
+        self.cols = (
+            self.cols.0.min((x0 - hx).floor()),
+            self.cols.1.max((x1 + hx).ceil()),
+        );
+        self.rows = (
+            self.rows.0.min((y - hy).floor()),
+            self.rows.1.max((y + hy).ceil()),
+        );
     }
-    if info.north_pole_y.is_none() {
-        rmin = rmin.max(-1.0);
+
+    /// Reads the window, clamped to one pixel beyond the edges the source does not wrap or
+    /// cross; `None` where no footprint reaches the source.
+    fn read(self, src: &dyn PixelSource) -> Result<Option<Window>> {
+        let ((mut cmin, mut cmax), (mut rmin, mut rmax)) = (self.cols, self.rows);
+        if !cmin.is_finite() {
+            return Ok(None);
+        }
+        let info = src.info();
+        let (w, h) = (info.width as f64, info.height as f64);
+        if info.lon_period_px.is_none() {
+            cmin = cmin.max(-1.0);
+            cmax = cmax.min(w + 1.0);
+        }
+        if info.north_pole_y.is_none() {
+            rmin = rmin.max(-1.0);
+        }
+        if info.south_pole_y.is_none() {
+            rmax = rmax.min(h + 1.0);
+        }
+        src.read_region(
+            cmin as i64,
+            rmin as i64,
+            (cmax - cmin + 1.0) as usize,
+            (rmax - rmin + 1.0) as usize,
+        )
+        .map(Some)
     }
-    if info.south_pole_y.is_none() {
-        rmax = rmax.min(h + 1.0);
-    }
-    src.read_region(
-        cmin as i64,
-        rmin as i64,
-        (cmax - cmin + 1.0) as usize,
-        (rmax - rmin + 1.0) as usize,
-    )
-    .map(Some)
 }
 
 /// Per-texel geometry: source pixel position and footprint.
@@ -318,12 +344,7 @@ fn resample_texels(
     let period = info.lon_period_px;
     let (w, h) = (info.width as f64, info.height as f64);
     // the source rectangle the whole tile needs
-    let (mut cmin, mut cmax, mut rmin, mut rmax) = (
-        f64::INFINITY,
-        f64::NEG_INFINITY,
-        f64::INFINITY,
-        f64::NEG_INFINITY,
-    );
+    let mut reach = Reach::default();
     // pole rows take one value for the whole row: the circle around the pole, averaged row by row
     let (_, oy) = tile.origin_texel(grid);
     let last_row = grid.height(tile.level) - 1;
@@ -353,13 +374,10 @@ fn resample_texels(
         {
             continue;
         }
-        cmin = cmin.min((x - hx).floor());
-        cmax = cmax.max((x + hx).ceil());
-        rmin = rmin.min((y - hy).floor());
-        rmax = rmax.max((y + hy).ceil());
+        reach.add((x, x), (hx, hy), y);
     }
     // no footprint reaches the source: no texel centre lies inside it either
-    let Some(win) = read_reach(src, (cmin, cmax), (rmin, rmax))? else {
+    let Some(win) = reach.read(src)? else {
         return Ok(None);
     };
     let nplanes = win.planes.len();
@@ -536,12 +554,7 @@ fn resample_lonlat(
     let reaches_pole = info.north_pole_y.is_some() || info.south_pole_y.is_some();
     // each row's reach, and the source rectangle the whole tile needs
     let mut half = Vec::with_capacity(t);
-    let (mut cmin, mut cmax, mut rmin, mut rmax) = (
-        f64::INFINITY,
-        f64::NEG_INFINITY,
-        f64::INFINITY,
-        f64::NEG_INFINITY,
-    );
+    let mut reach = Reach::default();
     for j in 0..t {
         let y = axes.y[j];
         let (hx, hy) = axes.foot[j].map_or((0.5, 0.5), |f| f.half_extent(support));
@@ -559,14 +572,11 @@ fn resample_lonlat(
             }
         }
         if lo.is_finite() {
-            cmin = cmin.min((lo - hx).floor());
-            cmax = cmax.max((hi + hx).ceil());
-            rmin = rmin.min((y - hy).floor());
-            rmax = rmax.max((y + hy).ceil());
+            reach.add((lo, hi), (hx, hy), y);
         }
     }
     // no footprint reaches the source: no texel centre lies inside it either
-    let Some(win) = read_reach(src, (cmin, cmax), (rmin, rmax))? else {
+    let Some(win) = reach.read(src)? else {
         return Ok(None);
     };
     let nplanes = win.planes.len();
