@@ -1477,6 +1477,16 @@ mod tests {
         }
     }
 
+    impl Synthetic {
+        fn opaque(mut self) -> Self {
+            let valid: Vec<bool> = self.planes[0].iter().map(|v| !v.is_nan()).collect();
+            for (a, ok) in self.planes[3].iter_mut().zip(valid) {
+                *a = if ok { 1.0 } else { f32::NAN };
+            }
+            self
+        }
+    }
+
     impl PixelSource for Synthetic {
         fn info(&self) -> &SourceInfo {
             &self.info
@@ -1533,6 +1543,8 @@ mod tests {
             // global, coarser than level 3 (magnified) and finer than level 1 (minified)
             Synthetic::new(720, 360, -180.0, 90.0, 0.5, 1),
             Synthetic::new(360, 180, -180.0, 90.0, 1.0, 4),
+            // an opaque colour source (alpha 1 wherever it has data): alpha is not filtered
+            Synthetic::new(360, 180, -180.0, 90.0, 1.0, 4).opaque(),
             // regional, with edges inside tiles
             Synthetic::new(300, 200, 10.3, 60.7, 0.07, 1),
         ];
