@@ -3,7 +3,8 @@
 # BENCHMARKS.md ("Speed against GDAL"). Each pair runs one after the other on the same machine,
 # same output grid, compressed output for both, two threads for both.
 # Usage: bash bench/speed.sh [OUT_DIR] [REPEATS]   (default bench/out, 3; needs gdal-bin, bc;
-# SPHERECLIP=path picks the binary, default a --release build)
+# SPHERECLIP=path picks the binary, default a --release build; THREADS=n the threads of both
+# tools, default 2)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out=${1:-bench/out}
@@ -13,14 +14,15 @@ if [ -z "${SPHERECLIP:-}" ]; then
   cargo build --release --quiet --bin sphereclip -p sphereclip
 fi
 sc=${SPHERECLIP:-target/release/sphereclip}
-export GDAL_NUM_THREADS=2
+threads=${THREADS:-2}
+export GDAL_NUM_THREADS=$threads
 now() { date +%s.%N; }
 median() { sort -g | awk '{a[NR]=$1} END {print (NR % 2) ? a[(NR+1)/2] : (a[NR/2] + a[NR/2+1]) / 2}'; }
 ratio() { echo "scale=2; $1 / $2" | bc -l; }
 # time_of CMD...: seconds of one run (output discarded)
 time_of() { local a b; a=$(now); "$@" >/dev/null 2>&1; b=$(now); echo "$b - $a" | bc -l; }
 
-echo "== machine: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), GDAL $(gdal-config --version), $reps repetitions, medians"
+echo "== machine: $(nproc) cores ($threads threads for both tools), $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), GDAL $(gdal-config --version), $reps repetitions, medians"
 
 # inputs GDAL needs georeferenced, and an SRTM1-size tile (3601², 1″) made from the SRTM3 sample
 gdal_translate -q -of VRT -a_srs EPSG:4326 -a_ullr -180 90 180 -90 samples/bluemarble_5400x2700.jpg "$out/bluemarble.vrt"
@@ -34,9 +36,9 @@ ingest_pair() {
   for _ in $(seq "$reps"); do
     rm -rf "$out/speed-$name.zarr" "$out/speed-$name.tif"
     # shellcheck disable=SC2086
-    ts+=("$(time_of $sc ingest "$out/speed-$name.zarr" $ours)")
+    ts+=("$(time_of $sc ingest "$out/speed-$name.zarr" $ours --threads "$threads")")
     # shellcheck disable=SC2086
-    tg+=("$(time_of gdalwarp -q -overwrite -r cubic -wo NUM_THREADS=2 -multi -t_srs EPSG:4326 \
+    tg+=("$(time_of gdalwarp -q -overwrite -r cubic -wo NUM_THREADS="$threads" -multi -t_srs EPSG:4326 \
       -co COMPRESS=DEFLATE -co PREDICTOR=2 -co TILED=YES $theirs "$out/speed-$name.tif")")
   done
   local a b
@@ -67,7 +69,7 @@ $sc export "$base" --level 4 --no-overviews "$out/speed-build-l4.tif" -q
 tb=(); tg=()
 for _ in $(seq "$reps"); do
   rm -rf "$out/speed-build.zarr" && cp -r "$base" "$out/speed-build.zarr"
-  tb+=("$(time_of $sc build "$out/speed-build.zarr")")
+  tb+=("$(time_of $sc build "$out/speed-build.zarr" --threads "$threads")")
   cp "$out/speed-build-l4.tif" "$out/speed-gdaladdo.tif"
   tg+=("$(time_of gdaladdo -q -r lanczos --config COMPRESS_OVERVIEW DEFLATE "$out/speed-gdaladdo.tif" 2 4 8 16)")
 done

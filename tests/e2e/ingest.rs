@@ -210,3 +210,38 @@ fn a_huge_sparse_geotiff_ingests_within_the_memory_bound_with_every_texel() {
     assert!(inside > 800_000, "{inside}");
     assert_eq!(valid, inside, "texels without their value");
 }
+
+/// `--threads` sets how many workers resample: one and three write the same bytes (heights, and
+/// colour across both poles).
+#[test]
+fn the_thread_count_does_not_change_the_bytes() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut stores = Vec::new();
+    for threads in ["1", "3"] {
+        let store = dir.path().join(format!("t{threads}.zarr"));
+        for args in [
+            vec![s(&sample("etopo20.cdf")), "--level", "3"],
+            vec![
+                s(&sample("bluemarble_5400x2700.jpg")),
+                "--layer",
+                "color",
+                "--level",
+                "3",
+                "--bounds",
+                "-180,-90,180,90",
+            ],
+        ] {
+            let o = ingest(
+                &store,
+                &[args.as_slice(), &["--threads", threads, "-q"]].concat(),
+            );
+            assert!(o.status.success(), "{threads}: {}", text(&o.stderr));
+        }
+        stores.push(store);
+    }
+    crate::util::same_files(
+        &snapshot(&stores[0]),
+        &snapshot(&stores[1]),
+        "ingest with 1 and 3 threads",
+    );
+}

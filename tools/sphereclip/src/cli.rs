@@ -102,6 +102,9 @@ pub struct IngestArgs {
     /// store already holds (0: hard edges).
     #[arg(long, default_value_t = 0)]
     pub feather: u32,
+    /// Worker threads (default: one per core); the bytes written do not depend on it.
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
     /// A file listing more inputs, one per line: `PATH` or `PATH PRIORITY`.
     #[arg(long)]
     pub list: Option<PathBuf>,

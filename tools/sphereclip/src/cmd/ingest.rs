@@ -135,7 +135,13 @@ pub fn run(a: &IngestArgs) -> Result<ExitCode> {
         ));
     }
     let progress = Progress::new("ingest", plan.shards.len() as u64);
-    let summary = sc_ingest::run(&a.store, &plan, &|d, _| progress.set(d))
+    // the workers are as many as the threads of the rayon pool the run sees
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(a.threads)
+        .build()
+        .context("cannot start the worker threads")?;
+    let summary = pool
+        .install(|| sc_ingest::run(&a.store, &plan, &|d, _| progress.set(d)))
         .with_context(|| format!("ingest into {} stopped", a.store.display()))?;
     progress.finish();
     for i in summary.inputs.iter().filter(|i| i.valid_texels == 0) {
