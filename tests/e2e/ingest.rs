@@ -219,17 +219,10 @@ fn the_thread_count_does_not_change_the_bytes() {
     let mut stores = Vec::new();
     for threads in ["1", "3"] {
         let store = dir.path().join(format!("t{threads}.zarr"));
+        let (etopo, bm) = (sample("etopo20.cdf"), sample("bluemarble_5400x2700.jpg"));
         for args in [
-            vec![s(&sample("etopo20.cdf")), "--level", "3"],
-            vec![
-                s(&sample("bluemarble_5400x2700.jpg")),
-                "--layer",
-                "color",
-                "--level",
-                "3",
-                "--bounds",
-                "-180,-90,180,90",
-            ],
+            vec![s(&etopo), "--level", "3"],
+            [&[s(&bm)][..], &crate::util::BLUE_MARBLE_L3].concat(),
         ] {
             let o = ingest(
                 &store,

@@ -263,15 +263,7 @@ fn inputs_without_a_valid_pixel_warn_and_none_at_all_is_an_error_that_keeps_the_
     let bm = sample("bluemarble_5400x2700.jpg");
     let o = ingest(
         &color_base,
-        &[
-            "--layer",
-            "color",
-            "--level",
-            "3",
-            "--bounds",
-            "-180,-90,180,90",
-            s(&bm),
-        ],
+        &[&crate::util::BLUE_MARBLE_L3[..], &[s(&bm)]].concat(),
     );
     assert!(o.status.success(), "{}", text(&o.stderr));
     let ullr = ["-a_srs", "EPSG:4326", "-a_ullr", "5", "51", "7", "49"];

@@ -213,6 +213,17 @@ pub fn etopo5_level4() -> PathBuf {
     .join("s.zarr")
 }
 
+/// `ingest` options that place the Blue Marble (it has no georeference) as global colour at
+/// level 3.
+pub const BLUE_MARBLE_L3: [&str; 6] = [
+    "--layer",
+    "color",
+    "--level",
+    "3",
+    "--bounds",
+    "-180,-90,180,90",
+];
+
 /// The sample planet: ETOPO5 heights and Blue Marble colour at level 3, pyramid built.
 pub fn sample_planet() -> PathBuf {
     fixture("planet-l3", |d| {
@@ -224,17 +235,10 @@ pub fn sample_planet() -> PathBuf {
             "--level",
             "3",
         ]));
-        ok(&run(&[
-            "ingest",
-            s(&store),
-            s(&sample("bluemarble_5400x2700.jpg")),
-            "--layer",
-            "color",
-            "--level",
-            "3",
-            "--bounds",
-            "-180,-90,180,90",
-        ]));
+        let bm = sample("bluemarble_5400x2700.jpg");
+        ok(&run(
+            &[&["ingest", s(&store), s(&bm)][..], &BLUE_MARBLE_L3].concat()
+        ));
         ok(&run(&["build", s(&store)]));
     })
     .join("planet.zarr")
