@@ -169,6 +169,9 @@ fn lonlat_footprint(gt: [f64; 6], lat_deg: f64, rho: f64) -> Option<Footprint> {
 fn texel_map(src: &dyn PixelSource, grid: GridSpec, tile: TileId, kernel: Kernel) -> TexelMap {
     let t = grid.tile_size() as usize;
     let info = src.info();
+    if info.geographic {
+        return lonlat_texel_map(&lonlat_axes(src, grid, tile), kernel);
+    }
     let level = tile.level;
     let (dlon_deg, dlat_deg) = grid.texel_deg(level);
     let rho = std::f64::consts::PI / grid.height(level) as f64;
@@ -177,54 +180,19 @@ fn texel_map(src: &dyn PixelSource, grid: GridSpec, tile: TileId, kernel: Kernel
     let (lons, lats) = (padded_lons(grid, tile), padded_lats(grid, tile));
     let lon_of = |i: usize| lons[i];
     let lat_of = |j: usize| lats[j];
-    let (mut xs, mut ys);
-    if info.geographic {
-        // x depends on the column only and y on the row only: transform n points, not n²
-        let mut cx: Vec<f64> = (0..n).map(lon_of).collect();
-        let mut cy = vec![0.0; n];
-        src.lonlat_to_pixel(&mut cx, &mut cy);
-        let mut ry = vec![0.0; n];
-        let mut rx: Vec<f64> = (0..n).map(|j| lat_of(j).clamp(-90.0, 90.0)).collect();
-        std::mem::swap(&mut rx, &mut ry);
-        src.lonlat_to_pixel(&mut rx, &mut ry);
-        xs = Vec::with_capacity(n * n);
-        ys = Vec::with_capacity(n * n);
-        for &y in &ry {
-            xs.extend_from_slice(&cx);
-            ys.extend(std::iter::repeat_n(y, n));
+    let mut xs = Vec::with_capacity(n * n);
+    let mut ys = Vec::with_capacity(n * n);
+    for j in 0..n {
+        for i in 0..n {
+            xs.push(lon_of(i));
+            ys.push(lat_of(j).clamp(-90.0, 90.0));
         }
-    } else {
-        xs = Vec::with_capacity(n * n);
-        ys = Vec::with_capacity(n * n);
-        for j in 0..n {
-            for i in 0..n {
-                xs.push(lon_of(i));
-                ys.push(lat_of(j).clamp(-90.0, 90.0));
-            }
-        }
-        src.lonlat_to_pixel(&mut xs, &mut ys);
     }
+    src.lonlat_to_pixel(&mut xs, &mut ys);
     // a position this far outside any raster (a nonsense geotransform) is no position at all
     for (x, y) in xs.iter_mut().zip(ys.iter_mut()) {
         if x.abs() > MAX_PIXEL_COORD || y.abs() > MAX_PIXEL_COORD {
             (*x, *y) = (f64::NAN, f64::NAN);
-        }
-    }
-    let gt = info.geotransform;
-    // unwrap geographic x around the tile centre, so the tile's footprints form one window
-    if let (true, Some(p)) = (info.geographic, info.lon_period_px) {
-        let c = xs[(n / 2) * n + n / 2];
-        for x in xs.iter_mut() {
-            *x = c + ((*x - c + p / 2.0).rem_euclid(p) - p / 2.0);
-        }
-    } else if info.geographic {
-        // a regional geographic source: put x nearest to the raster
-        let period = 360.0 / gt[1].abs();
-        let w = info.width as f64;
-        for x in xs.iter_mut() {
-            if *x > w && *x - period > -w {
-                *x -= period;
-            }
         }
     }
     let mut map = TexelMap {
@@ -248,10 +216,6 @@ fn texel_map(src: &dyn PixelSource, grid: GridSpec, tile: TileId, kernel: Kernel
             }
             if kernel == Kernel::Nearest {
                 map.foot.push(None);
-                continue;
-            }
-            if info.geographic {
-                map.foot.push(lonlat_footprint(gt, lat_of(j), rho));
                 continue;
             }
             let coslat = coslats[j];
@@ -523,6 +487,27 @@ fn lonlat_axes(src: &dyn PixelSource, grid: GridSpec, tile: TileId) -> LonLatAxe
     }
 }
 
+/// The per-texel map of a lon/lat source from its axes: a texel lacking either position has
+/// neither, and the nearest kernel needs no footprint.
+fn lonlat_texel_map(axes: &LonLatAxes, kernel: Kernel) -> TexelMap {
+    let n = axes.x.len() * axes.y.len();
+    let mut map = TexelMap {
+        x: Vec::with_capacity(n),
+        y: Vec::with_capacity(n),
+        foot: Vec::with_capacity(n),
+    };
+    for (&y, foot) in axes.y.iter().zip(&axes.foot) {
+        for &x in &axes.x {
+            let placed = x.is_finite() && y.is_finite();
+            map.x.push(if placed { x } else { f64::NAN });
+            map.y.push(if placed { y } else { f64::NAN });
+            map.foot
+                .push(foot.filter(|_| placed && kernel != Kernel::Nearest));
+        }
+    }
+    map
+}
+
 /// [`resample_tile`] for a lon/lat source, a row of texels at a time: one footprint, one
 /// averaged level and one set of row weights per row, the rows of the source combined once per
 /// source column (vertical pass), then each texel's columns (horizontal pass). The same sums as
@@ -595,7 +580,7 @@ fn resample_lonlat(
     let mut rows = RowWeights::default();
     let mut pole_values: [Option<Option<Vec<f64>>>; 2] = [None, None];
     // the span of the tile's source columns (the same for every row)
-    let (lo, hi) = axes
+    let span = axes
         .x
         .iter()
         .filter(|x| x.is_finite())
@@ -627,26 +612,14 @@ fn resample_lonlat(
             *flag = y_inside && x.is_finite() && (wraps_x || (0.0..w).contains(&x));
         }
         match axes.foot[j].as_ref().and_then(|f| f.axis_scales()) {
-            Some((sx, sy)) => {
-                let step = win.step as f64;
-                let (mx, my) = (mip_level(sx / step), mip_level(sy / step));
-                // the level's rows under the footprint
-                let ystep = step * f64::from(1u32 << my.min(MIP_SIDE as u32 - 1));
-                let (v, sv) = ((y - win.r0 as f64) / ystep, sy / ystep);
-                let s = lut.kernel().support();
-                // (a sample wider each way than the filter finds by its own rounding)
-                let rows = ceil(v - 0.5 - s * sv) - 1..floor(v - 0.5 + s * sv) + 2;
-                // and the columns under the row's footprints
-                let xstep = step * f64::from(1u32 << mx.min(MIP_SIDE as u32 - 1));
-                let reach = s * sx / xstep;
-                let cols = if lo <= hi {
-                    let u = |x: f64| (x - win.c0 as f64) / xstep;
-                    ceil(u(lo) - 0.5 - reach) - 1..floor(u(hi) - 0.5 + reach) + 2
-                } else {
-                    0..0
+            Some(scales) => {
+                let row = TexelRow {
+                    xs: &axes.x,
+                    span,
+                    y,
+                    scales,
                 };
-                let mip = mips.view(&win, mx, my, (rows, cols));
-                pass.filter_row(mip, lut, &axes.x, y, (sx, sy), &mut out[..filtered], j * t);
+                pass.filter_row(&mut mips, &win, lut, &row, &mut out[..filtered], j * t);
             }
             None => {
                 for (i, &x) in axes.x.iter().enumerate() {
@@ -708,23 +681,39 @@ struct RowPass {
     positive: Vec<f64>,
 }
 
+/// One row of texels of a lon/lat source: the source x of each texel (NaN where it has none)
+/// and their span, the row's source y and its footprint's scales along x and y.
+struct TexelRow<'a> {
+    xs: &'a [f64],
+    span: (f64, f64),
+    y: f64,
+    scales: (f64, f64),
+}
+
 impl RowPass {
-    /// Filters the texels of one row, at source x `xs` and source y `y`, with footprint scales
-    /// `(sx, sy)`, into `out[p][base + i]`; texels without enough valid data stay NaN.
-    #[allow(clippy::too_many_arguments)] // one row's geometry and its output, used once each
+    /// Filters one row of texels on the averaged level of `win` its footprint's scales call for
+    /// (made as far as the row reaches), into `out[p][base + i]`; texels without enough valid
+    /// data stay NaN.
     fn filter_row(
         &mut self,
-        mip: MipView<'_>,
+        mips: &mut Mips,
+        win: &Window,
         lut: &KernelLut,
-        xs: &[f64],
-        y: f64,
-        (sx, sy): (f64, f64),
+        row: &TexelRow<'_>,
         out: &mut [Vec<f32>],
         base: usize,
     ) {
+        let (xs, y, (sx, sy)) = (row.xs, row.y, row.scales);
         let s = lut.kernel().support();
-        let v = (y - mip.r0) / mip.step.1;
-        let sv = sy / mip.step.1;
+        let (mx, my) = (
+            mip_level(sx / win.step as f64),
+            mip_level(sy / win.step as f64),
+        );
+        let (step, mw, mh) = Mips::shape(win, mx, my);
+        let (mw, mh) = (mw as i64, mh as i64);
+        let (c0, r0) = (win.c0 as f64, win.r0 as f64);
+        let v = (y - r0) / step.1;
+        let sv = sy / step.1;
         let (r0, r1) = (ceil(v - 0.5 - s * sv), floor(v - 0.5 + s * sv));
         let nr = (r1 - r0 + 1).max(0) as usize;
         if nr == 0 || nr > SEP_MAX {
@@ -734,21 +723,20 @@ impl RowPass {
         self.wy
             .extend((0..nr).map(|j| lut.weight(((r0 + j as i64) as f64 + 0.5 - v) / sv)));
         let wy_pos: f64 = self.wy.iter().map(|w| w.max(0.0)).sum();
-        let su = sx / mip.step.0;
+        let su = sx / step.0;
         let reach = s * su;
-        let col = |x: f64| (x - mip.c0) / mip.step.0;
+        let col = |x: f64| (x - c0) / step.0;
         // the source columns the row needs, within the samples
-        let (mw, mh) = (mip.w as i64, mip.h as i64);
-        let (mut ca, mut cb) = (i64::MAX, i64::MIN);
-        for &x in xs.iter().filter(|x| x.is_finite()) {
-            let u = col(x);
-            ca = ca.min(ceil(u - 0.5 - reach));
-            cb = cb.max(floor(u - 0.5 + reach));
+        let (lo, hi) = row.span;
+        if lo > hi {
+            return;
         }
-        let (ca, cb) = (ca.max(0), cb.min(mw - 1));
+        let ca = ceil(col(lo) - 0.5 - reach).max(0);
+        let cb = floor(col(hi) - 0.5 + reach).min(mw - 1);
         if ca > cb {
             return;
         }
+        let mip = mips.view(win, mx, my, (r0..r1 + 1, ca..cb + 1));
         let nc = (cb - ca + 1) as usize;
         let nplanes = out.len().min(mip.nplanes);
         self.sums.resize_with(nplanes, Vec::new);
@@ -986,6 +974,20 @@ impl Mips {
         }
     }
 
+    /// The sample spacing (source pixels along x and y), width and height of level (mx, my)
+    /// of `win` (clamped like [`Self::view`]): halved along x from (mx − 1, my), else along y
+    /// from (0, my − 1).
+    fn shape(win: &Window, mx: u32, my: u32) -> ((f64, f64), usize, usize) {
+        let (mut w, mut h, mut step) = (win.w, win.h, (win.step as f64, win.step as f64));
+        for _ in 0..my.min(MIP_SIDE as u32 - 1) {
+            (h, step.1) = ((h / 2).max(1), step.1 * 2.0);
+        }
+        for _ in 0..mx.min(MIP_SIDE as u32 - 1) {
+            (w, step.0) = ((w / 2).max(1), step.0 * 2.0);
+        }
+        (step, w, h)
+    }
+
     /// The level's geometry, its rows not made yet.
     fn level(&mut self, win: &Window, mx: u32, my: u32) -> &Mip {
         if self.levels.is_empty() {
@@ -993,14 +995,7 @@ impl Mips {
         }
         let k = mx as usize * MIP_SIDE + my as usize;
         if self.levels[k].is_none() {
-            // halved along x from (mx − 1, my), else along y from (0, my − 1)
-            let (mut w, mut h, mut step) = (win.w, win.h, (win.step as f64, win.step as f64));
-            for _ in 0..my {
-                (h, step.1) = ((h / 2).max(1), step.1 * 2.0);
-            }
-            for _ in 0..mx {
-                (w, step.0) = ((w / 2).max(1), step.0 * 2.0);
-            }
+            let (step, w, h) = Self::shape(win, mx, my);
             self.levels[k] = Some(Mip {
                 step,
                 c0: win.c0 as f64,
