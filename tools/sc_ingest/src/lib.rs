@@ -96,14 +96,12 @@ impl InputCounts {
             Some(span.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))))
         };
         for (r, row) in samples.planes[0].chunks_exact(t as usize).enumerate() {
-            let valid = row.iter().filter(|v| !v.is_nan()).count() as u64;
-            if valid == 0 {
+            let Some(first) = row.iter().position(|v| !v.is_nan()) else {
                 continue;
-            }
-            self.valid += valid;
-            let first = row.iter().position(|v| !v.is_nan()).unwrap_or(0) as u64;
-            let last = row.iter().rposition(|v| !v.is_nan()).unwrap_or(0) as u64;
-            self.cols = grow(self.cols, (ox + first, ox + last));
+            };
+            let last = row.iter().rposition(|v| !v.is_nan()).unwrap_or(first);
+            self.valid += row[first..=last].iter().filter(|v| !v.is_nan()).count() as u64;
+            self.cols = grow(self.cols, (ox + first as u64, ox + last as u64));
             let r = oy + r as u64;
             self.rows = grow(self.rows, (r, r));
         }

@@ -1036,15 +1036,14 @@ impl Mips {
                 } else {
                     made.start.min(cols.start)..made.end.max(cols.end)
                 };
-                let parts = [
+                // (with nothing made, `made` is 0..0 and the second part is the hull)
+                let parts: Vec<_> = [
                     hull.start..made.start.max(hull.start),
                     made.end.max(hull.start)..hull.end,
-                ];
-                let parts: Vec<_> = if made.is_empty() {
-                    vec![hull.clone()]
-                } else {
-                    parts.into_iter().filter(|r| !r.is_empty()).collect()
-                };
+                ]
+                .into_iter()
+                .filter(|r| !r.is_empty())
+                .collect();
                 if !parts.is_empty() {
                     todo.push((p, hull, parts));
                 }
