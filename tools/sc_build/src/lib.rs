@@ -395,39 +395,82 @@ fn shard_key(s: &ShardId) -> String {
 struct ManifestFile {
     path: PathBuf,
     data: Mutex<Manifest>,
+    /// The store's manifest of the level, read only, when this one is a task's own.
+    base: Option<Manifest>,
+}
+
+/// The manifest file of `level` of `layer` in folder `dir`.
+fn manifest_path(dir: &Path, layer: LayerKind, level: LevelId) -> PathBuf {
+    dir.join(format!("{}-{}.json", layer.name(), level.key()))
+}
+
+/// The store's folder of build manifests.
+fn manifest_dir(root: &Path) -> PathBuf {
+    root.join(".sphereclip").join("build")
+}
+
+fn read_manifest(path: &Path, settings: &str) -> Option<Manifest> {
+    std::fs::read(path)
+        .ok()
+        .and_then(|b| serde_json::from_slice::<Manifest>(&b).ok())
+        .filter(|m| m.settings == settings)
 }
 
 impl ManifestFile {
-    fn open(root: &Path, layer: LayerKind, level: LevelId, settings: &str) -> Result<Self> {
-        let dir = root.join(".sphereclip").join("build");
-        std::fs::create_dir_all(&dir).map_err(|source| BuildError::Io {
+    /// The manifest of `level` in the store at `root`; with `task`, the manifest of a task in
+    /// folder `task`, which also matches what the store's manifest records.
+    fn open(
+        root: &Path,
+        layer: LayerKind,
+        level: LevelId,
+        settings: &str,
+        task: Option<&Path>,
+    ) -> Result<Self> {
+        let store_path = manifest_path(&manifest_dir(root), layer, level);
+        let path = task.map_or(store_path.clone(), |d| manifest_path(d, layer, level));
+        let dir = sc_store::fault::folder_of(&path);
+        std::fs::create_dir_all(dir).map_err(|source| BuildError::Io {
             source,
-            path: dir.clone(),
+            path: dir.to_path_buf(),
         })?;
-        let path = dir.join(format!("{}-{}.json", layer.name(), level.key()));
-        let data = std::fs::read(&path)
-            .ok()
-            .and_then(|b| serde_json::from_slice::<Manifest>(&b).ok())
-            .filter(|m| m.settings == settings)
-            .unwrap_or_else(|| Manifest {
-                settings: settings.to_string(),
-                shards: BTreeMap::new(),
-            });
+        let data = read_manifest(&path, settings).unwrap_or_else(|| Manifest {
+            settings: settings.to_string(),
+            shards: BTreeMap::new(),
+        });
         Ok(Self {
             path,
             data: Mutex::new(data),
+            base: task.and_then(|_| read_manifest(&store_path, settings)),
         })
     }
 
     /// The entry of `shard` when it was built from exactly `deps`.
     fn matching(&self, shard: &ShardId, deps: &BTreeMap<String, String>) -> Option<Entry> {
+        let key = shard_key(shard);
+        let own = self
+            .data
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .shards
+            .get(&key)
+            .filter(|e| e.deps == *deps)
+            .cloned();
+        own.or_else(|| {
+            self.base
+                .as_ref()
+                .and_then(|m| m.shards.get(&key))
+                .filter(|e| e.deps == *deps)
+                .cloned()
+        })
+    }
+
+    /// Whether a task's manifest records `shard` (built, unchanged or empty).
+    fn has(&self, shard: &ShardId) -> bool {
         self.data
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .shards
-            .get(&shard_key(shard))
-            .filter(|e| e.deps == *deps)
-            .cloned()
+            .contains_key(&shard_key(shard))
     }
 
     fn record(&self, shard: &ShardId, entry: Entry) -> Result<()> {
@@ -511,159 +554,63 @@ pub fn run(
     result
 }
 
+fn settings_hash(plan: &Plan) -> String {
+    format!(
+        "{BUILDER} kernel={:?} grid={} shard={}",
+        plan.settings.kernel,
+        plan.grid.tile_size(),
+        plan.shard_tiles
+    )
+}
+
+fn thread_count(plan: &Plan) -> usize {
+    if plan.settings.threads == 0 {
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    } else {
+        plan.settings.threads
+    }
+}
+
 fn run_steps(
     writer: &StoreWriter,
     plan: &Plan,
     on_shard: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<Summary> {
     let start = Instant::now();
-    let root = writer.root().to_path_buf();
-    let settings_hash = format!(
-        "{BUILDER} kernel={:?} grid={} shard={}",
-        plan.settings.kernel,
-        plan.grid.tile_size(),
-        plan.shard_tiles
-    );
     let total = plan.shard_count();
-    let done = AtomicU64::new(0);
+    let progress = Progress {
+        done: AtomicU64::new(0),
+        total,
+        on_shard,
+    };
     let fps = Fingerprints::default();
     let mut summary = Summary {
         levels: plan.levels(),
         ..Summary::default()
     };
-    let threads = if plan.settings.threads == 0 {
-        std::thread::available_parallelism().map_or(1, |n| n.get())
-    } else {
-        plan.settings.threads
-    };
     on_shard(0, total);
     for step in &plan.steps {
-        let step_start = Instant::now();
-        writer.ensure_level(step.layer, step.out)?;
-        // a fresh reader per step sees the levels the previous steps wrote
-        let reader = StoreReader::open(&root)?;
-        let manifest = ManifestFile::open(&root, step.layer, step.out, &settings_hash)?;
-        let stored_src = |level: u32| -> Vec<u32> {
-            reader
-                .meta()
-                .levels(step.layer)
-                .iter()
-                .filter(|l| l.level == level)
-                .map(|l| l.aniso)
-                .collect()
-        };
-        let (src_level, stored) = match step.kind {
-            StepKind::Filter => (step.out.level + 1, stored_src(step.out.level + 1)),
-            StepKind::Halve => (step.out.level, stored_src(step.out.level)),
-        };
-        let counts = Mutex::new(StepCounts::default());
-        let base_reader = &reader;
-        // steps with fewer shards than threads split each shard's tile rows between threads
-        let inner = (threads / step.shards.len().max(1)).max(1);
-        let do_shard = |shard: ShardId| -> Result<()> {
-            tracing::debug!(layer = %step.layer, %shard, "build: filtering shard");
-            let deps = footprint(
-                plan.grid,
-                plan.shard_tiles,
-                step,
-                shard,
-                plan.settings.kernel,
-            );
-            let mut rec = BTreeMap::new();
-            for d in &deps {
-                let tile = TileId {
-                    level: d.level,
-                    x: d.x * plan.shard_tiles,
-                    y: d.y * plan.shard_tiles,
-                };
-                let p = base_reader.shard_path(step.layer, tile)?;
-                rec.insert(shard_key(d), fps.of(&p)?);
-            }
-            let out_tile = TileId {
-                level: shard.level,
-                x: shard.x * plan.shard_tiles,
-                y: shard.y * plan.shard_tiles,
-            };
-            let out_path = base_reader.shard_path(step.layer, out_tile)?;
-            // the shard as the last build left it (an ingest into this level since changes it)
-            rec.insert("self".into(), own_fingerprint(&out_path)?);
-            let mut c = counts.lock().unwrap_or_else(|e| e.into_inner());
-            if rec.iter().all(|(k, f)| k == "self" || f == "-") {
-                // no finer data in the footprint: nothing to filter, the level stays as it is
-                c.empty += 1;
-            } else if let Some(e) = manifest.matching(&shard, &rec) {
-                if let Some((lo, hi)) = e.range {
-                    writer.note_range(step.layer, step.out, lo, hi);
-                }
-                c.skipped += 1;
-            } else {
-                drop(c);
-                let (texels, range, repaired) = match step.layer {
-                    LayerKind::Height => build_shard::<f32>(
-                        writer,
-                        base_reader,
-                        plan,
-                        step,
-                        shard,
-                        src_level,
-                        &stored,
-                        inner,
-                    )?,
-                    LayerKind::Color => build_shard::<u8>(
-                        writer,
-                        base_reader,
-                        plan,
-                        step,
-                        shard,
-                        src_level,
-                        &stored,
-                        inner,
-                    )?,
-                };
-                rec.insert("self".into(), own_fingerprint(&out_path)?);
-                manifest.record(&shard, Entry { deps: rec, range })?;
-                c = counts.lock().unwrap_or_else(|e| e.into_inner());
-                c.written += 1;
-                c.texels += texels;
-                if let Some(lost) = repaired {
-                    c.repaired += 1;
-                    c.lost
-                        .extend(lost.iter().map(|t| format!("{} {t}", step.layer)));
-                }
-            }
-            drop(c);
-            on_shard(done.fetch_add(1, Ordering::Relaxed) + 1, total);
-            Ok(())
-        };
-        // polar shards cost most: start them first (bytes do not depend on the order)
-        let mut order = step.shards.clone();
-        let ny = ShardId::counts(plan.grid, step.out, plan.shard_tiles).1;
-        order.sort_by_key(|s| (s.y.min(ny - 1 - s.y), s.y, s.x));
-        sc_core::workers::run(order.len(), threads, || Ok(()), |_, k| do_shard(order[k])).map_err(
-            |e| match e {
-                sc_core::workers::Stopped::Failed(e) => e,
-                sc_core::workers::Stopped::Panicked => BuildError::WorkerPanicked,
-            },
+        run_step(
+            writer,
+            plan,
+            step,
+            &step.shards,
+            None,
+            &fps,
+            &progress,
+            &mut summary,
         )?;
-        let mut c = counts.into_inner().unwrap_or_else(|e| e.into_inner());
-        summary.shards_written += c.written;
-        summary.shards_skipped += c.skipped;
-        summary.shards_empty += c.empty;
-        summary.texels += c.texels;
-        summary.shards_repaired += c.repaired;
-        let mut lost = std::mem::take(&mut c.lost);
-        lost.sort();
-        summary.tiles_lost.extend(lost);
-        let seconds = step_start.elapsed().as_secs_f64();
-        tracing::debug!(layer = %step.layer, level = %step.out, seconds, "build: level done");
-        summary
-            .step_seconds
-            .push((format!("{} {}", step.layer, step.out), seconds));
     }
-    let record = BuildRecord {
+    writer.commit(Some(build_record(plan, &summary, sc_store::unix_now())))?;
+    summary.seconds = start.elapsed().as_secs_f64();
+    Ok(summary)
+}
+
+fn build_record(plan: &Plan, summary: &Summary, unix_time_s: u64) -> BuildRecord {
+    BuildRecord {
         step: "build".into(),
         tool: format!("sphereclip {}", env!("CARGO_PKG_VERSION")),
-        unix_time_s: sc_store::unix_now(),
+        unix_time_s,
         inputs: Vec::new(),
         settings: serde_json::json!({
             "builder": BUILDER,
@@ -671,8 +618,368 @@ fn run_steps(
             "from": plan.finest.iter().map(|(k, l)| (k.name().to_string(), *l)).collect::<BTreeMap<_, _>>(),
             "levels": summary.levels,
         }),
+    }
+}
+
+/// Progress over the shards of a run.
+struct Progress<'a> {
+    done: AtomicU64,
+    total: u64,
+    on_shard: &'a (dyn Fn(u64, u64) + Sync),
+}
+
+impl Progress<'_> {
+    fn one(&self) {
+        (self.on_shard)(self.done.fetch_add(1, Ordering::Relaxed) + 1, self.total);
+    }
+}
+
+/// Builds `shards` of one step, adding what it did to `summary`. `task`: the folder of a task's
+/// own manifests (a task of a plan run by many processes), else the store's manifests are used.
+#[allow(clippy::too_many_arguments)]
+fn run_step(
+    writer: &StoreWriter,
+    plan: &Plan,
+    step: &Step,
+    shards: &[ShardId],
+    task: Option<&Path>,
+    fps: &Fingerprints,
+    progress: &Progress<'_>,
+    summary: &mut Summary,
+) -> Result<()> {
+    let root = writer.root().to_path_buf();
+    let threads = thread_count(plan);
+    let step_start = Instant::now();
+    writer.ensure_level(step.layer, step.out)?;
+    // a fresh reader per step sees the levels the previous steps wrote
+    let reader = StoreReader::open(&root)?;
+    let manifest = ManifestFile::open(&root, step.layer, step.out, &settings_hash(plan), task)?;
+    let stored_src = |level: u32| -> Vec<u32> {
+        reader
+            .meta()
+            .levels(step.layer)
+            .iter()
+            .filter(|l| l.level == level)
+            .map(|l| l.aniso)
+            .collect()
     };
-    writer.commit(Some(record))?;
+    let (src_level, stored) = match step.kind {
+        StepKind::Filter => (step.out.level + 1, stored_src(step.out.level + 1)),
+        StepKind::Halve => (step.out.level, stored_src(step.out.level)),
+    };
+    let counts = Mutex::new(StepCounts::default());
+    let base_reader = &reader;
+    // steps with fewer shards than threads split each shard's tile rows between threads
+    let inner = (threads / shards.len().max(1)).max(1);
+    let do_shard = |shard: ShardId| -> Result<()> {
+        tracing::debug!(layer = %step.layer, %shard, "build: filtering shard");
+        let deps = footprint(
+            plan.grid,
+            plan.shard_tiles,
+            step,
+            shard,
+            plan.settings.kernel,
+        );
+        let mut rec = BTreeMap::new();
+        for d in &deps {
+            let tile = TileId {
+                level: d.level,
+                x: d.x * plan.shard_tiles,
+                y: d.y * plan.shard_tiles,
+            };
+            let p = base_reader.shard_path(step.layer, tile)?;
+            rec.insert(shard_key(d), fps.of(&p)?);
+        }
+        let out_tile = TileId {
+            level: shard.level,
+            x: shard.x * plan.shard_tiles,
+            y: shard.y * plan.shard_tiles,
+        };
+        let out_path = base_reader.shard_path(step.layer, out_tile)?;
+        // the shard as the last build left it (an ingest into this level since changes it)
+        rec.insert("self".into(), own_fingerprint(&out_path)?);
+        let mut c = counts.lock().unwrap_or_else(|e| e.into_inner());
+        if rec.iter().all(|(k, f)| k == "self" || f == "-") {
+            // no finer data in the footprint: nothing to filter, the level stays as it is
+            c.empty += 1;
+            drop(c);
+            if task.is_some() {
+                // a task records every shard it is done with
+                manifest.record(
+                    &shard,
+                    Entry {
+                        deps: rec,
+                        range: None,
+                    },
+                )?;
+            }
+        } else if let Some(e) = manifest.matching(&shard, &rec) {
+            if let Some((lo, hi)) = e.range {
+                writer.note_range(step.layer, step.out, lo, hi);
+            }
+            c.skipped += 1;
+            drop(c);
+            if task.is_some() && !manifest.has(&shard) {
+                manifest.record(&shard, e)?;
+            }
+        } else {
+            drop(c);
+            let (texels, range, repaired) = match step.layer {
+                LayerKind::Height => build_shard::<f32>(
+                    writer,
+                    base_reader,
+                    plan,
+                    step,
+                    shard,
+                    src_level,
+                    &stored,
+                    inner,
+                )?,
+                LayerKind::Color => build_shard::<u8>(
+                    writer,
+                    base_reader,
+                    plan,
+                    step,
+                    shard,
+                    src_level,
+                    &stored,
+                    inner,
+                )?,
+            };
+            rec.insert("self".into(), own_fingerprint(&out_path)?);
+            manifest.record(&shard, Entry { deps: rec, range })?;
+            let mut c = counts.lock().unwrap_or_else(|e| e.into_inner());
+            c.written += 1;
+            c.texels += texels;
+            if let Some(lost) = repaired {
+                c.repaired += 1;
+                c.lost
+                    .extend(lost.iter().map(|t| format!("{} {t}", step.layer)));
+            }
+        }
+        progress.one();
+        Ok(())
+    };
+    // polar shards cost most: start them first (bytes do not depend on the order)
+    let mut order = shards.to_vec();
+    let ny = ShardId::counts(plan.grid, step.out, plan.shard_tiles).1;
+    order.sort_by_key(|s| (s.y.min(ny - 1 - s.y), s.y, s.x));
+    sc_core::workers::run(order.len(), threads, || Ok(()), |_, k| do_shard(order[k])).map_err(
+        |e| match e {
+            sc_core::workers::Stopped::Failed(e) => e,
+            sc_core::workers::Stopped::Panicked => BuildError::WorkerPanicked,
+        },
+    )?;
+    let mut c = counts.into_inner().unwrap_or_else(|e| e.into_inner());
+    summary.shards_written += c.written;
+    summary.shards_skipped += c.skipped;
+    summary.shards_empty += c.empty;
+    summary.texels += c.texels;
+    summary.shards_repaired += c.repaired;
+    let mut lost = std::mem::take(&mut c.lost);
+    lost.sort();
+    summary.tiles_lost.extend(lost);
+    let seconds = step_start.elapsed().as_secs_f64();
+    tracing::debug!(layer = %step.layer, level = %step.out, seconds, "build: level done");
+    summary
+        .step_seconds
+        .push((format!("{} {}", step.layer, step.out), seconds));
+    Ok(())
+}
+
+/// One step of a plan: its layer, output level and output shards (in the plan's order).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct StepWork {
+    /// The layer.
+    pub layer: LayerKind,
+    /// The level it writes.
+    pub level: LevelId,
+    /// Its output shards.
+    pub shards: Vec<ShardId>,
+    /// Stored tiles per output shard (the rows the level stores), in the order of `shards`: a
+    /// measure of each shard's cost (every output texel costs about the same anywhere).
+    pub tiles: Vec<u64>,
+}
+
+impl Plan {
+    /// The steps in the order they must run (each reads what earlier ones wrote).
+    pub fn work(&self) -> Vec<StepWork> {
+        self.steps
+            .iter()
+            .map(|st| StepWork {
+                layer: st.layer,
+                level: st.out,
+                shards: st.shards.clone(),
+                tiles: st
+                    .shards
+                    .iter()
+                    .map(|sh| {
+                        sh.tiles(self.grid, self.shard_tiles)
+                            .filter(|t| self.grid.level_has_tile_row(st.out, t.y))
+                            .count() as u64
+                    })
+                    .collect(),
+            })
+            .collect()
+    }
+
+    /// A hash of what determines the build's output besides the store's data (builder version,
+    /// kernel, grid, shard size, steps).
+    pub fn hash(&self) -> String {
+        let text = format!("{}|{:?}", settings_hash(self), self.levels());
+        let h = Sha256::digest(text.as_bytes());
+        h[..16].iter().map(|b| format!("{b:02x}")).collect()
+    }
+}
+
+/// Prepares the store at `root` for running `plan` as tasks in many processes ([`run_task`],
+/// then [`commit_tasks`]): makes every level the plan writes and marks the plan open with
+/// `marker`. A build needs no undo: a shard is made from finer data over what the level holds,
+/// which gives the same bytes however often it runs.
+pub fn open_tasks(root: &Path, plan: &Plan, marker: &str) -> Result<()> {
+    let writer = StoreWriter::open_planning(root, None)?;
+    match sc_store::open_plan(root) {
+        Some(m) if m != marker => {
+            return Err(BuildError::Usage(format!(
+                "another plan is open on this store ({}): commit or abandon it first: {}",
+                m.trim(),
+                root.display()
+            )));
+        }
+        _ => {}
+    }
+    for st in &plan.steps {
+        writer.ensure_level(st.layer, st.out)?;
+    }
+    writer.mark_plan_open(marker)?;
+    Ok(())
+}
+
+/// Builds, in the store at `root` opened for the plan by [`open_tasks`], the shards `work` lists
+/// per step (index into [`Plan::work`], in order), alongside other processes building others.
+/// Every shard done is recorded in the task's manifests in folder `task`; a rerun skips those.
+pub fn run_task(
+    root: &Path,
+    plan: &Plan,
+    work: &[(usize, Vec<ShardId>)],
+    task: &Path,
+    on_shard: &(dyn Fn(u64, u64) + Sync),
+) -> Result<Summary> {
+    let start = Instant::now();
+    let writer = StoreWriter::open_task(root)?;
+    let total = work.iter().map(|(_, s)| s.len() as u64).sum();
+    let progress = Progress {
+        done: AtomicU64::new(0),
+        total,
+        on_shard,
+    };
+    let fps = Fingerprints::default();
+    let mut summary = Summary::default();
+    on_shard(0, total);
+    for (k, shards) in work {
+        let Some(step) = plan.steps.get(*k) else {
+            return Err(BuildError::Usage(format!("the build plan has no step {k}")));
+        };
+        summary.levels.push(format!("{} {}", step.layer, step.out));
+        run_step(
+            &writer,
+            plan,
+            step,
+            shards,
+            Some(task),
+            &fps,
+            &progress,
+            &mut summary,
+        )?;
+    }
+    summary.seconds = start.elapsed().as_secs_f64();
+    Ok(summary)
+}
+
+/// The shards of step `k` of `plan` that the task with folder `task` is done with.
+pub fn task_done(root: &Path, plan: &Plan, k: usize, task: &Path) -> Result<Vec<ShardId>> {
+    let Some(step) = plan.steps.get(k) else {
+        return Ok(Vec::new());
+    };
+    let m = ManifestFile::open(root, step.layer, step.out, &settings_hash(plan), Some(task))?;
+    Ok(step.shards.iter().filter(|s| m.has(s)).copied().collect())
+}
+
+/// Commits a build plan whose tasks all finished: every shard of every step must be recorded
+/// in one of the task folders `tasks`; their records join the store's manifests (so a later
+/// build skips what did not change), the value ranges go into the metadata, the build is
+/// recorded in the provenance as started at `started_unix`, the store is marked complete and
+/// the plan closed.
+pub fn commit_tasks(
+    root: &Path,
+    plan: &Plan,
+    tasks: &[PathBuf],
+    started_unix: u64,
+) -> Result<Summary> {
+    let start = Instant::now();
+    let writer = StoreWriter::open_planning(root, None)?;
+    let settings = settings_hash(plan);
+    let mut summary = Summary {
+        levels: plan.levels(),
+        ..Summary::default()
+    };
+    let mut missing = Vec::new();
+    let mut merged = Vec::new();
+    for step in &plan.steps {
+        let store_path = manifest_path(&manifest_dir(root), step.layer, step.out);
+        let mut m = read_manifest(&store_path, &settings).unwrap_or_else(|| Manifest {
+            settings: settings.clone(),
+            shards: BTreeMap::new(),
+        });
+        let mut seen = std::collections::BTreeSet::new();
+        for t in tasks {
+            let Some(tm) = read_manifest(&manifest_path(t, step.layer, step.out), &settings) else {
+                continue;
+            };
+            for (k, e) in tm.shards {
+                seen.insert(k.clone());
+                if let Some((lo, hi)) = e.range {
+                    writer.note_range(step.layer, step.out, lo, hi);
+                }
+                // empty shards (no finer data) are a task's bookkeeping only
+                if !e.deps.iter().all(|(d, f)| d == "self" || f == "-") {
+                    m.shards.insert(k, e);
+                    summary.shards_written += 1;
+                } else {
+                    summary.shards_empty += 1;
+                }
+            }
+        }
+        missing.extend(
+            step.shards
+                .iter()
+                .filter(|s| !seen.contains(&shard_key(s)))
+                .map(|s| format!("{} {s}", step.layer)),
+        );
+        merged.push((store_path, m));
+    }
+    if !missing.is_empty() {
+        return Err(BuildError::Usage(format!(
+            "{} shard(s) of the plan are not built yet (first: {}): {}",
+            missing.len(),
+            missing[0],
+            root.display()
+        )));
+    }
+    for (path, m) in &merged {
+        let bytes = serde_json::to_vec(m).map_err(|e| BuildError::Usage(e.to_string()))?;
+        write_atomic(path, &bytes)?;
+    }
+    writer.commit(Some(build_record(plan, &summary, started_unix)))?;
+    writer.close_plan()?;
+    for t in tasks {
+        if t.exists() {
+            std::fs::remove_dir_all(t).map_err(|source| BuildError::Io {
+                source,
+                path: t.clone(),
+            })?;
+        }
+    }
     summary.seconds = start.elapsed().as_secs_f64();
     Ok(summary)
 }

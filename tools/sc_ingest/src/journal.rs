@@ -43,7 +43,7 @@ pub(crate) struct Journal {
     pub(crate) resumed: bool,
 }
 
-fn key(s: &ShardId) -> String {
+pub(crate) fn key(s: &ShardId) -> String {
     format!("{}/{}/{}", s.level.key(), s.y, s.x)
 }
 
@@ -51,12 +51,33 @@ impl Journal {
     /// Opens the journal of `step` in the store at `root`: resumes it when it belongs to `plan`,
     /// else starts a new one.
     pub(crate) fn open(root: &Path, step: &str, plan: &str) -> Result<Self> {
-        let dir = root.join(".sphereclip");
-        std::fs::create_dir_all(&dir).map_err(|source| IngestError::Io {
+        Self::open_at(
+            &root
+                .join(".sphereclip")
+                .join(format!("journal-{step}.json")),
+            step,
+            plan,
+        )
+    }
+
+    /// The records of the journal at `path` when it belongs to `step` of `plan` (none otherwise).
+    pub(crate) fn read(path: &Path, step: &str, plan: &str) -> BTreeMap<String, ShardRecord> {
+        std::fs::read(path)
+            .ok()
+            .and_then(|b| serde_json::from_slice::<Data>(&b).ok())
+            .filter(|d| d.plan == plan && d.step == step)
+            .map(|d| d.done)
+            .unwrap_or_default()
+    }
+
+    /// Opens the journal at `path` (see [`Self::open`]).
+    pub(crate) fn open_at(path: &Path, step: &str, plan: &str) -> Result<Self> {
+        let dir = sc_store::fault::folder_of(path);
+        std::fs::create_dir_all(dir).map_err(|source| IngestError::Io {
             source,
-            path: dir.clone(),
+            path: dir.to_path_buf(),
         })?;
-        let path = dir.join(format!("journal-{step}.json"));
+        let path = path.to_path_buf();
         let old: Option<Data> = std::fs::read(&path)
             .ok()
             .and_then(|b| serde_json::from_slice(&b).ok())

@@ -13,7 +13,6 @@ pub mod resample;
 use std::collections::BTreeMap;
 use std::io::Read;
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
 use std::time::Instant;
 
 use sc_core::{GridSpec, Kernel, LevelId, ShardId, TileId};
@@ -58,16 +57,6 @@ pub enum IngestError {
     /// A worker thread panicked (a bug: please report it with the command).
     #[error("an ingest worker panicked")]
     WorkerPanicked,
-}
-
-/// What the shards of a run wrote (summed into [`Summary`]).
-#[derive(Debug, Default)]
-struct WriteCounts {
-    tiles: u64,
-    range: Option<(f64, f64)>,
-    /// Per input (plan index): footprint and valid texels, and the column intervals and rows
-    /// of its valid texels.
-    inputs: Vec<InputTotals>,
 }
 
 /// What one input gave one shard.
@@ -338,6 +327,18 @@ pub fn plan(
     settings: &Settings,
     store: Option<(GridSpec, u64, f64)>,
 ) -> Result<Plan> {
+    plan_trusting(inputs, settings, store, &[])
+}
+
+/// [`plan`], taking an input's content hash from `known` (records made by an earlier plan) when
+/// the path and the size match instead of reading the whole file again: the tasks of a plan run
+/// by many processes would otherwise each read every input.
+pub fn plan_trusting(
+    inputs: &[Input],
+    settings: &Settings,
+    store: Option<(GridSpec, u64, f64)>,
+    known: &[InputRecord],
+) -> Result<Plan> {
     if inputs.is_empty() {
         return Err(IngestError::Usage("no input files given".into()));
     }
@@ -359,7 +360,13 @@ pub fn plan(
             info: src.info().clone(),
             level,
             bbox,
-            record: hash_file(&input.path)?,
+            record: match known.iter().find(|r| {
+                r.path == input.path.display().to_string()
+                    && std::fs::metadata(&input.path).is_ok_and(|m| m.len() == r.bytes)
+            }) {
+                Some(r) => r.clone(),
+                None => hash_file(&input.path)?,
+            },
         });
     }
     // overlay order: ascending priority, stable (later inputs win among equals)
@@ -485,6 +492,174 @@ pub fn run(root: &Path, plan: &Plan, on_shard: &(dyn Fn(u64, u64) + Sync)) -> Re
     }
 }
 
+/// Prepares the store at `root` (created if missing) for running `plan` as tasks in many
+/// processes ([`run_task`], then [`commit_tasks`]): makes its levels, keeps the undo entry of every
+/// shard it will write (each task starts a shard from that version, so a task run twice writes
+/// the same bytes) and marks the plan open with `marker`. Making the same plan again (same
+/// `marker`) keeps what its tasks did.
+pub fn open_tasks(root: &Path, plan: &Plan, marker: &str) -> Result<()> {
+    let writer = StoreWriter::open_planning(root, Some(plan.settings.new_store))?;
+    let meta = writer.meta();
+    if meta.grid != plan.grid || meta.shard_tiles != plan.shard_tiles {
+        return Err(IngestError::Usage(format!(
+            "the plan was made for another store grid: {}",
+            root.display()
+        )));
+    }
+    let again = match sc_store::open_plan(root) {
+        Some(m) if m == marker => true,
+        Some(m) => {
+            return Err(IngestError::Usage(format!(
+                "another plan is open on this store ({}): commit or abandon it first: {}",
+                m.trim(),
+                root.display()
+            )));
+        }
+        None => false,
+    };
+    for l in plan.inputs.iter().map(|p| p.level) {
+        writer.ensure_level(plan.settings.layer, l)?;
+    }
+    writer.keep_undo(!again)?;
+    for shard in plan.shards.keys() {
+        writer.keep_undo_of(plan.settings.layer, *shard)?;
+    }
+    writer.mark_plan_open(marker)?;
+    Ok(())
+}
+
+/// What one task did.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct TaskSummary {
+    /// Shards written by this run.
+    pub shards_written: u64,
+    /// Shards an earlier run of the same task had written.
+    pub shards_resumed: u64,
+    /// Tiles written that hold data.
+    pub tiles_written: u64,
+    /// Wall time, seconds.
+    pub seconds: f64,
+}
+
+/// Writes `shards` of `plan` into the store at `root`, opened for the plan by [`open_tasks`],
+/// alongside other processes writing the plan's other shards. Each shard done is recorded in the
+/// task's journal at `journal`; a rerun skips those and starts every other shard from its version
+/// before the plan, so any number of reruns ends with the same bytes.
+pub fn run_task(
+    root: &Path,
+    plan: &Plan,
+    shards: &[ShardId],
+    journal: &Path,
+    on_shard: &(dyn Fn(u64, u64) + Sync),
+) -> Result<TaskSummary> {
+    let start = Instant::now();
+    let writer = StoreWriter::open_task(root)?;
+    let meta = writer.meta();
+    if meta.grid != plan.grid || meta.shard_tiles != plan.shard_tiles {
+        return Err(IngestError::Usage(format!(
+            "the plan was made for another store grid: {}",
+            root.display()
+        )));
+    }
+    writer.keep_undo(false)?;
+    let journal = Journal::open_at(journal, "ingest", &plan.hash)?;
+    let todo: Vec<ShardId> = shards
+        .iter()
+        .filter(|s| !journal.is_done(s))
+        .copied()
+        .collect();
+    for &shard in &todo {
+        writer.reset_to_undo(plan.settings.layer, shard)?;
+    }
+    let resumed = (shards.len() - todo.len()) as u64;
+    let tiles = write_shards(&writer, plan, &todo, &journal, resumed, on_shard)?;
+    Ok(TaskSummary {
+        shards_written: todo.len() as u64,
+        shards_resumed: resumed,
+        tiles_written: tiles,
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// The shards of `plan` the task journal at `journal` records as durable.
+pub fn task_done(journal: &Path, plan: &Plan) -> Vec<ShardId> {
+    let records = Journal::read(journal, "ingest", &plan.hash);
+    plan.shards
+        .keys()
+        .filter(|s| records.contains_key(&journal::key(s)))
+        .copied()
+        .collect()
+}
+
+/// Commits a plan whose tasks all finished: sums the task journals (every shard of the plan must
+/// be in one), records the ingest as started at `started_unix`, marks the store complete and
+/// closes the plan; the journals are removed last. When no input gave a valid texel the store is
+/// rolled back instead.
+pub fn commit_tasks(
+    root: &Path,
+    plan: &Plan,
+    journals: &[PathBuf],
+    started_unix: u64,
+) -> Result<Summary> {
+    let start = Instant::now();
+    let writer = StoreWriter::open_planning(root, None)?;
+    let mut records = BTreeMap::new();
+    for j in journals {
+        records.extend(Journal::read(j, "ingest", &plan.hash));
+    }
+    let missing: Vec<String> = plan
+        .shards
+        .keys()
+        .filter(|s| !records.contains_key(&journal::key(s)))
+        .map(ToString::to_string)
+        .collect();
+    if !missing.is_empty() {
+        return Err(IngestError::Usage(format!(
+            "{} shard(s) of the plan are not written yet (first: {}): {}",
+            missing.len(),
+            missing[0],
+            root.display()
+        )));
+    }
+    let levels = plan.inputs.iter().map(|p| p.level).collect();
+    let records: Vec<journal::ShardRecord> = records.into_values().collect();
+    let mut summary = match commit_records(&writer, plan, &records, started_unix, &levels) {
+        Ok(s) => s,
+        Err(e) if resumable(&e) => return Err(IngestError::Interrupted(Box::new(e))),
+        Err(e) => {
+            writer.rollback()?;
+            writer.close_plan()?;
+            remove_journals(journals)?;
+            return Err(IngestError::RolledBack(Box::new(e)));
+        }
+    };
+    writer.drop_undo()?;
+    writer.close_plan()?;
+    remove_journals(journals)?;
+    summary.shards_written = plan.shards.len() as u64;
+    summary.seconds = start.elapsed().as_secs_f64();
+    Ok(summary)
+}
+
+/// Puts the store back as it was before the plan (every shard its tasks wrote, the levels it
+/// made, the metadata) and closes the plan.
+pub fn abandon_tasks(root: &Path, journals: &[PathBuf]) -> Result<()> {
+    let writer = StoreWriter::open_planning(root, None)?;
+    writer.rollback()?;
+    writer.close_plan()?;
+    remove_journals(journals)
+}
+
+fn remove_journals(journals: &[PathBuf]) -> Result<()> {
+    for j in journals {
+        sc_store::fault::remove_file(j).map_err(|source| IngestError::Io {
+            source,
+            path: j.clone(),
+        })?;
+    }
+    Ok(())
+}
+
 /// Whether an error mid-run is one a rerun of the same command can overcome.
 fn resumable(e: &IngestError) -> bool {
     matches!(
@@ -502,19 +677,33 @@ fn write_all(
     levels: std::collections::BTreeSet<LevelId>,
     on_shard: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<Summary> {
-    let settings = &plan.settings;
-    let mut summary = Summary {
-        levels: levels.iter().map(|l| l.to_string()).collect(),
-        ..Summary::default()
-    };
-    let mut todo: Vec<(&ShardId, &BTreeMap<TileId, Vec<usize>>)> = plan
+    let todo: Vec<ShardId> = plan
         .shards
-        .iter()
-        .filter(|(s, _)| !journal.is_done(s))
+        .keys()
+        .filter(|s| !journal.is_done(s))
+        .copied()
         .collect();
-    summary.shards_resumed = (plan.shards.len() - todo.len()) as u64;
-    // polar shards cost most (their footprints widen): start them first so that no worker is
-    // left with one at the end (the bytes written do not depend on the order)
+    let resumed = (plan.shards.len() - todo.len()) as u64;
+    let tiles = write_shards(writer, plan, &todo, journal, resumed, on_shard)?;
+    let mut summary = commit_records(
+        writer,
+        plan,
+        &journal.records(),
+        journal.started_unix(),
+        &levels,
+    )?;
+    writer.drop_undo()?;
+    journal.finish()?;
+    summary.shards_resumed = resumed;
+    summary.shards_written = todo.len() as u64;
+    summary.tiles_written = tiles;
+    summary.seconds = start.elapsed().as_secs_f64();
+    Ok(summary)
+}
+
+/// Polar shards first (they cost most: their footprints widen), so that no worker is left with
+/// one at the end; the bytes written do not depend on the order.
+fn polar_first(plan: &Plan, shards: &mut [ShardId]) {
     let grid = plan.grid;
     let polar = |s: &ShardId| {
         let t = s
@@ -523,25 +712,28 @@ fn write_all(
             .map(|t| grid.tile_rect(t));
         t.map_or(0.0, |r| r.north.abs().max(r.south.abs()))
     };
-    todo.sort_by(|a, b| polar(b.0).total_cmp(&polar(a.0)).then(a.0.cmp(b.0)));
-    let earlier = journal.records();
-    for r in earlier.iter().filter_map(|r| r.range) {
-        writer.note_range(r.0, r.1, r.2.0, r.2.1);
-    }
-    let total = plan.shards.len() as u64;
-    let done = std::sync::atomic::AtomicU64::new(summary.shards_resumed);
-    let mut counts = WriteCounts {
-        inputs: vec![InputTotals::default(); plan.inputs.len()],
-        ..WriteCounts::default()
-    };
-    for (&i, c) in earlier.iter().flat_map(|r| &r.inputs) {
-        if let Some(t) = counts.inputs.get_mut(i) {
-            t.add(c);
-        }
-    }
-    let stats = Mutex::new(counts);
+    shards.sort_by(|a, b| polar(b).total_cmp(&polar(a)).then(a.cmp(b)));
+}
+
+/// Resamples and writes the shards `todo` of the plan on the run's worker threads, recording each
+/// in `journal` once it is durable. `done_before` shards count as done for progress. Returns the
+/// number of tiles written that hold data.
+fn write_shards(
+    writer: &StoreWriter,
+    plan: &Plan,
+    todo: &[ShardId],
+    journal: &Journal,
+    done_before: u64,
+    on_shard: &(dyn Fn(u64, u64) + Sync),
+) -> Result<u64> {
+    let settings = &plan.settings;
+    let mut todo = todo.to_vec();
+    polar_first(plan, &mut todo);
+    let total = done_before + todo.len() as u64;
+    let done = std::sync::atomic::AtomicU64::new(done_before);
+    let tiles = std::sync::atomic::AtomicU64::new(0);
     let lut = Kernels::new(settings.kernel);
-    on_shard(summary.shards_resumed, total);
+    on_shard(done_before, total);
     // small inputs are decoded once and shared by every worker's handle; handles are pooled so
     // each input is opened at most once per worker thread (opening a gzipped NetCDF costs seconds)
     let caches: Vec<sc_raster::SampleCache> =
@@ -561,46 +753,70 @@ fn write_all(
             })
             .collect()
     };
-    let do_shard = |sources: &[RasterSource],
-                    shard: &ShardId,
-                    tiles: &BTreeMap<TileId, Vec<usize>>|
-     -> Result<()> {
-        let s = write_shard(writer, plan, &lut, sources, *shard, tiles)?;
-        {
-            let mut st = stats.lock().unwrap_or_else(|e| e.into_inner());
-            st.tiles += s.tiles;
-            if let Some((lo, hi)) = s.range {
-                st.range = Some(st.range.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
-            }
-            for (&i, c) in &s.inputs {
-                st.inputs[i].add(c);
-            }
-        }
+    let do_shard = |sources: &[RasterSource], shard: ShardId| -> Result<()> {
+        let Some(shard_tiles) = plan.shards.get(&shard) else {
+            return Err(IngestError::Usage(format!(
+                "{shard} is not a shard of this ingest plan"
+            )));
+        };
+        let s = write_shard(writer, plan, &lut, sources, shard, shard_tiles)?;
+        tiles.fetch_add(s.tiles, std::sync::atomic::Ordering::Relaxed);
         let record = journal::ShardRecord {
             range: s.range.map(|r| (settings.layer, shard.level, r)),
             inputs: s.inputs,
         };
-        journal.mark_done(shard, record)?;
+        journal.mark_done(&shard, record)?;
+        sc_store::fault::pause("shard-journalled");
         let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
         on_shard(d, total);
         Ok(())
     };
     // one worker thread per core, each with its own GDAL handles (opened once: opening a gzipped
-    // NetCDF costs seconds), taking shards in plan order
+    // NetCDF costs seconds), taking shards in order
     let workers = rayon::current_num_threads();
     sc_core::workers::run(todo.len(), workers, open_set, |sources, k| {
-        let (shard, tiles) = todo[k];
-        do_shard(sources, shard, tiles)
+        do_shard(sources, todo[k])
     })
     .map_err(|e| match e {
         sc_core::workers::Stopped::Failed(e) => e,
         sc_core::workers::Stopped::Panicked => IngestError::WorkerPanicked,
     })?;
-    let st = stats.into_inner().unwrap_or_else(|e| e.into_inner());
+    Ok(tiles.into_inner())
+}
+
+/// Sums what the records of every shard of the plan say, records the ingest in the store's
+/// provenance (started at `started_unix`) and commits the store. Fails, without committing, when
+/// no input gave a valid texel.
+fn commit_records(
+    writer: &StoreWriter,
+    plan: &Plan,
+    records: &[journal::ShardRecord],
+    started_unix: u64,
+    levels: &std::collections::BTreeSet<LevelId>,
+) -> Result<Summary> {
+    let settings = &plan.settings;
+    let grid = plan.grid;
+    let mut totals = vec![InputTotals::default(); plan.inputs.len()];
+    let mut range: Option<(f64, f64)> = None;
+    for r in records {
+        if let Some((kind, level, (lo, hi))) = r.range {
+            writer.note_range(kind, level, lo, hi);
+            range = Some(range.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
+        }
+        for (&i, c) in &r.inputs {
+            if let Some(t) = totals.get_mut(i) {
+                t.add(c);
+            }
+        }
+    }
+    let mut summary = Summary {
+        levels: levels.iter().map(|l| l.to_string()).collect(),
+        ..Summary::default()
+    };
     summary.inputs = plan
         .inputs
         .iter()
-        .zip(&st.inputs)
+        .zip(&totals)
         .map(|(p, t)| InputSummary {
             path: p.record.path.clone(),
             level: p.level.to_string(),
@@ -614,7 +830,7 @@ fn write_all(
             data_bbox: t.data_box(grid, p.level),
         })
         .collect();
-    if st.inputs.iter().all(|t| t.valid == 0) {
+    if totals.iter().all(|t| t.valid == 0) {
         return Err(IngestError::Usage(format!(
             "no input holds valid data where it lies on the globe (every pixel is nodata, NaN or transparent): {}",
             plan.inputs
@@ -627,7 +843,7 @@ fn write_all(
     let record = BuildRecord {
         step: "ingest".into(),
         tool: format!("sphereclip {}", env!("CARGO_PKG_VERSION")),
-        unix_time_s: journal.started_unix(),
+        unix_time_s: started_unix,
         inputs: plan.inputs.iter().map(|p| p.record.clone()).collect(),
         settings: serde_json::json!({
             "layer": settings.layer,
@@ -643,19 +859,14 @@ fn write_all(
         }),
     };
     writer.commit(Some(record))?;
-    writer.drop_undo()?;
-    journal.finish()?;
-    summary.shards_written = todo.len() as u64;
-    summary.tiles_written = st.tiles;
-    let footprint: u64 = st.inputs.iter().map(|t| t.footprint).sum();
-    let valid: u64 = st.inputs.iter().map(|t| t.covered).sum();
+    let footprint: u64 = totals.iter().map(|t| t.footprint).sum();
+    let valid: u64 = totals.iter().map(|t| t.covered).sum();
     summary.coverage = if footprint > 0 {
         valid as f64 / footprint as f64
     } else {
         0.0
     };
-    summary.value_range = st.range;
-    summary.seconds = start.elapsed().as_secs_f64();
+    summary.value_range = range;
     Ok(summary)
 }
 

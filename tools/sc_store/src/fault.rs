@@ -89,12 +89,7 @@ pub fn folder_of(path: &Path) -> &Path {
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     let parent = folder_of(path);
     fs::create_dir_all(parent)?;
-    let n = TEMP_COUNTER.fetch_add(1, Ordering::Relaxed);
-    let name = path
-        .file_name()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let tmp = parent.join(format!("{name}.tmp.{}.{n}", std::process::id()));
+    let tmp = temp_name(path);
     let result = (|| {
         let mut f = OpenOptions::new().write(true).create_new(true).open(&tmp)?;
         f.write_all(bytes)?;
@@ -110,6 +105,16 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
         step("renamed", path);
     }
     result
+}
+
+/// A fresh temp name beside `path`: `NAME.tmp.PID.N` (see [`is_temp_name`]).
+pub fn temp_name(path: &Path) -> std::path::PathBuf {
+    let n = TEMP_COUNTER.fetch_add(1, Ordering::Relaxed);
+    let name = path
+        .file_name()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    folder_of(path).join(format!("{name}.tmp.{}.{n}", std::process::id()))
 }
 
 /// Renames `from` to `to` (a file or a folder), durably: the folders of both names are fsynced

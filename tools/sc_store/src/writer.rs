@@ -67,7 +67,31 @@ pub struct StoreWriter {
     initial: StoreMeta,
     /// Whether shards keep their previous version under `.sphereclip/undo` before being replaced.
     undo: std::sync::atomic::AtomicBool,
+    access: Access,
     _lock: File,
+}
+
+/// How a writer shares the store with other processes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Access {
+    /// The one process writing (exclusive lock); refused while a plan is open.
+    Alone,
+    /// The one process making, committing or abandoning a plan (exclusive lock).
+    Planning,
+    /// One of many processes running a plan's tasks (shared lock): writes only shards of levels
+    /// the plan made, never the store's metadata.
+    Task,
+}
+
+/// The marker of a plan being run by many processes: `STORE/.sphereclip/plan-open.json`.
+fn plan_marker(root: &Path) -> PathBuf {
+    root.join(".sphereclip").join("plan-open.json")
+}
+
+/// What the open plan's marker holds (the text [`StoreWriter::open_plan_marker`] was given), or
+/// `None` when no plan is open.
+pub fn open_plan(root: &Path) -> Option<String> {
+    fs::read_to_string(plan_marker(root)).ok()
 }
 
 struct LevelArrays {
@@ -83,7 +107,7 @@ impl std::fmt::Debug for LevelArrays {
     }
 }
 
-fn lock_store(root: &Path) -> Result<File> {
+fn lock_store(root: &Path, shared: bool) -> Result<File> {
     let path = root.join(".lock");
     let f = OpenOptions::new()
         .create(true)
@@ -91,7 +115,12 @@ fn lock_store(root: &Path) -> Result<File> {
         .write(true)
         .open(&path)
         .map_err(io_err(&path))?;
-    match f.try_lock() {
+    let locked = if shared {
+        f.try_lock_shared()
+    } else {
+        f.try_lock()
+    };
+    match locked {
         Ok(()) => Ok(f),
         Err(std::fs::TryLockError::WouldBlock) => Err(StoreError::Locked { path }),
         Err(std::fs::TryLockError::Error(e)) => Err(io_err(&path)(e)),
@@ -192,22 +221,54 @@ impl StoreWriter {
 
     /// Creates a new, empty store at `root` (the folder must not exist or be empty).
     pub fn create(root: &Path, config: StoreConfig) -> Result<Self> {
-        Self::lock_and_open(root, Some(config), true)
+        Self::lock_and_open(root, Some(config), true, Access::Alone)
     }
 
     /// Opens an existing store for adding to it; it reads as incomplete until [`Self::commit`].
     pub fn open(root: &Path) -> Result<Self> {
-        Self::lock_and_open(root, None, false)
+        Self::lock_and_open(root, None, false, Access::Alone)
     }
 
     /// Creates the store if `root` holds none, else opens it.
     pub fn open_or_create(root: &Path, config: StoreConfig) -> Result<Self> {
-        Self::lock_and_open(root, Some(config), false)
+        Self::lock_and_open(root, Some(config), false, Access::Alone)
+    }
+
+    /// Like [`Self::open_or_create`] (`config`) or [`Self::open`] (`None`), for the process that
+    /// makes, commits or abandons a plan run by many processes: exclusive, and allowed while the
+    /// plan is open.
+    pub fn open_planning(root: &Path, config: Option<StoreConfig>) -> Result<Self> {
+        Self::lock_and_open(root, config, false, Access::Planning)
+    }
+
+    /// Opens the store for one task of an open plan, alongside the plan's other tasks (a shared
+    /// lock: no single-process writer can start meanwhile). Such a writer writes shards of the
+    /// levels the plan made and nothing else: no levels, no metadata, no commit.
+    pub fn open_task(root: &Path) -> Result<Self> {
+        let (_, meta) = read_meta(root)?;
+        check_writable(root, &meta)?;
+        let lock = lock_store(root, true)?;
+        if open_plan(root).is_none() {
+            return Err(StoreError::Usage(format!(
+                "no plan is open on this store (it was committed or abandoned): {}",
+                root.display()
+            )));
+        }
+        let (_, meta) = read_meta(root)?;
+        let codec = crate::layout::height_codec_of(&meta);
+        let mut w = Self::with_meta(root, meta, codec, lock)?;
+        w.access = Access::Task;
+        Ok(w)
     }
 
     /// Takes the store's lock first, then reads what is there: a writer never acts on metadata
     /// another process changed while it waited.
-    fn lock_and_open(root: &Path, config: Option<StoreConfig>, must_be_new: bool) -> Result<Self> {
+    fn lock_and_open(
+        root: &Path,
+        config: Option<StoreConfig>,
+        must_be_new: bool,
+        access: Access,
+    ) -> Result<Self> {
         let exists = root.join("zarr.json").is_file();
         if exists && must_be_new {
             return Err(StoreError::Usage(format!(
@@ -230,7 +291,16 @@ impl StoreWriter {
             }
         }
         crate::fault::pause("before-lock");
-        let lock = lock_store(root)?;
+        let lock = lock_store(root, false)?;
+        if access == Access::Alone
+            && let Some(plan) = open_plan(root)
+        {
+            return Err(StoreError::Usage(format!(
+                "a plan run by many processes is open on this store ({}): finish it with `sphereclip commit PLAN` or drop it with `sphereclip commit PLAN --abandon`: {}",
+                plan.trim(),
+                root.display()
+            )));
+        }
         if root.join("zarr.json").is_file() {
             if must_be_new {
                 return Err(StoreError::Usage(format!(
@@ -241,7 +311,8 @@ impl StoreWriter {
             let (_, meta) = read_meta(root)?;
             check_writable(root, &meta)?;
             let codec = crate::layout::height_codec_of(&meta);
-            let w = Self::with_meta(root, meta, codec, lock)?;
+            let mut w = Self::with_meta(root, meta, codec, lock)?;
+            w.access = access;
             // we hold the lock: our temp files left behind are from writers that died mid-write
             remove_stale_temp_files(root);
             w.lock_meta().complete = false;
@@ -259,7 +330,8 @@ impl StoreWriter {
             let mut meta = StoreMeta::new(config.grid, config.shard_tiles, config.radius_m);
             // an empty store is complete; what a rollback of the first writer returns to
             meta.complete = true;
-            let w = Self::with_meta(root, meta, config.height_codec, lock)?;
+            let mut w = Self::with_meta(root, meta, config.height_codec, lock)?;
+            w.access = access;
             w.lock_meta().complete = false;
             w.write_group_meta()?;
             Ok(w)
@@ -283,6 +355,7 @@ impl StoreWriter {
             initial: meta.clone(),
             meta: Mutex::new(meta),
             undo: std::sync::atomic::AtomicBool::new(false),
+            access: Access::Alone,
             _lock: lock,
         })
     }
@@ -308,6 +381,11 @@ impl StoreWriter {
 
     /// Writes the root group's metadata (see [`write_root_meta`]).
     fn write_group_meta(&self) -> Result<()> {
+        if self.access == Access::Task {
+            return Err(StoreError::Usage(
+                "a task of a plan does not write the store's metadata".into(),
+            ));
+        }
         let meta = self.lock_meta().clone();
         write_root_meta(&self.root, &meta)
     }
@@ -429,6 +507,12 @@ impl StoreWriter {
         let fs_path = self.root.join(path.trim_start_matches('/'));
         let zerr = zarr_err(&fs_path);
         let exists = fs_path.join("zarr.json").exists();
+        if !exists && self.access == Access::Task {
+            return Err(StoreError::Usage(format!(
+                "{kind} level {level} is not in the store, and a task of a plan makes no levels (the plan makes them all first; make the plan again): {}",
+                self.root.display()
+            )));
+        }
         let write = if exists {
             let meta = self.meta();
             crate::layout::check_file(&self.root, kind, level, &meta).map_err(&zerr)?;
@@ -609,6 +693,11 @@ impl StoreWriter {
     /// starts empty (what an abandoned earlier run kept there is dropped); else a resumed run
     /// that keeps the earlier run's entries.
     pub fn keep_undo(&self, fresh: bool) -> Result<()> {
+        if fresh && self.access == Access::Task {
+            return Err(StoreError::Usage(
+                "a task of a plan keeps the plan's undo".into(),
+            ));
+        }
         let dir = self.undo_dir();
         if fresh && dir.exists() {
             fs::remove_dir_all(&dir).map_err(io_err(&dir))?;
@@ -675,6 +764,67 @@ impl StoreWriter {
         out.sort();
         out.dedup();
         out
+    }
+
+    /// Records that a plan run by many processes is open on this store (`text` says which plan;
+    /// [`open_plan`] returns it): until [`Self::close_plan`], single-process writers are refused
+    /// and [`Self::open_task`] is allowed.
+    pub fn mark_plan_open(&self, text: &str) -> Result<()> {
+        if self.access != Access::Planning {
+            return Err(StoreError::Usage(
+                "only the planning writer opens a plan".into(),
+            ));
+        }
+        let path = plan_marker(&self.root);
+        let dir = crate::fault::folder_of(&path).to_path_buf();
+        fs::create_dir_all(&dir).map_err(io_err(&dir))?;
+        crate::fault::write_atomic(&path, text.as_bytes()).map_err(io_err(&path))
+    }
+
+    /// Removes the open-plan marker (after the plan was committed or rolled back).
+    pub fn close_plan(&self) -> Result<()> {
+        let path = plan_marker(&self.root);
+        if path.exists() {
+            crate::fault::remove_file(&path).map_err(io_err(&path))?;
+        }
+        Ok(())
+    }
+
+    /// Keeps the current version of `shard` (or the fact that it has none) as its undo entry
+    /// now, before anything replaces it (see [`Self::keep_undo`], which must have been called).
+    pub fn keep_undo_of(&self, kind: LayerKind, shard: ShardId) -> Result<()> {
+        let path = self.shard_file(kind, shard)?;
+        self.save_undo(kind, shard, &path)
+    }
+
+    fn shard_file(&self, kind: LayerKind, shard: ShardId) -> Result<PathBuf> {
+        let arrays = self.level_arrays(kind, shard.level)?;
+        let indices = kind.chunk_indices(shard.x, shard.y);
+        Ok(self.root.join(arrays.read.chunk_key(&indices).as_str()))
+    }
+
+    /// Puts back the version of a shard kept in its undo entry (or its absence), keeping the
+    /// entry: what a task of a plan does before it writes a shard again, so that every attempt
+    /// starts from the store as it was when the plan was made. Nothing happens without an entry.
+    pub fn reset_to_undo(&self, kind: LayerKind, shard: ShardId) -> Result<()> {
+        let u = self.undo_path(kind, shard);
+        let absent = u.with_extension(format!("{}.absent", shard.x));
+        let shard_path = self.shard_file(kind, shard)?;
+        if u.exists() {
+            let tmp = crate::fault::temp_name(&shard_path);
+            let dir = crate::fault::folder_of(&tmp);
+            fs::create_dir_all(dir).map_err(io_err(dir))?;
+            fs::hard_link(&u, &tmp).map_err(io_err(&tmp))?;
+            crate::fault::rename_durably(&tmp, &shard_path).map_err(io_err(&shard_path))?;
+        } else if absent.exists() {
+            match fs::remove_file(&shard_path) {
+                Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                    return Err(io_err(&shard_path)(e));
+                }
+                _ => {}
+            }
+        }
+        Ok(())
     }
 
     /// Puts back the version of a shard kept before this run (or its absence) and drops the
@@ -755,6 +905,11 @@ impl StoreWriter {
     /// Records a build step and marks the store complete, durably, after every shard written so
     /// far (each already fsynced by its writer). Call once all shard writers have finished.
     pub fn commit(&self, record: Option<BuildRecord>) -> Result<()> {
+        if self.access == Access::Task {
+            return Err(StoreError::Usage(
+                "a task of a plan does not commit; `sphereclip commit PLAN` does".into(),
+            ));
+        }
         let open = self
             .claimed
             .lock()
@@ -986,7 +1141,7 @@ pub fn upgrade(root: &Path, on_level: &dyn Fn(usize, usize)) -> Result<UpgradeRe
             pruned: 0,
         });
     }
-    let _lock = lock_store(root)?;
+    let _lock = lock_store(root, false)?;
     // we hold the lock: temp files are from a killed run
     remove_stale_temp_files(root);
     let (_, m) = read_meta(root)?;

@@ -42,6 +42,13 @@ pub enum Command {
     Demo(DemoArgs),
     /// Convert a store of an older format to the current one, in place (resumable).
     Upgrade(UpgradeArgs),
+    /// Split an ingest or a build into tasks for many processes or machines (Slurm, Kubernetes).
+    Plan(PlanArgs),
+    /// Run one task of a plan (the task number from --task, SLURM_ARRAY_TASK_ID or
+    /// JOB_COMPLETION_INDEX); running it again, or twice at once, writes the same bytes.
+    RunTask(RunTaskArgs),
+    /// Check that every task of a plan is done and mark the store complete (or abandon the plan).
+    Commit(CommitArgs),
     /// Print a shell completion script, e.g. `sphereclip completions bash > /etc/bash_completion.d/sphereclip`.
     Completions(CompletionsArgs),
 }
@@ -116,6 +123,111 @@ pub struct IngestArgs {
     #[arg(long, value_enum, default_value_t = CodecArg::Pcodec)]
     pub codec: CodecArg,
     /// Print a JSON summary at the end.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `sphereclip plan`.
+#[derive(Debug, clap::Args)]
+pub struct PlanArgs {
+    /// What to split into tasks.
+    #[command(subcommand)]
+    pub what: PlanWhat,
+}
+
+/// The step a plan splits.
+#[derive(Debug, Subcommand)]
+pub enum PlanWhat {
+    /// An ingest: the same arguments as `sphereclip ingest`, then the plan's.
+    Ingest {
+        /// The ingest.
+        #[command(flatten)]
+        ingest: IngestArgs,
+        /// The plan.
+        #[command(flatten)]
+        plan: PlanOptions,
+    },
+    /// A build: the same arguments as `sphereclip build`, then the plan's.
+    Build {
+        /// The build.
+        #[command(flatten)]
+        build: BuildArgs,
+        /// The plan.
+        #[command(flatten)]
+        plan: PlanOptions,
+    },
+}
+
+/// Options of `sphereclip plan`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct PlanOptions {
+    /// Number of tasks to split the work into (per stage; a stage with fewer shards gets fewer).
+    #[arg(long)]
+    pub tasks: u32,
+    /// Where to write the plan (JSON).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Also write what submits the plan to a cluster: `slurm` (a script of sbatch array jobs, one
+    /// per stage, chained by dependencies) or `k8s` (Kubernetes Indexed Jobs, one per stage).
+    #[arg(long, value_enum)]
+    pub emit: Option<Emit>,
+    /// Where to write what --emit makes (default: next to the plan, `.sbatch.sh` or `.k8s.yaml`).
+    #[arg(long)]
+    pub script: Option<PathBuf>,
+    /// CPU cores per task on the cluster (default: --threads, or 2).
+    #[arg(long)]
+    pub cpus_per_task: Option<u32>,
+    /// With --emit k8s: the container image that has `sphereclip` on its PATH.
+    #[arg(long, default_value = "sphereclip:latest")]
+    pub image: String,
+    /// With --emit k8s: the PersistentVolumeClaim holding the inputs, the store and the plan,
+    /// mounted in every pod at the folder the plan was made in.
+    #[arg(long, default_value = "sphereclip-data")]
+    pub claim: String,
+}
+
+/// What `plan --emit` writes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Emit {
+    /// A bash script that submits one sbatch array job per stage.
+    Slurm,
+    /// Kubernetes manifests: one Indexed Job per stage and one that commits.
+    K8s,
+}
+
+/// `sphereclip run-task`.
+#[derive(Debug, clap::Args)]
+pub struct RunTaskArgs {
+    /// The plan (from `sphereclip plan`).
+    pub plan: PathBuf,
+    /// The task number (default: SLURM_ARRAY_TASK_ID, else JOB_COMPLETION_INDEX); within --stage
+    /// when that is given, else counted over the whole plan.
+    #[arg(long)]
+    pub task: Option<u32>,
+    /// Count --task within this stage (Kubernetes' Indexed Jobs number each stage from 0).
+    #[arg(long)]
+    pub stage: Option<u32>,
+    /// Wait up to this many seconds for the earlier stages to finish (default: refuse at once).
+    #[arg(long, default_value_t = 0)]
+    pub wait: u64,
+    /// Worker threads (default: SLURM_CPUS_PER_TASK, else the plan's, else one per core).
+    #[arg(long)]
+    pub threads: Option<usize>,
+}
+
+/// `sphereclip commit`.
+#[derive(Debug, clap::Args)]
+pub struct CommitArgs {
+    /// The plan (from `sphereclip plan`).
+    pub plan: PathBuf,
+    /// Drop the plan instead: an ingest's store is put back as it was before the plan; a build's
+    /// is left incomplete for `sphereclip build` to finish.
+    #[arg(long)]
+    pub abandon: bool,
+    /// Wait up to this many seconds for the tasks to finish (default: refuse at once).
+    #[arg(long, default_value_t = 0)]
+    pub wait: u64,
+    /// Print a JSON summary.
     #[arg(long)]
     pub json: bool,
 }

@@ -70,20 +70,24 @@ pub fn build(store: &Path, settings: Settings, json: bool) -> Result<sc_build::S
     Ok(summary)
 }
 
-/// Runs `build`.
-pub fn run(a: &BuildArgs) -> Result<ExitCode> {
+/// The build settings the arguments ask for.
+pub fn settings(a: &BuildArgs) -> Result<Settings> {
     let layers = if a.layer == "all" {
         Vec::new()
     } else {
         vec![parse_layer(&a.layer)?]
     };
-    let settings = Settings {
+    Ok(Settings {
         layers,
         kernel: a.kernel.into(),
         from_level: a.from_level,
         threads: a.threads,
         repair: a.repair,
-    };
-    build(&a.store, settings, a.json)?;
+    })
+}
+
+/// Runs `build`.
+pub fn run(a: &BuildArgs) -> Result<ExitCode> {
+    build(&a.store, settings(a)?, a.json)?;
     Ok(ExitCode::SUCCESS)
 }

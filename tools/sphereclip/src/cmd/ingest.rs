@@ -60,8 +60,17 @@ fn inputs(a: &IngestArgs, options: &SourceOptions) -> Result<Vec<Input>> {
     Ok(v)
 }
 
-/// Runs `ingest`.
-pub fn run(a: &IngestArgs) -> Result<ExitCode> {
+/// Checks the inputs and makes the plan of an ingest (the store is not touched); prints each
+/// input's level.
+pub fn make_plan(a: &IngestArgs) -> Result<sc_ingest::Plan> {
+    make_plan_trusting(a, &[])
+}
+
+/// [`make_plan`], taking the content hashes of inputs of unchanged size from `known`.
+pub fn make_plan_trusting(
+    a: &IngestArgs,
+    known: &[sc_store::InputRecord],
+) -> Result<sc_ingest::Plan> {
     let layer = parse_layer(&a.layer)?;
     let kernel = Kernel::from(a.resampling);
     let level = if a.level == "auto" {
@@ -117,7 +126,7 @@ pub fn run(a: &IngestArgs) -> Result<ExitCode> {
         StoreWriter::check_path(&a.store)?;
         None
     };
-    let plan = sc_ingest::plan(&inputs, &settings, existing)?;
+    let plan = sc_ingest::plan_trusting(&inputs, &settings, existing, known)?;
     for p in &plan.inputs {
         for w in &p.info.warnings {
             eprintln!("warning: {}: {w}", p.input.path.display());
@@ -134,6 +143,12 @@ pub fn run(a: &IngestArgs) -> Result<ExitCode> {
                 .round()
         ));
     }
+    Ok(plan)
+}
+
+/// Runs `ingest`.
+pub fn run(a: &IngestArgs) -> Result<ExitCode> {
+    let plan = make_plan(a)?;
     let progress = Progress::new("ingest", plan.shards.len() as u64);
     // the workers are as many as the threads of the rayon pool the run sees
     let pool = rayon::ThreadPoolBuilder::new()

@@ -7,6 +7,7 @@ mod flight;
 mod info;
 mod ingest;
 mod inspect;
+mod plan;
 mod render;
 mod upgrade;
 mod view;
@@ -29,6 +30,9 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::View(a) => view::run(&a),
         Command::Render(a) => render::run(&a),
         Command::Upgrade(a) => upgrade::run(&a),
+        Command::Plan(a) => plan::make(&a),
+        Command::RunTask(a) => plan::run_task(&a),
+        Command::Commit(a) => plan::commit(&a),
         Command::Completions(a) => {
             let mut cmd = <Cli as clap::CommandFactory>::command();
             let mut out = Vec::new();

@@ -1,0 +1,870 @@
+//! `sphereclip plan`, `run-task` and `commit`: an ingest or a build split into tasks that many
+//! processes or machines run at once (Slurm array jobs, Kubernetes Indexed Jobs), then committed.
+//!
+//! The plan file records the command it splits (its arguments and folder), the stages (a build's
+//! steps read what earlier steps wrote) and each task's shards. A task makes the library plan
+//! again from those arguments and refuses to run when it differs (an input changed). Every task
+//! keeps its own journal under `STORE/.sphereclip/tasks/HASH/`, so tasks never write the same
+//! file; `commit` merges them.
+
+use std::fmt::Write as _;
+use std::fs::File;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result, bail};
+use clap::Parser;
+use sc_core::{LevelId, ShardId};
+use sc_store::StoreReader;
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+
+use crate::cli::{Cli, Command, CommitArgs, Emit, PlanArgs, PlanOptions, PlanWhat, RunTaskArgs};
+use crate::progress::Progress;
+
+/// Version of the plan file.
+const PLAN_FORMAT: u32 = 1;
+
+/// The first line of every script `plan --emit` writes (a file without it is never replaced).
+const SCRIPT_MARK: &str = "sphereclip plan";
+
+/// A plan file.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct PlanFile {
+    sphereclip_plan: u32,
+    /// `ingest` or `build`.
+    kind: String,
+    /// The store, absolute.
+    store: PathBuf,
+    /// The folder the plan was made in (relative paths in `args` are relative to it).
+    cwd: PathBuf,
+    /// The arguments of `sphereclip plan` that made it (from `ingest` or `build` on).
+    args: Vec<String>,
+    /// What identifies the plan: the step's own plan hash and the split into tasks.
+    hash: String,
+    /// The step's own plan hash (inputs, settings; a task checks it makes the same).
+    step_hash: String,
+    /// When the plan was made (the store's provenance records the step as started then).
+    created_unix: u64,
+    /// Worker threads per task.
+    cpus_per_task: u32,
+    /// The input files' sizes and SHA-256 when the plan was made (an ingest's tasks trust
+    /// these instead of reading every input again).
+    #[serde(default)]
+    inputs: Vec<sc_store::InputRecord>,
+    stages: Vec<Stage>,
+    tasks: Vec<Task>,
+}
+
+/// A set of tasks that may run at once; each stage starts once the one before it is done.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct Stage {
+    /// What it makes, e.g. `height L04A1`.
+    name: String,
+    /// Its first task (tasks are numbered over the whole plan).
+    first_task: u32,
+    /// Its number of tasks.
+    tasks: u32,
+}
+
+/// One task: shards of one or more steps, done in order.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct Task {
+    stage: u32,
+    /// Estimated cost (tiles, weighted by latitude for an ingest).
+    cost: f64,
+    work: Vec<Work>,
+}
+
+/// A task's shards of one step.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct Work {
+    /// The step (index into the build's steps; 0 for an ingest).
+    step: usize,
+    layer: String,
+    level: String,
+    /// Shards as `[x, y]`.
+    shards: Vec<[u64; 2]>,
+}
+
+impl Work {
+    fn shard_ids(&self) -> Result<Vec<ShardId>> {
+        let level = LevelId::from_key(&self.level)
+            .with_context(|| format!("the plan names an unknown level `{}`", self.level))?;
+        Ok(self
+            .shards
+            .iter()
+            .map(|&[x, y]| ShardId { level, x, y })
+            .collect())
+    }
+}
+
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// Splits shards with costs into at most `n` tasks of nearly equal cost: the costliest shard
+/// first, each to the task with the least cost so far (ties: the lower number). Each task's
+/// shards are then in shard order. Deterministic.
+fn balance(mut shards: Vec<(ShardId, f64)>, n: usize) -> Vec<(Vec<ShardId>, f64)> {
+    let n = n.clamp(1, shards.len().max(1));
+    shards.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+    let mut tasks: Vec<(Vec<ShardId>, f64)> = vec![(Vec::new(), 0.0); n];
+    for (s, c) in shards {
+        let k = (0..n)
+            .min_by(|&i, &j| tasks[i].1.total_cmp(&tasks[j].1).then(i.cmp(&j)))
+            .unwrap_or(0);
+        tasks[k].0.push(s);
+        tasks[k].1 += c;
+    }
+    for t in &mut tasks {
+        t.0.sort();
+    }
+    tasks.retain(|t| !t.0.is_empty());
+    tasks
+}
+
+/// The arguments after `plan` on this process's command line.
+fn plan_argv() -> Result<Vec<String>> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let at = args
+        .iter()
+        .position(|a| a == "plan")
+        .context("cannot find `plan` on the command line")?;
+    Ok(args[at + 1..].to_vec())
+}
+
+/// Parses the arguments a plan recorded back into its step.
+fn parse_recorded(args: &[String]) -> Result<PlanWhat> {
+    let argv = ["sphereclip", "plan"]
+        .into_iter()
+        .map(String::from)
+        .chain(args.iter().cloned());
+    let cli = Cli::try_parse_from(argv).map_err(|e| {
+        anyhow::anyhow!(
+            "the plan's arguments do not parse: {}",
+            e.to_string().lines().next().unwrap_or_default()
+        )
+    })?;
+    match cli.command {
+        Command::Plan(p) => Ok(p.what),
+        _ => bail!("the plan's arguments are not a plan"),
+    }
+}
+
+fn absolute(p: &Path) -> Result<PathBuf> {
+    std::path::absolute(p).with_context(|| format!("cannot resolve {}", p.display()))
+}
+
+/// Writes `text` to `path` unless a file is there that `is_ours` does not recognise.
+fn write_ours(path: &Path, text: &str, is_ours: impl Fn(&str) -> bool) -> Result<()> {
+    if path.exists() {
+        let old = std::fs::read_to_string(path).unwrap_or_default();
+        if !is_ours(&old) {
+            bail!(
+                "{} exists and was not written by `sphereclip plan`; choose another name",
+                path.display()
+            );
+        }
+    }
+    sc_store::fault::write_atomic(path, text.as_bytes())
+        .with_context(|| format!("cannot write {}", path.display()))
+}
+
+fn read_plan(path: &Path) -> Result<PlanFile> {
+    let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let plan: PlanFile = serde_json::from_slice(&bytes)
+        .map_err(|e| anyhow::anyhow!("not a sphereclip plan ({e}): {}", path.display()))?;
+    if plan.sphereclip_plan != PLAN_FORMAT {
+        bail!(
+            "plan format {} is not {PLAN_FORMAT} (made by another sphereclip): {}",
+            plan.sphereclip_plan,
+            path.display()
+        );
+    }
+    Ok(plan)
+}
+
+/// The folder of the plan's task journals and locks in its store.
+fn tasks_dir(plan: &PlanFile) -> PathBuf {
+    plan.store
+        .join(".sphereclip")
+        .join("tasks")
+        .join(&plan.hash[..16])
+}
+
+fn ingest_journal(plan: &PlanFile, task: u32) -> PathBuf {
+    tasks_dir(plan).join(format!("task-{task}.json"))
+}
+
+fn build_task_dir(plan: &PlanFile, task: u32) -> PathBuf {
+    tasks_dir(plan).join(format!("task-{task}"))
+}
+
+/// Runs `plan`.
+pub fn make(a: &PlanArgs) -> Result<ExitCode> {
+    let args = plan_argv()?;
+    let cwd = std::env::current_dir().context("cannot read the current folder")?;
+    let (opts, threads) = match &a.what {
+        PlanWhat::Ingest { plan, ingest } => (plan, ingest.threads),
+        PlanWhat::Build { plan, build } => (plan, build.threads),
+    };
+    if opts.tasks == 0 {
+        bail!("--tasks must be at least 1");
+    }
+    let cpus = opts
+        .cpus_per_task
+        .unwrap_or(if threads > 0 { threads as u32 } else { 2 });
+    let out = absolute(&opts.out)?;
+    let plan = match &a.what {
+        PlanWhat::Ingest { ingest, .. } => {
+            let store = absolute(&ingest.store)?;
+            let p = super::ingest::make_plan(ingest)?;
+            let grid = p.grid;
+            let shards: Vec<(ShardId, f64)> = p
+                .shards
+                .iter()
+                .map(|(s, tiles)| {
+                    // a tile costs more the nearer the pole (wider footprints), up to 4×
+                    let cost: f64 = tiles
+                        .iter()
+                        .map(|(t, inputs)| {
+                            let r = grid.tile_rect(*t);
+                            let lat = r.north.abs().min(r.south.abs()).to_radians();
+                            inputs.len() as f64 / lat.cos().max(0.25)
+                        })
+                        .sum();
+                    (*s, cost)
+                })
+                .collect();
+            let layer = p.settings.layer.name().to_string();
+            let tasks: Vec<Task> = balance(shards, opts.tasks as usize)
+                .into_iter()
+                .map(|(shards, cost)| Task {
+                    stage: 0,
+                    cost,
+                    work: group_by_level(&layer, 0, &shards),
+                })
+                .collect();
+            let stages = vec![Stage {
+                name: format!("ingest {layer}"),
+                first_task: 0,
+                tasks: tasks.len() as u32,
+            }];
+            let mut plan = new_plan("ingest", store, cwd, args, &p.hash, cpus, stages, tasks);
+            plan.inputs = p.inputs.iter().map(|i| i.record.clone()).collect();
+            sc_ingest::open_tasks(&plan.store, &p, &marker(&plan, &out))
+                .with_context(|| format!("cannot prepare {}", plan.store.display()))?;
+            plan
+        }
+        PlanWhat::Build { build, .. } => {
+            let store = absolute(&build.store)?;
+            let p = build_plan(&store, build)?;
+            let (stages, tasks) = build_stages(&p.work(), opts.tasks as usize);
+            let plan = new_plan("build", store, cwd, args, &p.hash(), cpus, stages, tasks);
+            sc_build::open_tasks(&plan.store, &p, &marker(&plan, &out))
+                .with_context(|| format!("cannot prepare {}", plan.store.display()))?;
+            plan
+        }
+    };
+    let text = serde_json::to_string_pretty(&plan)?;
+    write_ours(&out, &text, |old| {
+        serde_json::from_str::<PlanFile>(old).is_ok()
+    })?;
+    let mut how = String::new();
+    if let Some(emit) = opts.emit {
+        let script = match &opts.script {
+            Some(s) => absolute(s)?,
+            None => out.with_extension(match emit {
+                Emit::Slurm => "sbatch.sh",
+                Emit::K8s => "k8s.yaml",
+            }),
+        };
+        let exe = std::env::current_exe().context("cannot find the sphereclip binary")?;
+        let text = match emit {
+            Emit::Slurm => slurm_script(&plan, &out, &exe),
+            Emit::K8s => k8s_manifests(&plan, &out, opts),
+        };
+        write_ours(&script, &text, |old| old.contains(SCRIPT_MARK))?;
+        how = match emit {
+            Emit::Slurm => format!("submit it with `bash {}`", script.display()),
+            Emit::K8s => format!("submit it with `kubectl apply -f {}`", script.display()),
+        };
+    }
+    crate::outln!(
+        "planned {} of {}: {} task(s) in {} stage(s), {} shard(s); written to {}",
+        plan.kind,
+        plan.store.display(),
+        plan.tasks.len(),
+        plan.stages.len(),
+        plan.tasks
+            .iter()
+            .flat_map(|t| &t.work)
+            .map(|w| w.shards.len())
+            .sum::<usize>(),
+        out.display()
+    );
+    if how.is_empty() {
+        crate::outln!(
+            "run each task with `sphereclip run-task {} --task I` (I = 0..{}; stage by stage), then `sphereclip commit {}`",
+            out.display(),
+            plan.tasks.len() - 1,
+            out.display()
+        );
+    } else {
+        crate::outln!("{how}");
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The text marking the plan open in its store: its hash, then where it was written.
+fn marker(plan: &PlanFile, out: &Path) -> String {
+    format!("{} {}", plan.hash, out.display())
+}
+
+#[allow(clippy::too_many_arguments)]
+fn new_plan(
+    kind: &str,
+    store: PathBuf,
+    cwd: PathBuf,
+    args: Vec<String>,
+    step_hash: &str,
+    cpus: u32,
+    stages: Vec<Stage>,
+    tasks: Vec<Task>,
+) -> PlanFile {
+    let mut h = Sha256::new();
+    h.update(step_hash.as_bytes());
+    h.update(store.to_string_lossy().as_bytes());
+    h.update(serde_json::to_string(&tasks).unwrap_or_default().as_bytes());
+    PlanFile {
+        sphereclip_plan: PLAN_FORMAT,
+        kind: kind.into(),
+        store,
+        cwd,
+        args,
+        hash: hex(&h.finalize()),
+        step_hash: step_hash.into(),
+        created_unix: sc_store::unix_now(),
+        cpus_per_task: cpus,
+        inputs: Vec::new(),
+        stages,
+        tasks,
+    }
+}
+
+fn group_by_level(layer: &str, step: usize, shards: &[ShardId]) -> Vec<Work> {
+    let mut out: Vec<Work> = Vec::new();
+    for s in shards {
+        match out.last_mut() {
+            Some(w) if w.level == s.level.key() => w.shards.push([s.x, s.y]),
+            _ => out.push(Work {
+                step,
+                layer: layer.into(),
+                level: s.level.key(),
+                shards: vec![[s.x, s.y]],
+            }),
+        }
+    }
+    out
+}
+
+fn build_plan(store: &Path, a: &crate::cli::BuildArgs) -> Result<sc_build::Plan> {
+    if !store.join("zarr.json").is_file() {
+        bail!("not a sphereclip store (no zarr.json): {}", store.display());
+    }
+    let meta = StoreReader::open(store)
+        .context("cannot read store")?
+        .meta()
+        .clone();
+    Ok(sc_build::plan(&meta, store, super::build::settings(a)?)?)
+}
+
+/// A build's stages: every step with two or more shards is a stage of its own, its shards
+/// split between up to `n` tasks; runs of one-shard steps (the coarse levels) are one stage of
+/// one task that does them in order.
+fn build_stages(work: &[sc_build::StepWork], n: usize) -> (Vec<Stage>, Vec<Task>) {
+    let mut stages: Vec<Stage> = Vec::new();
+    let mut tasks: Vec<Task> = Vec::new();
+    let mut k = 0;
+    while k < work.len() {
+        let w = &work[k];
+        let stage = stages.len() as u32;
+        let first_task = tasks.len() as u32;
+        if w.shards.len() >= 2 {
+            let shards: Vec<(ShardId, f64)> = w
+                .shards
+                .iter()
+                .zip(&w.tiles)
+                .map(|(s, &t)| (*s, t as f64))
+                .collect();
+            for (shards, cost) in balance(shards, n) {
+                tasks.push(Task {
+                    stage,
+                    cost,
+                    work: group_by_level(w.layer.name(), k, &shards),
+                });
+            }
+            stages.push(Stage {
+                name: format!("{} {}", w.layer, w.level),
+                first_task,
+                tasks: tasks.len() as u32 - first_task,
+            });
+            k += 1;
+        } else {
+            let start = k;
+            let mut task = Task {
+                stage,
+                cost: 0.0,
+                work: Vec::new(),
+            };
+            while k < work.len() && work[k].shards.len() < 2 {
+                let w = &work[k];
+                task.cost += w.tiles.iter().sum::<u64>() as f64;
+                task.work
+                    .extend(group_by_level(w.layer.name(), k, &w.shards));
+                k += 1;
+            }
+            let names: Vec<String> = work[start..k]
+                .iter()
+                .map(|w| format!("{} {}", w.layer, w.level))
+                .collect();
+            tasks.push(task);
+            stages.push(Stage {
+                name: names.join(", "),
+                first_task,
+                tasks: 1,
+            });
+        }
+    }
+    (stages, tasks)
+}
+
+/// The step of a plan file made again from its recorded arguments, checked against the plan.
+enum Step {
+    Ingest(Box<sc_ingest::Plan>),
+    Build(Box<sc_build::Plan>),
+}
+
+fn remake(plan: &PlanFile, threads: Option<usize>) -> Result<Step> {
+    let what = parse_recorded(&plan.args)?;
+    let step = match what {
+        PlanWhat::Ingest { ingest, .. } => {
+            let p = super::ingest::make_plan_trusting(&ingest, &plan.inputs)?;
+            if p.hash != plan.step_hash {
+                bail!(
+                    "the inputs or settings changed since the plan was made; make the plan again: {}",
+                    plan.store.display()
+                );
+            }
+            Step::Ingest(Box::new(p))
+        }
+        PlanWhat::Build { mut build, .. } => {
+            if let Some(t) = threads {
+                build.threads = t;
+            }
+            let p = build_plan(&plan.store, &build)?;
+            if p.hash() != plan.step_hash {
+                bail!(
+                    "the store's levels or the build settings changed since the plan was made; make the plan again: {}",
+                    plan.store.display()
+                );
+            }
+            Step::Build(Box::new(p))
+        }
+    };
+    let kind = match step {
+        Step::Ingest(_) => "ingest",
+        Step::Build(_) => "build",
+    };
+    if kind != plan.kind {
+        bail!("the plan says {} but its arguments make {kind}", plan.kind);
+    }
+    Ok(step)
+}
+
+/// The task number a run-task is given: --task, else the scheduler's index.
+fn task_index(a: &RunTaskArgs) -> Result<u32> {
+    if let Some(t) = a.task {
+        return Ok(t);
+    }
+    for var in ["SLURM_ARRAY_TASK_ID", "JOB_COMPLETION_INDEX"] {
+        if let Ok(v) = std::env::var(var) {
+            return v
+                .trim()
+                .parse()
+                .map_err(|_| anyhow::anyhow!("{var}={v} is not a task number"));
+        }
+    }
+    bail!(
+        "no task given: use --task I (or run it as a Slurm array task or a Kubernetes Indexed Job)"
+    )
+}
+
+/// Whether task `i` of the plan is done.
+fn task_is_done(plan: &PlanFile, step: &Step, i: u32) -> Result<bool> {
+    let task = &plan.tasks[i as usize];
+    for w in &task.work {
+        let want = w.shard_ids()?;
+        let done = match step {
+            Step::Ingest(p) => sc_ingest::task_done(&ingest_journal(plan, i), p),
+            Step::Build(p) => {
+                sc_build::task_done(&plan.store, p, w.step, &build_task_dir(plan, i))?
+            }
+        };
+        if want.iter().any(|s| !done.contains(s)) {
+            return Ok(false);
+        }
+    }
+    Ok(true)
+}
+
+/// The tasks of stages before `stage` (all of them for `None`) that are not done yet.
+fn unfinished(plan: &PlanFile, step: &Step, stage: Option<u32>) -> Result<Vec<u32>> {
+    let mut out = Vec::new();
+    for (i, t) in plan.tasks.iter().enumerate() {
+        if stage.is_none_or(|s| t.stage < s) && !task_is_done(plan, step, i as u32)? {
+            out.push(i as u32);
+        }
+    }
+    Ok(out)
+}
+
+fn list(tasks: &[u32]) -> String {
+    let mut s = String::new();
+    for (k, t) in tasks.iter().take(12).enumerate() {
+        let _ = write!(s, "{}{t}", if k > 0 { ", " } else { "" });
+    }
+    if tasks.len() > 12 {
+        let _ = write!(s, " … ({} in all)", tasks.len());
+    }
+    s
+}
+
+/// Waits up to `wait` seconds until `unfinished` finds nothing; returns what is left.
+fn wait_for(plan: &PlanFile, step: &Step, stage: Option<u32>, wait: u64) -> Result<Vec<u32>> {
+    let start = Instant::now();
+    loop {
+        let left = unfinished(plan, step, stage)?;
+        if left.is_empty() || start.elapsed() >= Duration::from_secs(wait) {
+            return Ok(left);
+        }
+        std::thread::sleep(Duration::from_secs(2).min(Duration::from_secs(wait)));
+    }
+}
+
+/// Runs `run-task`.
+pub fn run_task(a: &RunTaskArgs) -> Result<ExitCode> {
+    let plan_path = absolute(&a.plan)?;
+    let plan = read_plan(&plan_path)?;
+    std::env::set_current_dir(&plan.cwd)
+        .with_context(|| format!("cannot enter the plan's folder {}", plan.cwd.display()))?;
+    let index = task_index(a)?;
+    let i = match a.stage {
+        Some(s) => {
+            let stage = plan.stages.get(s as usize).with_context(|| {
+                format!("the plan has {} stage(s), not {}", plan.stages.len(), s + 1)
+            })?;
+            if index >= stage.tasks {
+                bail!(
+                    "stage {s} of the plan has {} task(s), not {}",
+                    stage.tasks,
+                    index + 1
+                );
+            }
+            stage.first_task + index
+        }
+        None => index,
+    };
+    let Some(task) = plan.tasks.get(i as usize) else {
+        bail!(
+            "the plan has {} task(s) (0..{}), not task {i}: {}",
+            plan.tasks.len(),
+            plan.tasks.len() - 1,
+            plan_path.display()
+        );
+    };
+    let threads = a.threads.or_else(|| {
+        std::env::var("SLURM_CPUS_PER_TASK")
+            .ok()
+            .and_then(|v| v.parse().ok())
+    });
+    let step = remake(&plan, threads)?;
+    let dir = tasks_dir(&plan);
+    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    // one run of a task at a time: a second one waits, then finds the work done
+    let lock_path = dir.join(format!("task-{i}.lock"));
+    let lock = File::create(&lock_path)
+        .with_context(|| format!("cannot create {}", lock_path.display()))?;
+    lock.lock()
+        .with_context(|| format!("cannot lock {}", lock_path.display()))?;
+    let left = wait_for(&plan, &step, Some(task.stage), a.wait)?;
+    if !left.is_empty() {
+        bail!(
+            "task {i} is in stage {}, but tasks {} of earlier stages are not done; run those first (or give --wait SECONDS)",
+            task.stage,
+            list(&left)
+        );
+    }
+    let shards: usize = task.work.iter().map(|w| w.shards.len()).sum();
+    let progress = Progress::new(&format!("task {i}"), shards as u64);
+    let what = format!("task {i} of {}", plan_path.display());
+    let (written, resumed, seconds) = match &step {
+        Step::Ingest(p) => {
+            let mut ids = Vec::new();
+            for w in &task.work {
+                ids.extend(w.shard_ids()?);
+            }
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads.unwrap_or(0))
+                .build()
+                .context("cannot start the worker threads")?;
+            let s = pool
+                .install(|| {
+                    sc_ingest::run_task(&plan.store, p, &ids, &ingest_journal(&plan, i), &|d, _| {
+                        progress.set(d)
+                    })
+                })
+                .with_context(|| format!("{what} stopped (run it again to resume)"))?;
+            (s.shards_written, s.shards_resumed, s.seconds)
+        }
+        Step::Build(p) => {
+            let mut work = Vec::new();
+            for w in &task.work {
+                work.push((w.step, w.shard_ids()?));
+            }
+            let s =
+                sc_build::run_task(&plan.store, p, &work, &build_task_dir(&plan, i), &|d, _| {
+                    progress.set(d)
+                })
+                .with_context(|| format!("{what} stopped (run it again to resume)"))?;
+            (
+                s.shards_written,
+                s.shards_skipped + s.shards_empty,
+                s.seconds,
+            )
+        }
+    };
+    progress.finish();
+    drop(lock);
+    crate::outln!(
+        "task {i} ({}) of {}: {written} shard(s) written, {resumed} already done, {seconds:.1} s",
+        plan.stages[task.stage as usize].name,
+        plan.store.display()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Runs `commit`.
+pub fn commit(a: &CommitArgs) -> Result<ExitCode> {
+    let plan_path = absolute(&a.plan)?;
+    let plan = read_plan(&plan_path)?;
+    std::env::set_current_dir(&plan.cwd)
+        .with_context(|| format!("cannot enter the plan's folder {}", plan.cwd.display()))?;
+    let journals: Vec<PathBuf> = (0..plan.tasks.len() as u32)
+        .map(|i| ingest_journal(&plan, i))
+        .collect();
+    let dir = tasks_dir(&plan);
+    if a.abandon {
+        match plan.kind.as_str() {
+            "ingest" => sc_ingest::abandon_tasks(&plan.store, &journals)?,
+            _ => {
+                let w = sc_store::StoreWriter::open_planning(&plan.store, None)?;
+                w.close_plan()?;
+            }
+        }
+        remove_dir(&dir)?;
+        crate::outln!(
+            "abandoned the plan {}: {}",
+            plan_path.display(),
+            if plan.kind == "ingest" {
+                format!("{} is as it was before it", plan.store.display())
+            } else {
+                format!(
+                    "{} is incomplete; `sphereclip build` finishes it",
+                    plan.store.display()
+                )
+            }
+        );
+        return Ok(ExitCode::SUCCESS);
+    }
+    if sc_store::open_plan(&plan.store).is_none_or(|m| !m.starts_with(&plan.hash)) {
+        bail!(
+            "this plan is not open on {} (committed already, abandoned, or another plan was made since)",
+            plan.store.display()
+        );
+    }
+    let step = remake(&plan, None)?;
+    let left = wait_for(&plan, &step, None, a.wait)?;
+    if !left.is_empty() {
+        bail!(
+            "tasks {} of {} are not done; run them (`sphereclip run-task {} --task I`, or submit the plan again), then commit",
+            list(&left),
+            plan.tasks.len(),
+            plan_path.display()
+        );
+    }
+    let (shards, seconds) = match &step {
+        Step::Ingest(p) => {
+            let s = sc_ingest::commit_tasks(&plan.store, p, &journals, plan.created_unix)
+                .with_context(|| format!("cannot commit {}", plan_path.display()))?;
+            if a.json {
+                crate::outln!("{}", serde_json::to_string_pretty(&s)?);
+            }
+            (s.shards_written, s.seconds)
+        }
+        Step::Build(p) => {
+            let dirs: Vec<PathBuf> = (0..plan.tasks.len() as u32)
+                .map(|i| build_task_dir(&plan, i))
+                .collect();
+            let s = sc_build::commit_tasks(&plan.store, p, &dirs, plan.created_unix)
+                .with_context(|| format!("cannot commit {}", plan_path.display()))?;
+            if a.json {
+                crate::outln!("{}", serde_json::to_string_pretty(&s)?);
+            }
+            (s.shards_written, s.seconds)
+        }
+    };
+    remove_dir(&dir)?;
+    if !a.json {
+        crate::outln!(
+            "committed {} of {} ({} tasks, {shards} shard(s) with data): the store is complete, {seconds:.1} s",
+            plan.kind,
+            plan.store.display(),
+            plan.tasks.len()
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn remove_dir(dir: &Path) -> Result<()> {
+    if dir.exists() {
+        std::fs::remove_dir_all(dir).with_context(|| format!("cannot remove {}", dir.display()))?;
+    }
+    Ok(())
+}
+
+/// Quotes a string for bash (single quotes).
+fn sh(s: &str) -> String {
+    format!("'{}'", s.replace('\'', r"'\''"))
+}
+
+/// A bash script that submits the plan: one sbatch array job per stage, each waiting for the
+/// one before (`afterok`; a failed task cancels the rest), then the commit. Submitting it again
+/// resumes: finished tasks find their work done and exit at once.
+fn slurm_script(plan: &PlanFile, plan_path: &Path, exe: &Path) -> String {
+    const HEAD: &str = r#"#!/usr/bin/env bash
+# @MARK@ (Slurm): @KIND@ into @STORE@, @TASKS@ task(s) in @STAGES@ stage(s).
+# Submit from a machine that runs sbatch, with the store, the inputs and the plan on a filesystem
+# every node mounts at the same path. To resume after a failure, submit it again: finished tasks
+# find their work done. Environment: SPHERECLIP (the binary on the nodes), SBATCH_EXTRA (more
+# sbatch options, e.g. --partition=…), LOGS (folder of the job logs).
+set -euo pipefail
+SPHERECLIP=${SPHERECLIP:-@EXE@}
+PLAN=@PLAN@
+LOGS=${LOGS:-@LOGS@}
+mkdir -p "$LOGS"
+dep=()
+# NAME ARRAY COMMAND: submits one job (an array job when ARRAY is set) after the previous one
+submit() {
+  local id out="$LOGS/%x-%j.out"
+  [ -n "$2" ] && out="$LOGS/%x-%A_%a.out"
+  # shellcheck disable=SC2086
+  id=$(sbatch --parsable --job-name="$1" ${2:+--array=$2} --cpus-per-task=@CPUS@ --chdir=@CWD@ \
+    --output="$out" --kill-on-invalid-dep=yes "${dep[@]}" ${SBATCH_EXTRA:-} --wrap="$3")
+  id=${id%%;*}
+  dep=(--dependency=afterok:"$id")
+  echo "$1: job $id"
+}
+"#;
+    let mut s = HEAD
+        .replace("@MARK@", SCRIPT_MARK)
+        .replace("@KIND@", &plan.kind)
+        .replace("@STORE@", &plan.store.to_string_lossy())
+        .replace("@TASKS@", &plan.tasks.len().to_string())
+        .replace("@STAGES@", &plan.stages.len().to_string())
+        .replace("@EXE@", &sh(&exe.to_string_lossy()))
+        .replace("@PLAN@", &sh(&plan_path.to_string_lossy()))
+        .replace(
+            "@LOGS@",
+            &sh(&plan_path.with_extension("logs").to_string_lossy()),
+        )
+        .replace("@CPUS@", &plan.cpus_per_task.to_string())
+        .replace("@CWD@", &sh(&plan.cwd.to_string_lossy()));
+    let tag = &plan.hash[..8];
+    let run = r#""exec \"$SPHERECLIP\" run-task \"$PLAN\" --task \$SLURM_ARRAY_TASK_ID""#;
+    for (k, st) in plan.stages.iter().enumerate() {
+        let _ = writeln!(
+            s,
+            "# stage {k}: {}\nsubmit sc-{tag}-{k} {}-{} {run}",
+            st.name,
+            st.first_task,
+            st.first_task + st.tasks - 1
+        );
+    }
+    let _ = writeln!(
+        s,
+        r#"submit sc-{tag}-commit "" "exec \"$SPHERECLIP\" commit \"$PLAN\"""#
+    );
+    s
+}
+
+/// Kubernetes manifests: one Indexed Job per stage and one that commits, all applied at once;
+/// each task waits for the earlier stages itself (`run-task --wait`), as Jobs have no
+/// dependencies. Every pod mounts the claim at the folder the plan was made in.
+fn k8s_manifests(plan: &PlanFile, plan_path: &Path, opts: &PlanOptions) -> String {
+    let tag = &plan.hash[..8];
+    let cwd = plan.cwd.to_string_lossy();
+    let q = |s: &str| serde_json::to_string(s).unwrap_or_default();
+    let job = |name: &str, n: u32, command: Vec<String>| -> String {
+        let cmd: Vec<String> = command.iter().map(|c| q(c)).collect();
+        format!(
+            "---\napiVersion: batch/v1\nkind: Job\nmetadata:\n  name: {name}\n  labels:\n    app: sphereclip\n    sphereclip/plan: \"{tag}\"\nspec:\n  completionMode: Indexed\n  completions: {n}\n  parallelism: {n}\n  backoffLimit: {}\n  template:\n    spec:\n      restartPolicy: Never\n      containers:\n        - name: sphereclip\n          image: {}\n          workingDir: {}\n          command: [{}]\n          resources:\n            requests:\n              cpu: \"{}\"\n          volumeMounts:\n            - name: data\n              mountPath: {}\n      volumes:\n        - name: data\n          persistentVolumeClaim:\n            claimName: {}\n",
+            3 * n,
+            q(&opts.image),
+            q(&cwd),
+            cmd.join(", "),
+            plan.cpus_per_task,
+            q(&cwd),
+            q(&opts.claim),
+        )
+    };
+    let plan_s = plan_path.to_string_lossy().into_owned();
+    let wait = "86400".to_string();
+    let mut s = format!(
+        "# {SCRIPT_MARK} (Kubernetes): {} into {}, {} task(s) in {} stage(s).\n# Apply with `kubectl apply -f` this file. Every pod mounts the claim {} at {cwd}, which must hold the\n# inputs, the store and the plan at the paths they had when the plan was made. Each stage's tasks\n# wait for the stage before (up to a day); the last Job commits.\n",
+        plan.kind,
+        plan.store.display(),
+        plan.tasks.len(),
+        plan.stages.len(),
+        opts.claim
+    );
+    for (k, st) in plan.stages.iter().enumerate() {
+        s += &job(
+            &format!("sc-{tag}-stage-{k}"),
+            st.tasks,
+            vec![
+                "sphereclip".into(),
+                "run-task".into(),
+                plan_s.clone(),
+                "--stage".into(),
+                k.to_string(),
+                "--wait".into(),
+                wait.clone(),
+            ],
+        );
+    }
+    s += &job(
+        &format!("sc-{tag}-commit"),
+        1,
+        vec![
+            "sphereclip".into(),
+            "commit".into(),
+            plan_s.clone(),
+            "--wait".into(),
+            wait,
+        ],
+    );
+    s
+}
