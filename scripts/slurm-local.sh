@@ -42,7 +42,9 @@ if [ "$(id -u)" != 0 ]; then
 fi
 
 host=$(hostname -s)
+# at least 8 CPUs, whatever the machine has, so that a test's 4 one-CPU tasks run at once
 cpus=$(nproc)
+[ "$cpus" -lt 8 ] && cpus=8
 mem=$(( $(awk '/MemTotal/ {print $2}' /proc/meminfo) / 1024 / 2 ))
 mkdir -p "$dir/state" "$dir/spool" "$dir/munge"
 chmod 0700 "$dir/munge"
@@ -74,6 +76,7 @@ SelectTypeParameters=CR_Core
 ReturnToService=2
 MpiDefault=none
 KillWait=5
+SlurmdParameters=config_overrides
 NodeName=$host NodeAddr=127.0.0.1 CPUs=$cpus RealMemory=$mem State=UNKNOWN
 PartitionName=test Nodes=$host Default=YES MaxTime=INFINITE State=UP OverSubscribe=YES
 CONF

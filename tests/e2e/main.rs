@@ -2,6 +2,7 @@
 //! `tests/`): each module a command or a promise, `util` their shared helpers and fixtures.
 
 mod build;
+mod cluster;
 mod fidelity;
 mod golden;
 mod ingest;

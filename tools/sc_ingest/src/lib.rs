@@ -765,6 +765,7 @@ fn write_shards(
             range: s.range.map(|r| (settings.layer, shard.level, r)),
             inputs: s.inputs,
         };
+        sc_store::fault::pause("shard-durable");
         journal.mark_done(&shard, record)?;
         sc_store::fault::pause("shard-journalled");
         let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;

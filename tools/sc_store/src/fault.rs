@@ -43,7 +43,8 @@ pub fn step(what: &str, path: &Path) {
     }
 }
 
-/// Waits at pause point `name` while `SPHERECLIP_PAUSE=name:FILE` is set and FILE does not exist.
+/// Waits at pause point `name` while `SPHERECLIP_PAUSE=name:FILE` is set and FILE does not exist;
+/// `FILE.waiting` exists while it waits (so a test knows the process got there).
 pub fn pause(name: &str) {
     let Ok(v) = std::env::var("SPHERECLIP_PAUSE") else {
         return;
@@ -54,10 +55,13 @@ pub fn pause(name: &str) {
     if point != name {
         return;
     }
+    let waiting = format!("{file}.waiting");
+    let _ = fs::write(&waiting, b"");
     let start = Instant::now();
     while !Path::new(file).exists() && start.elapsed() < Duration::from_secs(120) {
         std::thread::sleep(Duration::from_millis(10));
     }
+    let _ = fs::remove_file(&waiting);
 }
 
 /// Whether `name` is one of our temp files: `BASE.tmp.PID.N` with a non-empty BASE and PID, N

@@ -1,0 +1,453 @@
+//! `plan`, `run-task` and `commit`: an ingest and a build split into tasks, run by hand in any
+//! order (one killed, one run twice at once) and as array jobs on a real Slurm started on this
+//! machine (`scripts/slurm-local.sh`), end with the bytes one process writes.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use crate::util::*;
+
+/// Two inputs mosaicked with feathered edges (a rerun over its own output would blend twice),
+/// at level 5 with 32² tiles: 32 shards, and a 12-stage build.
+fn ingest_args() -> Vec<String> {
+    [
+        s(&sample("etopo20.cdf")),
+        s(&sample("n07_w006_3arc_v2.tif")),
+        "--tile-size",
+        "32",
+        "--level",
+        "5",
+        "--feather",
+        "3",
+    ]
+    .map(String::from)
+    .to_vec()
+}
+
+/// The inputs of the second ingest of the by-hand test: an SRTM tile fading in over ETOPO20.
+const OVER: [&str; 6] = ["--level", "5", "--feather", "3", "--priority", "1"];
+
+/// What one process makes of ETOPO20 at level 5 (32² tiles), then the SRTM tile over it
+/// (`OVER`), then the pyramid: (after the ingests, after the build).
+fn reference_two_steps() -> (PathBuf, PathBuf) {
+    let d = fixture("cluster-reference-2", |d| {
+        let ingested = d.join("ingested.zarr");
+        ok(&run(&[
+            "ingest",
+            s(&ingested),
+            s(&sample("etopo20.cdf")),
+            "--tile-size",
+            "32",
+            "--level",
+            "5",
+        ]));
+        ok(&run(&[
+            &["ingest", s(&ingested), s(&sample("n07_w006_3arc_v2.tif"))][..],
+            &OVER,
+        ]
+        .concat()));
+        let built = d.join("built.zarr");
+        copy_dir(&ingested, &built);
+        ok(&run(&["build", s(&built)]));
+    });
+    (d.join("ingested.zarr"), d.join("built.zarr"))
+}
+
+/// The store one process makes: (after ingest, after ingest and build), each with its
+/// bookkeeping.
+fn reference() -> (PathBuf, PathBuf) {
+    let d = fixture("cluster-reference", |d| {
+        let args = ingest_args();
+        let a: Vec<&str> = args.iter().map(String::as_str).collect();
+        let ingested = d.join("ingested.zarr");
+        ok(&run(&[&["ingest", s(&ingested)][..], &a].concat()));
+        let built = d.join("built.zarr");
+        copy_dir(&ingested, &built);
+        ok(&run(&["build", s(&built)]));
+    });
+    (d.join("ingested.zarr"), d.join("built.zarr"))
+}
+
+fn plan(dir: &Path, what: &str, store: &Path, tasks: u32, extra: &[&str]) -> PathBuf {
+    plan_with(dir, what, store, &ingest_args(), tasks, extra)
+}
+
+fn plan_with(
+    dir: &Path,
+    what: &str,
+    store: &Path,
+    inputs: &[String],
+    tasks: u32,
+    extra: &[&str],
+) -> PathBuf {
+    let out = dir.join(format!("plan-{what}-{}.json", extra.len() + inputs.len()));
+    let mut args: Vec<String> = vec!["plan".into(), what.into(), s(store).into()];
+    if what == "ingest" {
+        args.extend(inputs.iter().cloned());
+    }
+    args.extend(
+        [
+            "--tasks",
+            &tasks.to_string(),
+            "--out",
+            s(&out),
+            "--cpus-per-task",
+            "1",
+        ]
+        .map(String::from),
+    );
+    args.extend(extra.iter().map(|a| a.to_string()));
+    let a: Vec<&str> = args.iter().map(String::as_str).collect();
+    ok(&run(&a));
+    out
+}
+
+fn task_count(plan: &Path) -> usize {
+    let v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(plan).expect("plan")).expect("json");
+    v["tasks"].as_array().expect("tasks").len()
+}
+
+fn run_task(plan: &Path, i: usize) -> std::process::Output {
+    run(&["run-task", s(plan), "--task", &i.to_string()])
+}
+
+/// The number of shards the journal of each task of an ingest plan records (by task number).
+fn journal_counts(store: &Path) -> std::collections::BTreeMap<u32, usize> {
+    let mut out = std::collections::BTreeMap::new();
+    let Ok(dirs) = std::fs::read_dir(store.join(".sphereclip/tasks")) else {
+        return out;
+    };
+    for d in dirs.flatten() {
+        for f in std::fs::read_dir(d.path()).expect("read_dir").flatten() {
+            let name = f.file_name().to_string_lossy().into_owned();
+            let Some(i) = name
+                .strip_prefix("task-")
+                .and_then(|n| n.strip_suffix(".json"))
+                .and_then(|n| n.parse().ok())
+            else {
+                continue;
+            };
+            let n = std::fs::read(f.path())
+                .ok()
+                .and_then(|b| serde_json::from_slice::<serde_json::Value>(&b).ok())
+                .and_then(|v| v["done"].as_object().map(|o| o.len()))
+                .unwrap_or(0);
+            out.insert(i, n);
+        }
+    }
+    out
+}
+
+#[test]
+fn tasks_run_in_any_order_killed_or_twice_at_once_write_the_bytes_of_one_process() {
+    let (ingested, built) = reference_two_steps();
+    let dir = tempfile::tempdir().expect("tmp");
+    let store = dir.path().join("t.zarr");
+    let etopo: Vec<String> = [
+        s(&sample("etopo20.cdf")),
+        "--tile-size",
+        "32",
+        "--level",
+        "5",
+    ]
+    .map(String::from)
+    .to_vec();
+    let p = plan_with(dir.path(), "ingest", &store, &etopo, 4, &[]);
+    assert_eq!(task_count(&p), 4);
+
+    // while the plan is open, a single-process ingest is refused and changes nothing
+    let before = snapshot_with(&store, true);
+    let o = run(&[
+        &["ingest", s(&store)][..],
+        &etopo.iter().map(String::as_str).collect::<Vec<_>>(),
+    ]
+    .concat());
+    let e = one_line_failure(&o, "ingest over an open plan");
+    assert!(e.contains("plan") && e.contains("commit"), "{e}");
+    same_files(&before, &snapshot_with(&store, true), "refused ingest");
+
+    // commit before the tasks ran names them
+    let o = run(&["commit", s(&p)]);
+    let e = one_line_failure(&o, "early commit");
+    assert!(e.contains("tasks 0, 1, 2, 3 of 4 are not done"), "{e}");
+
+    // task 2 killed after a few durable steps, the others in another order
+    let mut c = bin();
+    c.args(["run-task", s(&p), "--task", "2"])
+        .env("SPHERECLIP_FAULT_AFTER", "7");
+    let o = run_within(c, Duration::from_secs(300));
+    assert_eq!(o.status.code(), Some(86), "{}", text(&o.stderr));
+    for i in [3, 1] {
+        ok(&run_task(&p, i));
+    }
+    // task 0 twice at once: the first waits after its first shard, the second waits for it
+    let go = dir.path().join("go");
+    let mut first = bin();
+    first
+        .args(["run-task", s(&p), "--task", "0"])
+        .env("SPHERECLIP_PAUSE", format!("shard-journalled:{}", s(&go)))
+        .stdout(Stdio::null())
+        .stderr(Stdio::null());
+    let mut first = first.spawn().expect("spawns");
+    wait_for_file(&dir.path().join("go.waiting"));
+    let mut second = bin();
+    second
+        .args(["run-task", s(&p), "--task", "0"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null());
+    let second = second.spawn().expect("spawns");
+    std::thread::sleep(Duration::from_millis(300));
+    std::fs::write(&go, b"").expect("go");
+    assert!(first.wait().expect("waits").success());
+    let o = second.wait_with_output().expect("waits");
+    assert!(o.status.success());
+    // task 2 again: resumes
+    let o = run_task(&p, 2);
+    ok(&o);
+    assert!(
+        text(&o.stdout).contains("already done"),
+        "{}",
+        text(&o.stdout)
+    );
+    ok(&run(&["commit", s(&p)]));
+
+    // the SRTM tile over it: every task killed once its shard is durable but not yet in its
+    // journal (a rerun that blended over its own output would fade the tile in twice)
+    let srtm: Vec<String> = [&[s(&sample("n07_w006_3arc_v2.tif"))][..], &OVER]
+        .concat()
+        .iter()
+        .map(|a| a.to_string())
+        .collect();
+    let p2 = plan_with(dir.path(), "ingest", &store, &srtm, 4, &[]);
+    let n = task_count(&p2);
+    assert!(n >= 2, "{n} tasks");
+    let stop = dir.path().join("never");
+    for i in 0..n {
+        let mut c = bin();
+        c.args(["run-task", s(&p2), "--task", &i.to_string()])
+            .env("SPHERECLIP_PAUSE", format!("shard-durable:{}", s(&stop)))
+            .stdout(Stdio::null())
+            .stderr(Stdio::null());
+        let mut child = c.spawn().expect("spawns");
+        let waiting = dir.path().join("never.waiting");
+        wait_for_file(&waiting);
+        child.kill().expect("kill");
+        child.wait().expect("waits");
+        std::fs::remove_file(&waiting).expect("rm");
+    }
+    for i in (0..n).rev() {
+        ok(&run_task(&p2, i));
+    }
+    ok(&run(&["commit", s(&p2)]));
+    same_files(
+        &snapshot_with(&ingested, false),
+        &snapshot_with(&store, false),
+        "two ingests by tasks",
+    );
+
+    // the build: a later stage refuses to start before the earlier ones are done
+    let pb = plan(dir.path(), "build", &store, 4, &["--emit", "k8s"]);
+    let n = task_count(&pb);
+    let o = run_task(&pb, n - 1);
+    let e = one_line_failure(&o, "a stage run too early");
+    assert!(e.contains("earlier stages are not done"), "{e}");
+    for i in 0..n {
+        ok(&run_task(&pb, i));
+    }
+    ok(&run(&["commit", s(&pb)]));
+    same_files(
+        &snapshot_with(&built, true),
+        &snapshot_with(&store, true),
+        "build by tasks",
+    );
+    let k8s = std::fs::read_to_string(pb.with_extension("k8s.yaml")).expect("manifests");
+    assert!(k8s.contains("completionMode: Indexed") && k8s.contains("--wait"));
+
+    // an abandoned ingest plan leaves the store as it was
+    let before = snapshot_with(&store, false);
+    let p3 = plan_with(dir.path(), "ingest", &store, &srtm, 2, &["--resampling", "bilinear"]);
+    ok(&run_task(&p3, 0));
+    ok(&run(&["commit", s(&p3), "--abandon"]));
+    same_files(&before, &snapshot_with(&store, false), "abandoned plan");
+    ok(&run(&["info", s(&store), "--verify"]));
+}
+
+fn wait_for_file(path: &Path) {
+    let start = Instant::now();
+    while !path.exists() {
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "{} did not appear",
+            path.display()
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+/// The local Slurm of `scripts/slurm-local.sh`, stopped when dropped.
+struct Slurm {
+    dir: PathBuf,
+    conf: PathBuf,
+}
+
+impl Slurm {
+    fn start(dir: &Path) -> Option<Self> {
+        let o = Command::new("bash")
+            .arg(repo("scripts/slurm-local.sh"))
+            .arg("start")
+            .arg(dir)
+            .stdin(Stdio::null())
+            .output()
+            .expect("bash runs");
+        match o.status.code() {
+            Some(0) => Some(Self {
+                dir: dir.to_path_buf(),
+                conf: dir.join("slurm.conf"),
+            }),
+            Some(2) => {
+                eprintln!(
+                    "SKIPPED: Slurm cannot be installed or started here: {}",
+                    text(&o.stderr).trim()
+                );
+                None
+            }
+            _ => panic!("slurm-local.sh failed: {}", text(&o.stderr)),
+        }
+    }
+
+    fn command(&self, program: &str) -> Command {
+        let mut c = Command::new(program);
+        c.env("SLURM_CONF", &self.conf).stdin(Stdio::null());
+        c
+    }
+
+    /// Runs a script `plan --emit slurm` wrote; returns the job ids it printed.
+    fn submit(&self, script: &Path, env: &[(&str, &str)]) -> Vec<String> {
+        let mut c = self.command("bash");
+        c.arg(script)
+            .env("SOURCE_DATE_EPOCH", "1790000000")
+            .env_remove("SPHERECLIP_FAULT_AFTER")
+            .env_remove("SPHERECLIP_PAUSE");
+        for (k, v) in env {
+            c.env(k, v);
+        }
+        let o = c.output().expect("bash runs");
+        ok(&o);
+        text(&o.stdout)
+            .lines()
+            .filter_map(|l| l.rsplit_once(": job ").map(|(_, id)| id.trim().to_string()))
+            .collect()
+    }
+
+    fn queue_empty(&self) -> bool {
+        let o = self
+            .command("squeue")
+            .args(["-h", "-o", "%i"])
+            .output()
+            .expect("squeue runs");
+        o.status.success() && text(&o.stdout).trim().is_empty()
+    }
+
+    fn wait_empty(&self, what: &str) {
+        let start = Instant::now();
+        while !self.queue_empty() {
+            assert!(
+                start.elapsed() < Duration::from_secs(600),
+                "{what}: jobs still queued after 10 minutes (logs in {})",
+                self.dir.display()
+            );
+            std::thread::sleep(Duration::from_millis(500));
+        }
+    }
+}
+
+impl Drop for Slurm {
+    fn drop(&mut self) {
+        let _ = Command::new("bash")
+            .arg(repo("scripts/slurm-local.sh"))
+            .arg("stop")
+            .arg(&self.dir)
+            .stdin(Stdio::null())
+            .output();
+    }
+}
+
+#[test]
+fn a_plan_runs_on_slurm_as_array_jobs_and_a_killed_task_resubmitted_gives_the_same_bytes() {
+    let (_, built) = reference();
+    let dir = tempfile::tempdir().expect("tmp");
+    let Some(slurm) = Slurm::start(&dir.path().join("slurm")) else {
+        return;
+    };
+    let store = dir.path().join("t.zarr");
+    let p = plan(dir.path(), "ingest", &store, 4, &["--emit", "slurm"]);
+    let script = p.with_extension("sbatch.sh");
+    // every task stops after its first shard until `go` exists; task 2 is cancelled there
+    let go = dir.path().join("go");
+    let pause = format!("shard-journalled:{}", s(&go));
+    let jobs = slurm.submit(&script, &[("SPHERECLIP_PAUSE", &pause)]);
+    assert_eq!(jobs.len(), 2, "an array job and the commit: {jobs:?}");
+    let start = Instant::now();
+    while journal_counts(&store).values().filter(|&&c| c >= 1).count() < 4 {
+        assert!(
+            start.elapsed() < Duration::from_secs(300),
+            "the four tasks did not all start: {:?}",
+            journal_counts(&store)
+        );
+        std::thread::sleep(Duration::from_millis(200));
+    }
+    let o = slurm
+        .command("scancel")
+        .arg(format!("{}_2", jobs[0]))
+        .output()
+        .expect("scancel runs");
+    ok(&o);
+    // the cancelled task is gone before the others go on
+    let start = Instant::now();
+    loop {
+        let o = slurm
+            .command("squeue")
+            .args(["-h", "-o", "%i", "-j", &format!("{}_2", jobs[0])])
+            .output()
+            .expect("squeue runs");
+        if text(&o.stdout).trim().is_empty() {
+            break;
+        }
+        assert!(start.elapsed() < Duration::from_secs(120), "task 2 stays");
+        std::thread::sleep(Duration::from_millis(200));
+    }
+    std::fs::write(&go, b"").expect("go");
+    slurm.wait_empty("first submission");
+    let o = run(&["commit", s(&p)]);
+    let e = one_line_failure(&o, "commit after a cancelled task");
+    assert!(e.contains("tasks 2 of 4 are not done"), "{e}");
+
+    // submitted again: the three finished tasks find their work done, task 2 resumes
+    slurm.submit(&script, &[]);
+    slurm.wait_empty("second submission");
+    let logs = p.with_extension("logs");
+    let log_text: String = std::fs::read_dir(&logs)
+        .expect("logs")
+        .flatten()
+        .map(|e| std::fs::read_to_string(e.path()).unwrap_or_default())
+        .collect();
+    assert!(
+        log_text.contains("committed ingest"),
+        "the commit job ran: {log_text}"
+    );
+
+    let pb = plan(dir.path(), "build", &store, 4, &["--emit", "slurm"]);
+    slurm.submit(&pb.with_extension("sbatch.sh"), &[]);
+    slurm.wait_empty("build");
+    assert!(
+        sc_store::open_plan(&store).is_none(),
+        "the build's commit job closed the plan"
+    );
+    same_files(
+        &snapshot_with(&built, true),
+        &snapshot_with(&store, true),
+        "ingest and build on Slurm",
+    );
+}
