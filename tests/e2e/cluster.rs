@@ -267,7 +267,14 @@ fn tasks_run_in_any_order_killed_or_twice_at_once_write_the_bytes_of_one_process
 
     // an abandoned ingest plan leaves the store as it was
     let before = snapshot_with(&store, false);
-    let p3 = plan_with(dir.path(), "ingest", &store, &srtm, 2, &["--resampling", "bilinear"]);
+    let p3 = plan_with(
+        dir.path(),
+        "ingest",
+        &store,
+        &srtm,
+        2,
+        &["--resampling", "bilinear"],
+    );
     ok(&run_task(&p3, 0));
     ok(&run(&["commit", s(&p3), "--abandon"]));
     same_files(&before, &snapshot_with(&store, false), "abandoned plan");

@@ -102,9 +102,12 @@ fn print_text(
         reader.root().display(),
         m.format_version,
         if m.complete {
-            "complete"
+            "complete".to_string()
+        } else if let Some(plan) = sc_store::open_plan(reader.root()) {
+            let path = plan.split_once(' ').map_or("", |(_, p)| p.trim());
+            format!("INCOMPLETE (a plan run by many processes is open: `sphereclip commit {path}`)")
         } else {
-            "INCOMPLETE (a writer did not commit)"
+            "INCOMPLETE (a writer did not commit)".to_string()
         },
         human_bytes(total)
     );
