@@ -458,3 +458,45 @@ fn a_plan_runs_on_slurm_as_array_jobs_and_a_killed_task_resubmitted_gives_the_sa
         "ingest and build on Slurm",
     );
 }
+
+#[test]
+fn a_regional_build_plans_only_the_shards_its_data_reaches_and_leaves_no_bookkeeping_behind() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let one = dir.path().join("one.zarr");
+    let srtm = sample("n07_w006_3arc_v2.tif");
+    let args = [
+        s(&srtm),
+        "--tile-size",
+        "32",
+        "--level",
+        "9",
+    ];
+    ok(&run(&[&["ingest", s(&one)][..], &args].concat()));
+    let store = dir.path().join("t.zarr");
+    copy_dir(&one, &store);
+    ok(&run(&["build", s(&one)]));
+
+    let p = plan(dir.path(), "build", &store, 3, &[]);
+    let v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&p).expect("plan")).expect("json");
+    let shards: usize = v["tasks"]
+        .as_array()
+        .expect("tasks")
+        .iter()
+        .flat_map(|t| t["work"].as_array().expect("work"))
+        .map(|w| w["shards"].as_array().expect("shards").len())
+        .sum();
+    // a 1° square at 7°N: a few shards per level, none of the fine levels' polar rows (level 9
+    // alone has 8192 shards, its anisotropic levels over 5000)
+    assert!(shards < 200, "{shards} shards planned");
+    for i in 0..task_count(&p) {
+        ok(&run_task(&p, i));
+    }
+    ok(&run(&["commit", s(&p)]));
+    assert!(!store.join(".sphereclip/tasks").exists());
+    same_files(
+        &snapshot_with(&one, true),
+        &snapshot_with(&store, true),
+        "regional build by tasks",
+    );
+}

@@ -473,6 +473,23 @@ impl ManifestFile {
             .contains_key(&shard_key(shard))
     }
 
+    /// Records `shard` in memory only, written with the next [`Self::record`] or
+    /// [`Self::flush`] (a task's empty shards: cheap to find again after a kill).
+    fn note(&self, shard: &ShardId, entry: Entry) {
+        self.data
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .shards
+            .insert(shard_key(shard), entry);
+    }
+
+    /// Writes what [`Self::note`] recorded.
+    fn flush(&self) -> Result<()> {
+        let m = self.data.lock().unwrap_or_else(|e| e.into_inner());
+        let bytes = serde_json::to_vec(&*m).map_err(|e| BuildError::Usage(e.to_string()))?;
+        write_atomic(&self.path, &bytes)
+    }
+
     fn record(&self, shard: &ShardId, entry: Entry) -> Result<()> {
         // the lock is held through the write: a later snapshot never lands before an earlier one
         let mut m = self.data.lock().unwrap_or_else(|e| e.into_inner());
@@ -720,7 +737,7 @@ fn run_step(
             c.skipped += 1;
             drop(c);
             if task.is_some() && !manifest.has(&shard) {
-                manifest.record(&shard, e)?;
+                manifest.note(&shard, e);
             }
         } else {
             drop(c);
@@ -770,6 +787,9 @@ fn run_step(
             sc_core::workers::Stopped::Panicked => BuildError::WorkerPanicked,
         },
     )?;
+    if task.is_some() {
+        manifest.flush()?;
+    }
     let mut c = counts.into_inner().unwrap_or_else(|e| e.into_inner());
     summary.shards_written += c.written;
     summary.shards_skipped += c.skipped;
@@ -802,25 +822,72 @@ pub struct StepWork {
 }
 
 impl Plan {
-    /// The steps in the order they must run (each reads what earlier ones wrote).
-    pub fn work(&self) -> Vec<StepWork> {
-        self.steps
-            .iter()
-            .map(|st| StepWork {
+    /// The steps in the order they must run (each reads what earlier ones wrote), each with
+    /// the shards that can receive data: those whose footprint holds a shard the store has now
+    /// in the finer level, or one an earlier step will write. The others would find nothing to
+    /// filter (a regional ingest leaves most of a fine level's polar rows empty).
+    pub fn work(&self, root: &Path) -> Result<Vec<StepWork>> {
+        let reader = StoreReader::open(root)?;
+        let mut exists: HashMap<(LayerKind, ShardId), bool> = HashMap::new();
+        let mut out = Vec::new();
+        for st in &self.steps {
+            let levels = reader.meta().levels(st.layer);
+            let mut shards = Vec::new();
+            for &sh in &st.shards {
+                let deps = footprint(self.grid, self.shard_tiles, st, sh, self.settings.kernel);
+                let mut live = false;
+                for d in deps {
+                    let known = match exists.get(&(st.layer, d)) {
+                        Some(&e) => e,
+                        None => {
+                            let e = levels.contains(&d.level)
+                                && reader
+                                    .shard_path(
+                                        st.layer,
+                                        TileId {
+                                            level: d.level,
+                                            x: d.x * self.shard_tiles,
+                                            y: d.y * self.shard_tiles,
+                                        },
+                                    )?
+                                    .exists();
+                            exists.insert((st.layer, d), e);
+                            e
+                        }
+                    };
+                    if known {
+                        live = true;
+                        break;
+                    }
+                }
+                if live {
+                    shards.push(sh);
+                }
+            }
+            for &sh in &shards {
+                exists.insert((st.layer, sh), true);
+            }
+            let tiles = shards
+                .iter()
+                .map(|sh| {
+                    sh.tiles(self.grid, self.shard_tiles)
+                        .filter(|t| self.grid.level_has_tile_row(st.out, t.y))
+                        .count() as u64
+                })
+                .collect();
+            out.push(StepWork {
                 layer: st.layer,
                 level: st.out,
-                shards: st.shards.clone(),
-                tiles: st
-                    .shards
-                    .iter()
-                    .map(|sh| {
-                        sh.tiles(self.grid, self.shard_tiles)
-                            .filter(|t| self.grid.level_has_tile_row(st.out, t.y))
-                            .count() as u64
-                    })
-                    .collect(),
-            })
-            .collect()
+                shards,
+                tiles,
+            });
+        }
+        Ok(out)
+    }
+
+    /// Each step's layer and output level, in order.
+    pub fn work_shapes(&self) -> Vec<(LayerKind, LevelId)> {
+        self.steps.iter().map(|s| (s.layer, s.out)).collect()
     }
 
     /// A hash of what determines the build's output besides the store's data (builder version,
@@ -905,14 +972,15 @@ pub fn task_done(root: &Path, plan: &Plan, k: usize, task: &Path) -> Result<Vec<
     Ok(step.shards.iter().filter(|s| m.has(s)).copied().collect())
 }
 
-/// Commits a build plan whose tasks all finished: every shard of every step must be recorded
-/// in one of the task folders `tasks`; their records join the store's manifests (so a later
+/// Commits a build plan whose tasks all finished: every shard of `work` (what the plan gave its
+/// tasks, [`Plan::work`] when it was made) must be recorded in one of the task folders `tasks`; their records join the store's manifests (so a later
 /// build skips what did not change), the value ranges go into the metadata, the build is
 /// recorded in the provenance as started at `started_unix`, the store is marked complete and
 /// the plan closed.
 pub fn commit_tasks(
     root: &Path,
     plan: &Plan,
+    work: &[StepWork],
     tasks: &[PathBuf],
     started_unix: u64,
 ) -> Result<Summary> {
@@ -925,7 +993,7 @@ pub fn commit_tasks(
     };
     let mut missing = Vec::new();
     let mut merged = Vec::new();
-    for step in &plan.steps {
+    for (step, expected) in plan.steps.iter().zip(work) {
         let store_path = manifest_path(&manifest_dir(root), step.layer, step.out);
         let mut m = read_manifest(&store_path, &settings).unwrap_or_else(|| Manifest {
             settings: settings.clone(),
@@ -951,7 +1019,8 @@ pub fn commit_tasks(
             }
         }
         missing.extend(
-            step.shards
+            expected
+                .shards
                 .iter()
                 .filter(|s| !seen.contains(&shard_key(s)))
                 .map(|s| format!("{} {s}", step.layer)),
@@ -967,6 +1036,9 @@ pub fn commit_tasks(
         )));
     }
     for (path, m) in &merged {
+        if m.shards.is_empty() && !path.exists() {
+            continue;
+        }
         let bytes = serde_json::to_vec(m).map_err(|e| BuildError::Usage(e.to_string()))?;
         write_atomic(path, &bytes)?;
     }

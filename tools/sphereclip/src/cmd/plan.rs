@@ -261,7 +261,7 @@ pub fn make(a: &PlanArgs) -> Result<ExitCode> {
         PlanWhat::Build { build, .. } => {
             let store = absolute(&build.store)?;
             let p = build_plan(&store, build)?;
-            let (stages, tasks) = build_stages(&p.work(), opts.tasks as usize);
+            let (stages, tasks) = build_stages(&p.work(&store)?, opts.tasks as usize);
             let plan = new_plan("build", store, cwd, args, &p.hash(), cpus, stages, tasks);
             sc_build::open_tasks(&plan.store, &p, &marker(&plan, &out))
                 .with_context(|| format!("cannot prepare {}", plan.store.display()))?;
@@ -383,13 +383,18 @@ fn build_plan(store: &Path, a: &crate::cli::BuildArgs) -> Result<sc_build::Plan>
 
 /// A build's stages: every step with two or more shards is a stage of its own, its shards
 /// split between up to `n` tasks; runs of one-shard steps (the coarse levels) are one stage of
-/// one task that does them in order.
+/// one task that does them in order; steps with no shard to make are left out.
 fn build_stages(work: &[sc_build::StepWork], n: usize) -> (Vec<Stage>, Vec<Task>) {
     let mut stages: Vec<Stage> = Vec::new();
     let mut tasks: Vec<Task> = Vec::new();
     let mut k = 0;
     while k < work.len() {
         let w = &work[k];
+        if w.shards.is_empty() {
+            // nothing can reach this level here (a regional ingest's polar levels)
+            k += 1;
+            continue;
+        }
         let stage = stages.len() as u32;
         let first_task = tasks.len() as u32;
         if w.shards.len() >= 2 {
@@ -421,6 +426,10 @@ fn build_stages(work: &[sc_build::StepWork], n: usize) -> (Vec<Stage>, Vec<Task>
             };
             while k < work.len() && work[k].shards.len() < 2 {
                 let w = &work[k];
+                if w.shards.is_empty() {
+                    k += 1;
+                    continue;
+                }
                 task.cost += w.tiles.iter().sum::<u64>() as f64;
                 task.work
                     .extend(group_by_level(w.layer.name(), k, &w.shards));
@@ -428,6 +437,7 @@ fn build_stages(work: &[sc_build::StepWork], n: usize) -> (Vec<Stage>, Vec<Task>
             }
             let names: Vec<String> = work[start..k]
                 .iter()
+                .filter(|w| !w.shards.is_empty())
                 .map(|w| format!("{} {}", w.layer, w.level))
                 .collect();
             tasks.push(task);
@@ -718,7 +728,8 @@ pub fn commit(a: &CommitArgs) -> Result<ExitCode> {
             let dirs: Vec<PathBuf> = (0..plan.tasks.len() as u32)
                 .map(|i| build_task_dir(&plan, i))
                 .collect();
-            let s = sc_build::commit_tasks(&plan.store, p, &dirs, plan.created_unix)
+            let work = expected_work(&plan, p)?;
+            let s = sc_build::commit_tasks(&plan.store, p, &work, &dirs, plan.created_unix)
                 .with_context(|| format!("cannot commit {}", plan_path.display()))?;
             if a.json {
                 crate::outln!("{}", serde_json::to_string_pretty(&s)?);
@@ -738,9 +749,35 @@ pub fn commit(a: &CommitArgs) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// Per step of a build, the shards the plan gave its tasks.
+fn expected_work(plan: &PlanFile, p: &sc_build::Plan) -> Result<Vec<sc_build::StepWork>> {
+    let mut work: Vec<sc_build::StepWork> = p
+        .work_shapes()
+        .into_iter()
+        .map(|(layer, level)| sc_build::StepWork {
+            layer,
+            level,
+            shards: Vec::new(),
+            tiles: Vec::new(),
+        })
+        .collect();
+    for w in plan.tasks.iter().flat_map(|t| &t.work) {
+        let Some(step) = work.get_mut(w.step) else {
+            bail!("the plan names a step {} the build does not have", w.step);
+        };
+        step.shards.extend(w.shard_ids()?);
+    }
+    Ok(work)
+}
+
+/// Removes a plan's task folder, and `tasks/` when no other plan's folder is left in it.
 fn remove_dir(dir: &Path) -> Result<()> {
     if dir.exists() {
         std::fs::remove_dir_all(dir).with_context(|| format!("cannot remove {}", dir.display()))?;
+    }
+    if let Some(parent) = dir.parent() {
+        // fails, as it should, while anything is left in it
+        let _ = std::fs::remove_dir(parent);
     }
     Ok(())
 }
