@@ -606,12 +606,17 @@ fn run_steps(
         ..Summary::default()
     };
     on_shard(0, total);
-    for step in &plan.steps {
+    // only the shards finer data can reach are visited; the others count as without data
+    let work = plan.work(writer.root())?;
+    for (step, w) in plan.steps.iter().zip(&work) {
+        let unreached = (step.shards.len() - w.shards.len()) as u64;
+        summary.shards_empty += unreached;
+        progress.skip(unreached);
         run_step(
             writer,
             plan,
             step,
-            &step.shards,
+            &w.shards,
             None,
             &fps,
             &progress,
@@ -647,7 +652,13 @@ struct Progress<'a> {
 
 impl Progress<'_> {
     fn one(&self) {
-        (self.on_shard)(self.done.fetch_add(1, Ordering::Relaxed) + 1, self.total);
+        self.skip(1);
+    }
+
+    fn skip(&self, n: u64) {
+        if n > 0 {
+            (self.on_shard)(self.done.fetch_add(n, Ordering::Relaxed) + n, self.total);
+        }
     }
 }
 
