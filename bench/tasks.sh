@@ -87,10 +87,14 @@ for w in "etopo5-l4|$out/etopo5.cdf --level 4" "srtm1-l12|$srtm1"; do
   done
 done
 
-# the SRTM1 tile's store: shards and tiles per level, for the per-shard cost
-"$sc" info "$out/tasks-srtm1-l12.zarr" --json 2>/dev/null | python3 -c '
+# the SRTM1 tile's store: shards and tiles of its finest level, for the per-shard cost
+"$sc" info "$out/tasks-srtm1-l12.zarr" --json 2>/dev/null | python3 -c "$(cat <<'PY'
 import json, sys
-for lv in json.load(sys.stdin)["levels"]:
+levels = json.load(sys.stdin)["levels"]
+for lv in levels:
     l = lv["level"]
-    print(f"  level {l['level']},{l['aniso']}: {lv['shards']} shard(s), {lv['tiles_present']} tile(s)")
-'
+    if l["level"] == 12 and l["aniso"] == 0:
+        print(f"srtm1-l12: level 12 holds {lv['tiles_present']} tiles in {lv['shards']} shards")
+print(f"srtm1-l12: all levels {sum(lv['tiles_present'] for lv in levels)} tiles in {sum(lv['shards'] for lv in levels)} shards")
+PY
+)"
