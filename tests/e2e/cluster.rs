@@ -464,13 +464,7 @@ fn a_regional_build_plans_only_the_shards_its_data_reaches_and_leaves_no_bookkee
     let dir = tempfile::tempdir().expect("tmp");
     let one = dir.path().join("one.zarr");
     let srtm = sample("n07_w006_3arc_v2.tif");
-    let args = [
-        s(&srtm),
-        "--tile-size",
-        "32",
-        "--level",
-        "9",
-    ];
+    let args = [s(&srtm), "--tile-size", "32", "--level", "9"];
     ok(&run(&[&["ingest", s(&one)][..], &args].concat()));
     let store = dir.path().join("t.zarr");
     copy_dir(&one, &store);
