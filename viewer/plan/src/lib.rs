@@ -4,6 +4,7 @@
 //! visibility, clipmap windows and their fill from a store, tile streaming, the image-source
 //! graph, camera control, and the [`frame::FramePlan`] a GPU backend draws (`sc_view_gpu`).
 
+pub mod atmosphere;
 pub mod camera;
 pub mod clipmap;
 pub mod flight;

@@ -1,0 +1,318 @@
+//! The atmosphere's physical model and its lookup tables computed in plain Rust: the twin that
+//! the GPU's compute passes are checked against.
+//!
+//! The model is the one of Bruneton's 2017 reference implementation, which Hillaire (2020)
+//! uses too: a spherical shell between `bottom_radius_m` and `top_radius_m` holding Rayleigh
+//! scatterers (exponential density), Mie scatterers (exponential, Cornette-Shanks phase) and an
+//! absorbing ozone layer (a tent around 25 km). Earth's values are the default. Lengths are metres,
+//! coefficients per metre, per colour channel (red, green, blue at 680, 550, 440 nm).
+//!
+//! The transmittance table is addressed like Bruneton's: its rows by the distance from the
+//! horizon's ground point, its columns by where the ray leaves the shell between its shortest
+//! and longest possible distance, so that the grazing rays near the horizon, whose transmittance
+//! changes fastest, get most of the texels.
+
+use serde::Deserialize;
+
+/// The atmosphere: geometry, scatterers and absorbers. Reads from a `[atmosphere]` TOML table
+/// (every key optional, Earth's value when left out).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Atmosphere {
+    /// Radius of the ground, metres.
+    pub bottom_radius_m: f64,
+    /// Radius of the top of the atmosphere, metres.
+    pub top_radius_m: f64,
+    /// Rayleigh scattering coefficients at sea level, per metre (red, green, blue).
+    pub rayleigh_scattering: [f64; 3],
+    /// Scale height of the Rayleigh scatterers, metres.
+    pub rayleigh_scale_height_m: f64,
+    /// Mie scattering coefficient at sea level, per metre.
+    pub mie_scattering: [f64; 3],
+    /// Mie extinction coefficient at sea level (scattering plus absorption), per metre.
+    pub mie_extinction: [f64; 3],
+    /// Scale height of the Mie scatterers (aerosols), metres.
+    pub mie_scale_height_m: f64,
+    /// Asymmetry of the Mie phase function (Cornette-Shanks), −1..1.
+    pub mie_g: f64,
+    /// Ozone absorption coefficients at the layer's peak, per metre.
+    pub ozone_absorption: [f64; 3],
+    /// Altitude of the ozone peak, metres.
+    pub ozone_center_m: f64,
+    /// Total width of the ozone tent, metres (density falls linearly to 0 at ± half of it).
+    pub ozone_width_m: f64,
+    /// Albedo of the ground, for light it reflects into the sky.
+    pub ground_albedo: [f64; 3],
+}
+
+impl Default for Atmosphere {
+    /// Earth, as in Bruneton's 2017 reference implementation and Hillaire (2020).
+    fn default() -> Self {
+        Self {
+            bottom_radius_m: 6_360_000.0,
+            top_radius_m: 6_460_000.0,
+            rayleigh_scattering: [5.802e-6, 13.558e-6, 33.1e-6],
+            rayleigh_scale_height_m: 8_000.0,
+            mie_scattering: [3.996e-6; 3],
+            mie_extinction: [4.40e-6; 3],
+            mie_scale_height_m: 1_200.0,
+            mie_g: 0.8,
+            ozone_absorption: [0.650e-6, 1.881e-6, 0.085e-6],
+            ozone_center_m: 25_000.0,
+            ozone_width_m: 30_000.0,
+            ground_albedo: [0.3; 3],
+        }
+    }
+}
+
+/// Samples along a ray when integrating its optical depth (Bruneton's reference uses 500).
+pub const TRANSMITTANCE_STEPS: usize = 500;
+
+/// Size of the transmittance table: columns (view direction), rows (altitude).
+pub const TRANSMITTANCE_SIZE: (usize, usize) = (256, 64);
+
+fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+
+fn scale(a: [f64; 3], s: f64) -> [f64; 3] {
+    [a[0] * s, a[1] * s, a[2] * s]
+}
+
+impl Atmosphere {
+    /// Checks the parameters describe an atmosphere (a shell, non-negative coefficients, finite
+    /// numbers); one line naming the first that does not.
+    pub fn check(&self) -> Result<(), String> {
+        let finite = |name: &str, v: f64| {
+            if v.is_finite() {
+                Ok(())
+            } else {
+                Err(format!("[atmosphere] {name} is not a finite number"))
+            }
+        };
+        for (name, v) in [
+            ("bottom_radius_m", self.bottom_radius_m),
+            ("top_radius_m", self.top_radius_m),
+            ("rayleigh_scale_height_m", self.rayleigh_scale_height_m),
+            ("mie_scale_height_m", self.mie_scale_height_m),
+            ("mie_g", self.mie_g),
+            ("ozone_center_m", self.ozone_center_m),
+            ("ozone_width_m", self.ozone_width_m),
+        ] {
+            finite(name, v)?;
+        }
+        if !(self.bottom_radius_m > 0.0 && self.top_radius_m > self.bottom_radius_m) {
+            return Err(format!(
+                "[atmosphere] top_radius_m ({}) must exceed bottom_radius_m ({}) > 0",
+                self.top_radius_m, self.bottom_radius_m
+            ));
+        }
+        if !(self.rayleigh_scale_height_m > 0.0 && self.mie_scale_height_m > 0.0) {
+            return Err("[atmosphere] scale heights must be positive".into());
+        }
+        if self.ozone_width_m <= 0.0 {
+            return Err("[atmosphere] ozone_width_m must be positive".into());
+        }
+        if !(-1.0 < self.mie_g && self.mie_g < 1.0) {
+            return Err(format!(
+                "[atmosphere] mie_g {} is outside −1..1",
+                self.mie_g
+            ));
+        }
+        for (name, v) in [
+            ("rayleigh_scattering", self.rayleigh_scattering),
+            ("mie_scattering", self.mie_scattering),
+            ("mie_extinction", self.mie_extinction),
+            ("ozone_absorption", self.ozone_absorption),
+            ("ground_albedo", self.ground_albedo),
+        ] {
+            if v.iter().any(|c| !c.is_finite() || *c < 0.0) {
+                return Err(format!(
+                    "[atmosphere] {name} must be three non-negative numbers"
+                ));
+            }
+        }
+        for c in 0..3 {
+            if self.mie_scattering[c] > self.mie_extinction[c] {
+                return Err(
+                    "[atmosphere] mie_scattering cannot exceed mie_extinction (extinction is scattering plus absorption)"
+                        .into(),
+                );
+            }
+        }
+        Ok(())
+    }
+
+    /// Densities (Rayleigh, Mie, ozone) relative to their reference at altitude `h` metres.
+    pub fn densities(&self, h: f64) -> (f64, f64, f64) {
+        let h = h.max(0.0);
+        let ozone = (1.0 - (h - self.ozone_center_m).abs() / (0.5 * self.ozone_width_m)).max(0.0);
+        (
+            (-h / self.rayleigh_scale_height_m).exp(),
+            (-h / self.mie_scale_height_m).exp(),
+            ozone,
+        )
+    }
+
+    /// Extinction coefficient per metre at altitude `h` metres.
+    pub fn extinction(&self, h: f64) -> [f64; 3] {
+        let (r, m, o) = self.densities(h);
+        add(
+            add(
+                scale(self.rayleigh_scattering, r),
+                scale(self.mie_extinction, m),
+            ),
+            scale(self.ozone_absorption, o),
+        )
+    }
+
+    /// Distance from radius `r` along a ray of cosine `mu` (to the local zenith) to the top of
+    /// the atmosphere.
+    pub fn distance_to_top(&self, r: f64, mu: f64) -> f64 {
+        let disc = r * r * (mu * mu - 1.0) + self.top_radius_m * self.top_radius_m;
+        (-r * mu + disc.max(0.0).sqrt()).max(0.0)
+    }
+
+    /// Distance from radius `r` along a ray of cosine `mu` to the ground (meaningful when
+    /// [`Self::hits_ground`]).
+    pub fn distance_to_bottom(&self, r: f64, mu: f64) -> f64 {
+        let disc = r * r * (mu * mu - 1.0) + self.bottom_radius_m * self.bottom_radius_m;
+        (-r * mu - disc.max(0.0).sqrt()).max(0.0)
+    }
+
+    /// Whether a ray from radius `r` with cosine `mu` meets the ground.
+    pub fn hits_ground(&self, r: f64, mu: f64) -> bool {
+        mu < 0.0 && r * r * (mu * mu - 1.0) + self.bottom_radius_m * self.bottom_radius_m >= 0.0
+    }
+
+    /// Optical depth from radius `r` along cosine `mu` to the top of the atmosphere, by the
+    /// trapezoidal rule over [`TRANSMITTANCE_STEPS`] samples (what the GPU's table pass does).
+    pub fn optical_depth_to_top(&self, r: f64, mu: f64) -> [f64; 3] {
+        let d = self.distance_to_top(r, mu);
+        let n = TRANSMITTANCE_STEPS;
+        let dx = d / n as f64;
+        let mut sum = [0.0; 3];
+        for i in 0..=n {
+            let t = i as f64 * dx;
+            let ri = (t * t + 2.0 * r * mu * t + r * r).sqrt();
+            let w = if i == 0 || i == n { 0.5 } else { 1.0 };
+            sum = add(
+                sum,
+                scale(self.extinction(ri - self.bottom_radius_m), w * dx),
+            );
+        }
+        sum
+    }
+
+    /// Transmittance from radius `r` along cosine `mu` to the top of the atmosphere (rays into
+    /// the ground continue through it: callers ask only for rays above the horizon).
+    pub fn transmittance_to_top(&self, r: f64, mu: f64) -> [f64; 3] {
+        let tau = self.optical_depth_to_top(r, mu);
+        [(-tau[0]).exp(), (-tau[1]).exp(), (-tau[2]).exp()]
+    }
+
+    /// The ray `(r, mu)` of a point `(u, v)` in 0..1 of the transmittance table (texel centres
+    /// at `(i + ½)/W`, `(j + ½)/H`).
+    pub fn transmittance_uv_to_ray(&self, u: f64, v: f64) -> (f64, f64) {
+        let (w, h) = TRANSMITTANCE_SIZE;
+        let x_mu = unit_from_texcoord(u, w);
+        let x_r = unit_from_texcoord(v, h);
+        let big_h = (self.top_radius_m.powi(2) - self.bottom_radius_m.powi(2)).sqrt();
+        let rho = big_h * x_r;
+        let r = (rho * rho + self.bottom_radius_m.powi(2)).sqrt();
+        let d_min = self.top_radius_m - r;
+        let d_max = rho + big_h;
+        let d = d_min + x_mu * (d_max - d_min);
+        let mu = if d == 0.0 {
+            1.0
+        } else {
+            ((big_h * big_h - rho * rho - d * d) / (2.0 * r * d)).clamp(-1.0, 1.0)
+        };
+        (r, mu)
+    }
+
+    /// Where the ray `(r, mu)` lies in the transmittance table, `(u, v)` in 0..1.
+    pub fn transmittance_ray_to_uv(&self, r: f64, mu: f64) -> (f64, f64) {
+        let (w, h) = TRANSMITTANCE_SIZE;
+        let big_h = (self.top_radius_m.powi(2) - self.bottom_radius_m.powi(2)).sqrt();
+        let rho = (r * r - self.bottom_radius_m.powi(2)).max(0.0).sqrt();
+        let d = self.distance_to_top(r, mu);
+        let d_min = self.top_radius_m - r;
+        let d_max = rho + big_h;
+        let x_mu = if d_max > d_min {
+            (d - d_min) / (d_max - d_min)
+        } else {
+            0.0
+        };
+        (
+            texcoord_from_unit(x_mu.clamp(0.0, 1.0), w),
+            texcoord_from_unit((rho / big_h).clamp(0.0, 1.0), h),
+        )
+    }
+}
+
+/// `x` in 0..1 to a texture coordinate whose first and last texel centres are 0 and 1.
+fn texcoord_from_unit(x: f64, n: usize) -> f64 {
+    0.5 / n as f64 + x * (1.0 - 1.0 / n as f64)
+}
+
+fn unit_from_texcoord(u: f64, n: usize) -> f64 {
+    (u - 0.5 / n as f64) / (1.0 - 1.0 / n as f64)
+}
+
+/// The transmittance table: per texel, the transmittance to the top of the atmosphere of its
+/// ray, RGB, row-major from `v = 0` (the ground).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TransmittanceLut {
+    /// Width and height.
+    pub size: (usize, usize),
+    /// RGB per texel.
+    pub texels: Vec<[f32; 3]>,
+}
+
+impl TransmittanceLut {
+    /// Computes the table of `atmosphere` (every texel by [`Atmosphere::transmittance_to_top`]).
+    pub fn compute(atmosphere: &Atmosphere) -> Self {
+        let (w, h) = TRANSMITTANCE_SIZE;
+        let mut texels = Vec::with_capacity(w * h);
+        for j in 0..h {
+            for i in 0..w {
+                let (r, mu) = atmosphere.transmittance_uv_to_ray(
+                    (i as f64 + 0.5) / w as f64,
+                    (j as f64 + 0.5) / h as f64,
+                );
+                let t = atmosphere.transmittance_to_top(r, mu);
+                texels.push([t[0] as f32, t[1] as f32, t[2] as f32]);
+            }
+        }
+        Self {
+            size: (w, h),
+            texels,
+        }
+    }
+
+    /// The table at `(u, v)` in 0..1, bilinear between texel centres (clamped at the edges), as
+    /// a GPU sampler reads it.
+    pub fn sample(&self, u: f64, v: f64) -> [f64; 3] {
+        let (w, h) = self.size;
+        let x = (u * w as f64 - 0.5).clamp(0.0, (w - 1) as f64);
+        let y = (v * h as f64 - 0.5).clamp(0.0, (h - 1) as f64);
+        let (i0, j0) = (x.floor() as usize, y.floor() as usize);
+        let (i1, j1) = ((i0 + 1).min(w - 1), (j0 + 1).min(h - 1));
+        let (fx, fy) = (x - i0 as f64, y - j0 as f64);
+        let at = |i: usize, j: usize| self.texels[j * w + i];
+        let mut out = [0.0; 3];
+        for (c, o) in out.iter_mut().enumerate() {
+            let a = f64::from(at(i0, j0)[c]) * (1.0 - fx) + f64::from(at(i1, j0)[c]) * fx;
+            let b = f64::from(at(i0, j1)[c]) * (1.0 - fx) + f64::from(at(i1, j1)[c]) * fx;
+            *o = a * (1.0 - fy) + b * fy;
+        }
+        out
+    }
+
+    /// Transmittance to the top of the atmosphere of the ray `(r, mu)`, read from the table.
+    pub fn transmittance(&self, atmosphere: &Atmosphere, r: f64, mu: f64) -> [f64; 3] {
+        let (u, v) = atmosphere.transmittance_ray_to_uv(r, mu);
+        self.sample(u, v)
+    }
+}
