@@ -316,3 +316,239 @@ impl TransmittanceLut {
         self.sample(u, v)
     }
 }
+
+/// Size of the multiple-scattering table: columns (cosine of the sun's zenith angle, −1..1),
+/// rows (altitude, ground to top). Hillaire's 32².
+pub const MULTIPLE_SCATTERING_SIZE: usize = 32;
+
+/// Directions over the sphere the multiple-scattering table integrates (Hillaire's 64: 8×8).
+const MS_DIRECTIONS: usize = 8;
+
+/// Steps along each of those directions.
+const MS_STEPS: usize = 20;
+
+/// Rayleigh's phase function at the cosine `nu` of the scattering angle.
+pub fn rayleigh_phase(nu: f64) -> f64 {
+    3.0 / (16.0 * std::f64::consts::PI) * (1.0 + nu * nu)
+}
+
+/// Cornette and Shanks' phase function (Mie) with asymmetry `g` at the cosine `nu`.
+pub fn mie_phase(g: f64, nu: f64) -> f64 {
+    let k = 3.0 / (8.0 * std::f64::consts::PI) * (1.0 - g * g) / (2.0 + g * g);
+    k * (1.0 + nu * nu) / (1.0 + g * g - 2.0 * g * nu).powf(1.5)
+}
+
+impl Atmosphere {
+    /// Scattering coefficients per metre at altitude `h`: (Rayleigh, Mie).
+    pub fn scattering(&self, h: f64) -> ([f64; 3], [f64; 3]) {
+        let (r, m, _) = self.densities(h);
+        (
+            scale(self.rayleigh_scattering, r),
+            scale(self.mie_scattering, m),
+        )
+    }
+}
+
+/// Hillaire's multiple-scattering table: per altitude and sun angle, the luminance Ψ that all
+/// orders of scattering beyond the first add per unit of scattering coefficient, for a sun of
+/// unit illuminance (an isotropic approximation: Ψ = L₂ / (1 − f_ms), the second order divided by
+/// the geometric series of the energy each order hands on).
+#[derive(Debug, Clone, PartialEq)]
+pub struct MultipleScatteringLut {
+    /// Side of the square table.
+    pub size: usize,
+    /// RGB per texel, row-major from the ground, columns from the sun at the nadir.
+    pub texels: Vec<[f32; 3]>,
+}
+
+impl MultipleScatteringLut {
+    /// Computes the table from `atmosphere` and its transmittance table.
+    pub fn compute(atmosphere: &Atmosphere, transmittance: &TransmittanceLut) -> Self {
+        let n = MULTIPLE_SCATTERING_SIZE;
+        let mut texels = Vec::with_capacity(n * n);
+        for j in 0..n {
+            for i in 0..n {
+                let mu_s = -1.0 + 2.0 * (i as f64 + 0.5) / n as f64;
+                let r = atmosphere.bottom_radius_m
+                    + (j as f64 + 0.5) / n as f64
+                        * (atmosphere.top_radius_m - atmosphere.bottom_radius_m);
+                let psi = multiple_scattering(atmosphere, transmittance, r, mu_s);
+                texels.push([psi[0] as f32, psi[1] as f32, psi[2] as f32]);
+            }
+        }
+        Self { size: n, texels }
+    }
+
+    /// Ψ at radius `r` with the sun at cosine `mu_s`, bilinear between texel centres.
+    pub fn sample(&self, atmosphere: &Atmosphere, r: f64, mu_s: f64) -> [f64; 3] {
+        let n = self.size;
+        let u = (mu_s + 1.0) / 2.0;
+        let v = (r - atmosphere.bottom_radius_m)
+            / (atmosphere.top_radius_m - atmosphere.bottom_radius_m);
+        let x = (u * n as f64 - 0.5).clamp(0.0, (n - 1) as f64);
+        let y = (v * n as f64 - 0.5).clamp(0.0, (n - 1) as f64);
+        let (i0, j0) = (x.floor() as usize, y.floor() as usize);
+        let (i1, j1) = ((i0 + 1).min(n - 1), (j0 + 1).min(n - 1));
+        let (fx, fy) = (x - i0 as f64, y - j0 as f64);
+        let at = |i: usize, j: usize| self.texels[j * n + i];
+        let mut out = [0.0; 3];
+        for (c, o) in out.iter_mut().enumerate() {
+            let a = f64::from(at(i0, j0)[c]) * (1.0 - fx) + f64::from(at(i1, j0)[c]) * fx;
+            let b = f64::from(at(i0, j1)[c]) * (1.0 - fx) + f64::from(at(i1, j1)[c]) * fx;
+            *o = a * (1.0 - fy) + b * fy;
+        }
+        out
+    }
+}
+
+/// Ψ at radius `r` with the sun at cosine `mu_s` (Hillaire 2020, §5.5): over 8×8 directions
+/// of the sphere, the light scattered once towards the point (sun through the atmosphere, and
+/// the ground's Lambertian reflection), and the share f_ms of energy scattered back, isotropic.
+fn multiple_scattering(
+    atmosphere: &Atmosphere,
+    transmittance: &TransmittanceLut,
+    r: f64,
+    mu_s: f64,
+) -> [f64; 3] {
+    use std::f64::consts::PI;
+    let iso = 1.0 / (4.0 * PI);
+    let sun = [(1.0 - mu_s * mu_s).max(0.0).sqrt(), 0.0, mu_s];
+    let mut l2 = [0.0; 3];
+    let mut f_ms = [0.0; 3];
+    let count = MS_DIRECTIONS * MS_DIRECTIONS;
+    for a in 0..MS_DIRECTIONS {
+        for b in 0..MS_DIRECTIONS {
+            // uniform over the sphere: cos θ uniform in −1..1, φ uniform
+            let cos_t = 1.0 - 2.0 * (a as f64 + 0.5) / MS_DIRECTIONS as f64;
+            let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+            let phi = 2.0 * PI * (b as f64 + 0.5) / MS_DIRECTIONS as f64;
+            let dir = [sin_t * phi.cos(), sin_t * phi.sin(), cos_t];
+            let ground = atmosphere.hits_ground(r, cos_t);
+            let d = if ground {
+                atmosphere.distance_to_bottom(r, cos_t)
+            } else {
+                atmosphere.distance_to_top(r, cos_t)
+            };
+            let dt = d / MS_STEPS as f64;
+            let mut throughput = [1.0; 3];
+            let mut lum = [0.0; 3];
+            let mut fms = [0.0; 3];
+            for k in 0..MS_STEPS {
+                let t = (k as f64 + 0.5) * dt;
+                // the point at distance t, in a frame whose z is the local zenith at the start
+                let p = [dir[0] * t, dir[1] * t, r + dir[2] * t];
+                let rp = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+                let h = rp - atmosphere.bottom_radius_m;
+                let up = [p[0] / rp, p[1] / rp, p[2] / rp];
+                let mu_sp = up[0] * sun[0] + up[1] * sun[1] + up[2] * sun[2];
+                let (sr, sm) = atmosphere.scattering(h);
+                let ext = atmosphere.extinction(h);
+                let t_sun = if atmosphere.hits_ground(rp, mu_sp) {
+                    [0.0; 3]
+                } else {
+                    transmittance.transmittance(atmosphere, rp, mu_sp)
+                };
+                for c in 0..3 {
+                    let s = sr[c] + sm[c];
+                    let step_t = (-ext[c] * dt).exp();
+                    // ∫ over the step of the throughput, exactly for a constant medium
+                    let integral = if ext[c] > 0.0 {
+                        (1.0 - step_t) / ext[c]
+                    } else {
+                        dt
+                    };
+                    lum[c] += throughput[c] * s * t_sun[c] * iso * integral;
+                    fms[c] += throughput[c] * s * integral;
+                    throughput[c] *= step_t;
+                }
+            }
+            if ground {
+                let p = [dir[0] * d, dir[1] * d, r + dir[2] * d];
+                let rp = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+                let up = [p[0] / rp, p[1] / rp, p[2] / rp];
+                let mu_sp = up[0] * sun[0] + up[1] * sun[1] + up[2] * sun[2];
+                let t_sun = transmittance.transmittance(atmosphere, rp, mu_sp);
+                for c in 0..3 {
+                    lum[c] +=
+                        throughput[c] * t_sun[c] * mu_sp.max(0.0) * atmosphere.ground_albedo[c]
+                            / PI;
+                }
+            }
+            for c in 0..3 {
+                // each direction carries the isotropic phase over its share of the sphere
+                l2[c] += lum[c] * iso * 4.0 * PI / count as f64;
+                f_ms[c] += fms[c] * iso * 4.0 * PI / count as f64;
+            }
+        }
+    }
+    [
+        l2[0] / (1.0 - f_ms[0]),
+        l2[1] / (1.0 - f_ms[1]),
+        l2[2] / (1.0 - f_ms[2]),
+    ]
+}
+
+/// Steps along a view ray of [`Atmosphere::sky`] (Hillaire's sky-view pass uses 30).
+pub const SKY_STEPS: usize = 30;
+
+impl Atmosphere {
+    /// Light scattered towards a viewer at radius `r` looking along cosine `mu` (to the zenith),
+    /// with the sun at cosine `mu_s` and `nu` the cosine of the angle between view and sun, for
+    /// a sun of unit illuminance: single scattering by both scatterers and the multiple
+    /// scattering of `ms`, up to `max_distance` metres or where the ray leaves the atmosphere or
+    /// meets the ground. Returns the radiance and the transmittance along the ray.
+    pub fn sky(
+        &self,
+        transmittance: &TransmittanceLut,
+        ms: &MultipleScatteringLut,
+        (r, mu, mu_s, nu): (f64, f64, f64, f64),
+        max_distance: f64,
+    ) -> ([f64; 3], [f64; 3]) {
+        let sin_v = (1.0 - mu * mu).max(0.0).sqrt();
+        let view = [sin_v, 0.0, mu];
+        let sx = if sin_v > 1e-9 {
+            (nu - mu * mu_s) / sin_v
+        } else {
+            (1.0 - mu_s * mu_s).max(0.0).sqrt()
+        };
+        let sun = [sx, (1.0 - mu_s * mu_s - sx * sx).max(0.0).sqrt(), mu_s];
+        let d = if self.hits_ground(r, mu) {
+            self.distance_to_bottom(r, mu)
+        } else {
+            self.distance_to_top(r, mu)
+        }
+        .min(max_distance);
+        let dt = d / SKY_STEPS as f64;
+        let (pr, pm) = (rayleigh_phase(nu), mie_phase(self.mie_g, nu));
+        let mut throughput = [1.0; 3];
+        let mut radiance = [0.0; 3];
+        for k in 0..SKY_STEPS {
+            let t = (k as f64 + 0.5) * dt;
+            let p = [view[0] * t, view[1] * t, r + view[2] * t];
+            let rp = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+            let h = rp - self.bottom_radius_m;
+            let up = [p[0] / rp, p[1] / rp, p[2] / rp];
+            let mu_sp = up[0] * sun[0] + up[1] * sun[1] + up[2] * sun[2];
+            let (sr, sm) = self.scattering(h);
+            let ext = self.extinction(h);
+            let t_sun = if self.hits_ground(rp, mu_sp) {
+                [0.0; 3]
+            } else {
+                transmittance.transmittance(self, rp, mu_sp)
+            };
+            let psi = ms.sample(self, rp, mu_sp);
+            for c in 0..3 {
+                let s = sr[c] * (pr * t_sun[c] + psi[c]) + sm[c] * (pm * t_sun[c] + psi[c]);
+                let step_t = (-ext[c] * dt).exp();
+                let integral = if ext[c] > 0.0 {
+                    (1.0 - step_t) / ext[c]
+                } else {
+                    dt
+                };
+                radiance[c] += throughput[c] * s * integral;
+                throughput[c] *= step_t;
+            }
+        }
+        (radiance, throughput)
+    }
+}

@@ -156,3 +156,38 @@ fn the_atmosphere_table_reads_from_toml_and_nonsense_is_refused() {
         assert!(e.starts_with("[atmosphere]") && !e.contains('\n'), "{e}");
     }
 }
+
+#[test]
+fn the_sky_is_blue_by_day_red_at_sunset_and_multiple_scattering_only_adds_light() {
+    use sc_view_plan::atmosphere::MultipleScatteringLut;
+    let a = earth();
+    let lut = TransmittanceLut::compute(&a);
+    let ms = MultipleScatteringLut::compute(&a, &lut);
+    assert!(
+        ms.texels
+            .iter()
+            .all(|t| t.iter().all(|&c| c >= 0.0 && c.is_finite())),
+        "Ψ is light: finite and not negative"
+    );
+    let none = MultipleScatteringLut {
+        size: ms.size,
+        texels: vec![[0.0; 3]; ms.texels.len()],
+    };
+    let r = a.bottom_radius_m + 2.0;
+    let s45 = std::f64::consts::FRAC_1_SQRT_2;
+    // the zenith with the sun 45° up: blue over green over red
+    let (zenith, _) = a.sky(&lut, &ms, (r, 1.0, s45, s45), f64::INFINITY);
+    assert!(zenith[2] > zenith[1] && zenith[1] > zenith[0], "{zenith:?}");
+    let (single, _) = a.sky(&lut, &none, (r, 1.0, s45, s45), f64::INFINITY);
+    for c in 0..3 {
+        assert!(zenith[c] > single[c], "channel {c}: {zenith:?} {single:?}");
+    }
+    // towards the sun on the horizon: red over blue
+    let (sunset, t) = a.sky(&lut, &ms, (r, 0.01, 0.0, 1.0), f64::INFINITY);
+    assert!(sunset[0] > sunset[2], "{sunset:?}");
+    assert!(t[0] > t[2], "{t:?}");
+    // a short ray (aerial perspective over 10 km) lets most light through and scatters little
+    let (near, t_near) = a.sky(&lut, &ms, (r, 0.0, s45, 0.5), 10_000.0);
+    assert!(t_near.iter().all(|&c| c > 0.5 && c < 1.0), "{t_near:?}");
+    assert!(near.iter().zip(&sunset).all(|(n, _)| *n > 0.0));
+}
