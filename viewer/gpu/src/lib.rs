@@ -2,6 +2,7 @@
 //! that uploads and draws the frames `sc_view_plan` plans, the headless renderer and its
 //! read-back, device setup, the map-transform probe, and the WGSL of `shaders/`.
 
+pub mod atmosphere;
 pub mod flight;
 pub mod probe;
 pub mod render;
@@ -11,6 +12,9 @@ pub const CLIPMAP_WGSL: &str = concat!(
     include_str!("../../../shaders/map_transform.wgsl"),
     include_str!("../../../shaders/clipmap.wgsl")
 );
+
+/// The WGSL of the atmosphere's lookup tables (compute passes).
+pub const ATMOSPHERE_WGSL: &str = include_str!("../../../shaders/atmosphere.wgsl");
 
 /// The WGSL of the map-transform probe (a compute pass over vertices).
 pub const PROBE_WGSL: &str = concat!(

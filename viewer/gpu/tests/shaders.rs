@@ -17,3 +17,21 @@ fn clipmap_wgsl_validates() {
         );
     }
 }
+
+#[test]
+fn atmosphere_wgsl_validates() {
+    let module = naga::front::wgsl::parse_str(sc_view_gpu::ATMOSPHERE_WGSL)
+        .unwrap_or_else(|e| panic!("{}", e.emit_to_string(sc_view_gpu::ATMOSPHERE_WGSL)));
+    naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::default(),
+    )
+    .validate(&module)
+    .unwrap_or_else(|e| panic!("{e:?}"));
+    assert!(
+        module
+            .entry_points
+            .iter()
+            .any(|e| e.name == "transmittance_lut")
+    );
+}

@@ -552,3 +552,55 @@ impl Atmosphere {
         (radiance, throughput)
     }
 }
+
+/// The atmosphere as the shaders read it (`shaders/atmosphere.wgsl`, struct `Atmosphere`):
+/// lengths in kilometres and coefficients per kilometre, so that f32 keeps the geometry of a
+/// planet-sized shell to centimetres.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct AtmosphereUniforms {
+    /// Rayleigh scattering (xyz), its scale height (w).
+    pub rayleigh: [f32; 4],
+    /// Mie scattering (xyz), its scale height (w).
+    pub mie_scattering: [f32; 4],
+    /// Mie extinction (xyz), the phase asymmetry g (w).
+    pub mie_extinction: [f32; 4],
+    /// Ozone absorption (xyz), the altitude of its peak (w).
+    pub ozone: [f32; 4],
+    /// Ground albedo (xyz), the ozone tent's width (w).
+    pub albedo: [f32; 4],
+    /// Bottom and top radius, the transmittance table's steps along a ray, 0.
+    pub radii: [f32; 4],
+}
+
+impl AtmosphereUniforms {
+    /// The shaders' form of `a`.
+    pub fn new(a: &Atmosphere) -> Self {
+        let per_km = |v: [f64; 3], w: f64| {
+            [
+                (v[0] * 1e3) as f32,
+                (v[1] * 1e3) as f32,
+                (v[2] * 1e3) as f32,
+                w as f32,
+            ]
+        };
+        Self {
+            rayleigh: per_km(a.rayleigh_scattering, a.rayleigh_scale_height_m * 1e-3),
+            mie_scattering: per_km(a.mie_scattering, a.mie_scale_height_m * 1e-3),
+            mie_extinction: per_km(a.mie_extinction, a.mie_g),
+            ozone: per_km(a.ozone_absorption, a.ozone_center_m * 1e-3),
+            albedo: [
+                a.ground_albedo[0] as f32,
+                a.ground_albedo[1] as f32,
+                a.ground_albedo[2] as f32,
+                (a.ozone_width_m * 1e-3) as f32,
+            ],
+            radii: [
+                (a.bottom_radius_m * 1e-3) as f32,
+                (a.top_radius_m * 1e-3) as f32,
+                TRANSMITTANCE_STEPS as f32,
+                0.0,
+            ],
+        }
+    }
+}
