@@ -4,7 +4,18 @@
 use wgpu::util::DeviceExt;
 
 use crate::render::{RenderError, gpu_device, read_back};
-use sc_view_plan::atmosphere::{Atmosphere, AtmosphereUniforms, TRANSMITTANCE_SIZE};
+use sc_view_plan::atmosphere::{
+    Atmosphere, AtmosphereUniforms, MULTIPLE_SCATTERING_SIZE, TRANSMITTANCE_SIZE,
+};
+
+/// The tables read back: RGB per texel, row-major from the ground.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Tables {
+    /// The transmittance table (`TRANSMITTANCE_SIZE`).
+    pub transmittance: Vec<[f32; 3]>,
+    /// The multiple-scattering table (`MULTIPLE_SCATTERING_SIZE` square).
+    pub multiple_scattering: Vec<[f32; 3]>,
+}
 
 /// A device with the atmosphere's compute pipelines.
 #[derive(Debug)]
@@ -12,6 +23,7 @@ pub struct AtmosphereTables {
     device: wgpu::Device,
     queue: wgpu::Queue,
     transmittance: wgpu::ComputePipeline,
+    multiple_scattering: wgpu::ComputePipeline,
     /// The adapter, in words.
     pub adapter: String,
 }
@@ -32,18 +44,29 @@ impl AtmosphereTables {
             compilation_options: Default::default(),
             cache: None,
         });
+        let multiple_scattering =
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some("multiple-scattering table"),
+                layout: None,
+                module: &module,
+                entry_point: Some("multiple_scattering_lut"),
+                compilation_options: Default::default(),
+                cache: None,
+            });
         Ok(Self {
             device,
             queue,
             transmittance,
+            multiple_scattering,
             adapter,
         })
     }
 
-    /// The transmittance table of `atmosphere` (row-major from the ground, RGB), computed on
-    /// the GPU.
-    pub fn transmittance(&self, atmosphere: &Atmosphere) -> Result<Vec<[f32; 3]>, RenderError> {
+    /// The transmittance table and the multiple-scattering table of `atmosphere` (each
+    /// row-major from the ground, RGB), computed on the GPU, the second from the first.
+    pub fn tables(&self, atmosphere: &Atmosphere) -> Result<Tables, RenderError> {
         let (w, h) = TRANSMITTANCE_SIZE;
+        let n = MULTIPLE_SCATTERING_SIZE;
         let uniforms = AtmosphereUniforms::new(atmosphere);
         let ubuf = self
             .device
@@ -52,20 +75,26 @@ impl AtmosphereTables {
                 contents: bytemuck::bytes_of(&uniforms),
                 usage: wgpu::BufferUsages::UNIFORM,
             });
-        let size = (w * h * 16) as u64;
-        let out = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("transmittance"),
-            size,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let readback = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("readback"),
-            size,
-            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-            mapped_at_creation: false,
-        });
-        let bind = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        let storage = |label: &str, texels: usize| {
+            self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: (texels * 16) as u64,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            })
+        };
+        let readback = |texels: usize| {
+            self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("readback"),
+                size: (texels * 16) as u64,
+                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+                mapped_at_creation: false,
+            })
+        };
+        let t_buf = storage("transmittance", w * h);
+        let ms_buf = storage("multiple scattering", n * n);
+        let (t_back, ms_back) = (readback(w * h), readback(n * n));
+        let t_bind = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("transmittance"),
             layout: &self.transmittance.get_bind_group_layout(0),
             entries: &[
@@ -75,7 +104,25 @@ impl AtmosphereTables {
                 },
                 wgpu::BindGroupEntry {
                     binding: 1,
-                    resource: out.as_entire_binding(),
+                    resource: t_buf.as_entire_binding(),
+                },
+            ],
+        });
+        let ms_bind = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("multiple scattering"),
+            layout: &self.multiple_scattering.get_bind_group_layout(0),
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: ubuf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: t_buf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: ms_buf.as_entire_binding(),
                 },
             ],
         });
@@ -85,13 +132,25 @@ impl AtmosphereTables {
         {
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
             pass.set_pipeline(&self.transmittance);
-            pass.set_bind_group(0, &bind, &[]);
+            pass.set_bind_group(0, &t_bind, &[]);
             pass.dispatch_workgroups((w as u32).div_ceil(8), (h as u32).div_ceil(8), 1);
         }
-        enc.copy_buffer_to_buffer(&out, 0, &readback, 0, size);
+        {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
+            pass.set_pipeline(&self.multiple_scattering);
+            pass.set_bind_group(0, &ms_bind, &[]);
+            pass.dispatch_workgroups((n as u32).div_ceil(8), (n as u32).div_ceil(8), 1);
+        }
+        enc.copy_buffer_to_buffer(&t_buf, 0, &t_back, 0, (w * h * 16) as u64);
+        enc.copy_buffer_to_buffer(&ms_buf, 0, &ms_back, 0, (n * n * 16) as u64);
         self.queue.submit([enc.finish()]);
-        let bytes = read_back(&self.device, &readback)?;
-        let texels: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&bytes);
-        Ok(texels.into_iter().map(|t| [t[0], t[1], t[2]]).collect())
+        let rgb = |bytes: Vec<u8>| -> Vec<[f32; 3]> {
+            let texels: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&bytes);
+            texels.into_iter().map(|t| [t[0], t[1], t[2]]).collect()
+        };
+        Ok(Tables {
+            transmittance: rgb(read_back(&self.device, &t_back)?),
+            multiple_scattering: rgb(read_back(&self.device, &ms_back)?),
+        })
     }
 }

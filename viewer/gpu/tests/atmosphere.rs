@@ -1,16 +1,16 @@
 //! The atmosphere's lookup tables computed on the GPU (lavapipe in CI) against their CPU twins.
 
 use sc_view_gpu::atmosphere::AtmosphereTables;
-use sc_view_plan::atmosphere::{Atmosphere, TransmittanceLut};
+use sc_view_plan::atmosphere::{Atmosphere, MultipleScatteringLut, TransmittanceLut};
 
 #[test]
-fn gpu_transmittance_table_matches_its_cpu_twin() {
+fn gpu_tables_match_their_cpu_twins() {
     let gpu = AtmosphereTables::new().unwrap_or_else(|e| {
         panic!("{e} — GPU tests need an adapter; `make test` installs mesa-vulkan-drivers")
     });
     for a in [
         Atmosphere::default(),
-        // a thinner, hazier atmosphere: the table follows its parameters
+        // a thinner, hazier atmosphere: the tables follow their parameters
         Atmosphere {
             top_radius_m: 6_420_000.0,
             mie_scattering: [2e-5; 3],
@@ -19,14 +19,32 @@ fn gpu_transmittance_table_matches_its_cpu_twin() {
         },
     ] {
         let cpu = TransmittanceLut::compute(&a);
-        let texels = gpu.transmittance(&a).expect("computes");
+        let cpu_ms = MultipleScatteringLut::compute(&a, &cpu);
+        let tables = gpu.tables(&a).expect("computes");
+        let (texels, ms) = (tables.transmittance, tables.multiple_scattering);
         assert_eq!(texels.len(), cpu.texels.len());
+        assert_eq!(ms.len(), cpu_ms.texels.len());
+        // f32 on the GPU (kilometres) against f64 on the CPU (metres)
         let worst = texels
             .iter()
             .zip(&cpu.texels)
             .flat_map(|(g, c)| (0..3).map(move |k| (g[k] - c[k]).abs()))
             .fold(0.0f32, f32::max);
-        // f32 on the GPU (kilometres) against f64 on the CPU (metres)
-        assert!(worst < 1e-3, "{}: largest difference {worst}", gpu.adapter);
+        assert!(
+            worst < 1e-3,
+            "{}: transmittance, largest difference {worst}",
+            gpu.adapter
+        );
+        // Ψ relative to its own size (it spans orders of magnitude with the sun's angle)
+        let worst_ms = ms
+            .iter()
+            .zip(&cpu_ms.texels)
+            .flat_map(|(g, c)| (0..3).map(move |k| (g[k] - c[k]).abs() / c[k].max(1e-6)))
+            .fold(0.0f32, f32::max);
+        assert!(
+            worst_ms < 5e-3,
+            "{}: multiple scattering, largest relative difference {worst_ms}",
+            gpu.adapter
+        );
     }
 }
