@@ -494,3 +494,43 @@ fn a_regional_build_plans_only_the_shards_its_data_reaches_and_leaves_no_bookkee
         "regional build by tasks",
     );
 }
+
+#[test]
+fn a_plan_never_replaces_a_file_it_did_not_write_and_then_leaves_the_store_alone() {
+    let (ingested, _) = reference();
+    let dir = tempfile::tempdir().expect("tmp");
+    let store = dir.path().join("t.zarr");
+    copy_dir(&ingested, &store);
+    let before = snapshot_with(&store, true);
+    for (out, script) in [("notes.json", None), ("p.json", Some("run.sh"))] {
+        let target = dir.path().join(script.unwrap_or(out));
+        std::fs::write(&target, b"someone's file\n").expect("write");
+        let mut args = vec![
+            "plan".to_string(),
+            "build".into(),
+            s(&store).into(),
+            "--tasks".into(),
+            "2".into(),
+            "--out".into(),
+            s(&dir.path().join(out)).into(),
+        ];
+        if let Some(sc) = script {
+            args.extend([
+                "--emit".into(),
+                "slurm".into(),
+                "--script".into(),
+                s(&dir.path().join(sc)).into(),
+            ]);
+        }
+        let a: Vec<&str> = args.iter().map(String::as_str).collect();
+        let e = one_line_failure(&run(&a), "a foreign file in the way");
+        assert!(e.contains("was not written by `sphereclip plan`"), "{e}");
+        assert_eq!(std::fs::read(&target).expect("read"), b"someone's file\n");
+        same_files(
+            &before,
+            &snapshot_with(&store, true),
+            "store after a refused plan",
+        );
+        assert!(sc_store::open_plan(&store).is_none());
+    }
+}

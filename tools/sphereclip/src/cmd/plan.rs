@@ -158,18 +158,43 @@ fn absolute(p: &Path) -> Result<PathBuf> {
 }
 
 /// Writes `text` to `path` unless a file is there that `is_ours` does not recognise.
-fn write_ours(path: &Path, text: &str, is_ours: impl Fn(&str) -> bool) -> Result<()> {
+fn write_ours(path: &Path, text: &str, is_ours: fn(&str) -> bool) -> Result<()> {
+    check_ours(path, is_ours)?;
+    sc_store::fault::write_atomic(path, text.as_bytes())
+        .with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// Refuses `path` when a file is there that `is_ours` does not recognise (or a folder).
+fn check_ours(path: &Path, is_ours: fn(&str) -> bool) -> Result<()> {
     if path.exists() {
         let old = std::fs::read_to_string(path).unwrap_or_default();
-        if !is_ours(&old) {
+        if path.is_dir() || !is_ours(&old) {
             bail!(
                 "{} exists and was not written by `sphereclip plan`; choose another name",
                 path.display()
             );
         }
     }
-    sc_store::fault::write_atomic(path, text.as_bytes())
-        .with_context(|| format!("cannot write {}", path.display()))
+    Ok(())
+}
+
+fn is_plan(text: &str) -> bool {
+    serde_json::from_str::<PlanFile>(text).is_ok()
+}
+
+fn is_script(text: &str) -> bool {
+    text.contains(SCRIPT_MARK)
+}
+
+/// Where `plan --emit` writes.
+fn script_path(opts: &PlanOptions, out: &Path, emit: Emit) -> Result<PathBuf> {
+    Ok(match &opts.script {
+        Some(s) => absolute(s)?,
+        None => out.with_extension(match emit {
+            Emit::Slurm => "sbatch.sh",
+            Emit::K8s => "k8s.yaml",
+        }),
+    })
 }
 
 fn read_plan(path: &Path) -> Result<PlanFile> {
@@ -217,6 +242,11 @@ pub fn make(a: &PlanArgs) -> Result<ExitCode> {
         .cpus_per_task
         .unwrap_or(if threads > 0 { threads as u32 } else { 2 });
     let out = absolute(&opts.out)?;
+    // files that are not ours are refused before the store is touched
+    check_ours(&out, is_plan)?;
+    if let Some(emit) = opts.emit {
+        check_ours(&script_path(opts, &out, emit)?, is_script)?;
+    }
     let plan = match &a.what {
         PlanWhat::Ingest { ingest, .. } => {
             let store = absolute(&ingest.store)?;
@@ -269,24 +299,16 @@ pub fn make(a: &PlanArgs) -> Result<ExitCode> {
         }
     };
     let text = serde_json::to_string_pretty(&plan)?;
-    write_ours(&out, &text, |old| {
-        serde_json::from_str::<PlanFile>(old).is_ok()
-    })?;
+    write_ours(&out, &text, is_plan)?;
     let mut how = String::new();
     if let Some(emit) = opts.emit {
-        let script = match &opts.script {
-            Some(s) => absolute(s)?,
-            None => out.with_extension(match emit {
-                Emit::Slurm => "sbatch.sh",
-                Emit::K8s => "k8s.yaml",
-            }),
-        };
+        let script = script_path(opts, &out, emit)?;
         let exe = std::env::current_exe().context("cannot find the sphereclip binary")?;
         let text = match emit {
             Emit::Slurm => slurm_script(&plan, &out, &exe),
             Emit::K8s => k8s_manifests(&plan, &out, opts),
         };
-        write_ours(&script, &text, |old| old.contains(SCRIPT_MARK))?;
+        write_ours(&script, &text, is_script)?;
         how = match emit {
             Emit::Slurm => format!("submit it with `bash {}`", script.display()),
             Emit::K8s => format!("submit it with `kubectl apply -f {}`", script.display()),
