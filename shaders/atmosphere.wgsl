@@ -195,3 +195,113 @@ fn multiple_scattering_lut(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     multiple_scattering_out[id.y * MS_SIZE + id.x] = vec4<f32>(l2 / (1.0 - f_ms), 1.0);
 }
+
+// x: the viewer's radius (km), y: cosine of the sun's zenith angle
+struct SkyViewer {
+    r_mu_s: vec4<f32>,
+}
+
+@group(0) @binding(3) var<uniform> sky_viewer: SkyViewer;
+@group(0) @binding(4) var<storage, read_write> sky_view_out: array<vec4<f32>>;
+
+const SKY_VIEW_W: u32 = 192u;
+const SKY_VIEW_H: u32 = 108u;
+const SKY_STEPS: u32 = 30u;
+
+// Ψ from the multiple-scattering table, bilinear between texel centres (the twin's `sample`).
+fn multiple_scattering_at(r: f32, mu_s: f32) -> vec3<f32> {
+    let n = f32(MS_SIZE);
+    let u = (mu_s + 1.0) / 2.0;
+    let v = (r - atm.radii.x) / (atm.radii.y - atm.radii.x);
+    let x = clamp(u * n - 0.5, 0.0, n - 1.0);
+    let y = clamp(v * n - 0.5, 0.0, n - 1.0);
+    let i0 = u32(floor(x));
+    let j0 = u32(floor(y));
+    let i1 = min(i0 + 1u, MS_SIZE - 1u);
+    let j1 = min(j0 + 1u, MS_SIZE - 1u);
+    let a = mix(multiple_scattering_out[j0 * MS_SIZE + i0].xyz, multiple_scattering_out[j0 * MS_SIZE + i1].xyz, x - f32(i0));
+    let b = mix(multiple_scattering_out[j1 * MS_SIZE + i0].xyz, multiple_scattering_out[j1 * MS_SIZE + i1].xyz, x - f32(i0));
+    return mix(a, b, y - f32(j0));
+}
+
+fn rayleigh_phase(nu: f32) -> f32 {
+    return 3.0 / (16.0 * PI) * (1.0 + nu * nu);
+}
+
+fn mie_phase(g: f32, nu: f32) -> f32 {
+    let k = 3.0 / (8.0 * PI) * (1.0 - g * g) / (2.0 + g * g);
+    return k * (1.0 + nu * nu) / pow(1.0 + g * g - 2.0 * g * nu, 1.5);
+}
+
+// The sky along a view ray (the twin: `Atmosphere::sky` without a distance limit).
+fn sky_radiance(r: f32, mu: f32, mu_s: f32, nu: f32) -> vec3<f32> {
+    let bottom = atm.radii.x;
+    let sin_v = sqrt(max(1.0 - mu * mu, 0.0));
+    let view = vec3<f32>(sin_v, 0.0, mu);
+    var sx = sqrt(max(1.0 - mu_s * mu_s, 0.0));
+    if sin_v > 1e-6 {
+        sx = (nu - mu * mu_s) / sin_v;
+    }
+    let sun = vec3<f32>(sx, sqrt(max(1.0 - mu_s * mu_s - sx * sx, 0.0)), mu_s);
+    var d = distance_to_top(r, mu);
+    if hits_ground(r, mu) {
+        d = distance_to_bottom(r, mu);
+    }
+    let dt = d / f32(SKY_STEPS);
+    let pr = rayleigh_phase(nu);
+    let pm = mie_phase(atm.mie_extinction.w, nu);
+    var throughput = vec3<f32>(1.0);
+    var radiance = vec3<f32>(0.0);
+    for (var k = 0u; k < SKY_STEPS; k++) {
+        let t = (f32(k) + 0.5) * dt;
+        let p = vec3<f32>(view.x * t, view.y * t, r + view.z * t);
+        let rp = length(p);
+        let h = max(rp - bottom, 0.0);
+        let up = p / rp;
+        let mu_sp = dot(up, sun);
+        let sr = atm.rayleigh.xyz * exp(-h / atm.rayleigh.w);
+        let sm = atm.mie_scattering.xyz * exp(-h / atm.mie_scattering.w);
+        let ext = extinction_at(h);
+        var t_sun = vec3<f32>(0.0);
+        if !hits_ground(rp, mu_sp) {
+            t_sun = transmittance_to_top(rp, mu_sp);
+        }
+        let psi = multiple_scattering_at(rp, mu_sp);
+        let s = sr * (pr * t_sun + psi) + sm * (pm * t_sun + psi);
+        let step_t = exp(-ext * dt);
+        let integral = select(vec3<f32>(dt), (1.0 - step_t) / ext, ext > vec3<f32>(0.0));
+        radiance += throughput * s * integral;
+        throughput *= step_t;
+    }
+    return radiance;
+}
+
+// Each texel: the sky in its direction for the viewer of `sky_viewer` (the twin: SkyViewLut).
+@compute @workgroup_size(8, 8)
+fn sky_view_lut(@builtin(global_invocation_id) id: vec3<u32>) {
+    if id.x >= SKY_VIEW_W || id.y >= SKY_VIEW_H {
+        return;
+    }
+    let bottom = atm.radii.x;
+    let r = max(sky_viewer.r_mu_s.x, bottom);
+    let mu_s = sky_viewer.r_mu_s.y;
+    let u = (f32(id.x) + 0.5) / f32(SKY_VIEW_W);
+    let v = (f32(id.y) + 0.5) / f32(SKY_VIEW_H);
+    let v_horizon = sqrt(max(r * r - bottom * bottom, 0.0));
+    let beta = acos(clamp(v_horizon / r, -1.0, 1.0));
+    let zenith_horizon = PI - beta;
+    var zenith = 0.0;
+    if v < 0.5 {
+        let c = 1.0 - 2.0 * v;
+        zenith = zenith_horizon * (1.0 - c * c);
+    } else {
+        let c = 2.0 * v - 1.0;
+        zenith = zenith_horizon + beta * c * c;
+    }
+    let mu = cos(zenith);
+    let cos_az = -(u * u * 2.0 - 1.0);
+    let sin_v = sqrt(max(1.0 - mu * mu, 0.0));
+    let sin_s = sqrt(max(1.0 - mu_s * mu_s, 0.0));
+    let nu = clamp(mu * mu_s + sin_v * sin_s * cos_az, -1.0, 1.0);
+    sky_view_out[id.y * SKY_VIEW_W + id.x] = vec4<f32>(sky_radiance(r, mu, mu_s, nu), 1.0);
+}

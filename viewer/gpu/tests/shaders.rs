@@ -28,10 +28,14 @@ fn atmosphere_wgsl_validates() {
     )
     .validate(&module)
     .unwrap_or_else(|e| panic!("{e:?}"));
-    assert!(
-        module
-            .entry_points
-            .iter()
-            .any(|e| e.name == "transmittance_lut")
-    );
+    for entry in [
+        "transmittance_lut",
+        "multiple_scattering_lut",
+        "sky_view_lut",
+    ] {
+        assert!(
+            module.entry_points.iter().any(|e| e.name == entry),
+            "{entry}"
+        );
+    }
 }

@@ -604,3 +604,94 @@ impl AtmosphereUniforms {
         }
     }
 }
+
+/// Size of the sky-view table (Hillaire's): columns (azimuth from the sun), rows (view zenith).
+pub const SKY_VIEW_SIZE: (usize, usize) = (192, 108);
+
+/// The view ray of a point `(u, v)` in 0..1 of the sky-view table of a viewer at radius `r`:
+/// `(mu, cos_azimuth)`, the cosine of the view's zenith angle and of its azimuth from the sun.
+/// Half the rows lie above the horizon, half below; both halves are squeezed towards the
+/// horizon, and the columns towards the sun (Hillaire 2020, §5.3).
+pub fn sky_view_uv_to_ray(atmosphere: &Atmosphere, r: f64, u: f64, v: f64) -> (f64, f64) {
+    use std::f64::consts::PI;
+    let r = r.max(atmosphere.bottom_radius_m);
+    let v_horizon = (r * r - atmosphere.bottom_radius_m.powi(2)).max(0.0).sqrt();
+    let beta = (v_horizon / r).clamp(-1.0, 1.0).acos();
+    let zenith_horizon = PI - beta;
+    let zenith = if v < 0.5 {
+        let c = 1.0 - 2.0 * v;
+        zenith_horizon * (1.0 - c * c)
+    } else {
+        let c = 2.0 * v - 1.0;
+        zenith_horizon + beta * c * c
+    };
+    (zenith.cos(), -(u * u * 2.0 - 1.0))
+}
+
+/// Where the view ray `(mu, cos_azimuth)` of a viewer at radius `r` lies in the sky-view table.
+pub fn sky_view_ray_to_uv(
+    atmosphere: &Atmosphere,
+    r: f64,
+    mu: f64,
+    cos_azimuth: f64,
+) -> (f64, f64) {
+    use std::f64::consts::PI;
+    let r = r.max(atmosphere.bottom_radius_m);
+    let v_horizon = (r * r - atmosphere.bottom_radius_m.powi(2)).max(0.0).sqrt();
+    let beta = (v_horizon / r).clamp(-1.0, 1.0).acos();
+    let zenith_horizon = PI - beta;
+    let zenith = mu.clamp(-1.0, 1.0).acos();
+    let v = if zenith < zenith_horizon {
+        let c = (1.0 - zenith / zenith_horizon).max(0.0).sqrt();
+        0.5 * (1.0 - c)
+    } else {
+        let c = ((zenith - zenith_horizon) / beta).max(0.0).sqrt();
+        0.5 * (1.0 + c)
+    };
+    let u = ((1.0 - cos_azimuth.clamp(-1.0, 1.0)) / 2.0).sqrt();
+    (u, v)
+}
+
+/// The sky-view table of a viewer at radius `r` with the sun at cosine `mu_s`: the radiance of
+/// the sky (unit sun illuminance, no sun disc) in every direction, RGB, row-major from the
+/// zenith.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SkyViewLut {
+    /// Width and height.
+    pub size: (usize, usize),
+    /// RGB per texel.
+    pub texels: Vec<[f32; 3]>,
+}
+
+impl SkyViewLut {
+    /// Computes the table by [`Atmosphere::sky`] for every texel's ray.
+    pub fn compute(
+        atmosphere: &Atmosphere,
+        transmittance: &TransmittanceLut,
+        ms: &MultipleScatteringLut,
+        r: f64,
+        mu_s: f64,
+    ) -> Self {
+        let (w, h) = SKY_VIEW_SIZE;
+        let mut texels = Vec::with_capacity(w * h);
+        let sin_s = (1.0 - mu_s * mu_s).max(0.0).sqrt();
+        for j in 0..h {
+            for i in 0..w {
+                let (mu, cos_az) = sky_view_uv_to_ray(
+                    atmosphere,
+                    r,
+                    (i as f64 + 0.5) / w as f64,
+                    (j as f64 + 0.5) / h as f64,
+                );
+                let sin_v = (1.0 - mu * mu).max(0.0).sqrt();
+                let nu = (mu * mu_s + sin_v * sin_s * cos_az).clamp(-1.0, 1.0);
+                let (l, _) = atmosphere.sky(transmittance, ms, (r, mu, mu_s, nu), f64::INFINITY);
+                texels.push([l[0] as f32, l[1] as f32, l[2] as f32]);
+            }
+        }
+        Self {
+            size: (w, h),
+            texels,
+        }
+    }
+}

@@ -191,3 +191,31 @@ fn the_sky_is_blue_by_day_red_at_sunset_and_multiple_scattering_only_adds_light(
     assert!(t_near.iter().all(|&c| c > 0.5 && c < 1.0), "{t_near:?}");
     assert!(near.iter().zip(&sunset).all(|(n, _)| *n > 0.0));
 }
+
+#[test]
+fn sky_view_coordinates_round_trip_and_put_the_horizon_in_the_middle() {
+    use sc_view_plan::atmosphere::{SKY_VIEW_SIZE, sky_view_ray_to_uv, sky_view_uv_to_ray};
+    let a = earth();
+    let (w, h) = SKY_VIEW_SIZE;
+    for r in [
+        a.bottom_radius_m + 1.7,
+        a.bottom_radius_m + 9_000.0,
+        a.top_radius_m + 3e5,
+    ] {
+        for j in 0..h {
+            for i in (0..w).step_by(5) {
+                let (u, v) = ((i as f64 + 0.5) / w as f64, (j as f64 + 0.5) / h as f64);
+                let (mu, cos_az) = sky_view_uv_to_ray(&a, r, u, v);
+                let (u2, v2) = sky_view_ray_to_uv(&a, r, mu, cos_az);
+                assert!(
+                    (u - u2).abs() < 1e-9 && (v - v2).abs() < 1e-9,
+                    "r {r}: ({u}, {v}) → ({u2}, {v2})"
+                );
+            }
+        }
+        // v = ½ is the horizon: the ray grazing the ground
+        let (mu, _) = sky_view_uv_to_ray(&a, r, 0.3, 0.5);
+        let grazing = -(1.0 - (a.bottom_radius_m / r).powi(2)).sqrt();
+        assert!((mu - grazing).abs() < 1e-9, "r {r}: {mu} against {grazing}");
+    }
+}
