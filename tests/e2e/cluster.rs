@@ -167,6 +167,19 @@ fn tasks_run_in_any_order_killed_or_twice_at_once_write_the_bytes_of_one_process
     let e = one_line_failure(&o, "ingest over an open plan");
     assert!(e.contains("plan") && e.contains("commit"), "{e}");
     same_files(&before, &snapshot_with(&store, true), "refused ingest");
+    // and so is a second plan
+    let o = run(&[
+        "plan",
+        "build",
+        s(&store),
+        "--tasks",
+        "2",
+        "--out",
+        s(&dir.path().join("other.json")),
+    ]);
+    let e = one_line_failure(&o, "a second plan");
+    assert!(e.contains("another plan is open"), "{e}");
+    same_files(&before, &snapshot_with(&store, true), "refused second plan");
 
     // commit before the tasks ran names them
     let o = run(&["commit", s(&p)]);

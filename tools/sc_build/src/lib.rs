@@ -916,16 +916,7 @@ impl Plan {
 /// which gives the same bytes however often it runs.
 pub fn open_tasks(root: &Path, plan: &Plan, marker: &str) -> Result<()> {
     let writer = StoreWriter::open_planning(root, None)?;
-    match sc_store::open_plan(root) {
-        Some(m) if m != marker => {
-            return Err(BuildError::Usage(format!(
-                "another plan is open on this store ({}): commit or abandon it first: {}",
-                m.trim(),
-                root.display()
-            )));
-        }
-        _ => {}
-    }
+    writer.plan_reopened(marker)?;
     for st in &plan.steps {
         writer.ensure_level(st.layer, st.out)?;
     }

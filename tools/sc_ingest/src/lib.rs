@@ -506,17 +506,7 @@ pub fn open_tasks(root: &Path, plan: &Plan, marker: &str) -> Result<()> {
             root.display()
         )));
     }
-    let again = match sc_store::open_plan(root) {
-        Some(m) if m == marker => true,
-        Some(m) => {
-            return Err(IngestError::Usage(format!(
-                "another plan is open on this store ({}): commit or abandon it first: {}",
-                m.trim(),
-                root.display()
-            )));
-        }
-        None => false,
-    };
+    let again = writer.plan_reopened(marker)?;
     for l in plan.inputs.iter().map(|p| p.level) {
         writer.ensure_level(plan.settings.layer, l)?;
     }

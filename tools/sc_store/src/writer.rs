@@ -781,6 +781,20 @@ impl StoreWriter {
         crate::fault::write_atomic(&path, text.as_bytes()).map_err(io_err(&path))
     }
 
+    /// Whether the plan `marker` names is the one open on this store (`true`: it is being made
+    /// again) or none is (`false`); another open plan is an error.
+    pub fn plan_reopened(&self, marker: &str) -> Result<bool> {
+        match open_plan(&self.root) {
+            Some(m) if m == marker => Ok(true),
+            Some(m) => Err(StoreError::Usage(format!(
+                "another plan is open on this store ({}): commit or abandon it first: {}",
+                m.trim(),
+                self.root.display()
+            ))),
+            None => Ok(false),
+        }
+    }
+
     /// Removes the open-plan marker (after the plan was committed or rolled back).
     pub fn close_plan(&self) -> Result<()> {
         let path = plan_marker(&self.root);

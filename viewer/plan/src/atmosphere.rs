@@ -260,6 +260,24 @@ fn unit_from_texcoord(u: f64, n: usize) -> f64 {
     (u - 0.5 / n as f64) / (1.0 - 1.0 / n as f64)
 }
 
+/// A table of `(w, h)` RGB texels at `(u, v)` in 0..1, bilinear between texel centres and
+/// clamped at the edges, as a GPU sampler reads it.
+fn bilinear(texels: &[[f32; 3]], (w, h): (usize, usize), u: f64, v: f64) -> [f64; 3] {
+    let x = (u * w as f64 - 0.5).clamp(0.0, (w - 1) as f64);
+    let y = (v * h as f64 - 0.5).clamp(0.0, (h - 1) as f64);
+    let (i0, j0) = (x.floor() as usize, y.floor() as usize);
+    let (i1, j1) = ((i0 + 1).min(w - 1), (j0 + 1).min(h - 1));
+    let (fx, fy) = (x - i0 as f64, y - j0 as f64);
+    let at = |i: usize, j: usize| texels[j * w + i];
+    let mut out = [0.0; 3];
+    for (c, o) in out.iter_mut().enumerate() {
+        let a = f64::from(at(i0, j0)[c]) * (1.0 - fx) + f64::from(at(i1, j0)[c]) * fx;
+        let b = f64::from(at(i0, j1)[c]) * (1.0 - fx) + f64::from(at(i1, j1)[c]) * fx;
+        *o = a * (1.0 - fy) + b * fy;
+    }
+    out
+}
+
 /// The transmittance table: per texel, the transmittance to the top of the atmosphere of its
 /// ray, RGB, row-major from `v = 0` (the ground).
 #[derive(Debug, Clone, PartialEq)]
@@ -294,20 +312,7 @@ impl TransmittanceLut {
     /// The table at `(u, v)` in 0..1, bilinear between texel centres (clamped at the edges), as
     /// a GPU sampler reads it.
     pub fn sample(&self, u: f64, v: f64) -> [f64; 3] {
-        let (w, h) = self.size;
-        let x = (u * w as f64 - 0.5).clamp(0.0, (w - 1) as f64);
-        let y = (v * h as f64 - 0.5).clamp(0.0, (h - 1) as f64);
-        let (i0, j0) = (x.floor() as usize, y.floor() as usize);
-        let (i1, j1) = ((i0 + 1).min(w - 1), (j0 + 1).min(h - 1));
-        let (fx, fy) = (x - i0 as f64, y - j0 as f64);
-        let at = |i: usize, j: usize| self.texels[j * w + i];
-        let mut out = [0.0; 3];
-        for (c, o) in out.iter_mut().enumerate() {
-            let a = f64::from(at(i0, j0)[c]) * (1.0 - fx) + f64::from(at(i1, j0)[c]) * fx;
-            let b = f64::from(at(i0, j1)[c]) * (1.0 - fx) + f64::from(at(i1, j1)[c]) * fx;
-            *o = a * (1.0 - fy) + b * fy;
-        }
-        out
+        bilinear(&self.texels, self.size, u, v)
     }
 
     /// Transmittance to the top of the atmosphere of the ray `(r, mu)`, read from the table.
@@ -381,23 +386,10 @@ impl MultipleScatteringLut {
 
     /// Ψ at radius `r` with the sun at cosine `mu_s`, bilinear between texel centres.
     pub fn sample(&self, atmosphere: &Atmosphere, r: f64, mu_s: f64) -> [f64; 3] {
-        let n = self.size;
         let u = (mu_s + 1.0) / 2.0;
         let v = (r - atmosphere.bottom_radius_m)
             / (atmosphere.top_radius_m - atmosphere.bottom_radius_m);
-        let x = (u * n as f64 - 0.5).clamp(0.0, (n - 1) as f64);
-        let y = (v * n as f64 - 0.5).clamp(0.0, (n - 1) as f64);
-        let (i0, j0) = (x.floor() as usize, y.floor() as usize);
-        let (i1, j1) = ((i0 + 1).min(n - 1), (j0 + 1).min(n - 1));
-        let (fx, fy) = (x - i0 as f64, y - j0 as f64);
-        let at = |i: usize, j: usize| self.texels[j * n + i];
-        let mut out = [0.0; 3];
-        for (c, o) in out.iter_mut().enumerate() {
-            let a = f64::from(at(i0, j0)[c]) * (1.0 - fx) + f64::from(at(i1, j0)[c]) * fx;
-            let b = f64::from(at(i0, j1)[c]) * (1.0 - fx) + f64::from(at(i1, j1)[c]) * fx;
-            *o = a * (1.0 - fy) + b * fy;
-        }
-        out
+        bilinear(&self.texels, (self.size, self.size), u, v)
     }
 }
 
