@@ -1,44 +1,15 @@
-// The atmosphere's lookup tables on the GPU (the CPU twins: sc_view_plan::atmosphere).
-// Lengths in kilometres, coefficients per kilometre.
-
-struct Atmosphere {
-    // xyz: Rayleigh scattering, w: its scale height
-    rayleigh: vec4<f32>,
-    // xyz: Mie scattering, w: its scale height
-    mie_scattering: vec4<f32>,
-    // xyz: Mie extinction, w: phase asymmetry g
-    mie_extinction: vec4<f32>,
-    // xyz: ozone absorption at the peak, w: the peak's altitude
-    ozone: vec4<f32>,
-    // xyz: ground albedo, w: the ozone tent's width
-    albedo: vec4<f32>,
-    // x: bottom radius, y: top radius, z: steps along a transmittance ray
-    radii: vec4<f32>,
-}
+// The atmosphere's lookup tables as compute passes (the CPU twins: sc_view_plan::atmosphere);
+// atmosphere_model.wgsl, which comes first, has the model and the tables' reads. Each pass writes
+// one table from the ones before it: transmittance, multiple scattering (once per atmosphere),
+// then per frame the sky-view table and the aerial-perspective volume of the frame's viewer.
 
 @group(0) @binding(0) var<uniform> atm: Atmosphere;
-@group(0) @binding(1) var<storage, read_write> transmittance_out: array<vec4<f32>>;
-
-const TRANSMITTANCE_W: u32 = 256u;
-const TRANSMITTANCE_H: u32 = 64u;
-
-fn extinction_at(h_in: f32) -> vec3<f32> {
-    let h = max(h_in, 0.0);
-    let rayleigh = exp(-h / atm.rayleigh.w);
-    let mie = exp(-h / atm.mie_scattering.w);
-    let ozone = max(0.0, 1.0 - abs(h - atm.ozone.w) / (0.5 * atm.albedo.w));
-    return atm.rayleigh.xyz * rayleigh + atm.mie_extinction.xyz * mie + atm.ozone.xyz * ozone;
-}
-
-fn distance_to_top(r: f32, mu: f32) -> f32 {
-    let top = atm.radii.y;
-    let disc = r * r * (mu * mu - 1.0) + top * top;
-    return max(0.0, -r * mu + sqrt(max(disc, 0.0)));
-}
-
-fn unit_from_texcoord(u: f32, n: f32) -> f32 {
-    return (u - 0.5 / n) / (1.0 - 1.0 / n);
-}
+@group(0) @binding(1) var<storage, read_write> transmittance_table: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read_write> multiple_scattering_table: array<vec4<f32>>;
+@group(0) @binding(3) var<uniform> atmo: AtmosphereFrame;
+@group(0) @binding(4) var<storage, read_write> sky_view_table: array<vec4<f32>>;
+@group(0) @binding(5) var<storage, read_write> aerial_inscatter: array<vec4<f32>>;
+@group(0) @binding(6) var<storage, read_write> aerial_transmittance: array<vec4<f32>>;
 
 // Each texel: the transmittance to the top of the atmosphere of its ray, by the trapezoidal rule.
 @compute @workgroup_size(8, 8)
@@ -73,65 +44,7 @@ fn transmittance_lut(@builtin(global_invocation_id) id: vec3<u32>) {
         }
         tau += extinction_at(ri - bottom) * (w * dx);
     }
-    transmittance_out[id.y * TRANSMITTANCE_W + id.x] = vec4<f32>(exp(-tau), 1.0);
-}
-
-@group(0) @binding(2) var<storage, read_write> multiple_scattering_out: array<vec4<f32>>;
-
-const MS_SIZE: u32 = 32u;
-const MS_DIRECTIONS: u32 = 8u;
-const MS_STEPS: u32 = 20u;
-const PI: f32 = 3.14159265358979;
-
-fn distance_to_bottom(r: f32, mu: f32) -> f32 {
-    let bottom = atm.radii.x;
-    let disc = r * r * (mu * mu - 1.0) + bottom * bottom;
-    return max(0.0, -r * mu - sqrt(max(disc, 0.0)));
-}
-
-fn hits_ground(r: f32, mu: f32) -> bool {
-    let bottom = atm.radii.x;
-    return mu < 0.0 && r * r * (mu * mu - 1.0) + bottom * bottom >= 0.0;
-}
-
-fn texcoord_from_unit(x: f32, n: f32) -> f32 {
-    return 0.5 / n + x * (1.0 - 1.0 / n);
-}
-
-// The transmittance table (as the transmittance pass wrote it) at the ray (r, mu), bilinear
-// between texel centres like a sampler (and like the CPU twin's `sample`).
-fn transmittance_to_top(r: f32, mu: f32) -> vec3<f32> {
-    let bottom = atm.radii.x;
-    let top = atm.radii.y;
-    let big_h = sqrt(top * top - bottom * bottom);
-    let rho = sqrt(max(r * r - bottom * bottom, 0.0));
-    let d = distance_to_top(r, mu);
-    let d_min = top - r;
-    let d_max = rho + big_h;
-    var x_mu = 0.0;
-    if d_max > d_min {
-        x_mu = (d - d_min) / (d_max - d_min);
-    }
-    let w = f32(TRANSMITTANCE_W);
-    let h = f32(TRANSMITTANCE_H);
-    let u = texcoord_from_unit(clamp(x_mu, 0.0, 1.0), w);
-    let v = texcoord_from_unit(clamp(rho / big_h, 0.0, 1.0), h);
-    let x = clamp(u * w - 0.5, 0.0, w - 1.0);
-    let y = clamp(v * h - 0.5, 0.0, h - 1.0);
-    let i0 = u32(floor(x));
-    let j0 = u32(floor(y));
-    let i1 = min(i0 + 1u, TRANSMITTANCE_W - 1u);
-    let j1 = min(j0 + 1u, TRANSMITTANCE_H - 1u);
-    let fx = x - f32(i0);
-    let fy = y - f32(j0);
-    let a = mix(transmittance_out[j0 * TRANSMITTANCE_W + i0].xyz, transmittance_out[j0 * TRANSMITTANCE_W + i1].xyz, fx);
-    let b = mix(transmittance_out[j1 * TRANSMITTANCE_W + i0].xyz, transmittance_out[j1 * TRANSMITTANCE_W + i1].xyz, fx);
-    return mix(a, b, fy);
-}
-
-fn scattering_at(h_in: f32) -> vec3<f32> {
-    let h = max(h_in, 0.0);
-    return atm.rayleigh.xyz * exp(-h / atm.rayleigh.w) + atm.mie_scattering.xyz * exp(-h / atm.mie_scattering.w);
+    transmittance_table[id.y * TRANSMITTANCE_W + id.x] = vec4<f32>(exp(-tau), 1.0);
 }
 
 // Each texel: Hillaire's Ψ = L₂ / (1 − f_ms) for its altitude and sun angle, over 8×8 directions.
@@ -193,98 +106,18 @@ fn multiple_scattering_lut(@builtin(global_invocation_id) id: vec3<u32>) {
             f_ms += fms * iso * 4.0 * PI / count;
         }
     }
-    multiple_scattering_out[id.y * MS_SIZE + id.x] = vec4<f32>(l2 / (1.0 - f_ms), 1.0);
+    multiple_scattering_table[id.y * MS_SIZE + id.x] = vec4<f32>(l2 / (1.0 - f_ms), 1.0);
 }
 
-// x: the viewer's radius (km), y: cosine of the sun's zenith angle
-struct SkyViewer {
-    r_mu_s: vec4<f32>,
-}
-
-@group(0) @binding(3) var<uniform> sky_viewer: SkyViewer;
-@group(0) @binding(4) var<storage, read_write> sky_view_out: array<vec4<f32>>;
-
-const SKY_VIEW_W: u32 = 192u;
-const SKY_VIEW_H: u32 = 108u;
-const SKY_STEPS: u32 = 30u;
-
-// Ψ from the multiple-scattering table, bilinear between texel centres (the twin's `sample`).
-fn multiple_scattering_at(r: f32, mu_s: f32) -> vec3<f32> {
-    let n = f32(MS_SIZE);
-    let u = (mu_s + 1.0) / 2.0;
-    let v = (r - atm.radii.x) / (atm.radii.y - atm.radii.x);
-    let x = clamp(u * n - 0.5, 0.0, n - 1.0);
-    let y = clamp(v * n - 0.5, 0.0, n - 1.0);
-    let i0 = u32(floor(x));
-    let j0 = u32(floor(y));
-    let i1 = min(i0 + 1u, MS_SIZE - 1u);
-    let j1 = min(j0 + 1u, MS_SIZE - 1u);
-    let a = mix(multiple_scattering_out[j0 * MS_SIZE + i0].xyz, multiple_scattering_out[j0 * MS_SIZE + i1].xyz, x - f32(i0));
-    let b = mix(multiple_scattering_out[j1 * MS_SIZE + i0].xyz, multiple_scattering_out[j1 * MS_SIZE + i1].xyz, x - f32(i0));
-    return mix(a, b, y - f32(j0));
-}
-
-fn rayleigh_phase(nu: f32) -> f32 {
-    return 3.0 / (16.0 * PI) * (1.0 + nu * nu);
-}
-
-fn mie_phase(g: f32, nu: f32) -> f32 {
-    let k = 3.0 / (8.0 * PI) * (1.0 - g * g) / (2.0 + g * g);
-    return k * (1.0 + nu * nu) / pow(1.0 + g * g - 2.0 * g * nu, 1.5);
-}
-
-// The sky along a view ray (the twin: `Atmosphere::sky` without a distance limit).
-fn sky_radiance(r: f32, mu: f32, mu_s: f32, nu: f32) -> vec3<f32> {
-    let bottom = atm.radii.x;
-    let sin_v = sqrt(max(1.0 - mu * mu, 0.0));
-    let view = vec3<f32>(sin_v, 0.0, mu);
-    var sx = sqrt(max(1.0 - mu_s * mu_s, 0.0));
-    if sin_v > 1e-6 {
-        sx = (nu - mu * mu_s) / sin_v;
-    }
-    let sun = vec3<f32>(sx, sqrt(max(1.0 - mu_s * mu_s - sx * sx, 0.0)), mu_s);
-    var d = distance_to_top(r, mu);
-    if hits_ground(r, mu) {
-        d = distance_to_bottom(r, mu);
-    }
-    let dt = d / f32(SKY_STEPS);
-    let pr = rayleigh_phase(nu);
-    let pm = mie_phase(atm.mie_extinction.w, nu);
-    var throughput = vec3<f32>(1.0);
-    var radiance = vec3<f32>(0.0);
-    for (var k = 0u; k < SKY_STEPS; k++) {
-        let t = (f32(k) + 0.5) * dt;
-        let p = vec3<f32>(view.x * t, view.y * t, r + view.z * t);
-        let rp = length(p);
-        let h = max(rp - bottom, 0.0);
-        let up = p / rp;
-        let mu_sp = dot(up, sun);
-        let sr = atm.rayleigh.xyz * exp(-h / atm.rayleigh.w);
-        let sm = atm.mie_scattering.xyz * exp(-h / atm.mie_scattering.w);
-        let ext = extinction_at(h);
-        var t_sun = vec3<f32>(0.0);
-        if !hits_ground(rp, mu_sp) {
-            t_sun = transmittance_to_top(rp, mu_sp);
-        }
-        let psi = multiple_scattering_at(rp, mu_sp);
-        let s = sr * (pr * t_sun + psi) + sm * (pm * t_sun + psi);
-        let step_t = exp(-ext * dt);
-        let integral = select(vec3<f32>(dt), (1.0 - step_t) / ext, ext > vec3<f32>(0.0));
-        radiance += throughput * s * integral;
-        throughput *= step_t;
-    }
-    return radiance;
-}
-
-// Each texel: the sky in its direction for the viewer of `sky_viewer` (the twin: SkyViewLut).
+// Each texel: the sky in its direction for the frame's viewer (the twin: SkyViewLut).
 @compute @workgroup_size(8, 8)
 fn sky_view_lut(@builtin(global_invocation_id) id: vec3<u32>) {
     if id.x >= SKY_VIEW_W || id.y >= SKY_VIEW_H {
         return;
     }
     let bottom = atm.radii.x;
-    let r = max(sky_viewer.r_mu_s.x, bottom);
-    let mu_s = sky_viewer.r_mu_s.y;
+    let r = max(atmo.camera.x, bottom);
+    let mu_s = sun_dir().z;
     let u = (f32(id.x) + 0.5) / f32(SKY_VIEW_W);
     let v = (f32(id.y) + 0.5) / f32(SKY_VIEW_H);
     let v_horizon = sqrt(max(r * r - bottom * bottom, 0.0));
@@ -303,5 +136,29 @@ fn sky_view_lut(@builtin(global_invocation_id) id: vec3<u32>) {
     let sin_v = sqrt(max(1.0 - mu * mu, 0.0));
     let sin_s = sqrt(max(1.0 - mu_s * mu_s, 0.0));
     let nu = clamp(mu * mu_s + sin_v * sin_s * cos_az, -1.0, 1.0);
-    sky_view_out[id.y * SKY_VIEW_W + id.x] = vec4<f32>(sky_radiance(r, mu, mu_s, nu), 1.0);
+    sky_view_table[id.y * SKY_VIEW_W + id.x] = vec4<f32>(sky_along(r, atmo.screen.w, mu, mu_s, nu, 1e30).radiance, 1.0);
+}
+
+// Each froxel column (a screen point) and slice: the light scattered towards the camera and the
+// transmittance from where its ray enters the atmosphere to the slice's end (the twin:
+// AerialPerspectiveLut).
+@compute @workgroup_size(8, 8, 1)
+fn aerial_perspective_lut(@builtin(global_invocation_id) id: vec3<u32>) {
+    if id.x >= AERIAL || id.y >= AERIAL || id.z >= AERIAL {
+        return;
+    }
+    let uv = (vec2<f32>(id.xy) + vec2<f32>(0.5)) / f32(AERIAL);
+    let d = view_direction(uv);
+    let s = sun_dir();
+    let e = enter(d, s);
+    var l = vec3<f32>(0.0);
+    var t = vec3<f32>(1.0);
+    if e.t >= 0.0 {
+        let sc = sky_along(e.r, e.h, e.mu, e.mu_s, dot(d, s), slice_distance(id.z));
+        l = sc.radiance;
+        t = sc.transmittance;
+    }
+    let at = (id.z * AERIAL + id.y) * AERIAL + id.x;
+    aerial_inscatter[at] = vec4<f32>(l, 1.0);
+    aerial_transmittance[at] = vec4<f32>(t, 1.0);
 }

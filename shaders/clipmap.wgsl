@@ -1,7 +1,8 @@
 // Spherical clipmaps: vertex stage maps the static hemisphere around the viewer onto the height
-// clipmap and displaces it; fragment stage colours it. Everything here is relative to the viewer:
-// absolute positions live on the CPU in f64. The map transform is in map_transform.wgsl, which
-// the renderer prepends to this file.
+// clipmap and displaces it; fragment stage colours it, and with the atmosphere seen through the
+// aerial-perspective volume; the sky pass fills what the terrain left. Everything here is
+// relative to the viewer: absolute positions live on the CPU in f64. The renderer prepends
+// map_transform.wgsl (the map transform) and atmosphere_model.wgsl (the atmosphere's reads).
 
 struct Frame {
     // map transform
@@ -47,6 +48,15 @@ struct Level {
 @group(0) @binding(2) var heights: texture_2d_array<f32>;
 @group(0) @binding(3) var colors: texture_2d_array<f32>;
 
+// the atmosphere's tables, made by the compute passes of atmosphere.wgsl this frame
+@group(1) @binding(0) var<uniform> atm: Atmosphere;
+@group(1) @binding(1) var<storage, read> transmittance_table: array<vec4<f32>>;
+@group(1) @binding(2) var<storage, read> multiple_scattering_table: array<vec4<f32>>;
+@group(1) @binding(3) var<uniform> atmo: AtmosphereFrame;
+@group(1) @binding(4) var<storage, read> sky_view_table: array<vec4<f32>>;
+@group(1) @binding(5) var<storage, read> aerial_inscatter: array<vec4<f32>>;
+@group(1) @binding(6) var<storage, read> aerial_transmittance: array<vec4<f32>>;
+
 struct VertexIn {
     @location(0) pxy: vec2<f32>,
     @location(1) one_minus_cos: f32,
@@ -67,6 +77,8 @@ struct VertexOut {
     @location(3) lvl: f32,
     // the local up direction (view space)
     @location(5) up: vec3<f32>,
+    // the point, view space relative to the camera, metres
+    @location(6) rel: vec3<f32>,
 };
 
 // Height at fractional texel t of level l: bilinear from four textureLoads (GL cannot filter
@@ -128,6 +140,7 @@ fn vs_main(v: VertexIn) -> VertexOut {
     out.off = off;
     out.lvl = f32(l) + depth;
     out.up = vec3<f32>(v.pxy.x, v.pxy.y, 1.0 - v.one_minus_cos);
+    out.rel = rel;
     return out;
 }
 
@@ -218,6 +231,24 @@ fn level_cap(l: u32, ring: f32, off: vec2<f32>) -> f32 {
     return cap;
 }
 
+// The lit terrain seen through the air: sunlight reaching the point (reddened, none in the
+// planet's shadow) and a blue sky light that fades with the sun's elevation there, then the
+// aerial perspective between camera and point; tone-mapped.
+fn terrain_in_air(frag: vec2<f32>, rel: vec3<f32>, albedo: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
+    let p = rel * 1e-3;
+    let t = length(p);
+    let d = p / t;
+    let r_c = atmo.camera.x;
+    let q = p + vec3<f32>(0.0, 0.0, r_c);
+    let r = length(q);
+    let s = sun_dir();
+    let mu_s = dot(q / r, s);
+    let sky_light = (0.02 + 0.12 * smoothstep(-0.1, 0.1, mu_s)) * vec3<f32>(0.75, 0.85, 1.0);
+    let lit = albedo * (sunlight(r, mu_s) * max(dot(n, s), 0.0) + sky_light);
+    let ap = aerial_at(frag / atmo.screen.xy, t - max(enter(d, s).t, 0.0));
+    return tone_map(lit * ap.transmittance + ap.radiance * atmo.sun.w);
+}
+
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     // derivatives first, in uniform control flow
@@ -263,5 +294,57 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     // (the sky light fades out with the sun's elevation over the sphere there)
     let day = smoothstep(-0.1, 0.1, dot(normalize(in.up), sun));
     let light = 0.04 + 0.16 * day + 0.8 * max(dot(n, sun), 0.0);
-    return vec4<f32>(albedo * light, 1.0);
+    if (atmo.camera.w == 0.0) {
+        return vec4<f32>(albedo * light, 1.0);
+    }
+    return vec4<f32>(terrain_in_air(in.clip.xy, in.rel, albedo, n), 1.0);
+}
+
+struct SkyOut {
+    @builtin(position) clip: vec4<f32>,
+};
+
+// A triangle over the whole screen at the far plane (depth 0, reversed Z): drawn where the
+// terrain left the depth cleared.
+@vertex
+fn sky_vs(@builtin(vertex_index) i: u32) -> SkyOut {
+    let xy = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u)) * 2.0 - vec2<f32>(1.0);
+    var out: SkyOut;
+    out.clip = vec4<f32>(xy, 0.0, 1.0);
+    return out;
+}
+
+// The sky towards a pixel: from inside the atmosphere the sky-view table, from outside a march
+// from where the ray enters it; the sun's disc seen through it; space behind (the twins:
+// SkyViewLut::sample, Atmosphere::sky).
+@fragment
+fn sky_fs(in: SkyOut) -> @location(0) vec4<f32> {
+    let d = view_direction(in.clip.xy / atmo.screen.xy);
+    let s = sun_dir();
+    let r = atmo.camera.x;
+    let nu = dot(d, s);
+    var l = vec3<f32>(0.0);
+    var through = vec3<f32>(1.0);
+    if (r < atm.radii.y) {
+        var cos_az = 1.0;
+        let dh = length(d.xy);
+        let sh = length(s.xy);
+        if (dh > 1e-6 && sh > 1e-6) {
+            cos_az = dot(d.xy, s.xy) / (dh * sh);
+        }
+        l = sky_view_at(r, d.z, cos_az);
+        through = select(transmittance_to_top(r, d.z), vec3<f32>(0.0), ground_distance(r, atmo.screen.w, d.z) >= 0.0);
+    } else {
+        let e = enter(d, s);
+        if (e.t >= 0.0) {
+            let sc = sky_along(e.r, e.h, e.mu, e.mu_s, nu, 1e30);
+            l = sc.radiance;
+            through = select(sc.transmittance, vec3<f32>(0.0), hits_ground(e.r, e.mu));
+        }
+    }
+    // the disc: the sun's radiance (illuminance over its solid angle) where it shows
+    let alpha2 = 2.0 * (1.0 - atmo.screen.z);
+    let disc = select(0.0, atmo.sun.w / (PI * alpha2), nu > atmo.screen.z);
+    let c = tone_map(l * atmo.sun.w + through * disc) + atmo.space.xyz * through;
+    return vec4<f32>(c, 1.0);
 }

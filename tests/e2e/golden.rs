@@ -24,6 +24,8 @@ fn golden_views_of_the_sample_planet() {
                 "256x144",
                 "--out",
                 s(&shot),
+                "--atmosphere",
+                "off",
             ])
             .output()
             .expect("runs"));

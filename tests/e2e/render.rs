@@ -313,6 +313,9 @@ color = "grey"
             "64x48",
             "--out",
             s(&png),
+            // the terrain's own colour, not seen through the air
+            "--atmosphere",
+            "off",
         ];
         args.extend_from_slice(extra);
         let o = run(&args);

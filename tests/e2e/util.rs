@@ -295,8 +295,8 @@ pub fn global_raster(dst: &Path, args: &[&str]) {
     gdal_create(dst, &a);
 }
 
-/// `sphereclip render STORE --camera CAMERA --size SIZE --out OUT --clear 1,0,1 EXTRA…` (space
-/// magenta), the picture read back.
+/// `sphereclip render STORE --camera CAMERA --size SIZE --out OUT --clear 1,0,1 --atmosphere off
+/// EXTRA…` (space magenta, the terrain not seen through air), the picture read back.
 pub fn render_png(
     store: &Path,
     out: &Path,
@@ -315,6 +315,8 @@ pub fn render_png(
         s(out),
         "--clear",
         "1,0,1",
+        "--atmosphere",
+        "off",
     ];
     args.extend_from_slice(extra);
     ok(&run(&args));

@@ -356,6 +356,20 @@ pub struct LookArgs {
     /// its subsolar point.
     #[arg(long)]
     pub time: Option<String>,
+    /// The atmosphere: sky, sun disc and aerial perspective (Earth's, or the `[atmosphere]`
+    /// table of the source graph); off: space is the clear colour, the terrain lit as without
+    /// air. `--shading none` draws none.
+    #[arg(long, value_enum, default_value_t = OnOff::On)]
+    pub atmosphere: OnOff,
+}
+
+/// A switch.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum OnOff {
+    /// On.
+    On,
+    /// Off.
+    Off,
 }
 
 /// `--shading`.

@@ -1,174 +1,308 @@
-//! The atmosphere's lookup tables computed on the GPU (`shaders/atmosphere.wgsl`), read back for
-//! the tests that compare them with their CPU twins (`sc_view_plan::atmosphere`).
-
-use wgpu::util::DeviceExt;
+//! The atmosphere's lookup tables as compute passes (`shaders/atmosphere.wgsl`): the
+//! transmittance and multiple-scattering tables, made again only when the atmosphere changes,
+//! and per frame the sky-view table and the aerial-perspective volume of the frame's viewer.
+//! [`AtmospherePasses`] holds them on a device for the clipmap pass, which reads them in its
+//! fragment stage; [`AtmosphereTables`] reads them back for the tests that compare them with
+//! their CPU twins (`sc_view_plan::atmosphere`).
 
 use crate::render::{RenderError, gpu_device, read_back};
 use sc_view_plan::atmosphere::{
-    Atmosphere, AtmosphereUniforms, MULTIPLE_SCATTERING_SIZE, SKY_VIEW_SIZE, TRANSMITTANCE_SIZE,
+    AERIAL_SIZE, Atmosphere, AtmosphereFrame, AtmosphereUniforms, MULTIPLE_SCATTERING_SIZE,
+    SKY_VIEW_SIZE, TRANSMITTANCE_SIZE,
 };
 
-/// The tables read back: RGB per texel, row-major from the ground.
+/// The tables read back: RGB per texel.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Tables {
-    /// The transmittance table (`TRANSMITTANCE_SIZE`).
+    /// The transmittance table (`TRANSMITTANCE_SIZE`, row-major from the ground).
     pub transmittance: Vec<[f32; 3]>,
     /// The multiple-scattering table (`MULTIPLE_SCATTERING_SIZE` square).
     pub multiple_scattering: Vec<[f32; 3]>,
-    /// The sky-view table (`SKY_VIEW_SIZE`, row-major from the zenith) of the viewer asked for.
+    /// The sky-view table (`SKY_VIEW_SIZE`, row-major from the zenith) of the frame's viewer.
     pub sky_view: Vec<[f32; 3]>,
+    /// The aerial-perspective volume's in-scattering (`AERIAL_SIZE`³, index (k·n + j)·n + i).
+    pub aerial_inscatter: Vec<[f32; 3]>,
+    /// Its transmittance.
+    pub aerial_transmittance: Vec<[f32; 3]>,
 }
 
-/// A device with the atmosphere's compute pipelines.
+/// The tables in the order of their bindings 1, 2, 4, 5, 6 (0 and 3 are the uniforms).
+const TABLES: [(&str, u32); 5] = [
+    ("transmittance", 1),
+    ("multiple scattering", 2),
+    ("sky view", 4),
+    ("aerial in-scattering", 5),
+    ("aerial transmittance", 6),
+];
+
+fn texels(k: usize) -> usize {
+    match k {
+        0 => TRANSMITTANCE_SIZE.0 * TRANSMITTANCE_SIZE.1,
+        1 => MULTIPLE_SCATTERING_SIZE * MULTIPLE_SCATTERING_SIZE,
+        2 => SKY_VIEW_SIZE.0 * SKY_VIEW_SIZE.1,
+        _ => AERIAL_SIZE * AERIAL_SIZE * AERIAL_SIZE,
+    }
+}
+
+/// One compute pass: its pipeline, the bindings it uses, the texels it writes.
+#[derive(Debug)]
+struct Pass {
+    pipeline: wgpu::ComputePipeline,
+    bind: wgpu::BindGroup,
+    groups: (u32, u32, u32),
+}
+
+/// The atmosphere's compute passes and tables on a device (about 1.6 MiB of buffers).
+#[derive(Debug)]
+pub struct AtmospherePasses {
+    atm: wgpu::Buffer,
+    frame: wgpu::Buffer,
+    tables: Vec<wgpu::Buffer>,
+    fixed: [Pass; 2],
+    sky_view: Pass,
+    aerial: Pass,
+    /// The atmosphere whose transmittance and multiple-scattering tables the buffers hold.
+    current: Option<Atmosphere>,
+}
+
+impl AtmospherePasses {
+    /// Compiles the passes and makes the tables' buffers on `device`.
+    pub fn new(device: &wgpu::Device) -> Self {
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("atmosphere.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(crate::ATMOSPHERE_WGSL.into()),
+        });
+        let uniform = |label: &str, size: usize| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: size as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        let atm = uniform("atmosphere", std::mem::size_of::<AtmosphereUniforms>());
+        let frame = uniform("atmosphere frame", std::mem::size_of::<AtmosphereFrame>());
+        let tables: Vec<wgpu::Buffer> = TABLES
+            .iter()
+            .enumerate()
+            .map(|(k, (label, _))| {
+                device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(label),
+                    size: (texels(k) * 16) as u64,
+                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                    mapped_at_creation: false,
+                })
+            })
+            .collect();
+        // each pass binds the uniforms and the tables it reads or writes, by binding number
+        let pass = |entry: &str, bindings: &[u32], groups: (u32, u32, u32)| {
+            let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: None,
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            });
+            let entries: Vec<wgpu::BindGroupEntry> = bindings
+                .iter()
+                .map(|&b| wgpu::BindGroupEntry {
+                    binding: b,
+                    resource: match b {
+                        0 => atm.as_entire_binding(),
+                        3 => frame.as_entire_binding(),
+                        _ => {
+                            let k = TABLES.iter().position(|t| t.1 == b).expect("a table");
+                            tables[k].as_entire_binding()
+                        }
+                    },
+                })
+                .collect();
+            let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some(entry),
+                layout: &pipeline.get_bind_group_layout(0),
+                entries: &entries,
+            });
+            Pass {
+                pipeline,
+                bind,
+                groups,
+            }
+        };
+        let (tw, th) = TRANSMITTANCE_SIZE;
+        let (sw, sh) = SKY_VIEW_SIZE;
+        let n = MULTIPLE_SCATTERING_SIZE as u32;
+        let a = AERIAL_SIZE as u32;
+        let g = |x: usize| (x as u32).div_ceil(8);
+        Self {
+            fixed: [
+                pass("transmittance_lut", &[0, 1], (g(tw), g(th), 1)),
+                pass(
+                    "multiple_scattering_lut",
+                    &[0, 1, 2],
+                    (n.div_ceil(8), n.div_ceil(8), 1),
+                ),
+            ],
+            sky_view: pass("sky_view_lut", &[0, 1, 2, 3, 4], (g(sw), g(sh), 1)),
+            aerial: pass(
+                "aerial_perspective_lut",
+                &[0, 1, 2, 3, 5, 6],
+                (a.div_ceil(8), a.div_ceil(8), a),
+            ),
+            atm,
+            frame,
+            tables,
+            current: None,
+        }
+    }
+
+    /// Records the passes of a frame into `enc`: the transmittance and multiple-scattering
+    /// tables when `atmosphere` is not the one they hold, then the sky-view table (for a
+    /// viewer inside the atmosphere: from outside the renderer marches the sky) and the
+    /// aerial-perspective volume of `frame`.
+    pub fn encode(
+        &mut self,
+        queue: &wgpu::Queue,
+        enc: &mut wgpu::CommandEncoder,
+        atmosphere: &Atmosphere,
+        frame: &AtmosphereFrame,
+    ) {
+        let mut passes: Vec<&Pass> = Vec::with_capacity(4);
+        if self.current != Some(*atmosphere) {
+            queue.write_buffer(
+                &self.atm,
+                0,
+                bytemuck::bytes_of(&AtmosphereUniforms::new(atmosphere)),
+            );
+            self.current = Some(*atmosphere);
+            passes.extend(self.fixed.iter());
+        }
+        queue.write_buffer(&self.frame, 0, bytemuck::bytes_of(frame));
+        if f64::from(frame.camera[0]) * 1e3 < atmosphere.top_radius_m {
+            passes.push(&self.sky_view);
+        }
+        passes.push(&self.aerial);
+        for p in passes {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("atmosphere"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&p.pipeline);
+            pass.set_bind_group(0, &p.bind, &[]);
+            pass.dispatch_workgroups(p.groups.0, p.groups.1, p.groups.2);
+        }
+    }
+
+    /// Marks the frame as drawn without the atmosphere (the renderer's fragment stage then
+    /// lights the terrain as without air).
+    pub fn disable(&self, queue: &wgpu::Queue) {
+        queue.write_buffer(
+            &self.frame,
+            0,
+            bytemuck::bytes_of(&<AtmosphereFrame as bytemuck::Zeroable>::zeroed()),
+        );
+    }
+
+    /// The uniforms and tables as the renderer binds them: binding 0 the atmosphere, 3 the
+    /// frame, 1, 2, 4, 5, 6 the tables (read-only storage).
+    pub fn resources(&self) -> Vec<(u32, wgpu::BindingResource<'_>)> {
+        let mut out = vec![
+            (0, self.atm.as_entire_binding()),
+            (3, self.frame.as_entire_binding()),
+        ];
+        for (k, (_, b)) in TABLES.iter().enumerate() {
+            out.push((*b, self.tables[k].as_entire_binding()));
+        }
+        out
+    }
+
+    /// Whether the binding `b` of the renderer's atmosphere group is a uniform buffer.
+    pub fn is_uniform(b: u32) -> bool {
+        b == 0 || b == 3
+    }
+
+    /// Every table copied back to the CPU (after the recorded passes were submitted).
+    fn read(&self, device: &wgpu::Device, queue: &wgpu::Queue) -> Result<Tables, RenderError> {
+        let mut enc =
+            device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+        let backs: Vec<wgpu::Buffer> = self
+            .tables
+            .iter()
+            .map(|t| {
+                let back = device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("readback"),
+                    size: t.size(),
+                    usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+                    mapped_at_creation: false,
+                });
+                enc.copy_buffer_to_buffer(t, 0, &back, 0, t.size());
+                back
+            })
+            .collect();
+        queue.submit([enc.finish()]);
+        let mut rgb = Vec::with_capacity(backs.len());
+        for b in &backs {
+            let texels: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&read_back(device, b)?);
+            rgb.push(texels.into_iter().map(|t| [t[0], t[1], t[2]]).collect());
+        }
+        let mut it = rgb.into_iter();
+        let mut next = || it.next().unwrap_or_default();
+        Ok(Tables {
+            transmittance: next(),
+            multiple_scattering: next(),
+            sky_view: next(),
+            aerial_inscatter: next(),
+            aerial_transmittance: next(),
+        })
+    }
+}
+
+/// A device with the atmosphere's compute passes, for reading the tables back.
 #[derive(Debug)]
 pub struct AtmosphereTables {
     device: wgpu::Device,
     queue: wgpu::Queue,
-    transmittance: wgpu::ComputePipeline,
-    multiple_scattering: wgpu::ComputePipeline,
-    sky_view: wgpu::ComputePipeline,
+    passes: AtmospherePasses,
     /// The adapter, in words.
     pub adapter: String,
 }
 
 impl AtmosphereTables {
-    /// Compiles the pipelines on the first adapter found.
+    /// Compiles the passes on the first adapter found.
     pub fn new() -> Result<Self, RenderError> {
         let (device, queue, adapter) = gpu_device()?;
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("atmosphere.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(crate::ATMOSPHERE_WGSL.into()),
-        });
-        let transmittance = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("transmittance table"),
-            layout: None,
-            module: &module,
-            entry_point: Some("transmittance_lut"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
-        let multiple_scattering =
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some("multiple-scattering table"),
-                layout: None,
-                module: &module,
-                entry_point: Some("multiple_scattering_lut"),
-                compilation_options: Default::default(),
-                cache: None,
-            });
-        let sky_view = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("sky-view table"),
-            layout: None,
-            module: &module,
-            entry_point: Some("sky_view_lut"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
         Ok(Self {
+            passes: AtmospherePasses::new(&device),
             device,
             queue,
-            transmittance,
-            multiple_scattering,
-            sky_view,
             adapter,
         })
     }
 
-    /// The transmittance table and the multiple-scattering table of `atmosphere` (each
-    /// row-major from the ground, RGB), then the sky-view table of a viewer at radius `r`
-    /// (metres) with the sun at cosine `mu_s`, computed on the GPU, each from the ones before.
-    pub fn tables(
-        &self,
+    /// Every table of `atmosphere` for the viewer of `frame`, computed on the GPU, each from the
+    /// ones before, and read back. The sky-view table is left zero for a viewer outside the
+    /// atmosphere.
+    pub fn frame_tables(
+        &mut self,
         atmosphere: &Atmosphere,
-        (r, mu_s): (f64, f64),
+        frame: &AtmosphereFrame,
     ) -> Result<Tables, RenderError> {
-        let (w, h) = TRANSMITTANCE_SIZE;
-        let n = MULTIPLE_SCATTERING_SIZE;
-        let uniforms = AtmosphereUniforms::new(atmosphere);
-        let ubuf = self
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("atmosphere"),
-                contents: bytemuck::bytes_of(&uniforms),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
-        let storage = |label: &str, texels: usize| {
-            self.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: (texels * 16) as u64,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            })
-        };
-        let readback = |texels: usize| {
-            self.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("readback"),
-                size: (texels * 16) as u64,
-                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-                mapped_at_creation: false,
-            })
-        };
-        let (sw, sh) = SKY_VIEW_SIZE;
-        let viewer = [(r * 1e-3) as f32, mu_s as f32, 0.0, 0.0];
-        let vbuf = self
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("sky viewer"),
-                contents: bytemuck::cast_slice(&viewer),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
-        let t_buf = storage("transmittance", w * h);
-        let ms_buf = storage("multiple scattering", n * n);
-        let sky_buf = storage("sky view", sw * sh);
-        let (t_back, ms_back, sky_back) = (readback(w * h), readback(n * n), readback(sw * sh));
         let mut enc = self
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
-        // each pass binds the buffers 0.. in order: its tables read, then the one it writes
-        let passes: [(&wgpu::ComputePipeline, Vec<&wgpu::Buffer>, (usize, usize)); 3] = [
-            (&self.transmittance, vec![&ubuf, &t_buf], (w, h)),
-            (
-                &self.multiple_scattering,
-                vec![&ubuf, &t_buf, &ms_buf],
-                (n, n),
-            ),
-            (
-                &self.sky_view,
-                vec![&ubuf, &t_buf, &ms_buf, &vbuf, &sky_buf],
-                (sw, sh),
-            ),
-        ];
-        for (pipeline, buffers, (x, y)) in passes {
-            let entries: Vec<wgpu::BindGroupEntry> = buffers
-                .iter()
-                .enumerate()
-                .map(|(k, b)| wgpu::BindGroupEntry {
-                    binding: k as u32,
-                    resource: b.as_entire_binding(),
-                })
-                .collect();
-            let bind = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: None,
-                layout: &pipeline.get_bind_group_layout(0),
-                entries: &entries,
-            });
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
-            pass.set_pipeline(pipeline);
-            pass.set_bind_group(0, &bind, &[]);
-            pass.dispatch_workgroups((x as u32).div_ceil(8), (y as u32).div_ceil(8), 1);
-        }
-        enc.copy_buffer_to_buffer(&t_buf, 0, &t_back, 0, (w * h * 16) as u64);
-        enc.copy_buffer_to_buffer(&sky_buf, 0, &sky_back, 0, (sw * sh * 16) as u64);
-        enc.copy_buffer_to_buffer(&ms_buf, 0, &ms_back, 0, (n * n * 16) as u64);
+        self.passes.encode(&self.queue, &mut enc, atmosphere, frame);
         self.queue.submit([enc.finish()]);
-        let rgb = |bytes: Vec<u8>| -> Vec<[f32; 3]> {
-            let texels: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&bytes);
-            texels.into_iter().map(|t| [t[0], t[1], t[2]]).collect()
-        };
-        Ok(Tables {
-            transmittance: rgb(read_back(&self.device, &t_back)?),
-            multiple_scattering: rgb(read_back(&self.device, &ms_back)?),
-            sky_view: rgb(read_back(&self.device, &sky_back)?),
-        })
+        self.passes.read(&self.device, &self.queue)
+    }
+
+    /// The tables of `atmosphere` with the sky-view table of a viewer at radius `r` (metres)
+    /// and the sun at cosine `mu_s` (its aerial-perspective volume looks straight up).
+    pub fn tables(
+        &mut self,
+        atmosphere: &Atmosphere,
+        (r, mu_s): (f64, f64),
+    ) -> Result<Tables, RenderError> {
+        let frame = AtmosphereFrame::looking_up(atmosphere, r, mu_s);
+        self.frame_tables(atmosphere, &frame)
     }
 }

@@ -10,11 +10,15 @@ pub mod render;
 /// The WGSL of the clipmap renderer, from `shaders/` (the map transform first).
 pub const CLIPMAP_WGSL: &str = concat!(
     include_str!("../../../shaders/map_transform.wgsl"),
+    include_str!("../../../shaders/atmosphere_model.wgsl"),
     include_str!("../../../shaders/clipmap.wgsl")
 );
 
-/// The WGSL of the atmosphere's lookup tables (compute passes).
-pub const ATMOSPHERE_WGSL: &str = include_str!("../../../shaders/atmosphere.wgsl");
+/// The WGSL of the atmosphere's lookup tables (compute passes; the model first).
+pub const ATMOSPHERE_WGSL: &str = concat!(
+    include_str!("../../../shaders/atmosphere_model.wgsl"),
+    include_str!("../../../shaders/atmosphere.wgsl")
+);
 
 /// The WGSL of the map-transform probe (a compute pass over vertices).
 pub const PROBE_WGSL: &str = concat!(

@@ -8,6 +8,7 @@ use std::time::{Duration, Instant};
 
 use bytemuck::{Pod, Zeroable};
 use sc_store::LayerKind;
+use sc_view_plan::atmosphere::AtmosphereFrame;
 use sc_view_plan::camera::Camera;
 use sc_view_plan::clipmap::{CLIPMAP_N, ColorSource, HeightSource, Region};
 use sc_view_plan::frame::{
@@ -16,6 +17,8 @@ use sc_view_plan::frame::{
 use sc_view_plan::geometry::HemisphereSpec;
 use sc_view_plan::stream::Streamer;
 use wgpu::util::DeviceExt;
+
+use crate::atmosphere::AtmospherePasses;
 
 /// Errors of the renderer.
 #[derive(Debug, thiserror::Error)]
@@ -50,8 +53,14 @@ const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// headless [`Renderer`] and the windowed viewer both draw through it.
 #[derive(Debug)]
 pub struct ClipmapPass {
+    device: wgpu::Device,
     queue: wgpu::Queue,
     pipeline: wgpu::RenderPipeline,
+    sky: wgpu::RenderPipeline,
+    atmosphere: AtmospherePasses,
+    atmosphere_bind: wgpu::BindGroup,
+    radius_m: f64,
+    size: (u32, u32),
     wire: Option<wgpu::RenderPipeline>,
     vertices: wgpu::Buffer,
     indices: wgpu::Buffer,
@@ -66,6 +75,8 @@ pub struct ClipmapPass {
     last: FrameStats,
     /// Debug toggles.
     pub options: DrawOptions,
+    /// Behind the planet and its atmosphere (linear RGB; the clear colour without atmosphere).
+    pub space: [f64; 4],
 }
 
 fn clipmap_array(device: &wgpu::Device, label: &str, format: wgpu::TextureFormat) -> wgpu::Texture {
@@ -206,9 +217,40 @@ impl ClipmapPass {
             label: Some("clipmap.wgsl"),
             source: wgpu::ShaderSource::Wgsl(crate::CLIPMAP_WGSL.into()),
         });
+        let atmosphere = AtmospherePasses::new(device);
+        let resources = atmosphere.resources();
+        let air_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("atmosphere"),
+            entries: &resources
+                .iter()
+                .map(|(b, _)| wgpu::BindGroupLayoutEntry {
+                    binding: *b,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: if AtmospherePasses::is_uniform(*b) {
+                            wgpu::BufferBindingType::Uniform
+                        } else {
+                            wgpu::BufferBindingType::Storage { read_only: true }
+                        },
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                })
+                .collect::<Vec<_>>(),
+        });
+        let atmosphere_bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("atmosphere"),
+            layout: &air_layout,
+            entries: &resources
+                .into_iter()
+                .map(|(binding, resource)| wgpu::BindGroupEntry { binding, resource })
+                .collect::<Vec<_>>(),
+        });
+        atmosphere.disable(queue);
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("clipmap"),
-            bind_group_layouts: &[Some(&layout)],
+            bind_group_layouts: &[Some(&layout), Some(&air_layout)],
             ..Default::default()
         });
         let make = |polygon_mode| {
@@ -249,13 +291,47 @@ impl ClipmapPass {
             })
         };
         let pipeline = make(wgpu::PolygonMode::Fill);
+        // the sky: a screen-filling triangle where the terrain left the far plane
+        let sky = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("sky"),
+            layout: Some(&pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &shader,
+                entry_point: Some("sky_vs"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: Default::default(),
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(false),
+                depth_compare: Some(wgpu::CompareFunction::Equal),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &shader,
+                entry_point: Some("sky_fs"),
+                compilation_options: Default::default(),
+                targets: &[Some(format.into())],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
         let wire = device
             .features()
             .contains(wgpu::Features::POLYGON_MODE_LINE)
             .then(|| make(wgpu::PolygonMode::Line));
         Self {
+            device: device.clone(),
             queue: queue.clone(),
             pipeline,
+            sky,
+            atmosphere,
+            atmosphere_bind,
+            radius_m,
+            size: (1, 1),
             wire,
             vertices,
             indices,
@@ -267,6 +343,7 @@ impl ClipmapPass {
             planner,
             last: FrameStats::default(),
             options: DrawOptions::default(),
+            space: SPACE,
         }
     }
 
@@ -299,6 +376,7 @@ impl ClipmapPass {
     ) -> (f64, FrameStats) {
         self.planner.options = self.options;
         let plan = self.planner.plan(heights, colors, camera, size);
+        self.size = size;
         self.upload(&plan);
         (plan.ground, plan.stats)
     }
@@ -318,11 +396,13 @@ impl ClipmapPass {
         let plan = self
             .planner
             .plan_streamed(streamer, sources, camera, size, deadline, wait);
+        self.size = size;
         self.upload(&plan);
         (plan.ground, plan.stats)
     }
 
-    /// Writes a plan's texture regions and uniforms, and remembers what it draws.
+    /// Writes a plan's texture regions and uniforms, computes the atmosphere's tables of the
+    /// frame (if it is drawn), and remembers what it draws.
     pub fn upload(&mut self, plan: &FramePlan) {
         for u in &plan.uploads {
             self.write_region(u.layer, u.level, u.region, &u.bytes);
@@ -332,6 +412,32 @@ impl ClipmapPass {
         self.queue
             .write_buffer(&self.level_buf, 0, bytemuck::cast_slice(&plan.levels));
         self.last = plan.stats;
+        match self.options.atmosphere {
+            Some(a) => {
+                let a = a.on_sphere(self.radius_m);
+                let f = &plan.frame;
+                let frame = AtmosphereFrame::new(
+                    &a,
+                    &f.view_proj,
+                    [f.sun[0], f.sun[1], f.sun[2]],
+                    f64::from(f.cam_height),
+                    self.size,
+                    [
+                        self.space[0] as f32,
+                        self.space[1] as f32,
+                        self.space[2] as f32,
+                    ],
+                );
+                let mut enc = self
+                    .device
+                    .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                        label: Some("atmosphere"),
+                    });
+                self.atmosphere.encode(&self.queue, &mut enc, &a, &frame);
+                self.queue.submit([enc.finish()]);
+            }
+            None => self.atmosphere.disable(&self.queue),
+        }
     }
 
     fn write_region(&self, layer: LayerKind, level: u32, r: Region, bytes: &[u8]) {
@@ -373,6 +479,7 @@ impl ClipmapPass {
         };
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &self.bind, &[]);
+        pass.set_bind_group(1, &self.atmosphere_bind, &[]);
         pass.set_vertex_buffer(0, self.vertices.slice(..));
         pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
         pass.draw_indexed(
@@ -382,6 +489,10 @@ impl ClipmapPass {
             0..1,
         );
         pass.draw_indexed(self.planner.hemisphere().fill_ranges[hi].clone(), 0, 0..1);
+        if self.options.atmosphere.is_some() {
+            pass.set_pipeline(&self.sky);
+            pass.draw(0..3, 0..1);
+        }
     }
 }
 
@@ -543,8 +654,18 @@ pub struct Renderer {
 
 const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
 
-/// The default background: near-black blue.
+/// The default background without an atmosphere: near-black blue.
 pub const SPACE: [f64; 4] = [0.02, 0.02, 0.06, 1.0];
+
+/// The default background of `options`: [`SPACE`], or black behind an atmosphere (its sky is
+/// the light there).
+pub fn background(options: &DrawOptions) -> [f64; 4] {
+    if options.atmosphere.is_some() {
+        [0.0, 0.0, 0.0, 1.0]
+    } else {
+        SPACE
+    }
+}
 
 impl Renderer {
     /// Sets how to draw: shading, vertical scale, the sun.
@@ -625,6 +746,7 @@ impl Renderer {
         camera: &Camera,
     ) -> Result<(image::RgbaImage, FrameStats, f64), RenderError> {
         let start = std::time::Instant::now();
+        self.pass.space = self.clear;
         let (_, stats) = self.pass.prepare(heights, colors, camera, self.size);
         self.draw_and_read(stats, start)
     }
@@ -640,6 +762,7 @@ impl Renderer {
         deadline: Option<Instant>,
     ) -> Result<(image::RgbaImage, FrameStats, f64), RenderError> {
         let start = Instant::now();
+        self.pass.space = self.clear;
         let (ground, stats) = self.pass.prepare_streamed(
             streamer,
             sources,
@@ -702,6 +825,9 @@ pub fn device_for(
             required_features: adapter.features() & wgpu::Features::POLYGON_MODE_LINE,
             required_limits: wgpu::Limits {
                 max_texture_array_layers: levels.max(256),
+                // the clipmap levels and the atmosphere's five tables in the fragment stage
+                // (WebGPU's default)
+                max_storage_buffers_per_shader_stage: 8,
                 ..wgpu::Limits::downlevel_defaults()
             }
             .using_resolution(adapter.limits()),

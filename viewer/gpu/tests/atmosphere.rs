@@ -5,7 +5,7 @@ use sc_view_plan::atmosphere::{Atmosphere, MultipleScatteringLut, SkyViewLut, Tr
 
 #[test]
 fn gpu_tables_match_their_cpu_twins() {
-    let gpu = AtmosphereTables::new().unwrap_or_else(|e| {
+    let mut gpu = AtmosphereTables::new().unwrap_or_else(|e| {
         panic!("{e} — GPU tests need an adapter; `make test` installs mesa-vulkan-drivers")
     });
     for a in [
@@ -73,5 +73,72 @@ fn gpu_tables_match_their_cpu_twins() {
             "{}: sky view, largest difference {worst_sky} of its row's peak",
             gpu.adapter
         );
+    }
+}
+
+/// A view-projection looking along `forward` (view space: local up +z) with a field of `fov`°.
+fn looking(forward: glam::Vec3, fov: f32) -> [[f32; 4]; 4] {
+    let up = if forward.normalize().z.abs() > 0.99 {
+        glam::Vec3::X
+    } else {
+        glam::Vec3::Z
+    };
+    (glam::Mat4::perspective_infinite_reverse_rh(fov.to_radians(), 16.0 / 9.0, 0.05)
+        * glam::Mat4::look_to_rh(glam::Vec3::ZERO, forward, up))
+    .to_cols_array_2d()
+}
+
+#[test]
+fn gpu_aerial_perspective_volume_matches_its_cpu_twin_from_the_ground_to_beyond_the_moon() {
+    use sc_view_plan::atmosphere::{AerialPerspectiveLut, AtmosphereFrame};
+    let mut gpu = AtmosphereTables::new().unwrap_or_else(|e| {
+        panic!("{e} — GPU tests need an adapter; `make test` installs mesa-vulkan-drivers")
+    });
+    let a = Atmosphere::default().on_sphere(6_371_008.8);
+    let t = TransmittanceLut::compute(&a);
+    let ms = MultipleScatteringLut::compute(&a, &t);
+    let sun = glam::Vec3::new(0.6, 0.3, 0.15).normalize().to_array();
+    // (camera height above the ground, where it looks, field of view): the ground, an
+    // aircraft, the space station, orbit, beyond the Moon
+    let views = [
+        (1.7, glam::Vec3::new(1.0, 0.2, -0.02), 60.0),
+        (9_000.0, glam::Vec3::new(0.3, 1.0, -0.2), 60.0),
+        (400_000.0, glam::Vec3::new(1.0, 0.0, -0.35), 60.0),
+        (8.0e6, glam::Vec3::new(0.0, 0.0, -1.0), 60.0),
+        (4.0e8, glam::Vec3::new(0.0, 0.001, -1.0), 2.5),
+    ];
+    for (h, forward, fov) in views {
+        let frame = AtmosphereFrame::new(&a, &looking(forward, fov), sun, h, (320, 180), [0.0; 3]);
+        let cpu = AerialPerspectiveLut::compute(&a, &t, &ms, &frame);
+        let g = gpu.frame_tables(&a, &frame).expect("computes");
+        let peak = cpu
+            .inscatter
+            .iter()
+            .flat_map(|v| v.iter().copied())
+            .fold(1e-9f32, f32::max);
+        let worst_l = g
+            .aerial_inscatter
+            .iter()
+            .zip(&cpu.inscatter)
+            .flat_map(|(g, c)| (0..3).map(move |k| (g[k] - c[k]).abs()))
+            .fold(0.0f32, f32::max);
+        let worst_t = g
+            .aerial_transmittance
+            .iter()
+            .zip(&cpu.transmittance)
+            .flat_map(|(g, c)| (0..3).map(move |k| (g[k] - c[k]).abs()))
+            .fold(0.0f32, f32::max);
+        assert!(
+            worst_l <= 1e-2 * peak,
+            "{}: camera {h} m: in-scattering differs by {worst_l} (peak {peak})",
+            gpu.adapter
+        );
+        assert!(
+            worst_t < 2e-3,
+            "{}: camera {h} m: transmittance differs by {worst_t}",
+            gpu.adapter
+        );
+        // the volume holds light wherever its rays cross the air
+        assert!(peak > 1e-3, "camera {h} m: peak in-scattering {peak}");
     }
 }

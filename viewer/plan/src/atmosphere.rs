@@ -687,3 +687,277 @@ impl SkyViewLut {
         }
     }
 }
+
+/// Side of the aerial-perspective volume (Hillaire's 32³): columns and rows over the screen,
+/// slices along the view rays.
+pub const AERIAL_SIZE: usize = 32;
+
+/// The sun's illuminance in the renderer's units: a white Lambertian surface facing a sun
+/// outside the atmosphere has radiance 1 (the tables hold radiance per unit illuminance).
+pub const SUN_ILLUMINANCE: f64 = std::f64::consts::PI;
+
+/// Exposure before the tone curve `1 − e^(−exposure·L)`.
+pub const EXPOSURE: f64 = 1.6;
+
+/// The sun's angular radius, radians (the disc drawn in the sky).
+pub const SUN_ANGULAR_RADIUS: f64 = 0.004_65;
+
+/// The tone curve of the renderer: radiance (renderer units) to linear display values 0..1.
+pub fn tone_map(radiance: [f64; 3]) -> [f64; 3] {
+    radiance.map(|l| 1.0 - (-EXPOSURE * l).exp())
+}
+
+impl Atmosphere {
+    /// This atmosphere around a planet of `radius_m`: the shell keeps its thickness, its bottom
+    /// on the sphere the heights are measured from (the viewer draws the terrain on that sphere).
+    pub fn on_sphere(&self, radius_m: f64) -> Self {
+        Self {
+            bottom_radius_m: radius_m,
+            top_radius_m: radius_m + (self.top_radius_m - self.bottom_radius_m),
+            ..*self
+        }
+    }
+
+    /// Where the ray from radius `r` along the unit `d` (the local up +z) enters the shell, the
+    /// sun towards the unit `s`: the distance (0 inside) and the ray there `(r, mu, mu_s)`;
+    /// `None` when it passes outside. The ray's distance from the centre comes from `d`'s
+    /// horizontal part (what the shader does: f32 loses 1 − mu² for a camera far away).
+    pub fn enter(&self, r: f64, d: [f64; 3], s: [f64; 3]) -> Option<(f64, (f64, f64, f64))> {
+        if r <= self.top_radius_m {
+            return Some((0.0, (r, d[2], s[2])));
+        }
+        let top = self.top_radius_m;
+        let disc = top * top - r * r * (d[0] * d[0] + d[1] * d[1]);
+        if disc < 0.0 || d[2] >= 0.0 {
+            return None;
+        }
+        let q = disc.sqrt();
+        let t = (-r * d[2] - q).max(0.0);
+        let nu = d[0] * s[0] + d[1] * s[1] + d[2] * s[2];
+        Some((t, (top, -q / top, (r * s[2] + t * nu) / top)))
+    }
+
+    /// Length of the longest path through the shell that an aerial-perspective slice must
+    /// reach for a camera at radius `r`: from the camera (or where it enters) to the horizon's
+    /// ground point, then out of the shell.
+    pub fn aerial_range(&self, r: f64) -> f64 {
+        let b2 = self.bottom_radius_m * self.bottom_radius_m;
+        let inner = r.min(self.top_radius_m);
+        (inner * inner - b2).max(0.0).sqrt() + (self.top_radius_m.powi(2) - b2).sqrt()
+    }
+}
+
+/// What the atmosphere's per-frame passes and the renderer read (`shaders/atmosphere_model.wgsl`,
+/// struct `AtmosphereFrame`): view space as the clipmap pass's (camera at the origin, the local
+/// up along +z, the planet's centre straight below), lengths in kilometres.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct AtmosphereFrame {
+    /// Clip space back to view space (the inverse of the frame's view-projection).
+    pub inv_view_proj: [[f32; 4]; 4],
+    /// Towards the sun, view space (xyz), and the sun's illuminance (w).
+    pub sun: [f32; 4],
+    /// The camera's radius, km (x); the range of the aerial-perspective slices, km (y); the
+    /// exposure (z); 1 when the atmosphere is drawn (w).
+    pub camera: [f32; 4],
+    /// The target's size, pixels (x, y); the cosine of the sun's angular radius (z); the
+    /// camera's height above the bottom, km (w: the radius in f32 kilometres keeps half a metre).
+    pub screen: [f32; 4],
+    /// The colour of space, linear RGB (xyz).
+    pub space: [f32; 4],
+}
+
+impl AtmosphereFrame {
+    /// The frame of a camera `cam_height_m` above the bottom of `atmosphere` (already
+    /// [`Atmosphere::on_sphere`]), with `view_proj` (camera-relative, metres), the sun
+    /// towards `sun` in view space, a `size` target and `space` behind the planet.
+    pub fn new(
+        atmosphere: &Atmosphere,
+        view_proj: &[[f32; 4]; 4],
+        sun: [f32; 3],
+        cam_height_m: f64,
+        size: (u32, u32),
+        space: [f32; 3],
+    ) -> Self {
+        let r = atmosphere.bottom_radius_m + cam_height_m.max(0.0);
+        // view space in kilometres: scale the metres the projection takes
+        let inv = (glam::Mat4::from_cols_array_2d(view_proj)
+            * glam::Mat4::from_scale(glam::Vec3::splat(1e3)))
+        .inverse();
+        Self {
+            inv_view_proj: inv.to_cols_array_2d(),
+            sun: [sun[0], sun[1], sun[2], SUN_ILLUMINANCE as f32],
+            camera: [
+                (r * 1e-3) as f32,
+                (atmosphere.aerial_range(r) * 1e-3) as f32,
+                EXPOSURE as f32,
+                1.0,
+            ],
+            screen: [
+                size.0 as f32,
+                size.1 as f32,
+                SUN_ANGULAR_RADIUS.cos() as f32,
+                (cam_height_m.max(0.0) * 1e-3) as f32,
+            ],
+            space: [space[0], space[1], space[2], 0.0],
+        }
+    }
+
+    /// The frame of a viewer at radius `r` (metres) with the sun at cosine `mu_s` (in the
+    /// plane of x and the zenith), looking straight up through a square 1-radian frustum.
+    pub fn looking_up(atmosphere: &Atmosphere, r: f64, mu_s: f64) -> Self {
+        let sun = [(1.0 - mu_s * mu_s).max(0.0).sqrt() as f32, 0.0, mu_s as f32];
+        Self::new(
+            atmosphere,
+            &(glam::Mat4::perspective_infinite_reverse_rh(1.0, 1.0, 0.1)
+                * glam::Mat4::look_to_rh(glam::Vec3::ZERO, glam::Vec3::Z, glam::Vec3::X))
+            .to_cols_array_2d(),
+            sun,
+            r - atmosphere.bottom_radius_m,
+            (64, 64),
+            [0.0; 3],
+        )
+    }
+
+    /// The unit view-space direction through the point `(u, v)` of the screen (0..1, v down).
+    pub fn direction(&self, u: f64, v: f64) -> [f64; 3] {
+        let m = glam::Mat4::from_cols_array_2d(&self.inv_view_proj).as_dmat4();
+        let p = m * glam::DVec4::new(2.0 * u - 1.0, 1.0 - 2.0 * v, 1.0, 1.0);
+        let d = (p.truncate() / p.w).normalize();
+        [d.x, d.y, d.z]
+    }
+
+    /// The sun's direction, view space.
+    pub fn sun_dir(&self) -> [f64; 3] {
+        let s = glam::DVec3::new(
+            f64::from(self.sun[0]),
+            f64::from(self.sun[1]),
+            f64::from(self.sun[2]),
+        )
+        .normalize();
+        [s.x, s.y, s.z]
+    }
+
+    /// The camera's radius in `atmosphere`, metres (from its height, which f32 keeps finer).
+    pub fn radius_m(&self, atmosphere: &Atmosphere) -> f64 {
+        atmosphere.bottom_radius_m + f64::from(self.screen[3]) * 1e3
+    }
+
+    /// Distance from the camera (or where the view ray enters the shell) of slice `k`'s end,
+    /// metres: quadratic, so that slices near the camera are short.
+    pub fn slice_distance_m(&self, k: usize) -> f64 {
+        let f = (k as f64 + 1.0) / AERIAL_SIZE as f64;
+        f64::from(self.camera[1]) * 1e3 * f * f
+    }
+}
+
+/// The aerial-perspective volume of a frame: per froxel (column, row over the screen; slice
+/// along the ray), the light scattered towards the camera and the transmittance between the
+/// camera (or where its ray enters the atmosphere) and the slice's end, for a sun of unit
+/// illuminance. Index `(k·32 + j)·32 + i`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AerialPerspectiveLut {
+    /// In-scattered radiance per froxel.
+    pub inscatter: Vec<[f32; 3]>,
+    /// Transmittance per froxel.
+    pub transmittance: Vec<[f32; 3]>,
+}
+
+/// Where the view ray along the view-space `d` from the camera of `frame` enters the
+/// atmosphere: the distance and the ray there `(r, mu, mu_s, nu)`; `None`: it misses it.
+pub fn view_ray(
+    atmosphere: &Atmosphere,
+    frame: &AtmosphereFrame,
+    d: [f64; 3],
+) -> Option<(f64, (f64, f64, f64, f64))> {
+    let s = frame.sun_dir();
+    let nu = d[0] * s[0] + d[1] * s[1] + d[2] * s[2];
+    atmosphere
+        .enter(frame.radius_m(atmosphere), d, s)
+        .map(|(t, (r, mu, mu_s))| (t, (r, mu, mu_s, nu)))
+}
+
+impl AerialPerspectiveLut {
+    /// Computes every froxel by [`Atmosphere::sky`] from where its ray enters the atmosphere up
+    /// to the slice's end.
+    pub fn compute(
+        atmosphere: &Atmosphere,
+        transmittance: &TransmittanceLut,
+        ms: &MultipleScatteringLut,
+        frame: &AtmosphereFrame,
+    ) -> Self {
+        let n = AERIAL_SIZE;
+        let mut inscatter = vec![[0.0f32; 3]; n * n * n];
+        let mut trans = vec![[1.0f32; 3]; n * n * n];
+        for j in 0..n {
+            for i in 0..n {
+                let d = frame.direction((i as f64 + 0.5) / n as f64, (j as f64 + 0.5) / n as f64);
+                let Some((_, ray)) = view_ray(atmosphere, frame, d) else {
+                    continue;
+                };
+                for k in 0..n {
+                    let (l, t) = atmosphere.sky(transmittance, ms, ray, frame.slice_distance_m(k));
+                    let at = (k * n + j) * n + i;
+                    inscatter[at] = l.map(|v| v as f32);
+                    trans[at] = t.map(|v| v as f32);
+                }
+            }
+        }
+        Self {
+            inscatter,
+            transmittance: trans,
+        }
+    }
+
+    /// In-scattering and transmittance at the screen point `(u, v)` for a surface `s` metres
+    /// beyond where the ray enters the atmosphere: bilinear between froxel columns, linear
+    /// between slices in √distance, and from nothing (0, 1) at the camera to the first slice —
+    /// what the renderer's fragment stage reads.
+    pub fn sample(&self, frame: &AtmosphereFrame, (u, v): (f64, f64), s: f64) -> [[f64; 3]; 2] {
+        let n = AERIAL_SIZE;
+        let nf = n as f64;
+        let x = (u * nf - 0.5).clamp(0.0, nf - 1.0);
+        let y = (v * nf - 0.5).clamp(0.0, nf - 1.0);
+        let range = f64::from(frame.camera[1]) * 1e3;
+        let q = (nf * (s.max(0.0) / range).sqrt() - 1.0).min(nf - 1.0);
+        let (i0, j0) = (x.floor() as usize, y.floor() as usize);
+        let (i1, j1) = ((i0 + 1).min(n - 1), (j0 + 1).min(n - 1));
+        let (fx, fy) = (x - i0 as f64, y - j0 as f64);
+        let (k0, k1, fz, near) = if q < 0.0 {
+            (0, 0, 0.0, s.max(0.0) / frame.slice_distance_m(0))
+        } else {
+            let k0 = q.floor() as usize;
+            ((k0), (k0 + 1).min(n - 1), q - k0 as f64, 1.0)
+        };
+        let mut out = [[0.0; 3], [1.0; 3]];
+        for (which, table) in [&self.inscatter, &self.transmittance]
+            .into_iter()
+            .enumerate()
+        {
+            let at = |i: usize, j: usize, k: usize| table[(k * n + j) * n + i];
+            for c in 0..3 {
+                let slice = |k: usize| {
+                    let a =
+                        f64::from(at(i0, j0, k)[c]) * (1.0 - fx) + f64::from(at(i1, j0, k)[c]) * fx;
+                    let b =
+                        f64::from(at(i0, j1, k)[c]) * (1.0 - fx) + f64::from(at(i1, j1, k)[c]) * fx;
+                    a * (1.0 - fy) + b * fy
+                };
+                let v = slice(k0) * (1.0 - fz) + slice(k1) * fz;
+                // towards the camera: in-scattering from 0, transmittance from 1
+                let empty = if which == 0 { 0.0 } else { 1.0 };
+                out[which][c] = empty + (v - empty) * near;
+            }
+        }
+        out
+    }
+}
+
+impl SkyViewLut {
+    /// The sky in direction `(mu, cos_azimuth)` from the sun for the table's viewer at radius
+    /// `r`, bilinear between texel centres (clamped at the edges), as the renderer reads it.
+    pub fn sample(&self, atmosphere: &Atmosphere, r: f64, mu: f64, cos_azimuth: f64) -> [f64; 3] {
+        let (u, v) = sky_view_ray_to_uv(atmosphere, r, mu, cos_azimuth);
+        bilinear(&self.texels, self.size, u, v)
+    }
+}

@@ -12,6 +12,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec3};
 use sc_store::LayerKind;
 
+use crate::atmosphere::Atmosphere;
 use crate::camera::Camera;
 use crate::clipmap::{
     CLIPMAP_N, ColorSource, HeightSource, Placement, Region, all_regions, changed_regions,
@@ -108,6 +109,9 @@ pub struct DrawOptions {
     /// Fade newly drawn levels in over [`FADE_FRAMES`] frames (a moving view); off, a level
     /// shows whole as soon as it is drawn (a still picture wants the final frame at once).
     pub fade_in: bool,
+    /// The atmosphere (sky, sun disc, aerial perspective), its shell set on the planet's sphere
+    /// by the renderer; `None`: space is the clear colour and the terrain is lit as without air.
+    pub atmosphere: Option<Atmosphere>,
 }
 
 impl Default for DrawOptions {
@@ -119,6 +123,7 @@ impl Default for DrawOptions {
             exaggeration: 1.0,
             sun: Sun::default_for(0.0, 0.0),
             fade_in: true,
+            atmosphere: None,
         }
     }
 }

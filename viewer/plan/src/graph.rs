@@ -37,6 +37,10 @@
 //! [clipmaps]
 //! height = "heights"
 //! color = "graded"
+//!
+//! [atmosphere]              # optional: the sky's model (every key optional, Earth's default)
+//! mie_scattering = [2e-5, 2e-5, 2e-5]
+//! mie_extinction = [2.2e-5, 2.2e-5, 2.2e-5]
 //! ```
 //!
 //! A source may only take inputs declared before it, so the graph has no cycles; the streamer
@@ -52,6 +56,7 @@ use sc_store::{LayerKind, StoreReader};
 use serde::Deserialize;
 
 use crate::ViewError;
+use crate::atmosphere::Atmosphere;
 use crate::frame::StreamSources;
 use crate::stream::{
     FnHeightTiles, StoreColorTiles, StoreHeightTiles, Streamer, Tile, TileData, TileError, TileKey,
@@ -221,6 +226,7 @@ struct File {
     #[serde(rename = "source", default)]
     sources: Vec<Decl>,
     clipmaps: Clipmaps,
+    atmosphere: Option<Atmosphere>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -280,6 +286,8 @@ pub struct Graph {
     pub filters: Vec<FilterHandle>,
     /// The planet's radius (of the first store), metres.
     pub radius: f64,
+    /// The `[atmosphere]` table, if the file has one (checked).
+    pub atmosphere: Option<Atmosphere>,
     /// Warnings (e.g. a store without heights: a smooth sphere).
     pub warnings: Vec<String>,
 }
@@ -315,6 +323,8 @@ pub struct StoreStreamer {
     pub radius: f64,
     /// The colour filters.
     pub filters: Vec<FilterHandle>,
+    /// The graph's `[atmosphere]` table, if it has one.
+    pub atmosphere: Option<Atmosphere>,
     /// Warnings made while loading (incomplete stores, missing layers).
     pub warnings: Vec<String>,
 }
@@ -337,6 +347,7 @@ pub fn store_streamer(store: &Path, graph_file: Option<&Path>) -> Result<StoreSt
         sources: graph.clipmaps,
         radius: graph.radius,
         filters: graph.filters,
+        atmosphere: graph.atmosphere,
         warnings: graph.warnings,
     })
 }
@@ -368,6 +379,7 @@ impl Graph {
             },
             filters: Vec::new(),
             radius,
+            atmosphere: None,
             warnings: Vec::new(),
         }
     }
@@ -428,6 +440,10 @@ impl Graph {
             return Err(format!("declare 1..{MAX_SOURCES} [[source]] tables"));
         }
         let mut g = Graph::empty(0.0);
+        if let Some(a) = &file.atmosphere {
+            a.check()?;
+        }
+        g.atmosphere = file.atmosphere;
         // what each source makes
         let mut kinds: Vec<LayerKind> = Vec::new();
         let find = |g: &Graph, name: &str, who: &str| -> Result<u32, String> {

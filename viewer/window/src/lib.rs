@@ -16,7 +16,7 @@ use winit::window::{Window, WindowId};
 
 use sc_store::LayerKind;
 use sc_view_gpu::render::{
-    ClipmapPass, ImageReadback, RenderError, SPACE, begin_pass, depth_target, device_for,
+    ClipmapPass, ImageReadback, RenderError, background, begin_pass, depth_target, device_for,
 };
 use sc_view_plan::camera::{Camera, CameraScript, Controller, Input, Mode};
 use sc_view_plan::frame::{DrawOptions, FrameStats, StreamSources};
@@ -298,6 +298,7 @@ impl App<'_> {
         let cpu_start = Instant::now();
         let (w, h) = (gpu.config.width, gpu.config.height);
         let camera = self.controller.camera;
+        gpu.pass.space = background(&gpu.pass.options);
         let (_, stats) = gpu.pass.prepare_streamed(
             self.streamer,
             self.sources,
@@ -313,6 +314,8 @@ impl App<'_> {
         let mut mode = self.controller.mode;
         let mut speed = self.controller.speed;
         let mut options = gpu.pass.options;
+        // the atmosphere's model stays that of the view's start; the panel only switches it
+        let air_model = self.opts.draw.atmosphere.unwrap_or_default();
         let has_wire = gpu.pass.has_wireframe();
         let memory_mb = gpu.pass.clipmap_bytes() as f64 / (1u64 << 20) as f64;
         let cache_mb = self.streamer.cache().bytes() as f64 / (1u64 << 20) as f64;
@@ -373,6 +376,12 @@ impl App<'_> {
                     );
                     ui.checkbox(&mut options.level_colors, "level colours (L)");
                     ui.checkbox(&mut options.lit, "lit (off: colour as stored)");
+                    let mut air = options.atmosphere.is_some();
+                    ui.add_enabled(
+                        options.lit,
+                        egui::Checkbox::new(&mut air, "atmosphere (sky, aerial perspective)"),
+                    );
+                    options.atmosphere = (air && options.lit).then_some(air_model);
                     ui.add(
                         egui::Slider::new(&mut options.exaggeration, 0.1..=50.0)
                             .logarithmic(true)
@@ -468,7 +477,7 @@ impl App<'_> {
             gpu.egui_renderer
                 .update_buffers(&gpu.device, &gpu.queue, &mut enc, &prims, &screen);
         {
-            let mut pass = begin_pass(&mut enc, &view, &gpu.depth, SPACE);
+            let mut pass = begin_pass(&mut enc, &view, &gpu.depth, gpu.pass.space);
             gpu.pass.draw(&mut pass);
             let mut pass = pass.forget_lifetime();
             gpu.egui_renderer.render(&mut pass, &prims, &screen);

@@ -126,10 +126,11 @@ pub fn check_output_file(out: &std::path::Path, what: &str) -> Result<()> {
 }
 
 /// How `render` and `view` draw, from their shared options, with the sun placed for a camera
-/// that starts at `camera`.
+/// that starts at `camera` and the source graph's atmosphere (Earth's when it has none).
 pub fn draw_options(
     look: &crate::cli::LookArgs,
     camera: &sc_view_plan::camera::Camera,
+    graph_atmosphere: Option<sc_view_plan::atmosphere::Atmosphere>,
 ) -> Result<sc_view_plan::frame::DrawOptions> {
     use sc_view_plan::sun::{Sun, parse_utc};
     let k = look.exaggeration;
@@ -141,10 +142,13 @@ pub fn draw_options(
         (None, Some(t)) => Sun::at_unix_time(parse_utc(t).context("--time")?),
         (None, None) => Sun::default_for(camera.lat_deg, camera.lon_deg),
     };
+    let lit = look.shading == crate::cli::Shading::Lit;
     Ok(sc_view_plan::frame::DrawOptions {
-        lit: look.shading == crate::cli::Shading::Lit,
+        lit,
         exaggeration: k,
         sun,
+        atmosphere: (lit && look.atmosphere == crate::cli::OnOff::On)
+            .then(|| graph_atmosphere.unwrap_or_default()),
         ..Default::default()
     })
 }

@@ -59,16 +59,21 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
         streamer,
         sources,
         radius,
+        atmosphere,
         ..
     } = streamer_for(&a.store, a.sources.as_deref())?;
     // a still picture: each level whole as soon as it is drawn
     let options = sc_view_plan::frame::DrawOptions {
         fade_in: false,
-        ..super::draw_options(&a.look, &camera)?
+        ..super::draw_options(&a.look, &camera, atmosphere)?
     };
     let mut r = Renderer::headless(w, h, radius)?;
     r.set_options(options);
-    r.clear = clear;
+    r.clear = if a.clear.is_some() {
+        clear
+    } else {
+        sc_view_gpu::render::background(&options)
+    };
     // the complete view: frames until every visible level is there (the tiles are made by the
     // worker threads meanwhile); then --frames − 1 more of the still view for timing
     let start = Instant::now();
@@ -147,7 +152,7 @@ fn reference(
     let colors = StoreColors::new(reader.clone())
         .with_context(|| format!("the store has no colour layer: {}", a.store.display()))?;
     let heights = StoreHeights::new(reader);
-    let options = super::draw_options(&a.look, camera)?;
+    let options = super::draw_options(&a.look, camera, None)?;
     let mut rc =
         sc_view_plan::reference::RayCaster::new(colors, heights, radius, options.exaggeration);
     // the clear colour is linear light, as the GPU's sRGB target takes it

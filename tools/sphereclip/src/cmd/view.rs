@@ -27,15 +27,16 @@ pub fn run(a: &ViewArgs) -> Result<ExitCode> {
     {
         anyhow::bail!("--screenshot is a folder, not a PNG file: {}", p.display());
     }
-    let draw = super::draw_options(&a.look, &camera)?;
     let flight = a.flight.as_deref().map(flight::parse).transpose()?;
     let StoreStreamer {
         streamer,
         sources,
         radius,
         filters,
+        atmosphere,
         ..
     } = streamer_for(&a.store, a.sources.as_deref())?;
+    let draw = super::draw_options(&a.look, &camera, atmosphere)?;
     if !["DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET"]
         .iter()
         .any(|v| std::env::var_os(v).is_some_and(|x| !x.is_empty()))
