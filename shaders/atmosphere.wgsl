@@ -136,7 +136,7 @@ fn sky_view_lut(@builtin(global_invocation_id) id: vec3<u32>) {
     let sin_v = sqrt(max(1.0 - mu * mu, 0.0));
     let sin_s = sqrt(max(1.0 - mu_s * mu_s, 0.0));
     let nu = clamp(mu * mu_s + sin_v * sin_s * cos_az, -1.0, 1.0);
-    sky_view_table[id.y * SKY_VIEW_W + id.x] = vec4<f32>(sky_along(r, atmo.screen.w, mu, mu_s, nu, 1e30).radiance, 1.0);
+    sky_view_table[id.y * SKY_VIEW_W + id.x] = vec4<f32>(sky_along(r, atmo.screen.w, mu, mu_s, nu, 1e30, true).radiance, 1.0);
 }
 
 // Each froxel column (a screen point) and slice: the light scattered towards the camera and the
@@ -154,7 +154,7 @@ fn aerial_perspective_lut(@builtin(global_invocation_id) id: vec3<u32>) {
     var l = vec3<f32>(0.0);
     var t = vec3<f32>(1.0);
     if e.t >= 0.0 {
-        let sc = sky_along(e.r, e.h, e.mu, e.mu_s, dot(d, s), slice_distance(id.z));
+        let sc = sky_along(e.r, e.h, e.mu, e.mu_s, dot(d, s), slice_distance(id.z), false);
         l = sc.radiance;
         t = sc.transmittance;
     }

@@ -29,7 +29,7 @@ struct AtmosphereFrame {
     camera: vec4<f32>,
     // xy: target size in pixels, z: cosine of the sun's angular radius, w: the camera's altitude
     screen: vec4<f32>,
-    // xyz: the colour of space
+    // xyz: the colour of space, w: the angle a froxel row spans (radians)
     space: vec4<f32>,
 }
 
@@ -165,8 +165,9 @@ struct Scatter {
 
 // The light scattered towards a viewer at radius r (altitude h) looking along cosine mu, the sun
 // at mu_s and nu the cosine between view and sun, up to max_d or where the ray leaves the
-// atmosphere or meets the ground, and the transmittance along it (the twin: `Atmosphere::sky`).
-fn sky_along(r: f32, h0: f32, mu: f32, mu_s: f32, nu: f32, max_d: f32) -> Scatter {
+// atmosphere or (with stop_at_ground) meets the ground, and the transmittance along it (the
+// twin: `Atmosphere::sky_segment`).
+fn sky_along(r: f32, h0: f32, mu: f32, mu_s: f32, nu: f32, max_d: f32, stop_at_ground: bool) -> Scatter {
     let bottom = atm.radii.x;
     let sin_v = sqrt(max(1.0 - mu * mu, 0.0));
     let view = vec3<f32>(sin_v, 0.0, mu);
@@ -177,7 +178,7 @@ fn sky_along(r: f32, h0: f32, mu: f32, mu_s: f32, nu: f32, max_d: f32) -> Scatte
     let sun = vec3<f32>(sx, sqrt(max(1.0 - mu_s * mu_s - sx * sx, 0.0)), mu_s);
     var d = distance_to_top(r, mu);
     let g = ground_distance(r, h0, mu);
-    if g >= 0.0 {
+    if stop_at_ground && g >= 0.0 {
         d = g;
     }
     d = min(d, max_d);

@@ -233,7 +233,8 @@ fn level_cap(l: u32, ring: f32, off: vec2<f32>) -> f32 {
 
 // The lit terrain seen through the air: sunlight reaching the point (reddened, none in the
 // planet's shadow) and a blue sky light that fades with the sun's elevation there, then the
-// aerial perspective between camera and point; tone-mapped.
+// aerial perspective between camera and point (the volume, or near the horizon the pixel's own
+// march); tone-mapped.
 fn terrain_in_air(frag: vec2<f32>, rel: vec3<f32>, albedo: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
     let p = rel * 1e-3;
     let t = length(p);
@@ -245,7 +246,25 @@ fn terrain_in_air(frag: vec2<f32>, rel: vec3<f32>, albedo: vec3<f32>, n: vec3<f3
     let mu_s = dot(q / r, s);
     let sky_light = (0.02 + 0.12 * smoothstep(-0.1, 0.1, mu_s)) * vec3<f32>(0.75, 0.85, 1.0);
     let lit = albedo * (sunlight(r, mu_s) * max(dot(n, s), 0.0) + sky_light);
-    let ap = aerial_at(frag / atmo.screen.xy, t - max(enter(d, s).t, 0.0));
+    let e = enter(d, s);
+    // no air below the sea-level sphere: terrain under it (the sea floor, or a coarse mesh's
+    // chord) is seen through the air down to the sphere
+    var s_air = t - max(e.t, 0.0);
+    let g = ground_distance(e.r, e.h, e.mu);
+    if (g >= 0.0) {
+        s_air = min(s_air, g);
+    }
+    var ap = aerial_at(frag / atmo.screen.xy, s_air);
+    // from above the atmosphere, and within two froxel rows below the horizon, the air's path
+    // changes faster than the volume's slices and columns resolve: the pixel marches its own
+    // ray there (near the horizon blended into the volume over two more rows)
+    let below = asin(min(atm.radii.x / r_c, 1.0)) - acos(clamp(-d.z, -1.0, 1.0));
+    let band = 2.0 * atmo.space.w;
+    let own = select(1.0 - smoothstep(band, 2.0 * band, below), 1.0, r_c > atm.radii.y);
+    if (own > 0.0 && e.t >= 0.0) {
+        let m = sky_along(e.r, e.h, e.mu, e.mu_s, dot(d, s), s_air, false);
+        ap = Scatter(mix(ap.radiance, m.radiance, own), mix(ap.transmittance, m.transmittance, own));
+    }
     return tone_map(lit * ap.transmittance + ap.radiance * atmo.sun.w);
 }
 
@@ -337,7 +356,7 @@ fn sky_fs(in: SkyOut) -> @location(0) vec4<f32> {
     } else {
         let e = enter(d, s);
         if (e.t >= 0.0) {
-            let sc = sky_along(e.r, e.h, e.mu, e.mu_s, nu, 1e30);
+            let sc = sky_along(e.r, e.h, e.mu, e.mu_s, nu, 1e30, true);
             l = sc.radiance;
             through = select(sc.transmittance, vec3<f32>(0.0), hits_ground(e.r, e.mu));
         }

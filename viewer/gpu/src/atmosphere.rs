@@ -157,9 +157,9 @@ impl AtmospherePasses {
     }
 
     /// Records the passes of a frame into `enc`: the transmittance and multiple-scattering
-    /// tables when `atmosphere` is not the one they hold, then the sky-view table (for a
-    /// viewer inside the atmosphere: from outside the renderer marches the sky) and the
-    /// aerial-perspective volume of `frame`.
+    /// tables when `atmosphere` is not the one they hold, then, for a viewer inside the
+    /// atmosphere, the sky-view table and the aerial-perspective volume of `frame` (from
+    /// outside, the renderer marches each pixel's ray from where it enters the air).
     pub fn encode(
         &mut self,
         queue: &wgpu::Queue,
@@ -178,10 +178,10 @@ impl AtmospherePasses {
             passes.extend(self.fixed.iter());
         }
         queue.write_buffer(&self.frame, 0, bytemuck::bytes_of(frame));
-        if f64::from(frame.camera[0]) * 1e3 < atmosphere.top_radius_m {
+        if frame.radius_m(atmosphere) < atmosphere.top_radius_m {
             passes.push(&self.sky_view);
+            passes.push(&self.aerial);
         }
-        passes.push(&self.aerial);
         for p in passes {
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("atmosphere"),
@@ -280,8 +280,8 @@ impl AtmosphereTables {
     }
 
     /// Every table of `atmosphere` for the viewer of `frame`, computed on the GPU, each from the
-    /// ones before, and read back. The sky-view table is left zero for a viewer outside the
-    /// atmosphere.
+    /// ones before, and read back (the frame's tables as the last viewer inside the atmosphere
+    /// left them, for a viewer outside it).
     pub fn frame_tables(
         &mut self,
         atmosphere: &Atmosphere,

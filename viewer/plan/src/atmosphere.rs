@@ -493,8 +493,23 @@ impl Atmosphere {
         &self,
         transmittance: &TransmittanceLut,
         ms: &MultipleScatteringLut,
+        ray: (f64, f64, f64, f64),
+        max_distance: f64,
+    ) -> ([f64; 3], [f64; 3]) {
+        self.sky_segment(transmittance, ms, ray, max_distance, true)
+    }
+
+    /// [`Self::sky`], or with `stop_at_ground` false a ray that goes on through the ground as
+    /// if the air there were the air at the ground (the aerial-perspective volume: a froxel's
+    /// value then varies smoothly across where its ray meets the ground, so that a surface
+    /// between two columns reads what its own ray gives, not less).
+    pub fn sky_segment(
+        &self,
+        transmittance: &TransmittanceLut,
+        ms: &MultipleScatteringLut,
         (r, mu, mu_s, nu): (f64, f64, f64, f64),
         max_distance: f64,
+        stop_at_ground: bool,
     ) -> ([f64; 3], [f64; 3]) {
         let sin_v = (1.0 - mu * mu).max(0.0).sqrt();
         let view = [sin_v, 0.0, mu];
@@ -504,7 +519,7 @@ impl Atmosphere {
             (1.0 - mu_s * mu_s).max(0.0).sqrt()
         };
         let sun = [sx, (1.0 - mu_s * mu_s - sx * sx).max(0.0).sqrt(), mu_s];
-        let d = if self.hits_ground(r, mu) {
+        let d = if stop_at_ground && self.hits_ground(r, mu) {
             self.distance_to_bottom(r, mu)
         } else {
             self.distance_to_top(r, mu)
@@ -763,7 +778,8 @@ pub struct AtmosphereFrame {
     /// The target's size, pixels (x, y); the cosine of the sun's angular radius (z); the
     /// camera's height above the bottom, km (w: the radius in f32 kilometres keeps half a metre).
     pub screen: [f32; 4],
-    /// The colour of space, linear RGB (xyz).
+    /// The colour of space, linear RGB (xyz); the angle a row of the aerial-perspective
+    /// volume spans at the screen's centre, radians (w).
     pub space: [f32; 4],
 }
 
@@ -784,7 +800,7 @@ impl AtmosphereFrame {
         let inv = (glam::Mat4::from_cols_array_2d(view_proj)
             * glam::Mat4::from_scale(glam::Vec3::splat(1e3)))
         .inverse();
-        Self {
+        let mut frame = Self {
             inv_view_proj: inv.to_cols_array_2d(),
             sun: [sun[0], sun[1], sun[2], SUN_ILLUMINANCE as f32],
             camera: [
@@ -800,7 +816,14 @@ impl AtmosphereFrame {
                 (cam_height_m.max(0.0) * 1e-3) as f32,
             ],
             space: [space[0], space[1], space[2], 0.0],
-        }
+        };
+        let row = 1.0 / AERIAL_SIZE as f64;
+        let (a, b) = (
+            glam::DVec3::from_array(frame.direction(0.5, 0.5 - row / 2.0)),
+            glam::DVec3::from_array(frame.direction(0.5, 0.5 + row / 2.0)),
+        );
+        frame.space[3] = a.angle_between(b) as f32;
+        frame
     }
 
     /// The frame of a viewer at radius `r` (metres) with the sun at cosine `mu_s` (in the
@@ -878,8 +901,8 @@ pub fn view_ray(
 }
 
 impl AerialPerspectiveLut {
-    /// Computes every froxel by [`Atmosphere::sky`] from where its ray enters the atmosphere up
-    /// to the slice's end.
+    /// Computes every froxel by [`Atmosphere::sky_segment`] from where its ray enters the
+    /// atmosphere up to the slice's end, through the ground.
     pub fn compute(
         atmosphere: &Atmosphere,
         transmittance: &TransmittanceLut,
@@ -896,7 +919,13 @@ impl AerialPerspectiveLut {
                     continue;
                 };
                 for k in 0..n {
-                    let (l, t) = atmosphere.sky(transmittance, ms, ray, frame.slice_distance_m(k));
+                    let (l, t) = atmosphere.sky_segment(
+                        transmittance,
+                        ms,
+                        ray,
+                        frame.slice_distance_m(k),
+                        false,
+                    );
                     let at = (k * n + j) * n + i;
                     inscatter[at] = l.map(|v| v as f32);
                     trans[at] = t.map(|v| v as f32);
