@@ -154,7 +154,7 @@ fn aerial_perspective_lut(@builtin(global_invocation_id) id: vec3<u32>) {
     var l = vec3<f32>(0.0);
     var t = vec3<f32>(1.0);
     if e.t >= 0.0 {
-        let sc = sky_along(e.r, e.h, e.mu, e.mu_s, dot(d, s), slice_distance(id.z), false);
+        let sc = sky_along(e.r, e.h, e.mu, e.mu_s, dot(d, s), slice_end(id.z, column_path(e)), false);
         l = sc.radiance;
         t = sc.transmittance;
     }

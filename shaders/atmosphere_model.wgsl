@@ -246,10 +246,38 @@ fn sun_dir() -> vec3<f32> {
     return normalize(atmo.sun.xyz);
 }
 
-// End of aerial-perspective slice k, kilometres beyond where the ray enters the atmosphere.
-fn slice_distance(k: u32) -> f32 {
-    let f = (f32(k) + 1.0) / f32(AERIAL);
-    return atmo.camera.y * f * f;
+// Whether the camera is above the air: then the volume's slices divide each column's own path.
+fn above_air() -> bool {
+    return atmo.camera.x > atm.radii.y;
+}
+
+// The path a column's slices divide for a camera above the air: from where its ray enters the
+// air to the ground, or through the shell when it misses the ground (the twin: `column_path`).
+fn column_path(e: Entry) -> f32 {
+    let g = ground_distance(e.r, e.h, e.mu);
+    return select(distance_to_top(e.r, e.mu), g, g >= 0.0);
+}
+
+// End of aerial-perspective slice k, kilometres beyond where the ray enters the air: from inside
+// the air quadratic in the frame's range (short slices near the camera); from above it a share
+// of the column's path, quadratic towards its end (short slices near the ground, where the air
+// is) (the twin: `AtmosphereFrame::slice_end_m`).
+fn slice_end(k: u32, path: f32) -> f32 {
+    let x = (f32(k) + 1.0) / f32(AERIAL);
+    if above_air() {
+        return path * (1.0 - (1.0 - x) * (1.0 - x));
+    }
+    return atmo.camera.y * x * x;
+}
+
+// The continuous slice index of a point s beyond the entry (slice k ends at index k).
+fn slice_index(s: f32, path: f32) -> f32 {
+    let n = f32(AERIAL);
+    if above_air() {
+        let f = clamp(s / max(path, 1e-6), 0.0, 1.0);
+        return n * (1.0 - sqrt(1.0 - f)) - 1.0;
+    }
+    return n * sqrt(s / atmo.camera.y) - 1.0;
 }
 
 // The sky-view table in direction (mu, cos_az) of a viewer at radius r: bilinear between texel
@@ -291,9 +319,10 @@ fn aerial_slice(k: u32, i0: u32, i1: u32, j0: u32, j1: u32, f: vec2<f32>) -> arr
 }
 
 // In-scattering and transmittance at screen point uv for a surface s km beyond where its ray
-// enters the atmosphere: bilinear between froxel columns, linear between slices in √distance,
-// from nothing at the camera to the first slice (the twin: `AerialPerspectiveLut::sample`).
-fn aerial_at(uv: vec2<f32>, s_in: f32) -> Scatter {
+// enters the atmosphere (path: its column path, above the air): bilinear between froxel columns,
+// linear between slices in their index, from nothing at the entry to the first slice (the twin:
+// `AerialPerspectiveLut::sample`).
+fn aerial_at(uv: vec2<f32>, s_in: f32, path: f32) -> Scatter {
     let n = f32(AERIAL);
     let s = max(s_in, 0.0);
     let x = clamp(uv.x * n - 0.5, 0.0, n - 1.0);
@@ -303,13 +332,13 @@ fn aerial_at(uv: vec2<f32>, s_in: f32) -> Scatter {
     let i1 = min(i0 + 1u, AERIAL - 1u);
     let j1 = min(j0 + 1u, AERIAL - 1u);
     let f = vec2<f32>(x - f32(i0), y - f32(j0));
-    let q = min(n * sqrt(s / atmo.camera.y) - 1.0, n - 1.0);
+    let q = min(slice_index(s, path), n - 1.0);
     var k0 = 0u;
     var k1 = 0u;
     var fz = 0.0;
     var near = 1.0;
     if q < 0.0 {
-        near = s / slice_distance(0u);
+        near = s / max(slice_end(0u, path), 1e-6);
     } else {
         k0 = u32(floor(q));
         k1 = min(k0 + 1u, AERIAL - 1u);

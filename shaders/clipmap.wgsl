@@ -233,8 +233,8 @@ fn level_cap(l: u32, ring: f32, off: vec2<f32>) -> f32 {
 
 // The lit terrain seen through the air: sunlight reaching the point (reddened, none in the
 // planet's shadow) and a blue sky light that fades with the sun's elevation there, then the
-// aerial perspective between camera and point (the volume, or near the horizon the pixel's own
-// march); tone-mapped.
+// aerial perspective between camera and point (the volume, or next to the limb seen from above
+// the air the pixel's own march); tone-mapped.
 fn terrain_in_air(frag: vec2<f32>, rel: vec3<f32>, albedo: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
     let p = rel * 1e-3;
     let t = length(p);
@@ -254,13 +254,14 @@ fn terrain_in_air(frag: vec2<f32>, rel: vec3<f32>, albedo: vec3<f32>, n: vec3<f3
     if (g >= 0.0) {
         s_air = min(s_air, g);
     }
-    var ap = aerial_at(frag / atmo.screen.xy, s_air);
-    // from above the atmosphere, and within two froxel rows below the horizon, the air's path
-    // changes faster than the volume's slices and columns resolve: the pixel marches its own
-    // ray there (near the horizon blended into the volume over two more rows)
+    let path = column_path(e);
+    var ap = aerial_at(frag / atmo.screen.xy, s_air, path);
+    // from above the air, within two froxel rows of the limb a column's path changes faster
+    // than the volume's columns resolve: the pixel marches its own ray there, blended into the
+    // volume over two more
     let below = asin(min(atm.radii.x / r_c, 1.0)) - acos(clamp(-d.z, -1.0, 1.0));
     let band = 2.0 * atmo.space.w;
-    let own = select(1.0 - smoothstep(band, 2.0 * band, below), 1.0, r_c > atm.radii.y);
+    let own = select(0.0, 1.0 - smoothstep(band, 2.0 * band, below), above_air());
     if (own > 0.0 && e.t >= 0.0) {
         let m = sky_along(e.r, e.h, e.mu, e.mu_s, dot(d, s), s_air, false);
         ap = Scatter(mix(ap.radiance, m.radiance, own), mix(ap.transmittance, m.transmittance, own));

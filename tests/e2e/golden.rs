@@ -1,18 +1,21 @@
 //! Golden images: the sample planet (ETOPO5 heights and Blue Marble colour at level 3, pyramid
-//! built) rendered headless from the six golden views at 256×144 must stay within a tolerance of
-//! the committed pictures in `tests/golden/` (mean absolute difference ≤ 3/255 per channel and
-//! 99th percentile ≤ 40/255). On failure a diff picture lands next to the test's output and its
-//! path is printed. `SPHERECLIP_BLESS=1` rewrites the goldens (after a deliberate change).
+//! built) rendered headless at 256×144 must stay within a tolerance of the committed pictures in
+//! `tests/golden/` (mean absolute difference ≤ 3/255 per channel and 99th percentile ≤ 40/255):
+//! the six golden views without air, and three through the atmosphere (the blue limb from orbit,
+//! aerial perspective over the Himalaya, the ground at sunset). On failure a diff picture lands
+//! next to the test's output and its path is printed. `SPHERECLIP_BLESS=1` rewrites the goldens
+//! (after a deliberate change).
 
 use crate::util::{bin, ok, repo, s};
 
-#[test]
-fn golden_views_of_the_sample_planet() {
+/// Renders each `(name, camera, extra arguments)` and compares it with the picture of that name
+/// in `tests/golden/`.
+fn check_goldens(views: &[(&str, &str, &[&str])]) {
     let dir = tempfile::tempdir().expect("tempdir");
     let store = crate::util::sample_planet();
     let bless = std::env::var_os("SPHERECLIP_BLESS").is_some();
     let mut failures = Vec::new();
-    for (name, cam) in sc_view_plan::camera::GOLDEN_VIEWS {
+    for (name, cam, extra) in views {
         let shot = dir.path().join(format!("{name}.png"));
         ok(&bin()
             .args([
@@ -24,9 +27,8 @@ fn golden_views_of_the_sample_planet() {
                 "256x144",
                 "--out",
                 s(&shot),
-                "--atmosphere",
-                "off",
             ])
+            .args(*extra)
             .output()
             .expect("runs"));
         let golden = repo(&format!("tests/golden/{name}.png"));
@@ -71,4 +73,29 @@ fn golden_views_of_the_sample_planet() {
         "golden images differ:\n{}",
         failures.join("\n")
     );
+}
+
+#[test]
+fn golden_views_of_the_sample_planet() {
+    let views: Vec<(&str, &str, &[&str])> = sc_view_plan::camera::GOLDEN_VIEWS
+        .iter()
+        .map(|(name, cam)| (*name, *cam, &["--atmosphere", "off"][..]))
+        .collect();
+    check_goldens(&views);
+}
+
+#[test]
+fn golden_views_through_the_atmosphere() {
+    check_goldens(&[
+        // the blue limb and the haze over the disc, the default sun
+        ("air-space", "30,80,8000000,0,-90,40", &[]),
+        // distant ranges fading into the sky
+        ("air-aircraft-himalaya", "28.0,86.9,9000,200,-10,60", &[]),
+        // the Sahara at sunset, the sun 2° up ahead of the camera
+        (
+            "air-ground-sunset",
+            "25,10,1.7,270,3,60",
+            &["--sun", "275,2"],
+        ),
+    ]);
 }

@@ -179,14 +179,17 @@ fn the_window_shows_the_planet_and_the_panel() {
         "4",
         "--screenshot",
         s(&shot),
+        // space in its blue (behind an atmosphere it is black)
+        "--atmosphere",
+        "off",
     ]);
     assert!(o.status.success(), "{}", text(&o.stderr));
     let out = text(&o.stdout);
     assert!(out.contains("4 frames on"), "{out}");
     let img = image::open(&shot).expect("a PNG").to_rgba8();
     assert_eq!(img.dimensions(), (480, 360));
-    // the planet (Blue Marble over Africa) in the middle: not the dark-blue space
-    let centre = img.get_pixel(300, 200).0;
+    // the planet right of the panel: not the dark-blue space
+    let centre = img.get_pixel(360, 180).0;
     let corner = img.get_pixel(470, 350).0;
     assert!(
         centre[..3]
@@ -384,6 +387,14 @@ color = "grey"
             "[[source]]\nname = \"a\"\nkind = \"pyramid\"\n[clipmaps]\nheight = \"a\"\n",
             "unknown variant",
         ),
+        (
+            "[[source]]\nname = \"a\"\nkind = \"store\"\npath = \"c.zarr\"\nlayer = \"height\"\n[clipmaps]\nheight = \"a\"\n[atmosphere]\nmie_g = 2.0\n",
+            "mie_g",
+        ),
+        (
+            "[[source]]\nname = \"a\"\nkind = \"store\"\npath = \"c.zarr\"\nlayer = \"height\"\n[clipmaps]\nheight = \"a\"\n[atmosphere]\nfog = 1.0\n",
+            "unknown field",
+        ),
     ] {
         std::fs::write(&graph, toml).expect("write");
         let o = run(&[
@@ -401,6 +412,46 @@ color = "grey"
         assert_eq!(e.trim().lines().count(), 1, "{e}");
         assert!(e.contains(want) && e.contains("alps.sources.toml"), "{e}");
     }
+    // the graph's [atmosphere] is the air drawn: a hazier one changes the picture
+    let air = |table: &str, name: &str| {
+        std::fs::write(
+            &graph,
+            format!(
+                "[[source]]\nname = \"a\"\nkind = \"store\"\npath = \"c.zarr\"\nlayer = \"height\"\n[clipmaps]\nheight = \"a\"\n{table}"
+            ),
+        )
+        .expect("write");
+        let png = dir.path().join(name);
+        let o = run(&[
+            "render",
+            s(&world),
+            "--camera",
+            "46.45,7.95,3000,0,-5,60",
+            "--size",
+            "64x48",
+            "--out",
+            s(&png),
+            "--sources",
+            s(&graph),
+        ]);
+        assert!(o.status.success(), "{}", text(&o.stderr));
+        image::open(&png).expect("png").to_rgb8()
+    };
+    let clear = air("", "clear.png");
+    let hazy = air(
+        "[atmosphere]\nmie_scattering = [4e-5, 4e-5, 4e-5]\nmie_extinction = [4.4e-5, 4.4e-5, 4.4e-5]\n",
+        "hazy.png",
+    );
+    let changed = clear
+        .as_raw()
+        .iter()
+        .zip(hazy.as_raw())
+        .filter(|(a, b)| a.abs_diff(**b) > 8)
+        .count();
+    assert!(
+        changed > clear.as_raw().len() / 4,
+        "{changed} channels changed"
+    );
 }
 
 #[test]

@@ -157,9 +157,9 @@ impl AtmospherePasses {
     }
 
     /// Records the passes of a frame into `enc`: the transmittance and multiple-scattering
-    /// tables when `atmosphere` is not the one they hold, then, for a viewer inside the
-    /// atmosphere, the sky-view table and the aerial-perspective volume of `frame` (from
-    /// outside, the renderer marches each pixel's ray from where it enters the air).
+    /// tables when `atmosphere` is not the one they hold, then the sky-view table (for a
+    /// viewer inside the air: from above it the renderer marches the sky) and the
+    /// aerial-perspective volume of `frame`.
     pub fn encode(
         &mut self,
         queue: &wgpu::Queue,
@@ -178,10 +178,10 @@ impl AtmospherePasses {
             passes.extend(self.fixed.iter());
         }
         queue.write_buffer(&self.frame, 0, bytemuck::bytes_of(frame));
-        if frame.radius_m(atmosphere) < atmosphere.top_radius_m {
+        if !frame.above_air(atmosphere) {
             passes.push(&self.sky_view);
-            passes.push(&self.aerial);
         }
+        passes.push(&self.aerial);
         for p in passes {
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("atmosphere"),
@@ -280,8 +280,8 @@ impl AtmosphereTables {
     }
 
     /// Every table of `atmosphere` for the viewer of `frame`, computed on the GPU, each from the
-    /// ones before, and read back (the frame's tables as the last viewer inside the atmosphere
-    /// left them, for a viewer outside it).
+    /// ones before, and read back (the sky-view table as the last viewer inside the air left
+    /// it, for a viewer above it).
     pub fn frame_tables(
         &mut self,
         atmosphere: &Atmosphere,
@@ -293,6 +293,29 @@ impl AtmosphereTables {
         self.passes.encode(&self.queue, &mut enc, atmosphere, frame);
         self.queue.submit([enc.finish()]);
         self.passes.read(&self.device, &self.queue)
+    }
+
+    /// Computes the tables of `frame` (with the transmittance and multiple-scattering tables
+    /// too when `all`, else only when `atmosphere` changed) and waits for the GPU to finish:
+    /// what the benchmark times.
+    pub fn compute_and_wait(
+        &mut self,
+        atmosphere: &Atmosphere,
+        frame: &AtmosphereFrame,
+        all: bool,
+    ) -> Result<(), RenderError> {
+        if all {
+            self.passes.current = None;
+        }
+        let mut enc = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+        self.passes.encode(&self.queue, &mut enc, atmosphere, frame);
+        self.queue.submit([enc.finish()]);
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| RenderError::Device(e.to_string()))?;
+        Ok(())
     }
 
     /// The tables of `atmosphere` with the sky-view table of a viewer at radius `r` (metres)

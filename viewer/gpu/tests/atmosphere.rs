@@ -89,7 +89,7 @@ fn looking(forward: glam::Vec3, fov: f32) -> [[f32; 4]; 4] {
 }
 
 #[test]
-fn gpu_aerial_perspective_volume_matches_its_cpu_twin_from_the_ground_to_the_top_of_the_air() {
+fn gpu_aerial_perspective_volume_matches_its_cpu_twin_from_the_ground_to_beyond_the_moon() {
     use sc_view_plan::atmosphere::{AerialPerspectiveLut, AtmosphereFrame};
     let mut gpu = AtmosphereTables::new().unwrap_or_else(|e| {
         panic!("{e} — GPU tests need an adapter; `make test` installs mesa-vulkan-drivers")
@@ -99,11 +99,15 @@ fn gpu_aerial_perspective_volume_matches_its_cpu_twin_from_the_ground_to_the_top
     let ms = MultipleScatteringLut::compute(&a, &t);
     let sun = glam::Vec3::new(0.6, 0.3, 0.15).normalize().to_array();
     // (camera height above the ground, where it looks, field of view): the ground, an
-    // aircraft, near the top of the air (from above it the renderer marches each pixel)
+    // aircraft, near the top of the air, and above it (slices divide each column's path) the
+    // space station, orbit, beyond the Moon
     let views = [
         (1.7, glam::Vec3::new(1.0, 0.2, -0.02), 60.0),
         (9_000.0, glam::Vec3::new(0.3, 1.0, -0.2), 60.0),
         (90_000.0, glam::Vec3::new(1.0, 0.0, -0.35), 30.0),
+        (400_000.0, glam::Vec3::new(1.0, 0.0, -0.35), 60.0),
+        (8.0e6, glam::Vec3::new(0.0, 0.0, -1.0), 60.0),
+        (4.0e8, glam::Vec3::new(0.0, 0.001, -1.0), 2.5),
     ];
     for (h, forward, fov) in views {
         let frame = AtmosphereFrame::new(&a, &looking(forward, fov), sun, h, (320, 180), [0.0; 3]);

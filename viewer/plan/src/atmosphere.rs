@@ -866,11 +866,44 @@ impl AtmosphereFrame {
         atmosphere.bottom_radius_m + f64::from(self.screen[3]) * 1e3
     }
 
-    /// Distance from the camera (or where the view ray enters the shell) of slice `k`'s end,
-    /// metres: quadratic, so that slices near the camera are short.
-    pub fn slice_distance_m(&self, k: usize) -> f64 {
-        let f = (k as f64 + 1.0) / AERIAL_SIZE as f64;
-        f64::from(self.camera[1]) * 1e3 * f * f
+    /// Whether the camera is above the air (compared as the shader compares, in f32 km): then
+    /// the volume's slices divide each column's own path.
+    pub fn above_air(&self, atmosphere: &Atmosphere) -> bool {
+        self.camera[0] > (atmosphere.top_radius_m * 1e-3) as f32
+    }
+
+    /// Where slice `k` ends, metres beyond where the view ray enters the air: from inside the
+    /// air quadratic in the frame's range (slices near the camera are short); from above it a
+    /// share of the column's `path` (see [`column_path`]), quadratic towards its end (slices
+    /// near the ground, where the air is, are short).
+    pub fn slice_end_m(&self, atmosphere: &Atmosphere, k: usize, path: f64) -> f64 {
+        let x = (k as f64 + 1.0) / AERIAL_SIZE as f64;
+        if self.above_air(atmosphere) {
+            path * (1.0 - (1.0 - x) * (1.0 - x))
+        } else {
+            f64::from(self.camera[1]) * 1e3 * x * x
+        }
+    }
+
+    /// The continuous slice index of a point `s` metres beyond the entry (slice k ends at k).
+    pub fn slice_index(&self, atmosphere: &Atmosphere, s: f64, path: f64) -> f64 {
+        let n = AERIAL_SIZE as f64;
+        if self.above_air(atmosphere) {
+            let f = (s / path.max(1e-3)).clamp(0.0, 1.0);
+            n * (1.0 - (1.0 - f).sqrt()) - 1.0
+        } else {
+            n * (s / (f64::from(self.camera[1]) * 1e3)).sqrt() - 1.0
+        }
+    }
+}
+
+/// The path a view ray's slices divide when the camera is above the air: from where the ray
+/// `(r, mu)` enters the air to the ground, or through the shell when it misses the ground.
+pub fn column_path(atmosphere: &Atmosphere, r: f64, mu: f64) -> f64 {
+    if atmosphere.hits_ground(r, mu) {
+        atmosphere.distance_to_bottom(r, mu)
+    } else {
+        atmosphere.distance_to_top(r, mu)
     }
 }
 
@@ -902,7 +935,7 @@ pub fn view_ray(
 
 impl AerialPerspectiveLut {
     /// Computes every froxel by [`Atmosphere::sky_segment`] from where its ray enters the
-    /// atmosphere up to the slice's end, through the ground.
+    /// atmosphere up to the slice's end ([`AtmosphereFrame::slice_end_m`]), through the ground.
     pub fn compute(
         atmosphere: &Atmosphere,
         transmittance: &TransmittanceLut,
@@ -918,12 +951,13 @@ impl AerialPerspectiveLut {
                 let Some((_, ray)) = view_ray(atmosphere, frame, d) else {
                     continue;
                 };
+                let path = column_path(atmosphere, ray.0, ray.1);
                 for k in 0..n {
                     let (l, t) = atmosphere.sky_segment(
                         transmittance,
                         ms,
                         ray,
-                        frame.slice_distance_m(k),
+                        frame.slice_end_m(atmosphere, k, path),
                         false,
                     );
                     let at = (k * n + j) * n + i;
@@ -939,32 +973,47 @@ impl AerialPerspectiveLut {
     }
 
     /// In-scattering and transmittance at the screen point `(u, v)` for a surface `s` metres
-    /// beyond where the ray enters the atmosphere: bilinear between froxel columns, linear
-    /// between slices in √distance, and from nothing (0, 1) at the camera to the first slice —
-    /// what the renderer's fragment stage reads.
-    pub fn sample(&self, frame: &AtmosphereFrame, (u, v): (f64, f64), s: f64) -> [[f64; 3]; 2] {
+    /// beyond where the ray enters the atmosphere (`path`: its [`column_path`], read from above
+    /// the air): bilinear between froxel columns, linear between slices in their index, and from
+    /// nothing (0, 1) at the entry to the first slice — what the renderer's fragment stage
+    /// reads.
+    pub fn sample(
+        &self,
+        atmosphere: &Atmosphere,
+        frame: &AtmosphereFrame,
+        (u, v): (f64, f64),
+        s: f64,
+        path: f64,
+    ) -> [[f64; 3]; 2] {
         let n = AERIAL_SIZE;
         let nf = n as f64;
         let x = (u * nf - 0.5).clamp(0.0, nf - 1.0);
         let y = (v * nf - 0.5).clamp(0.0, nf - 1.0);
-        let range = f64::from(frame.camera[1]) * 1e3;
-        let q = (nf * (s.max(0.0) / range).sqrt() - 1.0).min(nf - 1.0);
+        let q = frame
+            .slice_index(atmosphere, s.max(0.0), path)
+            .min(nf - 1.0);
         let (i0, j0) = (x.floor() as usize, y.floor() as usize);
         let (i1, j1) = ((i0 + 1).min(n - 1), (j0 + 1).min(n - 1));
         let (fx, fy) = (x - i0 as f64, y - j0 as f64);
         let (k0, k1, fz, near) = if q < 0.0 {
-            (0, 0, 0.0, s.max(0.0) / frame.slice_distance_m(0))
+            (
+                0,
+                0,
+                0.0,
+                s.max(0.0) / frame.slice_end_m(atmosphere, 0, path).max(1e-3),
+            )
         } else {
             let k0 = q.floor() as usize;
             ((k0), (k0 + 1).min(n - 1), q - k0 as f64, 1.0)
         };
         let mut out = [[0.0; 3], [1.0; 3]];
-        for (which, table) in [&self.inscatter, &self.transmittance]
+        for ((which, table), o) in [&self.inscatter, &self.transmittance]
             .into_iter()
             .enumerate()
+            .zip(out.iter_mut())
         {
             let at = |i: usize, j: usize, k: usize| table[(k * n + j) * n + i];
-            for c in 0..3 {
+            for (c, oc) in o.iter_mut().enumerate() {
                 let slice = |k: usize| {
                     let a =
                         f64::from(at(i0, j0, k)[c]) * (1.0 - fx) + f64::from(at(i1, j0, k)[c]) * fx;
@@ -975,7 +1024,7 @@ impl AerialPerspectiveLut {
                 let v = slice(k0) * (1.0 - fz) + slice(k1) * fz;
                 // towards the camera: in-scattering from 0, transmittance from 1
                 let empty = if which == 0 { 0.0 } else { 1.0 };
-                out[which][c] = empty + (v - empty) * near;
+                *oc = empty + (v - empty) * near;
             }
         }
         out

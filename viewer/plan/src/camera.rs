@@ -70,9 +70,9 @@ impl Camera {
                 c.lat_deg
             )));
         }
-        if !(0.0..=1.0e8).contains(&c.alt) {
+        if !(0.0..=ALT_RANGE_M.1).contains(&c.alt) {
             return Err(ViewError::Camera(format!(
-                "altitude {} m is outside 0..100000 km",
+                "altitude {} m is outside 0..1000000 km",
                 c.alt
             )));
         }
@@ -110,8 +110,9 @@ pub enum Mode {
 
 /// Eye height when walking, metres.
 pub const EYE_HEIGHT_M: f64 = 1.7;
-/// Lowest and highest camera above the ground, metres.
-pub const ALT_RANGE_M: (f64, f64) = (0.5, 5.0e7);
+/// Lowest and highest camera above the ground, metres (the highest lies beyond the Moon's
+/// distance, 384 400 km).
+pub const ALT_RANGE_M: (f64, f64) = (0.5, 1.0e9);
 
 /// One frame's input, already reduced to numbers.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

@@ -219,3 +219,91 @@ fn sky_view_coordinates_round_trip_and_put_the_horizon_in_the_middle() {
         assert!((mu - grazing).abs() < 1e-9, "r {r}: {mu} against {grazing}");
     }
 }
+
+#[test]
+fn the_aerial_perspective_volume_reads_what_each_rays_own_march_gives() {
+    use sc_view_plan::atmosphere::{
+        AerialPerspectiveLut, AtmosphereFrame, MultipleScatteringLut, column_path, view_ray,
+    };
+    let a = earth().on_sphere(6_371_008.8);
+    let t = TransmittanceLut::compute(&a);
+    let ms = MultipleScatteringLut::compute(&a, &t);
+    let sun = [0.5f32, 0.6, 0.62];
+    // (camera height, where it looks, vertical field of view): from inside the air the slices
+    // grow from the camera, from above it they divide each column's path
+    for (h, forward, fov) in [
+        (1.7, [1.0f32, 0.3, -0.03], 60f32),
+        (9_000.0, [0.4, 1.0, -0.25], 60.0),
+        (8.0e6, [0.0, 0.0, -1.0], 60.0),
+    ] {
+        let f = glam::Vec3::from_array(forward).normalize();
+        let up = if f.z.abs() > 0.99 {
+            glam::Vec3::X
+        } else {
+            glam::Vec3::Z
+        };
+        let vp = glam::Mat4::perspective_infinite_reverse_rh(fov.to_radians(), 16.0 / 9.0, 0.05)
+            * glam::Mat4::look_to_rh(glam::Vec3::ZERO, f, up);
+        let frame = AtmosphereFrame::new(&a, &vp.to_cols_array_2d(), sun, h, (320, 180), [0.0; 3]);
+        let lut = AerialPerspectiveLut::compute(&a, &t, &ms, &frame);
+        let peak = lut
+            .inscatter
+            .iter()
+            .flat_map(|v| v.iter().map(|&c| f64::from(c)))
+            .fold(1e-9, f64::max);
+        let (mut worst, mut n) = (0.0f64, 0);
+        // a grid of screen points, each at fractions of its path, away from the horizon
+        for j in 0..24 {
+            for i in 0..40 {
+                let uv = ((i as f64 + 0.37) / 40.0, (j as f64 + 0.61) / 24.0);
+                let d = frame.direction(uv.0, uv.1);
+                let Some((_, ray)) = view_ray(&a, &frame, d) else {
+                    continue;
+                };
+                let path = column_path(&a, ray.0, ray.1);
+                // near the horizon; and from above the air, within the four froxel rows of the
+                // limb where the renderer marches each pixel's own ray instead
+                let grazing = (ray.1 + (1.0 - (a.bottom_radius_m / ray.0).powi(2)).sqrt()).abs();
+                let r_c = frame.radius_m(&a);
+                let below = (a.bottom_radius_m / r_c).asin() - (-d[2]).acos();
+                let band = 4.0 * f64::from(frame.space[3]);
+                if grazing < 0.02 || (frame.above_air(&a) && below < band) {
+                    continue;
+                }
+                // up to the ground, or for a ray above the horizon as far as mountains can stand
+                let reach = if a.hits_ground(ray.0, ray.1) {
+                    path
+                } else {
+                    path.min(150_000.0)
+                };
+                for frac in [0.05, 0.3, 0.7, 1.0] {
+                    let s = frac * reach.min(frame.slice_end_m(&a, 31, path));
+                    let [l, tr] = lut.sample(&a, &frame, uv, s, path);
+                    let (want_l, want_t) = a.sky(&t, &ms, ray, s);
+                    assert!(
+                        l.iter().chain(&want_l).chain(&tr).all(|v| v.is_finite()),
+                        "camera {h} m, {uv:?}: {l:?} {want_l:?}"
+                    );
+                    for c in 0..3 {
+                        // relative to the point's own light, with a floor of 1 % of the brightest
+                        let err = (l[c] - want_l[c]).abs() / (want_l[c] + 0.01 * peak);
+                        worst = worst.max(err);
+                        assert!(
+                            (tr[c] - want_t[c]).abs() < 0.02,
+                            "camera {h} m, {uv:?}, {s} m: transmittance {} against {}",
+                            tr[c],
+                            want_t[c]
+                        );
+                    }
+                    n += 1;
+                }
+            }
+        }
+        assert!(n > 500, "camera {h} m: {n} points");
+        eprintln!("camera {h} m: in-scattering off by {worst:.3} of its own at worst");
+        assert!(
+            worst < 0.15,
+            "camera {h} m: in-scattering off by {worst:.3} of its own (peak {peak})"
+        );
+    }
+}

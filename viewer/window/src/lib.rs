@@ -377,10 +377,7 @@ impl App<'_> {
                     ui.checkbox(&mut options.level_colors, "level colours (L)");
                     ui.checkbox(&mut options.lit, "lit (off: colour as stored)");
                     let mut air = options.atmosphere.is_some();
-                    ui.add_enabled(
-                        options.lit,
-                        egui::Checkbox::new(&mut air, "atmosphere (sky, aerial perspective)"),
-                    );
+                    ui.add_enabled(options.lit, egui::Checkbox::new(&mut air, "atmosphere"));
                     options.atmosphere = (air && options.lit).then_some(air_model);
                     ui.add(
                         egui::Slider::new(&mut options.exaggeration, 0.1..=50.0)
