@@ -412,7 +412,7 @@ color = "grey"
         assert_eq!(e.trim().lines().count(), 1, "{e}");
         assert!(e.contains(want) && e.contains("alps.sources.toml"), "{e}");
     }
-    // the graph's [atmosphere] is the air drawn: a hazier one changes the picture
+    // the graph's [atmosphere] is the air drawn: a thicker one changes the picture
     let air = |table: &str, name: &str| {
         std::fs::write(
             &graph,
@@ -439,7 +439,7 @@ color = "grey"
     };
     let clear = air("", "clear.png");
     let hazy = air(
-        "[atmosphere]\nmie_scattering = [4e-5, 4e-5, 4e-5]\nmie_extinction = [4.4e-5, 4.4e-5, 4.4e-5]\n",
+        "[atmosphere]\nrayleigh_scattering = [2.3e-5, 5.4e-5, 1.3e-4]\n",
         "hazy.png",
     );
     let changed = clear
