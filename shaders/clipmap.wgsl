@@ -245,7 +245,9 @@ fn terrain_in_air(frag: vec2<f32>, rel: vec3<f32>, albedo: vec3<f32>, n: vec3<f3
     let s = sun_dir();
     let mu_s = dot(q / r, s);
     let sky_light = (0.02 + 0.12 * smoothstep(-0.1, 0.1, mu_s)) * vec3<f32>(0.75, 0.85, 1.0);
-    let lit = albedo * (sunlight(r, mu_s) * max(dot(n, s), 0.0) + sky_light);
+    // sunlight as at the sea-level sphere for ground under it (a coarse mesh's chords, the sea
+    // floor): from below the sphere the table would read a longer path through the ground
+    let lit = albedo * (sunlight(max(r, atm.radii.x), mu_s) * max(dot(n, s), 0.0) + sky_light);
     let e = enter(d, s);
     // no air below the sea-level sphere: terrain under it (the sea floor, or a coarse mesh's
     // chord) is seen through the air down to the sphere
@@ -256,11 +258,11 @@ fn terrain_in_air(frag: vec2<f32>, rel: vec3<f32>, albedo: vec3<f32>, n: vec3<f3
     }
     let path = column_path(e);
     var ap = aerial_at(frag / atmo.screen.xy, s_air, path);
-    // from above the air, within two froxel rows of the limb a column's path changes faster
-    // than the volume's columns resolve: the pixel marches its own ray there, blended into the
-    // volume over two more
+    // from above the air, within a froxel row of the limb a column's path changes faster than
+    // the volume's columns resolve: the pixel marches its own ray there, blended into the
+    // volume over one more
     let below = asin(min(atm.radii.x / r_c, 1.0)) - acos(clamp(-d.z, -1.0, 1.0));
-    let band = 2.0 * atmo.space.w;
+    let band = atmo.space.w;
     let own = select(0.0, 1.0 - smoothstep(band, 2.0 * band, below), above_air());
     if (own > 0.0 && e.t >= 0.0) {
         let m = sky_along(e.r, e.h, e.mu, e.mu_s, dot(d, s), s_air, false);

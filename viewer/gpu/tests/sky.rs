@@ -172,28 +172,41 @@ fn compare(
 }
 
 #[test]
-fn sky_and_aerial_perspective_match_an_f64_twin_from_the_ground_to_orbit() {
+fn sky_and_aerial_perspective_match_an_f64_twin_from_the_ground_to_beyond_the_moon() {
     let (w, h) = (160, 90);
     let mut r = Renderer::headless(w, h, R).unwrap_or_else(|e| {
         panic!("{e} — GPU tests need an adapter; `make test` installs mesa-vulkan-drivers")
     });
     let twin = Twin::new();
-    // (name, camera, sun azimuth and elevation). Measured on lavapipe, sRGB steps mean/max: sky
-    // ≤ 0.09/1 in every view; ground 0.00/0, 0.67/1, 0.21/1, 0.10/1, 0.42/3; next to the
-    // horizon ≤ 0.55/1. Seen failing with the volume's rays stopped at the ground (ground
-    // 4.1/26 from the space station), with air counted below sea level (10.4/35 from orbit),
-    // with slices from the shell's entry from above the air (12.6/35 from orbit), and without
-    // the pixels' own march next to the limb from above (2.6/29 there from the station).
+    // (name, camera, sun azimuth and elevation, the ground's largest difference). Measured on
+    // lavapipe, sRGB steps mean/max: sky ≤ 0.09/1 in every view; ground 0.00/0, 0.67/1,
+    // 0.22/1, 0.13/1, 0.13/1, 0.57/6 (beyond the Moon the disc is 40 pixels across, 300 km a
+    // pixel, and its northern rim lies at the terminator); next to the horizon ≤ 0.55/3. Seen
+    // failing with the volume's rays stopped at the ground (ground 4.1/26 from the space
+    // station), with air counted below sea level (10.4/35 from orbit), with slices from the
+    // shell's entry from above the air (12.6/35 from orbit), without the pixels' own march next
+    // to the limb from above (2.6/29 there from the station), and with sunlight read from under
+    // the sea-level sphere where a coarse mesh's chords lie (5.1/28 beyond the Moon).
     let views = [
-        ("noon on the ground", "10,20,1.7,90,12,60", (200.0, 55.0)),
-        ("sunset on the ground", "10,20,1.7,270,6,60", (265.0, 4.0)),
-        ("aircraft", "10,20,10000,0,-12,60", (120.0, 30.0)),
-        ("space station", "10,20,400000,0,-30,60", (60.0, 20.0)),
-        ("orbit", "10,20,8000000,0,-90,60", (180.0, 60.0)),
+        ("noon on the ground", "10,20,1.7,90,12,60", (200.0, 55.0), 4),
+        (
+            "sunset on the ground",
+            "10,20,1.7,270,6,60",
+            (265.0, 4.0),
+            4,
+        ),
+        ("aircraft", "10,20,10000,0,-12,60", (120.0, 30.0), 4),
+        ("space station", "10,20,400000,0,-30,60", (60.0, 20.0), 4),
+        ("orbit", "10,20,8000000,0,-90,60", (180.0, 60.0), 4),
+        (
+            "beyond the Moon",
+            "10,20,400000000,0,-90,2.5",
+            (180.0, 60.0),
+            7,
+        ),
     ];
-    let (sky_mean, sky_max, ground_mean, ground_max, limb_mean, limb_max) =
-        (0.3, 2, 1.0, 4, 1.0, 3);
-    for (name, cam, (az, el)) in views {
+    let (sky_mean, sky_max, ground_mean, limb_mean, limb_max) = (0.3, 2, 1.0, 1.0, 3);
+    for (name, cam, (az, el), ground_max) in views {
         let camera = Camera::parse(cam).expect("camera");
         let sun = Sun::from_az_el(camera.lat_deg, camera.lon_deg, az, el);
         r.set_options(DrawOptions {
@@ -240,4 +253,25 @@ fn sky_and_aerial_perspective_match_an_f64_twin_from_the_ground_to_orbit() {
             "{report}: too few pixels compared"
         );
     }
+    // the sun's disc, 0.53° across, low over the horizon through a 5° field: white at its
+    // centre, the sky beside it not
+    let camera = Camera::parse("10,20,1.7,265,4,5").expect("camera");
+    r.set_options(DrawOptions {
+        sun: Sun::from_az_el(camera.lat_deg, camera.lon_deg, 265.0, 4.0),
+        fade_in: false,
+        atmosphere: Some(Atmosphere::default()),
+        ..Default::default()
+    });
+    let (img, _) = r
+        .render(&mut Flat, Some(&mut Grey), &camera)
+        .expect("render");
+    let (centre, beside) = (
+        img.get_pixel(w / 2, h / 2).0,
+        img.get_pixel(w / 2, h / 2 - 20).0,
+    );
+    assert!(centre[..3].iter().all(|&c| c >= 250), "sun {centre:?}");
+    assert!(
+        beside[..3].iter().any(|&c| c < 240),
+        "beside the sun {beside:?}"
+    );
 }

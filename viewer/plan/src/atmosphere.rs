@@ -796,10 +796,12 @@ impl AtmosphereFrame {
         space: [f32; 3],
     ) -> Self {
         let r = atmosphere.bottom_radius_m + cam_height_m.max(0.0);
-        // view space in kilometres: scale the metres the projection takes
-        let inv = (glam::Mat4::from_cols_array_2d(view_proj)
-            * glam::Mat4::from_scale(glam::Vec3::splat(1e3)))
-        .inverse();
+        // view space in kilometres: scale the metres the projection takes; inverted in f64 (an
+        // f32 inverse of a narrow field's projection misses the rays by a good part of a pixel)
+        let inv = (glam::Mat4::from_cols_array_2d(view_proj).as_dmat4()
+            * glam::DMat4::from_scale(glam::DVec3::splat(1e3)))
+        .inverse()
+        .as_mat4();
         let mut frame = Self {
             inv_view_proj: inv.to_cols_array_2d(),
             sun: [sun[0], sun[1], sun[2], SUN_ILLUMINANCE as f32],

@@ -261,12 +261,12 @@ fn the_aerial_perspective_volume_reads_what_each_rays_own_march_gives() {
                     continue;
                 };
                 let path = column_path(&a, ray.0, ray.1);
-                // near the horizon; and from above the air, within the four froxel rows of the
+                // near the horizon; and from above the air, within the two froxel rows of the
                 // limb where the renderer marches each pixel's own ray instead
                 let grazing = (ray.1 + (1.0 - (a.bottom_radius_m / ray.0).powi(2)).sqrt()).abs();
                 let r_c = frame.radius_m(&a);
                 let below = (a.bottom_radius_m / r_c).asin() - (-d[2]).acos();
-                let band = 4.0 * f64::from(frame.space[3]);
+                let band = 2.0 * f64::from(frame.space[3]);
                 if grazing < 0.02 || (frame.above_air(&a) && below < band) {
                     continue;
                 }
