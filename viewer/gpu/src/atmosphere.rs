@@ -63,6 +63,8 @@ pub struct AtmospherePasses {
     aerial: Pass,
     /// The atmosphere whose transmittance and multiple-scattering tables the buffers hold.
     current: Option<Atmosphere>,
+    /// The frame whose sky-view table and volume the buffers hold (a still view makes them once).
+    last_frame: Option<AtmosphereFrame>,
 }
 
 impl AtmospherePasses {
@@ -153,13 +155,14 @@ impl AtmospherePasses {
             frame,
             tables,
             current: None,
+            last_frame: None,
         }
     }
 
     /// Records the passes of a frame into `enc`: the transmittance and multiple-scattering
-    /// tables when `atmosphere` is not the one they hold, then the sky-view table (for a
-    /// viewer inside the air: from above it the renderer marches the sky) and the
-    /// aerial-perspective volume of `frame`.
+    /// tables when `atmosphere` is not the one they hold, then — unless they hold `frame`'s
+    /// already (a still view) — the sky-view table (for a viewer inside the air: from above it
+    /// the renderer marches the sky) and the aerial-perspective volume of `frame`.
     pub fn encode(
         &mut self,
         queue: &wgpu::Queue,
@@ -175,13 +178,17 @@ impl AtmospherePasses {
                 bytemuck::bytes_of(&AtmosphereUniforms::new(atmosphere)),
             );
             self.current = Some(*atmosphere);
+            self.last_frame = None;
             passes.extend(self.fixed.iter());
         }
-        queue.write_buffer(&self.frame, 0, bytemuck::bytes_of(frame));
-        if !frame.above_air(atmosphere) {
-            passes.push(&self.sky_view);
+        if self.last_frame != Some(*frame) {
+            queue.write_buffer(&self.frame, 0, bytemuck::bytes_of(frame));
+            self.last_frame = Some(*frame);
+            if !frame.above_air(atmosphere) {
+                passes.push(&self.sky_view);
+            }
+            passes.push(&self.aerial);
         }
-        passes.push(&self.aerial);
         for p in passes {
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("atmosphere"),
@@ -195,12 +202,12 @@ impl AtmospherePasses {
 
     /// Marks the frame as drawn without the atmosphere (the renderer's fragment stage then
     /// lights the terrain as without air).
-    pub fn disable(&self, queue: &wgpu::Queue) {
-        queue.write_buffer(
-            &self.frame,
-            0,
-            bytemuck::bytes_of(&<AtmosphereFrame as bytemuck::Zeroable>::zeroed()),
-        );
+    pub fn disable(&mut self, queue: &wgpu::Queue) {
+        let off = <AtmosphereFrame as bytemuck::Zeroable>::zeroed();
+        if self.last_frame != Some(off) {
+            queue.write_buffer(&self.frame, 0, bytemuck::bytes_of(&off));
+            self.last_frame = Some(off);
+        }
     }
 
     /// The uniforms and tables as the renderer binds them: binding 0 the atmosphere, 3 the
@@ -295,9 +302,9 @@ impl AtmosphereTables {
         self.passes.read(&self.device, &self.queue)
     }
 
-    /// Computes the tables of `frame` (with the transmittance and multiple-scattering tables
-    /// too when `all`, else only when `atmosphere` changed) and waits for the GPU to finish:
-    /// what the benchmark times.
+    /// Computes the tables of `frame`, even if they hold them (with the transmittance and
+    /// multiple-scattering tables too when `all`, else only when `atmosphere` changed), and
+    /// waits for the GPU to finish: what the benchmark times.
     pub fn compute_and_wait(
         &mut self,
         atmosphere: &Atmosphere,
@@ -307,6 +314,7 @@ impl AtmosphereTables {
         if all {
             self.passes.current = None;
         }
+        self.passes.last_frame = None;
         let mut enc = self
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });

@@ -217,7 +217,7 @@ impl ClipmapPass {
             label: Some("clipmap.wgsl"),
             source: wgpu::ShaderSource::Wgsl(crate::CLIPMAP_WGSL.into()),
         });
-        let atmosphere = AtmospherePasses::new(device);
+        let mut atmosphere = AtmospherePasses::new(device);
         let resources = atmosphere.resources();
         let air_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("atmosphere"),
