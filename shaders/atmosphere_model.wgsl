@@ -89,6 +89,24 @@ fn texcoord_from_unit(x: f32, n: f32) -> f32 {
     return 0.5 / n + x * (1.0 - 1.0 / n);
 }
 
+// The four texels a bilinear read of a w × h table at (u, v) in 0..1 takes, between texel
+// centres and clamped at the edges like a sampler (the twin: `bilinear`), and the weights.
+struct Taps {
+    i0: u32,
+    i1: u32,
+    j0: u32,
+    j1: u32,
+    f: vec2<f32>,
+}
+
+fn taps(u: f32, v: f32, w: u32, h: u32) -> Taps {
+    let x = clamp(u * f32(w) - 0.5, 0.0, f32(w) - 1.0);
+    let y = clamp(v * f32(h) - 0.5, 0.0, f32(h) - 1.0);
+    let i0 = u32(floor(x));
+    let j0 = u32(floor(y));
+    return Taps(i0, min(i0 + 1u, w - 1u), j0, min(j0 + 1u, h - 1u), vec2<f32>(x - f32(i0), y - f32(j0)));
+}
+
 // The transmittance table at the ray (r, mu), bilinear between texel centres like a sampler
 // (and like the CPU twin's `sample`).
 fn transmittance_to_top(r: f32, mu: f32) -> vec3<f32> {
@@ -103,21 +121,13 @@ fn transmittance_to_top(r: f32, mu: f32) -> vec3<f32> {
     if d_max > d_min {
         x_mu = (d - d_min) / (d_max - d_min);
     }
-    let w = f32(TRANSMITTANCE_W);
-    let h = f32(TRANSMITTANCE_H);
-    let u = texcoord_from_unit(clamp(x_mu, 0.0, 1.0), w);
-    let v = texcoord_from_unit(clamp(rho / big_h, 0.0, 1.0), h);
-    let x = clamp(u * w - 0.5, 0.0, w - 1.0);
-    let y = clamp(v * h - 0.5, 0.0, h - 1.0);
-    let i0 = u32(floor(x));
-    let j0 = u32(floor(y));
-    let i1 = min(i0 + 1u, TRANSMITTANCE_W - 1u);
-    let j1 = min(j0 + 1u, TRANSMITTANCE_H - 1u);
-    let fx = x - f32(i0);
-    let fy = y - f32(j0);
-    let a = mix(transmittance_table[j0 * TRANSMITTANCE_W + i0].xyz, transmittance_table[j0 * TRANSMITTANCE_W + i1].xyz, fx);
-    let b = mix(transmittance_table[j1 * TRANSMITTANCE_W + i0].xyz, transmittance_table[j1 * TRANSMITTANCE_W + i1].xyz, fx);
-    return mix(a, b, fy);
+    let u = texcoord_from_unit(clamp(x_mu, 0.0, 1.0), f32(TRANSMITTANCE_W));
+    let v = texcoord_from_unit(clamp(rho / big_h, 0.0, 1.0), f32(TRANSMITTANCE_H));
+    let k = taps(u, v, TRANSMITTANCE_W, TRANSMITTANCE_H);
+    let w = TRANSMITTANCE_W;
+    let a = mix(transmittance_table[k.j0 * w + k.i0].xyz, transmittance_table[k.j0 * w + k.i1].xyz, k.f.x);
+    let b = mix(transmittance_table[k.j1 * w + k.i0].xyz, transmittance_table[k.j1 * w + k.i1].xyz, k.f.x);
+    return mix(a, b, k.f.y);
 }
 
 // Sunlight reaching radius r with the sun at cosine mu_s: none where the planet is in the way.
@@ -135,18 +145,11 @@ fn scattering_at(h_in: f32) -> vec3<f32> {
 
 // Ψ from the multiple-scattering table, bilinear between texel centres (the twin's `sample`).
 fn multiple_scattering_at(r: f32, mu_s: f32) -> vec3<f32> {
-    let n = f32(MS_SIZE);
-    let u = (mu_s + 1.0) / 2.0;
-    let v = (r - atm.radii.x) / (atm.radii.y - atm.radii.x);
-    let x = clamp(u * n - 0.5, 0.0, n - 1.0);
-    let y = clamp(v * n - 0.5, 0.0, n - 1.0);
-    let i0 = u32(floor(x));
-    let j0 = u32(floor(y));
-    let i1 = min(i0 + 1u, MS_SIZE - 1u);
-    let j1 = min(j0 + 1u, MS_SIZE - 1u);
-    let a = mix(multiple_scattering_table[j0 * MS_SIZE + i0].xyz, multiple_scattering_table[j0 * MS_SIZE + i1].xyz, x - f32(i0));
-    let b = mix(multiple_scattering_table[j1 * MS_SIZE + i0].xyz, multiple_scattering_table[j1 * MS_SIZE + i1].xyz, x - f32(i0));
-    return mix(a, b, y - f32(j0));
+    let k = taps((mu_s + 1.0) / 2.0, (r - atm.radii.x) / (atm.radii.y - atm.radii.x), MS_SIZE, MS_SIZE);
+    let n = MS_SIZE;
+    let a = mix(multiple_scattering_table[k.j0 * n + k.i0].xyz, multiple_scattering_table[k.j0 * n + k.i1].xyz, k.f.x);
+    let b = mix(multiple_scattering_table[k.j1 * n + k.i0].xyz, multiple_scattering_table[k.j1 * n + k.i1].xyz, k.f.x);
+    return mix(a, b, k.f.y);
 }
 
 fn rayleigh_phase(nu: f32) -> f32 {
@@ -295,26 +298,20 @@ fn sky_view_at(r_in: f32, mu: f32, cos_az: f32) -> vec3<f32> {
     } else {
         v = 0.5 * (1.0 + sqrt(max((zenith - zenith_horizon) / beta, 0.0)));
     }
-    let u = sqrt((1.0 - clamp(cos_az, -1.0, 1.0)) / 2.0);
-    let w = f32(SKY_VIEW_W);
-    let h = f32(SKY_VIEW_H);
-    let x = clamp(u * w - 0.5, 0.0, w - 1.0);
-    let y = clamp(v * h - 0.5, 0.0, h - 1.0);
-    let i0 = u32(floor(x));
-    let j0 = u32(floor(y));
-    let i1 = min(i0 + 1u, SKY_VIEW_W - 1u);
-    let j1 = min(j0 + 1u, SKY_VIEW_H - 1u);
-    let a = mix(sky_view_table[j0 * SKY_VIEW_W + i0].xyz, sky_view_table[j0 * SKY_VIEW_W + i1].xyz, x - f32(i0));
-    let b = mix(sky_view_table[j1 * SKY_VIEW_W + i0].xyz, sky_view_table[j1 * SKY_VIEW_W + i1].xyz, x - f32(i0));
-    return mix(a, b, y - f32(j0));
+    let k = taps(sqrt((1.0 - clamp(cos_az, -1.0, 1.0)) / 2.0), v, SKY_VIEW_W, SKY_VIEW_H);
+    let w = SKY_VIEW_W;
+    let a = mix(sky_view_table[k.j0 * w + k.i0].xyz, sky_view_table[k.j0 * w + k.i1].xyz, k.f.x);
+    let b = mix(sky_view_table[k.j1 * w + k.i0].xyz, sky_view_table[k.j1 * w + k.i1].xyz, k.f.x);
+    return mix(a, b, k.f.y);
 }
 
-fn aerial_slice(k: u32, i0: u32, i1: u32, j0: u32, j1: u32, f: vec2<f32>) -> array<vec3<f32>, 2> {
+fn aerial_slice(k: u32, c: Taps) -> array<vec3<f32>, 2> {
     let n = AERIAL;
-    let a = k * n * n + j0 * n;
-    let b = k * n * n + j1 * n;
-    let l = mix(mix(aerial_inscatter[a + i0].xyz, aerial_inscatter[a + i1].xyz, f.x), mix(aerial_inscatter[b + i0].xyz, aerial_inscatter[b + i1].xyz, f.x), f.y);
-    let t = mix(mix(aerial_transmittance[a + i0].xyz, aerial_transmittance[a + i1].xyz, f.x), mix(aerial_transmittance[b + i0].xyz, aerial_transmittance[b + i1].xyz, f.x), f.y);
+    let a = k * n * n + c.j0 * n;
+    let b = k * n * n + c.j1 * n;
+    let f = c.f;
+    let l = mix(mix(aerial_inscatter[a + c.i0].xyz, aerial_inscatter[a + c.i1].xyz, f.x), mix(aerial_inscatter[b + c.i0].xyz, aerial_inscatter[b + c.i1].xyz, f.x), f.y);
+    let t = mix(mix(aerial_transmittance[a + c.i0].xyz, aerial_transmittance[a + c.i1].xyz, f.x), mix(aerial_transmittance[b + c.i0].xyz, aerial_transmittance[b + c.i1].xyz, f.x), f.y);
     return array<vec3<f32>, 2>(l, t);
 }
 
@@ -325,13 +322,7 @@ fn aerial_slice(k: u32, i0: u32, i1: u32, j0: u32, j1: u32, f: vec2<f32>) -> arr
 fn aerial_at(uv: vec2<f32>, s_in: f32, path: f32) -> Scatter {
     let n = f32(AERIAL);
     let s = max(s_in, 0.0);
-    let x = clamp(uv.x * n - 0.5, 0.0, n - 1.0);
-    let y = clamp(uv.y * n - 0.5, 0.0, n - 1.0);
-    let i0 = u32(floor(x));
-    let j0 = u32(floor(y));
-    let i1 = min(i0 + 1u, AERIAL - 1u);
-    let j1 = min(j0 + 1u, AERIAL - 1u);
-    let f = vec2<f32>(x - f32(i0), y - f32(j0));
+    let c = taps(uv.x, uv.y, AERIAL, AERIAL);
     let q = min(slice_index(s, path), n - 1.0);
     var k0 = 0u;
     var k1 = 0u;
@@ -344,8 +335,8 @@ fn aerial_at(uv: vec2<f32>, s_in: f32, path: f32) -> Scatter {
         k1 = min(k0 + 1u, AERIAL - 1u);
         fz = q - f32(k0);
     }
-    let a = aerial_slice(k0, i0, i1, j0, j1, f);
-    let b = aerial_slice(k1, i0, i1, j0, j1, f);
+    let a = aerial_slice(k0, c);
+    let b = aerial_slice(k1, c);
     let l = mix(a[0], b[0], fz);
     let t = mix(a[1], b[1], fz);
     return Scatter(l * near, mix(vec3<f32>(1.0), t, near));
