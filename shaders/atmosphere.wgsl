@@ -1,7 +1,8 @@
 // The atmosphere's lookup tables as compute passes (the CPU twins: sc_view_plan::atmosphere);
 // atmosphere_model.wgsl, which comes first, has the model and the tables' reads. Each pass writes
-// one table from the ones before it: transmittance, multiple scattering (once per atmosphere),
-// then per frame the sky-view table and the aerial-perspective volume of the frame's viewer.
+// one table from the ones before it: transmittance, multiple scattering, the sky's irradiance
+// (once per atmosphere), then per frame the sky-view table and the aerial-perspective volume of
+// the frame's viewer.
 
 @group(0) @binding(0) var<uniform> atm: Atmosphere;
 @group(0) @binding(1) var<storage, read_write> transmittance_table: array<vec4<f32>>;
@@ -10,6 +11,7 @@
 @group(0) @binding(4) var<storage, read_write> sky_view_table: array<vec4<f32>>;
 @group(0) @binding(5) var<storage, read_write> aerial_inscatter: array<vec4<f32>>;
 @group(0) @binding(6) var<storage, read_write> aerial_transmittance: array<vec4<f32>>;
+@group(0) @binding(7) var<storage, read_write> irradiance_table: array<vec4<f32>>;
 
 // Each texel: the transmittance to the top of the atmosphere of its ray, by the trapezoidal rule.
 @compute @workgroup_size(8, 8)
@@ -161,4 +163,31 @@ fn aerial_perspective_lut(@builtin(global_invocation_id) id: vec3<u32>) {
     let at = (id.z * AERIAL + id.y) * AERIAL + id.x;
     aerial_inscatter[at] = vec4<f32>(l, 1.0);
     aerial_transmittance[at] = vec4<f32>(t, 1.0);
+}
+
+// Each texel: the sky's irradiance on a horizontal surface at its altitude and sun angle, over
+// 8×8 directions of the upper hemisphere (the twin: IrradianceLut).
+@compute @workgroup_size(8, 8)
+fn irradiance_lut(@builtin(global_invocation_id) id: vec3<u32>) {
+    if id.x >= IRRADIANCE_W || id.y >= IRRADIANCE_H {
+        return;
+    }
+    let bottom = atm.radii.x;
+    let top = atm.radii.y;
+    let mu_s = -1.0 + 2.0 * (f32(id.x) + 0.5) / f32(IRRADIANCE_W);
+    let r = bottom + (f32(id.y) + 0.5) / f32(IRRADIANCE_H) * (top - bottom);
+    let sin_s = sqrt(max(1.0 - mu_s * mu_s, 0.0));
+    let n = IRRADIANCE_DIRECTIONS;
+    var e = vec3<f32>(0.0);
+    for (var a = 0u; a < n; a++) {
+        let mu = (f32(a) + 0.5) / f32(n);
+        let sin_v = sqrt(1.0 - mu * mu);
+        for (var b = 0u; b < n; b++) {
+            let phi = 2.0 * PI * (f32(b) + 0.5) / f32(n);
+            let nu = mu * mu_s + sin_v * sin_s * cos(phi);
+            let l = sky_along(r, r - bottom, mu, mu_s, nu, 1e30, true).radiance;
+            e += l * mu * 2.0 * PI / f32(n * n);
+        }
+    }
+    irradiance_table[id.y * IRRADIANCE_W + id.x] = vec4<f32>(e, 1.0);
 }

@@ -1,7 +1,8 @@
 // The atmosphere's model and table reads, shared by the table passes (atmosphere.wgsl) and the
 // renderer (clipmap.wgsl). Lengths in kilometres, coefficients per kilometre. The module that
 // includes this file declares the tables it reads: `atm`, `atmo`, `transmittance_table`,
-// `multiple_scattering_table`, `sky_view_table`, `aerial_inscatter`, `aerial_transmittance`.
+// `multiple_scattering_table`, `sky_view_table`, `aerial_inscatter`, `aerial_transmittance`,
+// `irradiance_table`.
 // The CPU twins: sc_view_plan::atmosphere.
 
 struct Atmosphere {
@@ -42,6 +43,9 @@ const SKY_VIEW_W: u32 = 192u;
 const SKY_VIEW_H: u32 = 108u;
 const SKY_STEPS: u32 = 30u;
 const AERIAL: u32 = 32u;
+const IRRADIANCE_W: u32 = 64u;
+const IRRADIANCE_H: u32 = 16u;
+const IRRADIANCE_DIRECTIONS: u32 = 8u;
 const PI: f32 = 3.14159265358979;
 
 fn extinction_at(h_in: f32) -> vec3<f32> {
@@ -149,6 +153,16 @@ fn multiple_scattering_at(r: f32, mu_s: f32) -> vec3<f32> {
     let n = MS_SIZE;
     let a = mix(multiple_scattering_table[k.j0 * n + k.i0].xyz, multiple_scattering_table[k.j0 * n + k.i1].xyz, k.f.x);
     let b = mix(multiple_scattering_table[k.j1 * n + k.i0].xyz, multiple_scattering_table[k.j1 * n + k.i1].xyz, k.f.x);
+    return mix(a, b, k.f.y);
+}
+
+// The sky's irradiance on a horizontal surface at radius r, the sun at mu_s (the twin:
+// `IrradianceLut::sample`).
+fn irradiance_at(r: f32, mu_s: f32) -> vec3<f32> {
+    let k = taps((mu_s + 1.0) / 2.0, (r - atm.radii.x) / (atm.radii.y - atm.radii.x), IRRADIANCE_W, IRRADIANCE_H);
+    let w = IRRADIANCE_W;
+    let a = mix(irradiance_table[k.j0 * w + k.i0].xyz, irradiance_table[k.j0 * w + k.i1].xyz, k.f.x);
+    let b = mix(irradiance_table[k.j1 * w + k.i0].xyz, irradiance_table[k.j1 * w + k.i1].xyz, k.f.x);
     return mix(a, b, k.f.y);
 }
 

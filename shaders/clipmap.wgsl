@@ -56,6 +56,7 @@ struct Level {
 @group(1) @binding(4) var<storage, read> sky_view_table: array<vec4<f32>>;
 @group(1) @binding(5) var<storage, read> aerial_inscatter: array<vec4<f32>>;
 @group(1) @binding(6) var<storage, read> aerial_transmittance: array<vec4<f32>>;
+@group(1) @binding(7) var<storage, read> irradiance_table: array<vec4<f32>>;
 
 struct VertexIn {
     @location(0) pxy: vec2<f32>,
@@ -232,7 +233,7 @@ fn level_cap(l: u32, ring: f32, off: vec2<f32>) -> f32 {
 }
 
 // The lit terrain seen through the air: sunlight reaching the point (reddened, none in the
-// planet's shadow) and a blue sky light that fades with the sun's elevation there, then the
+// planet's shadow) and the sky's irradiance there (the table), then the
 // aerial perspective between camera and point (the volume, or next to the limb seen from above
 // the air the pixel's own march); tone-mapped.
 fn terrain_in_air(frag: vec2<f32>, rel: vec3<f32>, albedo: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
@@ -244,10 +245,12 @@ fn terrain_in_air(frag: vec2<f32>, rel: vec3<f32>, albedo: vec3<f32>, n: vec3<f3
     let r = length(q);
     let s = sun_dir();
     let mu_s = dot(q / r, s);
-    let sky_light = (0.02 + 0.12 * smoothstep(-0.1, 0.1, mu_s)) * vec3<f32>(0.75, 0.85, 1.0);
-    // sunlight as at the sea-level sphere for ground under it (a coarse mesh's chords, the sea
-    // floor): from below the sphere the table would read a longer path through the ground
-    let lit = albedo * (sunlight(max(r, atm.radii.x), mu_s) * max(dot(n, s), 0.0) + sky_light);
+    // light as at the sea-level sphere for ground under it (a coarse mesh's chords, the sea
+    // floor): from below the sphere the tables would read a longer path through the ground;
+    // the sky's share a tilted surface sees, (1 + n·up)/2
+    let r_lit = max(r, atm.radii.x);
+    let sky = irradiance_at(r_lit, mu_s) * 0.5 * (1.0 + dot(n, q / r));
+    let lit = albedo * (sunlight(r_lit, mu_s) * max(dot(n, s), 0.0) + sky);
     let e = enter(d, s);
     // no air below the sea-level sphere: terrain under it (the sea floor, or a coarse mesh's
     // chord) is seen through the air down to the sphere

@@ -1,5 +1,6 @@
 //! The atmosphere's lookup tables as compute passes (`shaders/atmosphere.wgsl`): the
-//! transmittance and multiple-scattering tables, made again only when the atmosphere changes,
+//! transmittance, multiple-scattering and sky-irradiance tables, made again only when the
+//! atmosphere changes,
 //! and per frame the sky-view table and the aerial-perspective volume of the frame's viewer.
 //! [`AtmospherePasses`] holds them on a device for the clipmap pass, which reads them in its
 //! fragment stage; [`AtmosphereTables`] reads them back for the tests that compare them with
@@ -7,8 +8,8 @@
 
 use crate::render::{RenderError, gpu_device, read_back};
 use sc_view_plan::atmosphere::{
-    AERIAL_SIZE, Atmosphere, AtmosphereFrame, AtmosphereUniforms, MULTIPLE_SCATTERING_SIZE,
-    SKY_VIEW_SIZE, TRANSMITTANCE_SIZE,
+    AERIAL_SIZE, Atmosphere, AtmosphereFrame, AtmosphereUniforms, IRRADIANCE_SIZE,
+    MULTIPLE_SCATTERING_SIZE, SKY_VIEW_SIZE, TRANSMITTANCE_SIZE,
 };
 
 /// The tables read back: RGB per texel.
@@ -24,15 +25,18 @@ pub struct Tables {
     pub aerial_inscatter: Vec<[f32; 3]>,
     /// Its transmittance.
     pub aerial_transmittance: Vec<[f32; 3]>,
+    /// The sky's irradiance (`IRRADIANCE_SIZE`, row-major from the ground).
+    pub irradiance: Vec<[f32; 3]>,
 }
 
-/// The tables in the order of their bindings 1, 2, 4, 5, 6 (0 and 3 are the uniforms).
-const TABLES: [(&str, u32); 5] = [
+/// The tables in the order of their bindings 1, 2, 4, 5, 6, 7 (0 and 3 are the uniforms).
+const TABLES: [(&str, u32); 6] = [
     ("transmittance", 1),
     ("multiple scattering", 2),
     ("sky view", 4),
     ("aerial in-scattering", 5),
     ("aerial transmittance", 6),
+    ("sky irradiance", 7),
 ];
 
 fn texels(k: usize) -> usize {
@@ -40,6 +44,7 @@ fn texels(k: usize) -> usize {
         0 => TRANSMITTANCE_SIZE.0 * TRANSMITTANCE_SIZE.1,
         1 => MULTIPLE_SCATTERING_SIZE * MULTIPLE_SCATTERING_SIZE,
         2 => SKY_VIEW_SIZE.0 * SKY_VIEW_SIZE.1,
+        5 => IRRADIANCE_SIZE.0 * IRRADIANCE_SIZE.1,
         _ => AERIAL_SIZE * AERIAL_SIZE * AERIAL_SIZE,
     }
 }
@@ -58,7 +63,7 @@ pub struct AtmospherePasses {
     atm: wgpu::Buffer,
     frame: wgpu::Buffer,
     tables: Vec<wgpu::Buffer>,
-    fixed: [Pass; 2],
+    fixed: [Pass; 3],
     sky_view: Pass,
     aerial: Pass,
     /// The atmosphere whose transmittance and multiple-scattering tables the buffers hold.
@@ -143,6 +148,11 @@ impl AtmospherePasses {
                     "multiple_scattering_lut",
                     &[0, 1, 2],
                     (n.div_ceil(8), n.div_ceil(8), 1),
+                ),
+                pass(
+                    "irradiance_lut",
+                    &[0, 1, 2, 7],
+                    (g(IRRADIANCE_SIZE.0), g(IRRADIANCE_SIZE.1), 1),
                 ),
             ],
             sky_view: pass("sky_view_lut", &[0, 1, 2, 3, 4], (g(sw), g(sh), 1)),
@@ -260,6 +270,7 @@ impl AtmospherePasses {
             sky_view: next(),
             aerial_inscatter: next(),
             aerial_transmittance: next(),
+            irradiance: next(),
         })
     }
 }

@@ -1,7 +1,9 @@
 //! The atmosphere's lookup tables computed on the GPU (lavapipe in CI) against their CPU twins.
 
 use sc_view_gpu::atmosphere::AtmosphereTables;
-use sc_view_plan::atmosphere::{Atmosphere, MultipleScatteringLut, SkyViewLut, TransmittanceLut};
+use sc_view_plan::atmosphere::{
+    Atmosphere, IrradianceLut, MultipleScatteringLut, SkyViewLut, TransmittanceLut,
+};
 
 #[test]
 fn gpu_tables_match_their_cpu_twins() {
@@ -24,6 +26,24 @@ fn gpu_tables_match_their_cpu_twins() {
         let viewer = (a.bottom_radius_m + 9_000.0, 10f64.to_radians().sin());
         let tables = gpu.tables(&a, viewer).expect("computes");
         let cpu_sky = SkyViewLut::compute(&a, &cpu, &cpu_ms, viewer.0, viewer.1);
+        // the sky's irradiance relative to its own size, with a floor of 1e-3 of its largest
+        let cpu_e = IrradianceLut::compute(&a, &cpu, &cpu_ms);
+        let top_e = cpu_e
+            .texels
+            .iter()
+            .flat_map(|t| t.iter().copied())
+            .fold(1e-9f32, f32::max);
+        let worst_e = tables
+            .irradiance
+            .iter()
+            .zip(&cpu_e.texels)
+            .flat_map(|(g, c)| (0..3).map(move |k| (g[k] - c[k]).abs() / (c[k] + 1e-3 * top_e)))
+            .fold(0.0f32, f32::max);
+        assert!(
+            worst_e < 1e-2,
+            "{}: sky irradiance, largest relative difference {worst_e}",
+            gpu.adapter
+        );
         let (texels, ms) = (tables.transmittance, tables.multiple_scattering);
         assert_eq!(texels.len(), cpu.texels.len());
         assert_eq!(ms.len(), cpu_ms.texels.len());

@@ -6,7 +6,7 @@
 use glam::DVec3;
 use sc_view_gpu::render::Renderer;
 use sc_view_plan::atmosphere::{
-    Atmosphere, AtmosphereFrame, MultipleScatteringLut, SUN_ILLUMINANCE, SkyViewLut,
+    Atmosphere, AtmosphereFrame, IrradianceLut, MultipleScatteringLut, SUN_ILLUMINANCE, SkyViewLut,
     TransmittanceLut, tone_map, view_ray,
 };
 use sc_view_plan::camera::Camera;
@@ -51,6 +51,7 @@ struct Twin {
     a: Atmosphere,
     t: TransmittanceLut,
     ms: MultipleScatteringLut,
+    irradiance: IrradianceLut,
 }
 
 impl Twin {
@@ -58,7 +59,13 @@ impl Twin {
         let a = Atmosphere::default().on_sphere(R);
         let t = TransmittanceLut::compute(&a);
         let ms = MultipleScatteringLut::compute(&a, &t);
-        Self { a, t, ms }
+        let irradiance = IrradianceLut::compute(&a, &t, &ms);
+        Self {
+            a,
+            t,
+            ms,
+            irradiance,
+        }
     }
 
     /// Every pixel of a `w × h` view from `camera` (above flat ground) under `sun`.
@@ -124,14 +131,12 @@ impl Twin {
                         } else {
                             self.t.transmittance(&self.a, R, mu_s)
                         };
-                        let day = smoothstep(-0.1, 0.1, mu_s);
-                        let tint = [0.75, 0.85, 1.0];
+                        let sky = self.irradiance.sample(&self.a, R, mu_s);
                         let (t0, ray) = view_ray(&self.a, &frame, d).expect("a ray to the ground");
                         let (l, tr) = self.a.sky(&self.t, &self.ms, ray, t - t0);
                         let mut c = [0.0; 3];
                         for k in 0..3 {
-                            let lit =
-                                albedo * (sun_t[k] * mu_s.max(0.0) + (0.02 + 0.12 * day) * tint[k]);
+                            let lit = albedo * (sun_t[k] * mu_s.max(0.0) + sky[k]);
                             c[k] = lit * tr[k] + l[k] * e;
                         }
                         out.push(if limb {
@@ -145,11 +150,6 @@ impl Twin {
         }
         out
     }
-}
-
-fn smoothstep(a: f64, b: f64, x: f64) -> f64 {
-    let t = ((x - a) / (b - a)).clamp(0.0, 1.0);
-    t * t * (3.0 - 2.0 * t)
 }
 
 /// Mean and largest difference (sRGB steps) over the pixels `kind` picks, and their count.

@@ -1041,3 +1041,70 @@ impl SkyViewLut {
         bilinear(&self.texels, self.size, u, v)
     }
 }
+
+/// Size of the sky-irradiance table: columns (cosine of the sun's zenith angle, −1..1), rows
+/// (altitude, ground to top). Bruneton's 64×16.
+pub const IRRADIANCE_SIZE: (usize, usize) = (64, 16);
+
+/// Directions over the upper hemisphere the sky-irradiance table integrates, per axis (zenith
+/// cosine, azimuth).
+const IRRADIANCE_DIRECTIONS: usize = 8;
+
+/// The sky's irradiance on a horizontal surface: per altitude and sun angle, ∫ L_sky cos θ dω
+/// over the upper hemisphere, the sky's radiance by [`Atmosphere::sky`] (single and multiple
+/// scattering) for a sun of unit illuminance. The terrain's light from the sky.
+#[derive(Debug, Clone, PartialEq)]
+pub struct IrradianceLut {
+    /// RGB per texel, row-major from the ground, columns from the sun at the nadir.
+    pub texels: Vec<[f32; 3]>,
+}
+
+impl IrradianceLut {
+    /// Computes the table: 8×8 directions over the hemisphere (zenith cosines at the centres
+    /// of eight equal steps, azimuths likewise), each the sky along it.
+    pub fn compute(
+        atmosphere: &Atmosphere,
+        transmittance: &TransmittanceLut,
+        ms: &MultipleScatteringLut,
+    ) -> Self {
+        use std::f64::consts::PI;
+        let (w, h) = IRRADIANCE_SIZE;
+        let n = IRRADIANCE_DIRECTIONS;
+        let mut texels = Vec::with_capacity(w * h);
+        for j in 0..h {
+            for i in 0..w {
+                let mu_s = -1.0 + 2.0 * (i as f64 + 0.5) / w as f64;
+                let r = atmosphere.bottom_radius_m
+                    + (j as f64 + 0.5) / h as f64
+                        * (atmosphere.top_radius_m - atmosphere.bottom_radius_m);
+                let sin_s = (1.0 - mu_s * mu_s).max(0.0).sqrt();
+                let mut e = [0.0; 3];
+                for a in 0..n {
+                    let mu = (a as f64 + 0.5) / n as f64;
+                    let sin_v = (1.0 - mu * mu).sqrt();
+                    for b in 0..n {
+                        let phi = 2.0 * PI * (b as f64 + 0.5) / n as f64;
+                        let nu = mu * mu_s + sin_v * sin_s * phi.cos();
+                        let (l, _) =
+                            atmosphere.sky(transmittance, ms, (r, mu, mu_s, nu), f64::INFINITY);
+                        // dω = d(cos θ) dφ: each direction holds (1/n)·(2π/n) of it
+                        for c in 0..3 {
+                            e[c] += l[c] * mu * 2.0 * PI / (n * n) as f64;
+                        }
+                    }
+                }
+                texels.push(e.map(|v| v as f32));
+            }
+        }
+        Self { texels }
+    }
+
+    /// The irradiance at radius `r` with the sun at cosine `mu_s`, bilinear between texel
+    /// centres (clamped), as the renderer reads it.
+    pub fn sample(&self, atmosphere: &Atmosphere, r: f64, mu_s: f64) -> [f64; 3] {
+        let u = (mu_s + 1.0) / 2.0;
+        let v = (r - atmosphere.bottom_radius_m)
+            / (atmosphere.top_radius_m - atmosphere.bottom_radius_m);
+        bilinear(&self.texels, IRRADIANCE_SIZE, u, v)
+    }
+}

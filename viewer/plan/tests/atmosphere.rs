@@ -307,3 +307,45 @@ fn the_aerial_perspective_volume_reads_what_each_rays_own_march_gives() {
         );
     }
 }
+
+#[test]
+fn the_sky_lights_the_ground_as_a_clear_sky_does() {
+    use sc_view_plan::atmosphere::{IrradianceLut, MultipleScatteringLut};
+    let a = earth();
+    let t = TransmittanceLut::compute(&a);
+    let ms = MultipleScatteringLut::compute(&a, &t);
+    let e = IrradianceLut::compute(&a, &t, &ms);
+    let ground = a.bottom_radius_m;
+    let at = |el: f64| e.sample(&a, ground, el.to_radians().sin());
+    // the sun at the zenith: of a vertical beam the air scatters 1 − e^(−τ) (τ the column's
+    // scattering depth), half of it downwards (Rayleigh's phase is symmetric, the haze's
+    // forward); against the direct sun T that comes to (1 − e^(−τ)) / 2T, bluer than the sun
+    let high = at(90.0);
+    let direct = t.transmittance(&a, ground, 1.0);
+    let top = a.top_radius_m - a.bottom_radius_m;
+    for c in 0..3 {
+        let tau = exp_column(a.rayleigh_scattering[c], a.rayleigh_scale_height_m, top)
+            + exp_column(a.mie_scattering[c], a.mie_scale_height_m, top);
+        let want = (1.0 - (-tau).exp()) / (2.0 * direct[c]);
+        let share = high[c] / direct[c];
+        assert!(
+            (share - want).abs() < 0.15 * want,
+            "channel {c}: the sky gives {share} of the direct sun, single scattering {want}"
+        );
+    }
+    assert!(high[2] > high[1] && high[1] > high[0], "{high:?}");
+    // more light the higher the sun; a little twilight after sunset, none at night
+    let mut last = [0.0; 3];
+    for el in [-6.0, -2.0, 0.0, 5.0, 15.0, 30.0, 60.0, 90.0] {
+        let v = at(el);
+        assert!(
+            (0..3).all(|c| v[c] > last[c]),
+            "{el}°: {v:?} after {last:?}"
+        );
+        last = v;
+    }
+    let dusk = at(-4.0);
+    assert!(dusk[2] > 0.0 && dusk[2] < 0.1 * high[2], "{dusk:?}");
+    let night = at(-40.0);
+    assert!(night.iter().all(|&c| c < 1e-4), "{night:?}");
+}
