@@ -825,7 +825,7 @@ pub fn device_for(
             required_features: adapter.features() & wgpu::Features::POLYGON_MODE_LINE,
             required_limits: wgpu::Limits {
                 max_texture_array_layers: levels.max(256),
-                // the clipmap levels and the atmosphere's five tables in the fragment stage
+                // the clipmap levels and the atmosphere's six tables in the fragment stage
                 // (WebGPU's default)
                 max_storage_buffers_per_shader_stage: 8,
                 ..wgpu::Limits::downlevel_defaults()

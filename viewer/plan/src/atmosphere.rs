@@ -366,6 +366,28 @@ pub struct MultipleScatteringLut {
     pub texels: Vec<[f32; 3]>,
 }
 
+/// The texel `(i, j)` of a `(w, h)` table by sun angle (columns, cosine −1..1) and altitude
+/// (rows, ground to top) at its centre: `(r, mu_s)` (the multiple-scattering and sky-irradiance
+/// tables).
+fn sun_altitude_ray(
+    atmosphere: &Atmosphere,
+    (i, j): (usize, usize),
+    (w, h): (usize, usize),
+) -> (f64, f64) {
+    let mu_s = -1.0 + 2.0 * (i as f64 + 0.5) / w as f64;
+    let r = atmosphere.bottom_radius_m
+        + (j as f64 + 0.5) / h as f64 * (atmosphere.top_radius_m - atmosphere.bottom_radius_m);
+    (r, mu_s)
+}
+
+/// Where `(r, mu_s)` lies in a table by sun angle and altitude, `(u, v)` in 0..1.
+fn sun_altitude_uv(atmosphere: &Atmosphere, r: f64, mu_s: f64) -> (f64, f64) {
+    (
+        (mu_s + 1.0) / 2.0,
+        (r - atmosphere.bottom_radius_m) / (atmosphere.top_radius_m - atmosphere.bottom_radius_m),
+    )
+}
+
 impl MultipleScatteringLut {
     /// Computes the table from `atmosphere` and its transmittance table.
     pub fn compute(atmosphere: &Atmosphere, transmittance: &TransmittanceLut) -> Self {
@@ -373,10 +395,7 @@ impl MultipleScatteringLut {
         let mut texels = Vec::with_capacity(n * n);
         for j in 0..n {
             for i in 0..n {
-                let mu_s = -1.0 + 2.0 * (i as f64 + 0.5) / n as f64;
-                let r = atmosphere.bottom_radius_m
-                    + (j as f64 + 0.5) / n as f64
-                        * (atmosphere.top_radius_m - atmosphere.bottom_radius_m);
+                let (r, mu_s) = sun_altitude_ray(atmosphere, (i, j), (n, n));
                 let psi = multiple_scattering(atmosphere, transmittance, r, mu_s);
                 texels.push([psi[0] as f32, psi[1] as f32, psi[2] as f32]);
             }
@@ -386,9 +405,7 @@ impl MultipleScatteringLut {
 
     /// Ψ at radius `r` with the sun at cosine `mu_s`, bilinear between texel centres.
     pub fn sample(&self, atmosphere: &Atmosphere, r: f64, mu_s: f64) -> [f64; 3] {
-        let u = (mu_s + 1.0) / 2.0;
-        let v = (r - atmosphere.bottom_radius_m)
-            / (atmosphere.top_radius_m - atmosphere.bottom_radius_m);
+        let (u, v) = sun_altitude_uv(atmosphere, r, mu_s);
         bilinear(&self.texels, (self.size, self.size), u, v)
     }
 }
@@ -988,15 +1005,9 @@ impl AerialPerspectiveLut {
         path: f64,
     ) -> [[f64; 3]; 2] {
         let n = AERIAL_SIZE;
-        let nf = n as f64;
-        let x = (u * nf - 0.5).clamp(0.0, nf - 1.0);
-        let y = (v * nf - 0.5).clamp(0.0, nf - 1.0);
         let q = frame
             .slice_index(atmosphere, s.max(0.0), path)
-            .min(nf - 1.0);
-        let (i0, j0) = (x.floor() as usize, y.floor() as usize);
-        let (i1, j1) = ((i0 + 1).min(n - 1), (j0 + 1).min(n - 1));
-        let (fx, fy) = (x - i0 as f64, y - j0 as f64);
+            .min(n as f64 - 1.0);
         let (k0, k1, fz, near) = if q < 0.0 {
             (
                 0,
@@ -1006,26 +1017,22 @@ impl AerialPerspectiveLut {
             )
         } else {
             let k0 = q.floor() as usize;
-            ((k0), (k0 + 1).min(n - 1), q - k0 as f64, 1.0)
+            (k0, (k0 + 1).min(n - 1), q - k0 as f64, 1.0)
+        };
+        // each slice read bilinear between its column centres, as the tables are
+        let slice = |table: &[[f32; 3]], k: usize| {
+            bilinear(&table[k * n * n..(k + 1) * n * n], (n, n), u, v)
         };
         let mut out = [[0.0; 3], [1.0; 3]];
-        for ((which, table), o) in [&self.inscatter, &self.transmittance]
+        for (table, o) in [&self.inscatter, &self.transmittance]
             .into_iter()
-            .enumerate()
             .zip(out.iter_mut())
         {
-            let at = |i: usize, j: usize, k: usize| table[(k * n + j) * n + i];
+            let (a, b) = (slice(table, k0), slice(table, k1));
+            // towards the entry: in-scattering from 0, transmittance from 1
+            let empty = o[0];
             for (c, oc) in o.iter_mut().enumerate() {
-                let slice = |k: usize| {
-                    let a =
-                        f64::from(at(i0, j0, k)[c]) * (1.0 - fx) + f64::from(at(i1, j0, k)[c]) * fx;
-                    let b =
-                        f64::from(at(i0, j1, k)[c]) * (1.0 - fx) + f64::from(at(i1, j1, k)[c]) * fx;
-                    a * (1.0 - fy) + b * fy
-                };
-                let v = slice(k0) * (1.0 - fz) + slice(k1) * fz;
-                // towards the camera: in-scattering from 0, transmittance from 1
-                let empty = if which == 0 { 0.0 } else { 1.0 };
+                let v = a[c] * (1.0 - fz) + b[c] * fz;
                 *oc = empty + (v - empty) * near;
             }
         }
@@ -1073,10 +1080,7 @@ impl IrradianceLut {
         let mut texels = Vec::with_capacity(w * h);
         for j in 0..h {
             for i in 0..w {
-                let mu_s = -1.0 + 2.0 * (i as f64 + 0.5) / w as f64;
-                let r = atmosphere.bottom_radius_m
-                    + (j as f64 + 0.5) / h as f64
-                        * (atmosphere.top_radius_m - atmosphere.bottom_radius_m);
+                let (r, mu_s) = sun_altitude_ray(atmosphere, (i, j), (w, h));
                 let sin_s = (1.0 - mu_s * mu_s).max(0.0).sqrt();
                 let mut e = [0.0; 3];
                 for a in 0..n {
@@ -1102,9 +1106,7 @@ impl IrradianceLut {
     /// The irradiance at radius `r` with the sun at cosine `mu_s`, bilinear between texel
     /// centres (clamped), as the renderer reads it.
     pub fn sample(&self, atmosphere: &Atmosphere, r: f64, mu_s: f64) -> [f64; 3] {
-        let u = (mu_s + 1.0) / 2.0;
-        let v = (r - atmosphere.bottom_radius_m)
-            / (atmosphere.top_radius_m - atmosphere.bottom_radius_m);
+        let (u, v) = sun_altitude_uv(atmosphere, r, mu_s);
         bilinear(&self.texels, IRRADIANCE_SIZE, u, v)
     }
 }
