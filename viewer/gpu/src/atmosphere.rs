@@ -169,8 +169,8 @@ impl AtmospherePasses {
         }
     }
 
-    /// Records the passes of a frame into `enc`: the transmittance and multiple-scattering
-    /// tables when `atmosphere` is not the one they hold, then — unless they hold `frame`'s
+    /// Records the passes of a frame into `enc`: the transmittance, multiple-scattering and
+    /// sky-irradiance tables when `atmosphere` is not the one they hold, then — unless they hold `frame`'s
     /// already (a still view) — the sky-view table (for a viewer inside the air: from above it
     /// the renderer marches the sky) and the aerial-perspective volume of `frame`.
     pub fn encode(
