@@ -361,6 +361,10 @@ pub struct LookArgs {
     /// air. `--shading none` draws none.
     #[arg(long, value_enum, default_value_t = OnOff::On)]
     pub atmosphere: OnOff,
+    /// Procedural detail below the data's resolution (the source graph's `detail` sources, by
+    /// default on the store's heights and colours); off: the clipmaps show the data alone.
+    #[arg(long, value_enum, default_value_t = OnOff::On)]
+    pub detail: OnOff,
 }
 
 /// A switch.

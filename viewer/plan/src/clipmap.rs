@@ -9,10 +9,12 @@
 
 use std::collections::HashMap;
 use std::f64::consts::PI;
+use std::sync::Arc;
 
 use sc_core::{GridSpec, LevelId, TileId};
 use sc_store::{LayerKind, StoreReader, TileRead, TileSample};
 
+use crate::detail::{Detail, DetailSample, bilinear_roughness, corner_residuals};
 use crate::geometry::level_outer;
 use crate::transform::Viewer;
 
@@ -708,20 +710,34 @@ impl ZeroedSample for u8 {
 }
 
 /// Heights from a store's height levels, through a tile cache. Nodata and missing tiles read as
-/// sea level (or, with [`StoreHeights::keep_nodata`], make the texel NaN).
+/// sea level (or, with [`StoreHeights::keep_nodata`], make the texel NaN); with
+/// [`StoreHeights::with_detail`], detail below the data's resolution is added where the data is
+/// magnified.
 #[derive(Debug)]
-pub struct StoreHeights(StoreLevels<f32>, bool);
+pub struct StoreHeights(StoreLevels<f32>, bool, Option<Arc<Detail>>);
 
 impl StoreHeights {
     /// Over the height levels of `reader`; `None` if it has none.
     pub fn new(reader: StoreReader) -> Option<Self> {
-        StoreLevels::new(reader).map(|l| Self(l, false))
+        StoreLevels::new(reader).map(|l| Self(l, false, None))
     }
 
     /// With `keep`, a texel any of whose bilinear corners is nodata or missing is NaN (an
     /// overlay shows what lies below there).
     pub fn keep_nodata(self, keep: bool) -> Self {
-        Self(self.0, keep)
+        Self(self.0, keep, self.2)
+    }
+
+    /// Adds `detail` below the data's resolution: at a texel finer than the store level that
+    /// serves it (the finest with data there), where all 4×4 texels around the point hold data.
+    pub fn with_detail(self, detail: Option<Arc<Detail>>) -> Self {
+        Self(self.0, self.1, detail)
+    }
+
+    /// The row spacing of store level `level` on the ground, metres.
+    fn spacing_m(&self, level: u32) -> f64 {
+        let iso = LevelId { level, aniso: 0 };
+        PI / self.0.grid.height(iso) as f64 * self.0.reader.meta().radius_m
     }
 
     /// Keeps at most `bytes` of decoded store tiles.
@@ -745,22 +761,59 @@ impl StoreHeights {
     /// Heights at `lons` along the circle of colatitude `colat`, appended to `out`: the same
     /// values as [`HeightSource::height`] point by point, faster (tiles looked up per row).
     pub fn fill_row(&mut self, lons: &[f64], colat: f64, texel: LevelWindow, out: &mut Vec<f32>) {
+        self.fill_rows(lons, colat, texel, out, None);
+    }
+
+    /// [`Self::fill_row`], and with detail each point's colour shade ([`DetailSample::shade`],
+    /// 0 where there is no detail) appended to `shade`.
+    pub fn fill_row_and_shade(
+        &mut self,
+        lons: &[f64],
+        colat: f64,
+        texel: LevelWindow,
+        out: &mut Vec<f32>,
+        shade: &mut Vec<f32>,
+    ) {
+        self.fill_rows(lons, colat, texel, out, Some(shade));
+    }
+
+    fn fill_rows(
+        &mut self,
+        lons: &[f64],
+        colat: f64,
+        texel: LevelWindow,
+        out: &mut Vec<f32>,
+        shade: Option<&mut Vec<f32>>,
+    ) {
         let keep = self.1;
         let start = out.len();
         out.resize(start + lons.len(), 0.0);
         let row = &mut out[start..];
+        let mut shade = shade.map(|s| {
+            let start = s.len();
+            s.resize(start + lons.len(), 0.0);
+            &mut s[start..]
+        });
+        let detail = self.2.clone();
+        let spacing: Vec<f64> = match &detail {
+            Some(_) => (0..self.0.levels.len())
+                .map(|i| self.spacing_m(self.0.levels[i].0))
+                .collect(),
+            None => Vec::new(),
+        };
         // the points of a row share store columns (many a column when magnified), and within a
         // level the same rows: each column's Catmull-Rom down the rows is kept for the next
-        // points
+        // points, and so are the data's roughness at the four texels around the point
         type Key = (usize, (usize, usize));
         let mut memo: [(Option<Key>, f32); 8] = [(None, f32::NAN); 8];
         let mut next = 0;
+        let mut corners: Option<((usize, [(usize, usize); 4]), Option<[f64; 4]>)> = None;
         self.0.sample_row(
             lons,
             colat,
             texel,
             &mut |k, taps, fx, fy, magnified, (level, cols)| {
-                row[k] = height_from_columns(
+                let base = height_from_columns(
                     taps,
                     fx as f32,
                     fy as f32,
@@ -777,6 +830,29 @@ impl StoreHeights {
                         v
                     },
                 );
+                row[k] = base;
+                let Some(detail) = detail.as_deref() else {
+                    return;
+                };
+                if !magnified || base.is_nan() {
+                    return;
+                }
+                let rough = match corners {
+                    Some((key, r)) if key == (level, cols) => r,
+                    _ => {
+                        let r = corner_roughness(taps);
+                        corners = Some(((level, cols), r));
+                        r
+                    }
+                };
+                let Some(r) = rough else {
+                    return;
+                };
+                let d = detail_sample(detail, spacing[level], r, (fx, fy), (lons[k], colat), texel);
+                row[k] = (f64::from(base) + d.height_m) as f32;
+                if let Some(s) = shade.as_deref_mut() {
+                    s[k] = d.shade as f32;
+                }
             },
         );
     }
@@ -789,8 +865,48 @@ impl HeightSource for StoreHeights {
         let owned = self.0.taps(&f);
         let taps: Taps<'_, f32> =
             std::array::from_fn(|r| std::array::from_fn(|c| owned[r][c].as_deref()));
-        height_from_taps(taps, f.fx as f32, f.fy as f32, magnified, self.1)
+        let base = height_from_taps(taps, f.fx as f32, f.fy as f32, magnified, self.1);
+        if !magnified || base.is_nan() {
+            return base;
+        }
+        let d0_m = self.spacing_m(f.id.level);
+        match (self.2.as_deref(), corner_roughness(taps)) {
+            (Some(detail), Some(r)) => {
+                let d = detail_sample(detail, d0_m, r, (f.fx, f.fy), (lon, colat), texel);
+                (f64::from(base) + d.height_m) as f32
+            }
+            _ => base,
+        }
     }
+}
+
+/// The data's roughness ([`plane_residual`]) at the four texels around a point, from the 4×4
+/// `taps` (none where any lacks data: the roughness is not known there).
+fn corner_roughness(taps: Taps<'_, f32>) -> Option<[f64; 4]> {
+    let mut h = [[0f32; 4]; 4];
+    for (r, row) in taps.iter().enumerate() {
+        for (c, t) in row.iter().enumerate() {
+            h[r][c] = tap_value(*t);
+            if h[r][c].is_nan() {
+                return None;
+            }
+        }
+    }
+    Some(corner_residuals(&h))
+}
+
+/// The detail at a point over data of row spacing `d0_m` whose four surrounding texels have
+/// roughness `corners`.
+fn detail_sample(
+    detail: &Detail,
+    d0_m: f64,
+    corners: [f64; 4],
+    (fx, fy): (f64, f64),
+    (lon, colat): (f64, f64),
+    texel: LevelWindow,
+) -> DetailSample {
+    let texel_m = detail.texel_m(texel.texel_colat, texel.texel_lon, colat);
+    detail.sample(lon, colat, d0_m, bilinear_roughness(corners, fx, fy), texel_m)
 }
 
 /// Fills height clipmap level `i` around `viewer` (`n × n`, toroidal order).

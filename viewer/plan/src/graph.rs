@@ -34,9 +34,24 @@
 //! gamma = 1.0               # 0.1 … 10
 //! saturation = 1.0          # 0 grey … 4
 //!
+//! [[source]]
+//! name = "rough"            # heights with detail below the data's resolution
+//! kind = "detail"
+//! input = "world"           # a store's heights
+//! seed = 1                  # every key below optional: the same seed, the same planet
+//! hurst = 0.8               # 0.1 … 1: a transect's spectrum falls as f^−(2·hurst + 1)
+//! amplitude = 1.0           # 0 … 4 times what the data's roughness implies
+//! color = 0.3               # 0 … 1: how much colours over it follow the synthesized ground
+//!
+//! [[source]]
+//! name = "painted"          # colours shaded by that detail (their local mean kept)
+//! kind = "detail"
+//! input = "graded"
+//! heights = "rough"
+//!
 //! [clipmaps]
-//! height = "heights"
-//! color = "graded"
+//! height = "rough"          # `--detail off` and the panel switch to the detail's input
+//! color = "painted"
 //!
 //! [atmosphere]              # optional: the sky's model (every key optional, Earth's default)
 //! mie_scattering = [2e-5, 2e-5, 2e-5]
@@ -47,7 +62,7 @@
 //! makes inputs first (depth-first). Normals are not a source: the fragment shader derives them
 //! from the height clipmap on the fly (no normal map is stored or streamed).
 //! The default graph of a store: its height layer (or a smooth sphere) and its colour layer
-//! through a neutral filter.
+//! through a neutral filter, each with detail (the heights' default settings) and without.
 
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, RwLock};
@@ -57,10 +72,11 @@ use serde::Deserialize;
 
 use crate::ViewError;
 use crate::atmosphere::Atmosphere;
+use crate::detail::{Detail, DetailParams};
 use crate::frame::StreamSources;
 use crate::stream::{
-    FnHeightTiles, StoreColorTiles, StoreHeightTiles, Streamer, Tile, TileData, TileError, TileKey,
-    TileSource,
+    DetailColorTiles, FnHeightTiles, StoreColorTiles, StoreHeightTiles, Streamer, Tile, TileData,
+    TileError, TileKey, TileSource,
 };
 
 /// The settings of a colour filter.
@@ -241,6 +257,20 @@ enum Decl {
         name: String,
         inputs: Vec<String>,
     },
+    Detail {
+        name: String,
+        input: String,
+        #[serde(default)]
+        heights: Option<String>,
+        #[serde(default)]
+        seed: Option<u64>,
+        #[serde(default)]
+        hurst: Option<f64>,
+        #[serde(default)]
+        amplitude: Option<f64>,
+        #[serde(default)]
+        color: Option<f64>,
+    },
     Filter {
         name: String,
         input: String,
@@ -282,6 +312,9 @@ pub struct Graph {
     pub names: Vec<String>,
     /// Which feed the clipmaps.
     pub clipmaps: StreamSources,
+    /// Which feed them with detail switched off (the clipmaps' detail sources' inputs; the same
+    /// as `clipmaps` where they synthesize none).
+    pub without_detail: StreamSources,
     /// The filters, for the panel.
     pub filters: Vec<FilterHandle>,
     /// The planet's radius (of the first store), metres.
@@ -319,6 +352,8 @@ pub struct StoreStreamer {
     pub streamer: Streamer,
     /// The sources of the height and colour clipmaps.
     pub sources: StreamSources,
+    /// Those with detail switched off (`sources` where the graph has none).
+    pub without_detail: StreamSources,
     /// Metres.
     pub radius: f64,
     /// The colour filters.
@@ -345,6 +380,7 @@ pub fn store_streamer(store: &Path, graph_file: Option<&Path>) -> Result<StoreSt
             TILE_CACHE_BUDGET,
         ),
         sources: graph.clipmaps,
+        without_detail: graph.without_detail,
         radius: graph.radius,
         filters: graph.filters,
         atmosphere: graph.atmosphere,
@@ -377,6 +413,10 @@ impl Graph {
                 height: 0,
                 color: None,
             },
+            without_detail: StreamSources {
+                height: 0,
+                color: None,
+            },
             filters: Vec::new(),
             radius,
             atmosphere: None,
@@ -394,9 +434,11 @@ impl Graph {
         let has = |k| !meta.levels(k).is_empty();
         let mut g = Graph::empty(radius);
         g.warnings = warnings;
+        let mut heights = None;
         if has(LayerKind::Height) {
-            g.sources
-                .push(Box::new(StoreHeightTiles::new(reader.clone())));
+            let h = StoreHeightTiles::new(reader.clone());
+            heights = Some(h.with_detail(Arc::new(Detail::new(DetailParams::default(), radius))));
+            g.sources.push(Box::new(h));
         } else {
             g.warnings.push(format!(
                 "{} has no height layer; rendering a smooth sphere",
@@ -422,6 +464,22 @@ impl Graph {
             });
             g.clipmaps.color = Some(2);
         }
+        g.without_detail = g.clipmaps;
+        if let Some(h) = heights {
+            let hi = g.sources.len() as u32;
+            let colour = g
+                .clipmaps
+                .color
+                .and_then(|c| DetailColorTiles::new(c, hi, &h).map(|d| (c, d)));
+            g.clipmaps.height = hi;
+            g.sources.push(Box::new(h));
+            g.names.push("height detail".into());
+            if let Some((_, d)) = colour {
+                g.clipmaps.color = Some(g.sources.len() as u32);
+                g.sources.push(Box::new(d));
+                g.names.push("color detail".into());
+            }
+        }
         Ok(g)
     }
 
@@ -446,6 +504,10 @@ impl Graph {
         g.atmosphere = file.atmosphere;
         // what each source makes
         let mut kinds: Vec<LayerKind> = Vec::new();
+        // per source: the store heights it samples (stores of heights and their details), and
+        // for a detail, its input
+        let mut stores: Vec<Option<StoreHeightTiles>> = Vec::new();
+        let mut detail_of: Vec<Option<u32>> = Vec::new();
         let find = |g: &Graph, name: &str, who: &str| -> Result<u32, String> {
             g.names
                 .iter()
@@ -459,8 +521,11 @@ impl Graph {
             let name = match &d {
                 Decl::Store { name, .. }
                 | Decl::Overlay { name, .. }
+                | Decl::Detail { name, .. }
                 | Decl::Filter { name, .. } => name.clone(),
             };
+            let mut store = None;
+            let mut detail_input = None;
             if g.names.contains(&name) {
                 return Err(format!("source `{name}` is declared twice"));
             }
@@ -481,12 +546,82 @@ impl Graph {
                         g.radius = reader.meta().radius_m;
                     }
                     match kind {
-                        LayerKind::Height => g
-                            .sources
-                            .push(Box::new(StoreHeightTiles::keeping_nodata(reader, true))),
+                        LayerKind::Height => {
+                            let h = StoreHeightTiles::keeping_nodata(reader, true);
+                            store = Some(h.with_detail_of(None));
+                            g.sources.push(Box::new(h));
+                        }
                         LayerKind::Color => g.sources.push(Box::new(StoreColorTiles::new(reader))),
                     }
                     kinds.push(kind);
+                }
+                Decl::Detail {
+                    input,
+                    heights,
+                    seed,
+                    hurst,
+                    amplitude,
+                    color,
+                    ..
+                } => {
+                    let i = find(&g, &input, &name)?;
+                    detail_input = Some(i);
+                    match (kinds[i as usize], heights) {
+                        (LayerKind::Height, None) => {
+                            let Some(base) = &stores[i as usize] else {
+                                return Err(format!(
+                                    "detail `{name}` needs the heights of a store, `{input}` is not one"
+                                ));
+                            };
+                            if detail_of[i as usize].is_some() {
+                                return Err(format!(
+                                    "detail `{name}`: `{input}` already has detail"
+                                ));
+                            }
+                            let d = DetailParams::default();
+                            let p = DetailParams {
+                                seed: seed.unwrap_or(d.seed),
+                                hurst: hurst.unwrap_or(d.hurst),
+                                amplitude: amplitude.unwrap_or(d.amplitude),
+                                color: color.unwrap_or(d.color),
+                            };
+                            p.check().map_err(|e| format!("detail `{name}`: {e}"))?;
+                            let radius = base.radius_m();
+                            let h = base.with_detail(Arc::new(Detail::new(p, radius)));
+                            store = Some(h.handle());
+                            g.sources.push(Box::new(h));
+                            kinds.push(LayerKind::Height);
+                        }
+                        (LayerKind::Height, Some(_)) => {
+                            return Err(format!(
+                                "detail `{name}`: `heights` is for a colour detail; `{input}` makes heights"
+                            ));
+                        }
+                        (LayerKind::Color, None) => {
+                            return Err(format!(
+                                "detail `{name}` over colours needs `heights`: the detail heights that shade them"
+                            ));
+                        }
+                        (LayerKind::Color, Some(h)) => {
+                            if seed.is_some() || hurst.is_some() || amplitude.is_some() || color.is_some()
+                            {
+                                return Err(format!(
+                                    "detail `{name}` over colours takes its settings from `{h}`"
+                                ));
+                            }
+                            let hi = find(&g, &h, &name)?;
+                            let shaded = stores[hi as usize]
+                                .as_ref()
+                                .and_then(|s| DetailColorTiles::new(i, hi, s))
+                                .ok_or_else(|| {
+                                    format!(
+                                        "detail `{name}`: `{h}` is not a detail over a store's heights"
+                                    )
+                                })?;
+                            g.sources.push(Box::new(shaded));
+                            kinds.push(LayerKind::Color);
+                        }
+                    }
                 }
                 Decl::Overlay { inputs, .. } => {
                     if inputs.is_empty() {
@@ -536,6 +671,8 @@ impl Graph {
                 }
             }
             g.names.push(name);
+            stores.push(store);
+            detail_of.push(detail_input);
         }
         let h = find(&g, &file.clipmaps.height, "[clipmaps] height")?;
         if kinds[h as usize] != LayerKind::Height {
@@ -552,6 +689,11 @@ impl Graph {
             }
             g.clipmaps.color = Some(c);
         }
+        let off = |s: u32| detail_of[s as usize].unwrap_or(s);
+        g.without_detail = StreamSources {
+            height: off(g.clipmaps.height),
+            color: g.clipmaps.color.map(off),
+        };
         if g.radius == 0.0 {
             return Err("no store declared".into());
         }

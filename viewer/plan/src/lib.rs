@@ -7,6 +7,7 @@
 pub mod atmosphere;
 pub mod camera;
 pub mod clipmap;
+pub mod detail;
 pub mod flight;
 pub mod frame;
 pub mod geometry;

@@ -29,6 +29,7 @@ use std::time::{Duration, Instant};
 use sc_store::StoreReader;
 
 use crate::clipmap::{LevelWindow, Placement, StoreColors, StoreHeights};
+use crate::detail::Detail;
 use crate::geometry::level_outer;
 
 /// A clipmap level's texel grid: level `level` (colatitude texel 2·outer(level)/N) and longitude
@@ -261,7 +262,39 @@ fn first_error<T>(data: T, errors: Vec<String>) -> Result<T, TileError> {
 pub struct StoreHeightTiles {
     reader: StoreReader,
     keep_nodata: bool,
+    detail: Option<Arc<Detail>>,
+    /// The colour shades made with the heights, until a [`DetailColorTiles`] takes them.
+    shades: Arc<ShadeStash>,
     pool: Pool<StoreHeights>,
+}
+
+/// Tiles of colour shade made in the same pass as their detail heights, kept for the colour
+/// source that asks for them next (it makes its tile right after the heights' tile, which is
+/// its input). Bounded: the oldest go first; a shade not found is made again.
+#[derive(Debug, Default)]
+struct ShadeStash {
+    wanted: std::sync::atomic::AtomicBool,
+    tiles: Mutex<std::collections::VecDeque<(TileKey, Arc<Vec<f32>>)>>,
+}
+
+/// Shade tiles a [`ShadeStash`] keeps (1 MiB each at 512²).
+const SHADE_STASH_TILES: usize = 32;
+
+impl ShadeStash {
+    fn put(&self, key: TileKey, shade: Vec<f32>) {
+        let mut t = self.tiles.lock().unwrap_or_else(|e| e.into_inner());
+        if t.len() >= SHADE_STASH_TILES {
+            t.pop_front();
+        }
+        t.push_back((key.with_source(0), Arc::new(shade)));
+    }
+
+    fn take(&self, key: TileKey) -> Option<Arc<Vec<f32>>> {
+        let mut t = self.tiles.lock().unwrap_or_else(|e| e.into_inner());
+        let k = key.with_source(0);
+        let i = t.iter().position(|(x, _)| *x == k)?;
+        t.remove(i).map(|(_, s)| s)
+    }
 }
 
 impl StoreHeightTiles {
@@ -275,25 +308,150 @@ impl StoreHeightTiles {
         Self {
             reader,
             keep_nodata: keep,
+            detail: None,
+            shades: Arc::default(),
             pool: Pool::new(),
         }
+    }
+
+    /// The same heights with `detail` synthesized below the data's resolution (the graph's
+    /// `detail` source over a store).
+    pub fn with_detail(&self, detail: Arc<Detail>) -> Self {
+        self.with_detail_of(Some(detail))
+    }
+
+    /// The same store's heights with `detail` (or none): what the graph keeps to derive detail
+    /// sources from.
+    pub fn with_detail_of(&self, detail: Option<Arc<Detail>>) -> Self {
+        Self {
+            reader: self.reader.clone(),
+            keep_nodata: self.keep_nodata,
+            detail,
+            shades: Arc::default(),
+            pool: Pool::new(),
+        }
+    }
+
+    /// The same source, sharing its samplers and its shades (the graph keeps it to derive a
+    /// colour detail from).
+    pub fn handle(&self) -> Self {
+        Self {
+            reader: self.reader.clone(),
+            keep_nodata: self.keep_nodata,
+            detail: self.detail.clone(),
+            shades: self.shades.clone(),
+            pool: Pool::new(),
+        }
+    }
+
+    /// The detail it synthesizes, if any.
+    pub fn detail(&self) -> Option<Arc<Detail>> {
+        self.detail.clone()
+    }
+
+    /// The store's planet radius, metres.
+    pub fn radius_m(&self) -> f64 {
+        self.reader.meta().radius_m
+    }
+
+    /// A new reader's heights as this source samples them.
+    fn sampler(&self) -> Result<StoreHeights, TileError> {
+        StoreHeights::new(self.reader.clone())
+            .map(|s| {
+                s.keep_nodata(self.keep_nodata)
+                    .with_detail(self.detail.clone())
+                    .with_cache_budget(POOLED_STORE_CACHE)
+            })
+            .ok_or(TileError::NoLevels("height"))
     }
 }
 
 impl TileSource for StoreHeightTiles {
     fn make(&self, key: &TileKey, n: u32, _: &[Tile]) -> Result<TileData, TileError> {
-        let create = || {
-            StoreHeights::new(self.reader.clone())
-                .map(|s| {
-                    s.keep_nodata(self.keep_nodata)
-                        .with_cache_budget(POOLED_STORE_CACHE)
-                })
-                .ok_or(TileError::NoLevels("height"))
+        if self.detail.is_some() && self.shades.wanted.load(Ordering::Relaxed) {
+            let (height, shade) = self.heights_and_shade(key, n)?;
+            self.shades.put(*key, shade);
+            return Ok(TileData::Height(height));
+        }
+        self.pool.with(
+            || self.sampler(),
+            |src| {
+                let data = sample_rows(key, n, 1, |l, c, w, out| src.fill_row(l, c, w, out));
+                first_error(TileData::Height(data), src.take_errors())
+            },
+        )?
+    }
+}
+
+impl StoreHeightTiles {
+    /// A tile's heights and its colour shade, in one pass.
+    fn heights_and_shade(&self, key: &TileKey, n: u32) -> Result<(Vec<f32>, Vec<f32>), TileError> {
+        self.pool.with(
+            || self.sampler(),
+            |src| {
+                let mut shade = Vec::with_capacity((n * n) as usize);
+                let data = sample_rows(key, n, 1, |l, c, w, out| {
+                    src.fill_row_and_shade(l, c, w, out, &mut shade)
+                });
+                first_error((data, shade), src.take_errors())
+            },
+        )?
+    }
+}
+
+/// A colour source's tiles shaded by the detail a height source synthesizes there: each texel's
+/// linear colour times [`Detail::color_factor`] of the synthesized ground's shade (1 where there
+/// is no detail), alpha kept.
+#[derive(Debug)]
+pub struct DetailColorTiles {
+    /// The colour source shaded.
+    pub input: u32,
+    /// The detail heights source whose shade it takes (made first, its shade kept for this).
+    pub heights_source: u32,
+    heights: StoreHeightTiles,
+    detail: Arc<Detail>,
+}
+
+impl DetailColorTiles {
+    /// Shades `input`'s colours by the detail that `heights` (source `heights_source`, which
+    /// must synthesize some) makes.
+    pub fn new(input: u32, heights_source: u32, heights: &StoreHeightTiles) -> Option<Self> {
+        let detail = heights.detail.clone()?;
+        heights.shades.wanted.store(true, Ordering::Relaxed);
+        Some(Self {
+            input,
+            heights_source,
+            heights: heights.handle(),
+            detail,
+        })
+    }
+}
+
+impl TileSource for DetailColorTiles {
+    fn inputs(&self) -> Vec<u32> {
+        vec![self.input, self.heights_source]
+    }
+
+    fn make(&self, key: &TileKey, n: u32, inputs: &[Tile]) -> Result<TileData, TileError> {
+        let Some(TileData::Color(c)) = inputs.first().map(|t| &**t) else {
+            return Err(TileError::Inputs("a colour detail needs a colour input"));
         };
-        self.pool.with(create, |src| {
-            let data = sample_rows(key, n, 1, |l, c, w, out| src.fill_row(l, c, w, out));
-            first_error(TileData::Height(data), src.take_errors())
-        })?
+        let shade = match self.heights.shades.take(*key) {
+            Some(s) => s,
+            // the heights' tile was made long ago (cached): make its shade again
+            None => Arc::new(self.heights.heights_and_shade(key, n)?.1),
+        };
+        let mut out = c.clone();
+        for (px, &q) in out.chunks_exact_mut(4).zip(shade.iter()) {
+            if q == 0.0 {
+                continue;
+            }
+            let f = self.detail.color_factor(f64::from(q)) as f32;
+            for v in &mut px[..3] {
+                *v = sc_core::color::linear_to_srgb(sc_core::color::srgb_byte_to_linear(*v) * f);
+            }
+        }
+        Ok(TileData::Color(out))
     }
 }
 

@@ -41,6 +41,9 @@ pub struct ViewOptions {
     pub title: String,
     /// The graph's colour filters, edited live from the panel.
     pub filters: Vec<FilterHandle>,
+    /// The clipmaps' sources with detail and without, when the graph synthesizes detail (the
+    /// panel switches between them).
+    pub detail: Option<(StreamSources, StreamSources)>,
     /// A scripted camera (a flight) instead of mouse and keys.
     pub script: Option<CameraScript>,
     /// Shading, vertical scale and the sun at the start (the panel changes them).
@@ -56,6 +59,7 @@ impl std::fmt::Debug for ViewOptions {
             .field("screenshot", &self.screenshot)
             .field("title", &self.title)
             .field("filters", &self.filters.len())
+            .field("detail", &self.detail)
             .field("script", &self.script.is_some())
             .field("draw", &self.draw)
             .finish()
@@ -332,6 +336,8 @@ impl App<'_> {
             .collect();
         let before: Vec<FilterParams> = filters.iter().map(|f| f.1).collect();
         let (fps, cpu_avg, adapter) = (self.fps, self.cpu_avg, self.report.adapter.clone());
+        let detail_sources = self.opts.detail;
+        let mut detail = detail_sources.is_some_and(|(on, _)| on == self.sources);
         let out = gpu.egui_ctx.run_ui(raw, |ui| {
             egui::Window::new("sphereclip")
                 .default_pos((10.0, 10.0))
@@ -379,6 +385,10 @@ impl App<'_> {
                     let mut air = options.atmosphere.is_some();
                     ui.add_enabled(options.lit, egui::Checkbox::new(&mut air, "atmosphere"));
                     options.atmosphere = (air && options.lit).then_some(air_model);
+                    ui.add_enabled(
+                        detail_sources.is_some(),
+                        egui::Checkbox::new(&mut detail, "detail below the data"),
+                    );
                     ui.add(
                         egui::Slider::new(&mut options.exaggeration, 0.1..=50.0)
                             .logarithmic(true)
@@ -420,6 +430,14 @@ impl App<'_> {
         }
         self.controller.speed = speed;
         gpu.pass.options = options;
+        // detail switched: the clipmaps refill from the other sources (their tiles may be cached)
+        if let Some((on, off)) = detail_sources {
+            let want = if detail { on } else { off };
+            if want != self.sources {
+                self.sources = want;
+                gpu.pass.invalidate(&[LayerKind::Height, LayerKind::Color]);
+            }
+        }
         // an edited filter: drop its tiles and what derives from them; only the visible ones
         // are made again (the next frames ask for them)
         for (f, ((_, new), old)) in self.opts.filters.iter().zip(filters.iter().zip(&before)) {

@@ -9,18 +9,30 @@ use sc_view_gpu::render::Renderer;
 use sc_view_plan::graph::default_workers;
 
 use super::streamer_for;
+use crate::cli::{LookArgs, OnOff};
 
 /// Flies the flight file `flight_path` over `store` headless at `size`; writes the statistics
 /// (JSON) to `out` and returns them.
-pub fn run(store: &Path, flight_path: &Path, (w, h): (u32, u32), out: &Path) -> Result<Stats> {
+pub fn run(
+    store: &Path,
+    flight_path: &Path,
+    (w, h): (u32, u32),
+    out: &Path,
+    look: &LookArgs,
+) -> Result<Stats> {
     let flight = sc_view_plan::flight::parse(flight_path)?;
     super::check_output_file(out, "--stats")?;
     let s = streamer_for(store, None)?;
+    let sources = if look.detail == OnOff::On {
+        s.sources
+    } else {
+        s.without_detail
+    };
     let mut r = Renderer::headless(w, h, s.radius)?;
     let stats = fly(
         &mut r,
         &s.streamer,
-        s.sources,
+        sources,
         &flight,
         (s.radius, default_workers()),
         &store.display().to_string(),

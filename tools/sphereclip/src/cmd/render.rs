@@ -10,13 +10,13 @@ use sc_view_plan::camera::Camera;
 use sc_core::stats::{median, percentile};
 
 use super::{parse_size, streamer_for};
-use crate::cli::RenderArgs;
+use crate::cli::{OnOff, RenderArgs};
 
 /// Runs `render`.
 pub fn run(a: &RenderArgs) -> Result<ExitCode> {
     let (w, h) = parse_size(&a.size)?;
     if let (Some(flight), Some(stats)) = (&a.flight, &a.stats) {
-        let s = super::flight::run(&a.store, flight, (w, h), stats)?;
+        let s = super::flight::run(&a.store, flight, (w, h), stats, &a.look)?;
         for alt in &s.altitudes {
             crate::outln!(
                 "{:>10}: best {} altitudes/s",
@@ -58,10 +58,16 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
     let sc_view_plan::graph::StoreStreamer {
         streamer,
         sources,
+        without_detail,
         radius,
         atmosphere,
         ..
     } = streamer_for(&a.store, a.sources.as_deref())?;
+    let sources = if a.look.detail == OnOff::On {
+        sources
+    } else {
+        without_detail
+    };
     // a still picture: each level whole as soon as it is drawn
     let options = sc_view_plan::frame::DrawOptions {
         fade_in: false,

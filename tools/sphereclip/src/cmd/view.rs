@@ -11,7 +11,7 @@ use sc_view_plan::graph::StoreStreamer;
 use sc_view_window::{ViewOptions, view};
 
 use super::{parse_size, streamer_for};
-use crate::cli::ViewArgs;
+use crate::cli::{OnOff, ViewArgs};
 
 /// Runs `view`.
 pub fn run(a: &ViewArgs) -> Result<ExitCode> {
@@ -31,6 +31,7 @@ pub fn run(a: &ViewArgs) -> Result<ExitCode> {
     let StoreStreamer {
         streamer,
         sources,
+        without_detail,
         radius,
         filters,
         atmosphere,
@@ -46,6 +47,12 @@ pub fn run(a: &ViewArgs) -> Result<ExitCode> {
         );
     }
     let title = format!("sphereclip — {}", a.store.display());
+    let detail = (sources != without_detail).then_some((sources, without_detail));
+    let sources = if a.look.detail == OnOff::On {
+        sources
+    } else {
+        without_detail
+    };
     let report = view(
         &streamer,
         sources,
@@ -57,6 +64,7 @@ pub fn run(a: &ViewArgs) -> Result<ExitCode> {
             screenshot: a.screenshot.clone(),
             title,
             filters,
+            detail,
             script: flight.map(|f| flight::script(f, radius)),
             draw,
         },

@@ -1,0 +1,452 @@
+//! Procedural detail below the data's resolution (clipmap-data-synthesis §4: detail synthesizers
+//! as sources of the image-source graph; geometry-image warping §4: band-limited noise octaves
+//! from the first frequency the data cannot represent).
+//!
+//! - **The field.** Octave i is 3-D gradient noise of lattice spacing λᵢ = d₀·2⁻ⁱ (d₀: the row
+//!   spacing of the finest store level with data at the point) evaluated at the point of the
+//!   sphere in metres, so it has no seam anywhere: not at the antimeridian, a pole, a tile, shard
+//!   or clipmap border. Each octave has its own rotation and offset of the lattice (nested
+//!   lattices would otherwise all vanish on the same points) from the seed; the hash is of the
+//!   integer lattice point, so the field never repeats (a 256-cell permutation table would, every
+//!   2.56 m at 1 cm).
+//! - **Amplitude.** Octave i has standard deviation a₀·2^(−H·i): H the Hurst exponent (the
+//!   spectral slope β = 2H + 1 of a transect), a₀ from the data's own roughness at the point
+//!   (the RMS residual of a plane fitted to each 3×3 data neighbourhood, at the four data texels
+//!   around the point, bilinear between them so the amplitude is continuous), scaled by the
+//!   ratio a self-similar field of the same noise shows between its next octave and that
+//!   residual (`Detail::new` measures it once). Flat plains get none, mountains a lot.
+//! - **Band.** A clipmap texel of ground size t carries octave i fully when λᵢ ≥ 4t, fades it in
+//!   between 2t and 4t (the boundary octave: the mesh, which takes its heights from a coarser
+//!   clipmap level, carries it partly, the per-pixel normals of the finer level fully), and
+//!   leaves it out below 2t (it would alias). The split octave of geometry-image warping §4 comes
+//!   from the clipmap itself: ring k's vertices read level k − 1, its fragments' normals the level
+//!   whose texels match the pixel, so octaves the mesh cannot carry shade the pixels.
+//! - **Colour.** A shade q = Σ wᵢ·aᵢ·nᵢ/λᵢ (each octave's relative height over its wavelength:
+//!   a slope) drives a symmetric modulation 1 + c·tanh(2q) of the linear colour: bumps lighter,
+//!   hollows darker, more so where the synthesized ground is steep; its mean is 1, so the
+//!   colour's local mean stays what the data says.
+
+use std::f64::consts::PI;
+
+use serde::Deserialize;
+
+/// How detail is synthesized (the `detail` source of the graph; every key optional).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct DetailParams {
+    /// Seeds the noise: the same seed makes the same planet.
+    pub seed: u64,
+    /// The Hurst exponent H, 0.1 … 1 (a transect's power spectrum falls as f^−(2H+1)).
+    pub hurst: f64,
+    /// Scales the amplitude the data implies, 0 … 4.
+    pub amplitude: f64,
+    /// How much the colour follows the synthesized ground, 0 … 1.
+    pub color: f64,
+}
+
+impl Default for DetailParams {
+    fn default() -> Self {
+        Self {
+            seed: 1,
+            hurst: 0.8,
+            amplitude: 1.0,
+            color: 0.3,
+        }
+    }
+}
+
+impl DetailParams {
+    /// Out-of-range settings, in words.
+    pub fn check(&self) -> Result<(), String> {
+        let ok = (0.1..=1.0).contains(&self.hurst)
+            && (0.0..=4.0).contains(&self.amplitude)
+            && (0.0..=1.0).contains(&self.color);
+        if ok {
+            Ok(())
+        } else {
+            Err(format!(
+                "detail settings out of range (hurst 0.1..1, amplitude 0..4, color 0..1): {self:?}"
+            ))
+        }
+    }
+}
+
+/// Most octaves a texel sums (d₀ / 2^MAX_OCTAVES is below a millimetre for SRTM1).
+pub const MAX_OCTAVES: u32 = 24;
+
+/// The standard deviation of [`gradient_noise`] over space (measured; a test checks it).
+pub const NOISE_STD: f64 = 0.0051;
+
+#[inline(always)]
+fn mix(mut z: u64) -> u64 {
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+#[inline(always)]
+fn hash3(x: i64, y: i64, z: i64, seed: u64) -> u64 {
+    mix(seed
+        ^ (x as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15)
+        ^ (y as u64).wrapping_mul(0xc2b2_ae3d_27d4_eb4f)
+        ^ (z as u64).wrapping_mul(0x1656_67b1_9e37_79f9))
+}
+
+/// Perlin's gradients: the twelve cube edges, four of them twice (indexed by a hash's top 4
+/// bits: a table, not a branch the CPU would mispredict half the time).
+const GRADIENTS: [[f64; 3]; 16] = [
+    [1.0, 1.0, 0.0],
+    [-1.0, 1.0, 0.0],
+    [1.0, -1.0, 0.0],
+    [-1.0, -1.0, 0.0],
+    [1.0, 0.0, 1.0],
+    [-1.0, 0.0, 1.0],
+    [1.0, 0.0, -1.0],
+    [-1.0, 0.0, -1.0],
+    [0.0, 1.0, 1.0],
+    [0.0, -1.0, 1.0],
+    [0.0, 1.0, -1.0],
+    [0.0, -1.0, -1.0],
+    [1.0, 1.0, 0.0],
+    [0.0, -1.0, 1.0],
+    [-1.0, 1.0, 0.0],
+    [0.0, -1.0, -1.0],
+];
+
+/// ⌊v⌋ as an integer (without a libm call where the target lacks SSE4.1's rounding).
+#[inline(always)]
+fn floor_i64(v: f64) -> i64 {
+    let i = v as i64;
+    i - i64::from((i as f64) > v)
+}
+
+/// Simplex noise in 3-D (Perlin 2001, in Gustavson's formulation, with the kernel radius² ½
+/// that makes it C² and a hashed lattice) at `p` in lattice units: zero at the lattice points,
+/// mean 0, standard deviation [`NOISE_STD`]. Four corners a point (gradient noise on the cubic
+/// lattice takes eight).
+#[inline]
+pub fn gradient_noise(p: [f64; 3], seed: u64) -> f64 {
+    const F3: f64 = 1.0 / 3.0;
+    const G3: f64 = 1.0 / 6.0;
+    let s = (p[0] + p[1] + p[2]) * F3;
+    let [i, j, k] = [
+        floor_i64(p[0] + s),
+        floor_i64(p[1] + s),
+        floor_i64(p[2] + s),
+    ];
+    let t = (i + j + k) as f64 * G3;
+    let d0 = [
+        p[0] - (i as f64 - t),
+        p[1] - (j as f64 - t),
+        p[2] - (k as f64 - t),
+    ];
+    // the simplex holding the point: the corners' offsets by the order of d0's components
+    // (without branches: which comes first is a coin toss for the CPU)
+    let xy = i64::from(d0[0] >= d0[1]);
+    let yz = i64::from(d0[1] >= d0[2]);
+    let xz = i64::from(d0[0] >= d0[2]);
+    let o1 = [xy & xz, (1 - xy) & yz, (1 - xz) & (1 - yz)];
+    let o2 = [xy | xz, (1 - xy) | yz, (1 - xz) | (1 - yz)];
+    #[inline(always)]
+    fn corner(d0: [f64; 3], c: [i64; 3], o: [i64; 3], g: f64, seed: u64) -> f64 {
+        let d = [
+            d0[0] - o[0] as f64 + g,
+            d0[1] - o[1] as f64 + g,
+            d0[2] - o[2] as f64 + g,
+        ];
+        let w = 0.5 - d[0] * d[0] - d[1] * d[1] - d[2] * d[2];
+        if w <= 0.0 {
+            return 0.0;
+        }
+        let w2 = w * w;
+        let gr = GRADIENTS[(hash3(c[0] + o[0], c[1] + o[1], c[2] + o[2], seed) >> 60) as usize];
+        w2 * w2 * (gr[0] * d[0] + gr[1] * d[1] + gr[2] * d[2])
+    }
+    let c = [i, j, k];
+    let corner = |o: [i64; 3], g: f64| corner(d0, c, o, g, seed);
+    corner([0, 0, 0], 0.0) + corner(o1, G3) + corner(o2, 2.0 * G3) + corner([1, 1, 1], 3.0 * G3)
+}
+
+/// A rotation and offset of one octave's lattice.
+#[derive(Debug, Clone, Copy)]
+struct Frame {
+    rot: [[f64; 3]; 3],
+    offset: [f64; 3],
+    seed: u64,
+}
+
+impl Frame {
+    fn new(seed: u64, octave: u32) -> Self {
+        let s = mix(seed ^ mix(u64::from(octave) + 0x5851_f42d_4c95_7f2d));
+        let u = |k: u64| (mix(s ^ k) >> 11) as f64 / (1u64 << 53) as f64;
+        // a uniformly random rotation from a random unit quaternion (Shoemake)
+        let (u1, u2, u3) = (u(1), 2.0 * PI * u(2), 2.0 * PI * u(3));
+        let (a, b) = ((1.0 - u1).sqrt(), u1.sqrt());
+        let (qx, qy, qz, qw) = (a * u2.sin(), a * u2.cos(), b * u3.sin(), b * u3.cos());
+        let rot = [
+            [
+                1.0 - 2.0 * (qy * qy + qz * qz),
+                2.0 * (qx * qy - qz * qw),
+                2.0 * (qx * qz + qy * qw),
+            ],
+            [
+                2.0 * (qx * qy + qz * qw),
+                1.0 - 2.0 * (qx * qx + qz * qz),
+                2.0 * (qy * qz - qx * qw),
+            ],
+            [
+                2.0 * (qx * qz - qy * qw),
+                2.0 * (qy * qz + qx * qw),
+                1.0 - 2.0 * (qx * qx + qy * qy),
+            ],
+        ];
+        Self {
+            rot,
+            offset: [u(4), u(5), u(6)],
+            seed: mix(s ^ 7),
+        }
+    }
+
+    /// The octave's noise at `p` (metres) with lattice spacing `lambda` (metres).
+    #[inline]
+    fn noise(&self, p: [f64; 3], lambda: f64) -> f64 {
+        let r = &self.rot;
+        let k = 1.0 / lambda;
+        let q: [f64; 3] = std::array::from_fn(|i| {
+            (r[i][0] * p[0] + r[i][1] * p[1] + r[i][2] * p[2]) * k + self.offset[i]
+        });
+        gradient_noise(q, self.seed) / NOISE_STD
+    }
+}
+
+/// The data's roughness at one data texel: the RMS residual of the plane fitted to its 3×3
+/// neighbourhood (`h[row][column]`, rows and columns one texel apart).
+pub fn plane_residual(h: [[f32; 3]; 3]) -> f64 {
+    let mut m = 0.0;
+    let (mut bx, mut by) = (0.0, 0.0);
+    for (r, row) in h.iter().enumerate() {
+        for (c, &v) in row.iter().enumerate() {
+            let v = f64::from(v);
+            m += v;
+            bx += (c as f64 - 1.0) * v;
+            by += (r as f64 - 1.0) * v;
+        }
+    }
+    let (m, bx, by) = (m / 9.0, bx / 6.0, by / 6.0);
+    let mut e2 = 0.0;
+    for (r, row) in h.iter().enumerate() {
+        for (c, &v) in row.iter().enumerate() {
+            let e = f64::from(v) - m - bx * (c as f64 - 1.0) - by * (r as f64 - 1.0);
+            e2 += e * e;
+        }
+    }
+    (e2 / 9.0).sqrt()
+}
+
+/// The data's roughness at the four data texels around a point from the 4×4 texels around it
+/// (`taps[row][column]`, the point between `[1..=2][1..=2]`): [`plane_residual`] at each, in
+/// the order north-west, north-east, south-west, south-east. Each corner's value depends on its
+/// own neighbourhood only, so [`bilinear_roughness`] is continuous across data texels, tiles and
+/// levels.
+pub fn corner_residuals(taps: &[[f32; 4]; 4]) -> [f64; 4] {
+    let corner = |r0: usize, c0: usize| {
+        plane_residual(std::array::from_fn(|r| {
+            std::array::from_fn(|c| taps[r0 + r][c0 + c])
+        }))
+    };
+    [corner(0, 0), corner(0, 1), corner(1, 0), corner(1, 1)]
+}
+
+/// The roughness at fractions `fx`, `fy` between the four corners of [`corner_residuals`].
+pub fn bilinear_roughness([a, b, c, d]: [f64; 4], fx: f64, fy: f64) -> f64 {
+    let top = a + (b - a) * fx;
+    let bottom = c + (d - c) * fx;
+    top + (bottom - top) * fy
+}
+
+/// One point's detail: the height added and the colour's shade.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct DetailSample {
+    /// Metres added to the data's height.
+    pub height_m: f64,
+    /// Σ wᵢ·aᵢ·nᵢ/λᵢ (a slope), the colour's driver.
+    pub shade: f64,
+}
+
+/// The detail synthesizer of one planet (see the module documentation).
+#[derive(Debug, Clone)]
+pub struct Detail {
+    params: DetailParams,
+    radius_m: f64,
+    frames: Vec<Frame>,
+    /// a₀ per metre of the data's plane residual.
+    gain: f64,
+}
+
+impl Detail {
+    /// The synthesizer for a planet of `radius_m` metres.
+    pub fn new(params: DetailParams, radius_m: f64) -> Self {
+        let frames = (0..MAX_OCTAVES)
+            .map(|i| Frame::new(params.seed, i))
+            .collect();
+        let mut d = Self {
+            params,
+            radius_m,
+            frames,
+            gain: 1.0,
+        };
+        d.gain = d.calibrate();
+        d
+    }
+
+    /// Its settings.
+    pub fn params(&self) -> &DetailParams {
+        &self.params
+    }
+
+    /// The ratio between the amplitude of the next octave of a self-similar field made of this
+    /// noise and the mean plane residual that field shows on its own grid: data that continue
+    /// like the noise get detail that continues them. Deterministic (a fixed set of points).
+    fn calibrate(&self) -> f64 {
+        let h = self.params.hurst;
+        // "data" of spacing 1: octaves of lattice 2^j, j = 1 … 10, amplitude 2^(H·j); the next
+        // octave (j = 0) would have amplitude 1
+        let frames: Vec<Frame> = (0..10).map(|j| Frame::new(0xca1b, j)).collect();
+        let field = |x: f64, y: f64| -> f32 {
+            let p = [x, y, 0.5];
+            frames
+                .iter()
+                .enumerate()
+                .map(|(j, f)| {
+                    let j = j as i32 + 1;
+                    2f64.powf(h * f64::from(j)) * f.noise(p, 2f64.powi(j))
+                })
+                .sum::<f64>() as f32
+        };
+        let mut sum = 0.0;
+        let count = 400;
+        for k in 0..count {
+            let (x0, y0) = (f64::from(k % 20) * 97.3, f64::from(k / 20) * 101.9);
+            let taps: [[f32; 3]; 3] = std::array::from_fn(|r| {
+                std::array::from_fn(|c| field(x0 + c as f64, y0 + r as f64))
+            });
+            sum += plane_residual(taps);
+        }
+        f64::from(count) / sum
+    }
+
+    /// The ground size of a clipmap texel (radians of colatitude and longitude) at colatitude
+    /// `colat`: the larger side, metres.
+    pub fn texel_m(&self, texel_colat: f64, texel_lon: f64, colat: f64) -> f64 {
+        (texel_colat.max(texel_lon * colat.sin().abs())) * self.radius_m
+    }
+
+    /// The point of the sphere at (`lon`, `colat`), metres (colatitudes beyond a pole are the
+    /// other side: the same point from both sides).
+    pub fn point_m(&self, lon: f64, colat: f64) -> [f64; 3] {
+        let (st, ct) = colat.sin_cos();
+        let (sl, cl) = lon.sin_cos();
+        [
+            self.radius_m * st * cl,
+            self.radius_m * st * sl,
+            self.radius_m * ct,
+        ]
+    }
+
+    /// The weight of octave `i` (lattice `lambda_m`) in a texel of `texel_m`: 1 at λ ≥ 4t,
+    /// 0 at λ ≤ 2t, log-linear between.
+    pub fn octave_weight(lambda_m: f64, texel_m: f64) -> f64 {
+        ((lambda_m / (2.0 * texel_m)).log2()).clamp(0.0, 1.0)
+    }
+
+    /// The detail at (`lon`, `colat`) over data of row spacing `d0_m` whose roughness there is
+    /// `residual_m` ([`roughness`]), for a clipmap texel of ground size `texel_m`.
+    pub fn sample(
+        &self,
+        lon: f64,
+        colat: f64,
+        d0_m: f64,
+        residual_m: f64,
+        texel_m: f64,
+    ) -> DetailSample {
+        let a0 = self.gain * residual_m * self.params.amplitude;
+        if a0 <= 0.0 || !a0.is_finite() || d0_m < 2.0 * texel_m {
+            return DetailSample::default();
+        }
+        let p = self.point_m(lon, colat);
+        let step = 2f64.powf(-self.params.hurst);
+        let (mut height, mut shade) = (0.0, 0.0);
+        let (mut lambda, mut a) = (d0_m, a0);
+        for f in &self.frames {
+            // λ ≥ 4t: whole (no log to take)
+            let w = if lambda >= 4.0 * texel_m {
+                1.0
+            } else {
+                Self::octave_weight(lambda, texel_m)
+            };
+            if w <= 0.0 {
+                break;
+            }
+            let n = w * a * f.noise(p, lambda);
+            height += n;
+            shade += n / lambda;
+            lambda *= 0.5;
+            a *= step;
+        }
+        DetailSample {
+            height_m: height,
+            shade,
+        }
+    }
+
+    /// The colour factor (linear light) for a shade: 1 + c·tanh(2q), mean 1 over symmetric q.
+    pub fn color_factor(&self, shade: f64) -> f64 {
+        1.0 + self.params.color * (2.0 * shade).tanh()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_noise_has_the_stated_spread_and_no_mean() {
+        let (mut s, mut s2) = (0.0, 0.0);
+        let n = 200_000;
+        for k in 0..n {
+            let k = f64::from(k);
+            let v = gradient_noise([k * 0.618_034, k * 0.414_214 + 3.1, k * 0.732_051], 9);
+            s += v;
+            s2 += v * v;
+        }
+        let mean = s / f64::from(n);
+        let std = (s2 / f64::from(n) - mean * mean).sqrt();
+        assert!(mean.abs() < 0.005, "mean {mean}");
+        assert!((std / NOISE_STD - 1.0).abs() < 0.03, "std {std}");
+    }
+
+    #[test]
+    fn a_plane_has_no_roughness() {
+        let h: [[f32; 3]; 3] =
+            std::array::from_fn(|r| std::array::from_fn(|c| 100.0 + 3.0 * c as f32 - 7.0 * r as f32));
+        assert!(plane_residual(h) < 1e-5);
+        let taps: [[f32; 4]; 4] = std::array::from_fn(|r| std::array::from_fn(|c| 2.0 * (r + c) as f32));
+        assert!(bilinear_roughness(corner_residuals(&taps), 0.3, 0.8) < 1e-5);
+        let d = Detail::new(DetailParams::default(), 6.371e6);
+        assert_eq!(d.sample(0.1, 1.0, 90.0, 0.0, 0.01), DetailSample::default());
+    }
+
+    #[test]
+    fn the_gain_is_stable() {
+        for h in [0.3, 0.5, 0.8, 1.0] {
+            let d = Detail::new(
+                DetailParams {
+                    hurst: h,
+                    ..DetailParams::default()
+                },
+                6.371e6,
+            );
+            assert!(d.gain > 0.2 && d.gain < 5.0, "H {h}: gain {}", d.gain);
+        }
+    }
+}
