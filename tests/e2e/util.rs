@@ -296,7 +296,8 @@ pub fn global_raster(dst: &Path, args: &[&str]) {
 }
 
 /// `sphereclip render STORE --camera CAMERA --size SIZE --out OUT --clear 1,0,1 --atmosphere off
-/// EXTRA…` (space magenta, the terrain not seen through air), the picture read back.
+/// --detail off EXTRA…` (space magenta, the terrain not seen through air, the data alone), the
+/// picture read back.
 pub fn render_png(
     store: &Path,
     out: &Path,
@@ -316,6 +317,8 @@ pub fn render_png(
         "--clear",
         "1,0,1",
         "--atmosphere",
+        "off",
+        "--detail",
         "off",
     ];
     args.extend_from_slice(extra);

@@ -906,7 +906,13 @@ fn detail_sample(
     texel: LevelWindow,
 ) -> DetailSample {
     let texel_m = detail.texel_m(texel.texel_colat, texel.texel_lon, colat);
-    detail.sample(lon, colat, d0_m, bilinear_roughness(corners, fx, fy), texel_m)
+    detail.sample(
+        lon,
+        colat,
+        d0_m,
+        bilinear_roughness(corners, fx, fy),
+        texel_m,
+    )
 }
 
 /// Fills height clipmap level `i` around `viewer` (`n × n`, toroidal order).

@@ -603,7 +603,10 @@ impl Graph {
                             ));
                         }
                         (LayerKind::Color, Some(h)) => {
-                            if seed.is_some() || hurst.is_some() || amplitude.is_some() || color.is_some()
+                            if seed.is_some()
+                                || hurst.is_some()
+                                || amplitude.is_some()
+                                || color.is_some()
                             {
                                 return Err(format!(
                                     "detail `{name}` over colours takes its settings from `{h}`"
