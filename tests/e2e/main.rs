@@ -3,6 +3,7 @@
 
 mod build;
 mod cluster;
+mod detail;
 mod fidelity;
 mod golden;
 mod ingest;

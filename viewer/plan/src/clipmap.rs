@@ -14,7 +14,7 @@ use std::sync::Arc;
 use sc_core::{GridSpec, LevelId, TileId};
 use sc_store::{LayerKind, StoreReader, TileRead, TileSample};
 
-use crate::detail::{Detail, DetailSample, bilinear_roughness, corner_residuals};
+use crate::detail::{Detail, bilinear_roughness, corner_residuals};
 use crate::geometry::level_outer;
 use crate::transform::Viewer;
 
@@ -364,6 +364,45 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
         }
     }
 
+    /// [`Self::locate_present`] from the levels up to index `cap`; with the level's index.
+    fn locate_present_in(
+        &mut self,
+        lon: f64,
+        colat: f64,
+        win: LevelWindow,
+        cap: usize,
+    ) -> (Footprint, usize) {
+        let mut cap = cap;
+        loop {
+            let (f, idx) = self.locate_in(lon, colat, win, cap);
+            if idx == 0 || self.present(&f) {
+                return (f, idx);
+            }
+            cap = idx - 1;
+        }
+    }
+
+    /// The index of stored level `level` in [`Self::levels`].
+    fn index_of(&self, level: u32) -> usize {
+        self.levels
+            .iter()
+            .position(|(l, _)| *l == level)
+            .unwrap_or(0)
+    }
+
+    /// A texel that the stored level of index `idx` serves itself, isotropically (its rows'
+    /// and columns' spacing).
+    fn level_texel(&self, idx: usize) -> LevelWindow {
+        let id = LevelId {
+            level: self.levels[idx].0,
+            aniso: 0,
+        };
+        LevelWindow {
+            texel_colat: PI / self.grid.height(id) as f64 * (1.0 + 1e-9),
+            texel_lon: 2.0 * PI / self.grid.width(id) as f64,
+        }
+    }
+
     /// Whether the four corners of a footprint hold data (their tiles exist and the texels are
     /// not nodata).
     fn present(&mut self, f: &Footprint) -> bool {
@@ -435,7 +474,7 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
     /// the row's level (no tile, or a nodata texel) are sampled again from the next coarser level.
     fn sample_row(&mut self, lons: &[f64], colat: f64, win: LevelWindow, emit: &mut EmitFn<'_, T>) {
         let all: Vec<usize> = (0..lons.len()).collect();
-        self.sample_points(lons, &all, colat, win, self.levels.len() - 1, emit);
+        self.sample_points(lons, &all, colat, win, self.levels.len() - 1, false, emit);
     }
 
     /// Whether level `id`'s rows are farther apart than a clipmap texel of `win` (the data is
@@ -444,6 +483,9 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
         PI / self.grid.height(id) as f64 > win.texel_colat * (1.0 + 1e-9)
     }
 
+    /// [`Self::sample_row`] for the points `which` of `lons`, from the levels up to index `cap`;
+    /// with `all_taps`, the 4×4 taps even where the level is not magnified.
+    #[allow(clippy::too_many_arguments)]
     fn sample_points(
         &mut self,
         lons: &[f64],
@@ -451,6 +493,7 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
         colat: f64,
         win: LevelWindow,
         cap: usize,
+        all_taps: bool,
         emit: &mut EmitFn<'_, T>,
     ) {
         let Some(&first) = which.first() else {
@@ -459,6 +502,7 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
         let (f, idx) = self.locate_in(lons[first], colat, win, cap);
         // only heights are interpolated from more than their four corners
         let magnified = T::KIND == LayerKind::Height && self.magnified(f.id, win);
+        let outer = magnified || all_taps;
         let (_, _, flip) = sc_core::pole::fold_lon_colat(0.0, colat);
         // the points' columns in this level: the same for every row of a tile, so a full row
         // reuses the previous row's when the level and the longitudes are the same
@@ -480,7 +524,7 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
         let mut ids = Vec::with_capacity(cols.len() * 4);
         for (r, &j) in rows.iter().enumerate() {
             // the outer rows only where they are used (magnified heights)
-            let used = magnified || (1..=2).contains(&r);
+            let used = outer || (1..=2).contains(&r);
             for &tx in cols {
                 let id = used
                     .then(|| TileId::new(self.grid, f.id, tx, j / t).ok())
@@ -515,7 +559,7 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
             } else {
                 for ((&k, &fx), cs) in which.iter().zip(&columns.fx).zip(&columns.taps) {
                     // the outer twelve only where they are used (magnified heights)
-                    let taps: Taps<'_, T> = if magnified {
+                    let taps: Taps<'_, T> = if outer {
                         std::array::from_fn(|r| cs.map(|c| get(c, r)))
                     } else {
                         std::array::from_fn(|r| {
@@ -540,7 +584,7 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
             self.columns.insert(0, columns);
         }
         if !missing.is_empty() {
-            self.sample_points(lons, &missing, colat, win, idx - 1, emit);
+            self.sample_points(lons, &missing, colat, win, idx - 1, all_taps, emit);
         }
     }
 
@@ -808,6 +852,8 @@ impl StoreHeights {
         let mut memo: [(Option<Key>, f32); 8] = [(None, f32::NAN); 8];
         let mut next = 0;
         let mut corners: Option<((usize, [(usize, usize); 4]), Option<[f64; 4]>)> = None;
+        // points with detail: (index, level, the data's roughness there)
+        let mut pending: Vec<(usize, usize, f64)> = Vec::new();
         self.0.sample_row(
             lons,
             colat,
@@ -848,14 +894,97 @@ impl StoreHeights {
                 let Some(r) = rough else {
                     return;
                 };
-                let d = detail_sample(detail, spacing[level], r, (fx, fy), (lons[k], colat), texel);
-                row[k] = (f64::from(base) + d.height_m) as f32;
-                if let Some(s) = shade.as_deref_mut() {
-                    s[k] = d.shade as f32;
-                }
+                let _ = detail;
+                pending.push((k, level, bilinear_roughness(r, fx, fy)));
             },
         );
+        let Some(detail) = detail.as_deref() else {
+            return;
+        };
+        // the data's roughness one and two stored levels coarser at the same points: both made
+        // by the pyramid with the same kernel, their ratio is the local spectral slope (the
+        // finest level may have been ingested with another kernel)
+        let mut coarse = vec![[f64::NAN; 2]; lons.len()];
+        let mut levels: Vec<usize> = pending.iter().map(|p| p.1).filter(|&l| l > 0).collect();
+        levels.sort_unstable();
+        levels.dedup();
+        for level in levels {
+            let which: Vec<usize> = pending
+                .iter()
+                .filter(|p| p.1 == level)
+                .map(|p| p.0)
+                .collect();
+            for up in 1..=2.min(level) {
+                let target = level - up;
+                let win = self.0.level_texel(target);
+                let mut corners: Option<((usize, [(usize, usize); 4]), Option<[f64; 4]>)> = None;
+                self.0.sample_points(
+                    lons,
+                    &which,
+                    colat,
+                    win,
+                    target,
+                    true,
+                    &mut |k, taps, fx, fy, _, (lc, cols)| {
+                        let rough = match corners {
+                            Some((key, r)) if key == (lc, cols) => r,
+                            _ => {
+                                let r = corner_roughness(taps);
+                                corners = Some(((lc, cols), r));
+                                r
+                            }
+                        };
+                        if let (Some(r), true) = (rough, lc == target) {
+                            coarse[k][up - 1] = bilinear_roughness(r, fx, fy);
+                        }
+                    },
+                );
+            }
+        }
+        for &(k, level, fine) in &pending {
+            let hurst = local_hurst(coarse[k], level, &spacing);
+            let d = detail.sample(
+                lons[k],
+                colat,
+                spacing[level],
+                data_roughness(fine, coarse[k], hurst),
+                hurst,
+                detail.texel_m(texel.texel_colat, texel.texel_lon, colat),
+            );
+            row[k] = (f64::from(row[k]) + d.height_m) as f32;
+            if let Some(s) = shade.as_deref_mut() {
+                s[k] = d.shade as f32;
+            }
+        }
     }
+}
+
+/// The data's roughness at the finest level's spacing: where the two coarser levels give the
+/// local slope, carried down from the next coarser (made by the pyramid, so filtered like the
+/// levels the slope came from: the finest, ingested with another kernel, shows twice the
+/// roughness the slope implies over the Alps in ETOPO5), else the finest level's own.
+fn data_roughness(fine: f64, [r1, _]: [f64; 2], hurst: Option<f64>) -> f64 {
+    match hurst {
+        Some(h) => r1 * 0.5f64.powf(h),
+        None => fine,
+    }
+}
+
+/// The lowest Hurst exponent the data's own ratio may give: below it the finer level's roughness
+/// is noise (quantisation, gridding: ETOPO5 over the West Siberian Plain gives ≈ 0), which
+/// continued would make a plain rough at every scale.
+const MIN_DATA_HURST: f64 = 0.5;
+
+/// The local Hurst exponent at a point over stored level index `level` from the data's
+/// roughness one and two levels coarser (NaN where that level has no data there):
+/// H = log(r₂ / r₁) / log(their spacings' ratio), [`MIN_DATA_HURST`] … 1; `None` where the
+/// data give no ratio.
+fn local_hurst([r1, r2]: [f64; 2], level: usize, spacing: &[f64]) -> Option<f64> {
+    if level < 2 || !(r1 > 0.0 && r2 > 0.0) {
+        return None;
+    }
+    let ratio = spacing[level - 2] / spacing[level - 1];
+    Some(((r2 / r1).ln() / ratio.ln()).clamp(MIN_DATA_HURST, 1.0))
 }
 
 impl HeightSource for StoreHeights {
@@ -869,14 +998,36 @@ impl HeightSource for StoreHeights {
         if !magnified || base.is_nan() {
             return base;
         }
-        let d0_m = self.spacing_m(f.id.level);
-        match (self.2.as_deref(), corner_roughness(taps)) {
-            (Some(detail), Some(r)) => {
-                let d = detail_sample(detail, d0_m, r, (f.fx, f.fy), (lon, colat), texel);
-                (f64::from(base) + d.height_m) as f32
+        let (Some(detail), Some(r)) = (self.2.clone(), corner_roughness(taps)) else {
+            return base;
+        };
+        let fine = bilinear_roughness(r, f.fx, f.fy);
+        let spacing: Vec<f64> = (0..self.0.levels.len())
+            .map(|i| self.spacing_m(self.0.levels[i].0))
+            .collect();
+        let level = self.0.index_of(f.id.level);
+        let mut coarse = [f64::NAN; 2];
+        for up in 1..=2.min(level) {
+            let target = level - up;
+            let win = self.0.level_texel(target);
+            let (g, lc) = self.0.locate_present_in(lon, colat, win, target);
+            let owned = self.0.taps(&g);
+            let taps: Taps<'_, f32> =
+                std::array::from_fn(|r| std::array::from_fn(|c| owned[r][c].as_deref()));
+            if let (Some(r), true) = (corner_roughness(taps), lc == target) {
+                coarse[up - 1] = bilinear_roughness(r, g.fx, g.fy);
             }
-            _ => base,
         }
+        let hurst = local_hurst(coarse, level, &spacing);
+        let d = detail.sample(
+            lon,
+            colat,
+            spacing[level],
+            data_roughness(fine, coarse, hurst),
+            hurst,
+            detail.texel_m(texel.texel_colat, texel.texel_lon, colat),
+        );
+        (f64::from(base) + d.height_m) as f32
     }
 }
 
@@ -893,26 +1044,6 @@ fn corner_roughness(taps: Taps<'_, f32>) -> Option<[f64; 4]> {
         }
     }
     Some(corner_residuals(&h))
-}
-
-/// The detail at a point over data of row spacing `d0_m` whose four surrounding texels have
-/// roughness `corners`.
-fn detail_sample(
-    detail: &Detail,
-    d0_m: f64,
-    corners: [f64; 4],
-    (fx, fy): (f64, f64),
-    (lon, colat): (f64, f64),
-    texel: LevelWindow,
-) -> DetailSample {
-    let texel_m = detail.texel_m(texel.texel_colat, texel.texel_lon, colat);
-    detail.sample(
-        lon,
-        colat,
-        d0_m,
-        bilinear_roughness(corners, fx, fy),
-        texel_m,
-    )
 }
 
 /// Fills height clipmap level `i` around `viewer` (`n × n`, toroidal order).

@@ -36,8 +36,10 @@ use serde::Deserialize;
 pub struct DetailParams {
     /// Seeds the noise: the same seed makes the same planet.
     pub seed: u64,
-    /// The Hurst exponent H, 0.1 … 1 (a transect's power spectrum falls as f^−(2H+1)).
-    pub hurst: f64,
+    /// The Hurst exponent H, 0.1 … 1 (a transect's power spectrum falls as f^−(2H+1)); `None`:
+    /// the data's own at each point (from its roughness in two stored levels), or
+    /// [`DEFAULT_HURST`] where it has only one.
+    pub hurst: Option<f64>,
     /// Scales the amplitude the data implies, 0 … 4.
     pub amplitude: f64,
     /// How much the colour follows the synthesized ground, 0 … 1.
@@ -48,7 +50,7 @@ impl Default for DetailParams {
     fn default() -> Self {
         Self {
             seed: 1,
-            hurst: 0.8,
+            hurst: None,
             amplitude: 1.0,
             color: 0.3,
         }
@@ -58,7 +60,7 @@ impl Default for DetailParams {
 impl DetailParams {
     /// Out-of-range settings, in words.
     pub fn check(&self) -> Result<(), String> {
-        let ok = (0.1..=1.0).contains(&self.hurst)
+        let ok = self.hurst.is_none_or(|h| (0.1..=1.0).contains(&h))
             && (0.0..=4.0).contains(&self.amplitude)
             && (0.0..=1.0).contains(&self.color);
         if ok {
@@ -80,6 +82,10 @@ pub const FIRST_LATTICE: f64 = 0.5;
 /// The shade (a slope) at which the colour's modulation reaches tanh(1) of its strength: rocky
 /// ground (15 %) is shaded clearly, gentle slopes barely.
 pub const SHADE_SLOPE: f64 = 0.15;
+
+/// The Hurst exponent where the data give none (a single stored level): ETOPO5 over the Alps
+/// falls as f^−2.7 east–west.
+pub const DEFAULT_HURST: f64 = 0.8;
 
 /// Most octaves a texel sums (d₀ / 2^MAX_OCTAVES is below a millimetre for SRTM1).
 pub const MAX_OCTAVES: u32 = 24;
@@ -281,6 +287,38 @@ pub fn bilinear_roughness([a, b, c, d]: [f64; 4], fx: f64, fy: f64) -> f64 {
     top + (bottom - top) * fy
 }
 
+/// The ratio between the amplitude of the first detail octave of a self-similar field made
+/// of this noise and the mean plane residual the field's band-limited part shows on the
+/// data's grid: data that continue like the noise get detail that continues them (on the same
+/// power law). The data's part: the octaves of lattice ≥ 2 (the data's Nyquist wavelength);
+/// the octave of lattice 1 lies between, filtered away by the data's kernel and left out by
+/// the detail (it would leak into the data's band). Deterministic (a fixed set of points).
+fn calibrate(h: f64) -> f64 {
+    // spacing 1: octave j has lattice FIRST_LATTICE·2^j and amplitude 2^(H·j), the detail's
+    // first octave being j = 0 (amplitude 1); the data hold j ≥ 2
+    let frames: Vec<Frame> = (0..10).map(|j| Frame::new(0xca1b, j)).collect();
+    let field = |x: f64, y: f64| -> f32 {
+        let p = [x, y, 0.5];
+        frames
+            .iter()
+            .enumerate()
+            .map(|(j, f)| {
+                let j = j as i32 + 2;
+                2f64.powf(h * f64::from(j)) * f.noise(p, FIRST_LATTICE * 2f64.powi(j))
+            })
+            .sum::<f64>() as f32
+    };
+    let mut sum = 0.0;
+    let count = 400;
+    for k in 0..count {
+        let (x0, y0) = (f64::from(k % 20) * 97.3, f64::from(k / 20) * 101.9);
+        let taps: [[f32; 3]; 3] =
+            std::array::from_fn(|r| std::array::from_fn(|c| field(x0 + c as f64, y0 + r as f64)));
+        sum += plane_residual(taps);
+    }
+    f64::from(count) / sum
+}
+
 /// One point's detail: the height added and the colour's shade.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct DetailSample {
@@ -296,8 +334,8 @@ pub struct Detail {
     params: DetailParams,
     radius_m: f64,
     frames: Vec<Frame>,
-    /// a₀ per metre of the data's plane residual.
-    gain: f64,
+    /// a₀ per metre of the data's plane residual, for H = 0.1, 0.2 … 1.0.
+    gains: [f64; 10],
 }
 
 impl Detail {
@@ -306,53 +344,27 @@ impl Detail {
         let frames = (0..MAX_OCTAVES)
             .map(|i| Frame::new(params.seed, i))
             .collect();
-        let mut d = Self {
+        let gains = std::array::from_fn(|i| calibrate(0.1 * (i + 1) as f64));
+        Self {
             params,
             radius_m,
             frames,
-            gain: 1.0,
-        };
-        d.gain = d.calibrate();
-        d
+            gains,
+        }
+    }
+
+    /// a₀ per metre of the data's plane residual for Hurst exponent `h` (0.1 … 1, linear between
+    /// the calibrated tenths).
+    pub fn gain(&self, h: f64) -> f64 {
+        let x = (h.clamp(0.1, 1.0) * 10.0 - 1.0).clamp(0.0, 9.0);
+        let i = (x.floor() as usize).min(8);
+        let t = x - i as f64;
+        self.gains[i] + (self.gains[i + 1] - self.gains[i]) * t
     }
 
     /// Its settings.
     pub fn params(&self) -> &DetailParams {
         &self.params
-    }
-
-    /// The ratio between the amplitude of the first detail octave of a self-similar field made
-    /// of this noise and the mean plane residual the field's band-limited part shows on the
-    /// data's grid: data that continue like the noise get detail that continues them (on the same
-    /// power law). The data's part: the octaves of lattice ≥ 2 (the data's Nyquist wavelength);
-    /// the octave of lattice 1 lies between, filtered away by the data's kernel and left out by
-    /// the detail (it would leak into the data's band). Deterministic (a fixed set of points).
-    fn calibrate(&self) -> f64 {
-        let h = self.params.hurst;
-        // spacing 1: octave j has lattice FIRST_LATTICE·2^j and amplitude 2^(H·j), the detail's
-        // first octave being j = 0 (amplitude 1); the data hold j ≥ 2
-        let frames: Vec<Frame> = (0..10).map(|j| Frame::new(0xca1b, j)).collect();
-        let field = |x: f64, y: f64| -> f32 {
-            let p = [x, y, 0.5];
-            frames
-                .iter()
-                .enumerate()
-                .map(|(j, f)| {
-                    let j = j as i32 + 2;
-                    2f64.powf(h * f64::from(j)) * f.noise(p, FIRST_LATTICE * 2f64.powi(j))
-                })
-                .sum::<f64>() as f32
-        };
-        let mut sum = 0.0;
-        let count = 400;
-        for k in 0..count {
-            let (x0, y0) = (f64::from(k % 20) * 97.3, f64::from(k / 20) * 101.9);
-            let taps: [[f32; 3]; 3] = std::array::from_fn(|r| {
-                std::array::from_fn(|c| field(x0 + c as f64, y0 + r as f64))
-            });
-            sum += plane_residual(taps);
-        }
-        f64::from(count) / sum
     }
 
     /// The ground size of a clipmap texel (radians of colatitude and longitude) at colatitude
@@ -380,21 +392,30 @@ impl Detail {
     }
 
     /// The detail at (`lon`, `colat`) over data of row spacing `d0_m` whose roughness there is
-    /// `residual_m` ([`roughness`]), for a clipmap texel of ground size `texel_m`.
+    /// `residual_m` ([`bilinear_roughness`]) and whose spectral slope gives the Hurst exponent
+    /// `data_hurst` (if known; the settings' own, if set, wins), for a clipmap texel of ground
+    /// size `texel_m`.
     pub fn sample(
         &self,
         lon: f64,
         colat: f64,
         d0_m: f64,
         residual_m: f64,
+        data_hurst: Option<f64>,
         texel_m: f64,
     ) -> DetailSample {
-        let a0 = self.gain * residual_m * self.params.amplitude;
+        let hurst = self
+            .params
+            .hurst
+            .or(data_hurst)
+            .unwrap_or(DEFAULT_HURST)
+            .clamp(0.1, 1.0);
+        let a0 = self.gain(hurst) * residual_m * self.params.amplitude;
         if a0 <= 0.0 || !a0.is_finite() || FIRST_LATTICE * d0_m < 2.0 * texel_m {
             return DetailSample::default();
         }
         let p = self.point_m(lon, colat);
-        let step = 2f64.powf(-self.params.hurst);
+        let step = 2f64.powf(-hurst);
         let (mut height, mut shade) = (0.0, 0.0);
         let (mut lambda, mut a) = (FIRST_LATTICE * d0_m, a0);
         for f in &self.frames {
@@ -456,20 +477,22 @@ mod tests {
             std::array::from_fn(|r| std::array::from_fn(|c| 2.0 * (r + c) as f32));
         assert!(bilinear_roughness(corner_residuals(&taps), 0.3, 0.8) < 1e-5);
         let d = Detail::new(DetailParams::default(), 6.371e6);
-        assert_eq!(d.sample(0.1, 1.0, 90.0, 0.0, 0.01), DetailSample::default());
+        assert_eq!(
+            d.sample(0.1, 1.0, 90.0, 0.0, None, 0.01),
+            DetailSample::default()
+        );
     }
 
     #[test]
     fn the_gain_is_stable() {
         for h in [0.3, 0.5, 0.8, 1.0] {
-            let d = Detail::new(
-                DetailParams {
-                    hurst: h,
-                    ..DetailParams::default()
-                },
-                6.371e6,
+            let d = Detail::new(DetailParams::default(), 6.371e6);
+            let g = d.gain(h);
+            assert!(g > 0.05 && g < 5.0, "H {h}: gain {g}");
+            assert!(
+                (g - calibrate(h)).abs() < 1e-12 * g,
+                "H {h}: the table's {g}"
             );
-            assert!(d.gain > 0.05 && d.gain < 5.0, "H {h}: gain {}", d.gain);
         }
     }
 }

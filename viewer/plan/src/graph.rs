@@ -39,7 +39,7 @@
 //! kind = "detail"
 //! input = "world"           # a store's heights
 //! seed = 1                  # every key below optional: the same seed, the same planet
-//! hurst = 0.8               # 0.1 … 1: a transect's spectrum falls as f^−(2·hurst + 1)
+//! hurst = 0.8               # 0.1 … 1 (default: the data's own): spectra fall as f^−(2·hurst+1)
 //! amplitude = 1.0           # 0 … 4 times what the data's roughness implies
 //! color = 0.3               # 0 … 1: how much colours over it follow the synthesized ground
 //!
@@ -581,7 +581,7 @@ impl Graph {
                             let d = DetailParams::default();
                             let p = DetailParams {
                                 seed: seed.unwrap_or(d.seed),
-                                hurst: hurst.unwrap_or(d.hurst),
+                                hurst: hurst.or(d.hurst),
                                 amplitude: amplitude.unwrap_or(d.amplitude),
                                 color: color.unwrap_or(d.color),
                             };
