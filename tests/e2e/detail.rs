@@ -152,8 +152,15 @@ fn the_detail_continues_the_data_spectrum_over_the_alps_and_leaves_a_plain_flat(
     let data_psd = psd(&transects, d0_m);
     // (wavelengths of 4–32 texels: below 4 the data's own filtering steepens ETOPO5's spectrum)
     let (data_slope, data_at) = fit(&data_psd, 4.0 * d0_m, 32.0 * d0_m);
-    // what the viewer shows a walker there: 2.4 km at 4.8 m
-    let (alps, alps_plain, step) = tile_columns(&store, 46.5, 8.0);
+    // what the viewer shows a walker there: 2.4 km at 4.8 m, at four places across the Alps
+    // (within one data texel the amplitude follows the data's roughness at its corners)
+    let (mut alps, mut alps_plain, mut step) = (Vec::new(), Vec::new(), 0.0);
+    for (lat, lon) in [(46.5, 8.0), (46.3, 7.4), (46.7, 9.6), (47.0, 11.2)] {
+        let (a, b, s) = tile_columns(&store, lat, lon);
+        alps.extend(a);
+        alps_plain.extend(b);
+        step = s;
+    }
     let shown = psd(&alps, step);
     let (shown_slope, shown_at) = fit(&shown, 4.0 * step, 128.0 * step);
     // the data's power law carried down to 100 m wavelength, against what is shown there

@@ -85,6 +85,16 @@ fn golden_views_of_the_sample_planet() {
 }
 
 #[test]
+fn golden_views_with_detail_below_the_data() {
+    check_goldens(&[
+        // the Alps at eye height over ETOPO5's 9.8 km texels: rock down to the pixel
+        ("detail-ground-alps", "46.5,8.0,1.7,30,-4,60", &[]),
+        // 500 m above them
+        ("detail-500m-alps", "46.5,8.0,500,30,-20,60", &[]),
+    ]);
+}
+
+#[test]
 fn golden_views_through_the_atmosphere() {
     check_goldens(&[
         // the blue limb and the haze over the disc, the default sun

@@ -36,9 +36,12 @@ use serde::Deserialize;
 pub struct DetailParams {
     /// Seeds the noise: the same seed makes the same planet.
     pub seed: u64,
-    /// The Hurst exponent H, 0.1 … 1 (a transect's power spectrum falls as f^−(2H+1)); `None`:
-    /// the data's own at each point (from its roughness in two stored levels), or
-    /// [`DEFAULT_HURST`] where it has only one.
+    /// The Hurst exponent H of the octaves, 0.1 … 1 (a transect's power spectrum falls as
+    /// f^−(2H+1)); default [`DEFAULT_HURST`]. `None`: the data's own at each point (from its
+    /// roughness in two stored levels) — too noisy to drive the octaves: over ETOPO5's Alps it
+    /// gives a spectrum of f^−2.17 twenty times too strong, where the data fall as f^−2.36
+    /// (an exponent too low makes every finer octave too strong); the amplitude always comes
+    /// from the data.
     pub hurst: Option<f64>,
     /// Scales the amplitude the data implies, 0 … 4.
     pub amplitude: f64,
@@ -50,7 +53,7 @@ impl Default for DetailParams {
     fn default() -> Self {
         Self {
             seed: 1,
-            hurst: None,
+            hurst: Some(DEFAULT_HURST),
             amplitude: 1.0,
             color: 0.3,
         }
@@ -83,9 +86,12 @@ pub const FIRST_LATTICE: f64 = 0.5;
 /// ground (15 %) is shaded clearly, gentle slopes barely.
 pub const SHADE_SLOPE: f64 = 0.15;
 
-/// The Hurst exponent where the data give none (a single stored level): ETOPO5 over the Alps
-/// falls as f^−2.7 east–west.
-pub const DEFAULT_HURST: f64 = 0.8;
+/// The octaves' Hurst exponent by default: ETOPO5 over the Alps falls as f^−2.36 north–south
+/// between 39 and 310 km (H ≈ 0.68); the synthesized heights there then fall as f^−2.52.
+pub const DEFAULT_HURST: f64 = 0.7;
+
+/// An octave enters a clipmap level at a lattice of this many texels and is whole at twice it.
+pub const FADE_TEXELS: f64 = 2.0;
 
 /// Most octaves a texel sums (d₀ / 2^MAX_OCTAVES is below a millimetre for SRTM1).
 pub const MAX_OCTAVES: u32 = 24;
@@ -280,8 +286,12 @@ pub fn corner_residuals(taps: &[[f32; 4]; 4]) -> [f64; 4] {
     [corner(0, 0), corner(0, 1), corner(1, 0), corner(1, 1)]
 }
 
-/// The roughness at fractions `fx`, `fy` between the four corners of [`corner_residuals`].
+/// The roughness at fractions `fx`, `fy` between the four corners of [`corner_residuals`]:
+/// bilinear in smoothstepped fractions, so that its gradient vanishes on the data's texel lines
+/// (with plain bilinear weights the amplitude creases there, and lighting draws the data's grid
+/// as lines across the synthesized ground).
 pub fn bilinear_roughness([a, b, c, d]: [f64; 4], fx: f64, fy: f64) -> f64 {
+    let (fx, fy) = (fx * fx * (3.0 - 2.0 * fx), fy * fy * (3.0 - 2.0 * fy));
     let top = a + (b - a) * fx;
     let bottom = c + (d - c) * fx;
     top + (bottom - top) * fy
@@ -388,7 +398,7 @@ impl Detail {
     /// The weight of octave `i` (lattice `lambda_m`) in a texel of `texel_m`: 1 at λ ≥ 4t,
     /// 0 at λ ≤ 2t, log-linear between.
     pub fn octave_weight(lambda_m: f64, texel_m: f64) -> f64 {
-        ((lambda_m / (2.0 * texel_m)).log2()).clamp(0.0, 1.0)
+        ((lambda_m / (FADE_TEXELS * texel_m)).log2()).clamp(0.0, 1.0)
     }
 
     /// The detail at (`lon`, `colat`) over data of row spacing `d0_m` whose roughness there is
@@ -411,7 +421,7 @@ impl Detail {
             .unwrap_or(DEFAULT_HURST)
             .clamp(0.1, 1.0);
         let a0 = self.gain(hurst) * residual_m * self.params.amplitude;
-        if a0 <= 0.0 || !a0.is_finite() || FIRST_LATTICE * d0_m < 2.0 * texel_m {
+        if a0 <= 0.0 || !a0.is_finite() || FIRST_LATTICE * d0_m < FADE_TEXELS * texel_m {
             return DetailSample::default();
         }
         let p = self.point_m(lon, colat);
@@ -420,7 +430,7 @@ impl Detail {
         let (mut lambda, mut a) = (FIRST_LATTICE * d0_m, a0);
         for f in &self.frames {
             // λ ≥ 4t: whole (no log to take)
-            let w = if lambda >= 4.0 * texel_m {
+            let w = if lambda >= 2.0 * FADE_TEXELS * texel_m {
                 1.0
             } else {
                 Self::octave_weight(lambda, texel_m)
