@@ -316,8 +316,10 @@ color = "grey"
             "64x48",
             "--out",
             s(&png),
-            // the terrain's own colour, not seen through the air
+            // the terrain's own colour, not seen through the air, the data alone
             "--atmosphere",
+            "off",
+            "--detail",
             "off",
         ];
         args.extend_from_slice(extra);
@@ -349,6 +351,8 @@ color = "grey"
             "32x24",
             "--out",
             s(&png),
+            "--detail",
+            "off",
         ];
         args.extend_from_slice(extra);
         let o = run(&args);
@@ -395,6 +399,18 @@ color = "grey"
             "[[source]]\nname = \"a\"\nkind = \"store\"\npath = \"c.zarr\"\nlayer = \"height\"\n[clipmaps]\nheight = \"a\"\n[atmosphere]\nfog = 1.0\n",
             "unknown field",
         ),
+        (
+            "[[source]]\nname = \"a\"\nkind = \"store\"\npath = \"c.zarr\"\nlayer = \"height\"\n[[source]]\nname = \"o\"\nkind = \"overlay\"\ninputs = [\"a\"]\n[[source]]\nname = \"d\"\nkind = \"detail\"\ninput = \"o\"\n[clipmaps]\nheight = \"d\"\n",
+            "needs the heights of a store",
+        ),
+        (
+            "[[source]]\nname = \"a\"\nkind = \"store\"\npath = \"c.zarr\"\nlayer = \"height\"\n[[source]]\nname = \"d\"\nkind = \"detail\"\ninput = \"a\"\nhurst = 3.0\n[clipmaps]\nheight = \"d\"\n",
+            "hurst",
+        ),
+        (
+            "[[source]]\nname = \"c\"\nkind = \"store\"\npath = \"c.zarr\"\nlayer = \"color\"\n[[source]]\nname = \"a\"\nkind = \"store\"\npath = \"c.zarr\"\nlayer = \"height\"\n[[source]]\nname = \"d\"\nkind = \"detail\"\ninput = \"c\"\n[clipmaps]\nheight = \"a\"\ncolor = \"d\"\n",
+            "needs `heights`",
+        ),
     ] {
         std::fs::write(&graph, toml).expect("write");
         let o = run(&[
@@ -437,6 +453,42 @@ color = "grey"
         assert!(o.status.success(), "{}", text(&o.stderr));
         image::open(&png).expect("png").to_rgb8()
     };
+    // a detail source over the Swiss heights, and colours shaded by it: on, the ground under
+    // the walker moves; off (the flag), the picture is the graph without it, bit for bit
+    let alps_only = "[[source]]\nname = \"alps\"\nkind = \"store\"\npath = \"alps.zarr\"\nlayer = \"height\"\n[[source]]\nname = \"colour\"\nkind = \"store\"\npath = \"c.zarr\"\nlayer = \"color\"\n";
+    let detailed = format!(
+        "{alps_only}[[source]]\nname = \"rough\"\nkind = \"detail\"\ninput = \"alps\"\nseed = 5\n[[source]]\nname = \"painted\"\nkind = \"detail\"\ninput = \"colour\"\nheights = \"rough\"\n[clipmaps]\nheight = \"rough\"\ncolor = \"painted\"\n"
+    );
+    let plain = format!("{alps_only}[clipmaps]\nheight = \"alps\"\ncolor = \"colour\"\n");
+    let with_graph = |toml: &str, flag: &str, name: &str| {
+        std::fs::write(&graph, toml).expect("write");
+        let png = dir.path().join(name);
+        let o = run(&[
+            "render",
+            s(&world),
+            "--camera",
+            camera,
+            "--size",
+            "64x48",
+            "--out",
+            s(&png),
+            "--sources",
+            s(&graph),
+            "--detail",
+            flag,
+        ]);
+        assert!(o.status.success(), "{}", text(&o.stderr));
+        (ground(&text(&o.stdout)), std::fs::read(&png).expect("png"))
+    };
+    let (g_on, on) = with_graph(&detailed, "on", "on.png");
+    let (g_off, off) = with_graph(&detailed, "off", "off.png");
+    let (g_plain, without) = with_graph(&plain, "on", "plain.png");
+    assert!(
+        (g_on - g_off).abs() > 0.01 && g_off == g_plain,
+        "ground: detail {g_on} m, off {g_off} m, without {g_plain} m"
+    );
+    assert_ne!(on, off, "detail changes the picture");
+    assert_eq!(off, without, "--detail off draws the graph without detail");
     let clear = air("", "clear.png");
     let hazy = air(
         "[atmosphere]\nrayleigh_scattering = [2.3e-5, 5.4e-5, 1.3e-4]\n",

@@ -851,7 +851,7 @@ impl StoreHeights {
         type Key = (usize, (usize, usize));
         let mut memo: [(Option<Key>, f32); 8] = [(None, f32::NAN); 8];
         let mut next = 0;
-        let mut corners: Option<((usize, [(usize, usize); 4]), Option<[f64; 4]>)> = None;
+        let mut corners: Option<(ColumnIds, Option<[f64; 4]>)> = None;
         // points with detail: (index, level, the data's roughness there)
         let mut pending: Vec<(usize, usize, f64)> = Vec::new();
         self.0.sample_row(
@@ -917,7 +917,7 @@ impl StoreHeights {
             for up in 1..=2.min(level) {
                 let target = level - up;
                 let win = self.0.level_texel(target);
-                let mut corners: Option<((usize, [(usize, usize); 4]), Option<[f64; 4]>)> = None;
+                let mut corners: Option<(ColumnIds, Option<[f64; 4]>)> = None;
                 self.0.sample_points(
                     lons,
                     &which,
