@@ -1,0 +1,61 @@
+//! What detail below the data costs the tile workers: one 512² height tile of the default graph
+//! of STORE, with detail and without, at clipmap levels 9 … 21 around a point (by default the
+//! ground view in the Alps), on one thread; the median of REPS makings (each from a fresh
+//! source, so no store tile is cached between them).
+//! Usage: `detail_tiles STORE [LAT LON] [REPS]`.
+
+use std::f64::consts::PI;
+use std::time::Instant;
+
+use sc_view_plan::graph::Graph;
+use sc_view_plan::stream::{GridId, TileKey};
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().collect();
+    let Some(store) = args.get(1) else {
+        return Err("usage: detail_tiles STORE [LAT LON] [REPS]".into());
+    };
+    let lat: f64 = args.get(2).map(|a| a.parse()).transpose()?.unwrap_or(46.5);
+    let lon: f64 = args.get(3).map(|a| a.parse()).transpose()?.unwrap_or(8.0);
+    let reps: usize = args
+        .get(4)
+        .map(|a| a.parse())
+        .transpose()?
+        .unwrap_or(3)
+        .max(1);
+    let n = 512u32;
+    println!(
+        "{:<6} {:>10} {:>12} {:>12} {:>7}",
+        "level", "texel m", "without ms", "with ms", "ratio"
+    );
+    for level in [9u32, 11, 13, 15, 17, 19, 21] {
+        let grid = GridId { level, k: level };
+        let w = grid.window(n);
+        let u = ((lon.to_radians() + PI) / w.texel_lon) as i64;
+        let v = ((90.0 - lat).to_radians() / w.texel_colat) as i64;
+        let time = |detail: bool| -> Result<f64, Box<dyn std::error::Error>> {
+            let mut ms = Vec::new();
+            for _ in 0..reps {
+                let g = Graph::for_store(std::path::Path::new(store))?;
+                let source = if detail {
+                    g.clipmaps.height
+                } else {
+                    g.without_detail.height
+                };
+                let key = TileKey::at(source, grid, u, v, n);
+                let t = Instant::now();
+                g.sources[source as usize].make(&key, n, &[])?;
+                ms.push(t.elapsed().as_secs_f64() * 1e3);
+            }
+            ms.sort_by(f64::total_cmp);
+            Ok(ms[ms.len() / 2])
+        };
+        let (without, with) = (time(false)?, time(true)?);
+        println!(
+            "{level:<6} {:>10.2} {without:>12.1} {with:>12.1} {:>7.1}",
+            w.texel_colat * sc_core::EARTH_RADIUS_M,
+            with / without
+        );
+    }
+    Ok(())
+}
