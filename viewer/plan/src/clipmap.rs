@@ -354,14 +354,8 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
     /// level 10 over a global level 3, serves only where it has data: its tiles are nodata
     /// around the square it came from).
     fn locate_present(&mut self, lon: f64, colat: f64, win: LevelWindow) -> Footprint {
-        let mut cap = self.levels.len() - 1;
-        loop {
-            let (f, idx) = self.locate_in(lon, colat, win, cap);
-            if idx == 0 || self.present(&f) {
-                return f;
-            }
-            cap = idx - 1;
-        }
+        self.locate_present_in(lon, colat, win, self.levels.len() - 1)
+            .0
     }
 
     /// [`Self::locate_present`] from the levels up to index `cap`; with the level's index.
@@ -778,10 +772,14 @@ impl StoreHeights {
         Self(self.0, self.1, detail)
     }
 
-    /// The row spacing of store level `level` on the ground, metres.
-    fn spacing_m(&self, level: u32) -> f64 {
-        let iso = LevelId { level, aniso: 0 };
-        PI / self.0.grid.height(iso) as f64 * self.0.reader.meta().radius_m
+    /// The row spacing of each stored level on the ground, metres, by index.
+    fn spacings_m(&self) -> Vec<f64> {
+        let radius = self.0.reader.meta().radius_m;
+        self.0
+            .levels
+            .iter()
+            .map(|&(level, _)| PI / self.0.grid.height(LevelId { level, aniso: 0 }) as f64 * radius)
+            .collect()
     }
 
     /// Keeps at most `bytes` of decoded store tiles.
@@ -808,7 +806,8 @@ impl StoreHeights {
         self.fill_rows(lons, colat, texel, out, None);
     }
 
-    /// [`Self::fill_row`], and with detail each point's colour shade ([`DetailSample::shade`],
+    /// [`Self::fill_row`], and with detail each point's colour shade
+    /// ([`crate::detail::DetailSample::shade`],
     /// 0 where there is no detail) appended to `shade`.
     pub fn fill_row_and_shade(
         &mut self,
@@ -839,12 +838,6 @@ impl StoreHeights {
             &mut s[start..]
         });
         let detail = self.2.clone();
-        let spacing: Vec<f64> = match &detail {
-            Some(_) => (0..self.0.levels.len())
-                .map(|i| self.spacing_m(self.0.levels[i].0))
-                .collect(),
-            None => Vec::new(),
-        };
         // the points of a row share store columns (many a column when magnified), and within a
         // level the same rows: each column's Catmull-Rom down the rows is kept for the next
         // points, and so are the data's roughness at the four texels around the point
@@ -877,30 +870,18 @@ impl StoreHeights {
                     },
                 );
                 row[k] = base;
-                let Some(detail) = detail.as_deref() else {
-                    return;
-                };
-                if !magnified || base.is_nan() {
+                if detail.is_none() || !magnified || base.is_nan() {
                     return;
                 }
-                let rough = match corners {
-                    Some((key, r)) if key == (level, cols) => r,
-                    _ => {
-                        let r = corner_roughness(taps);
-                        corners = Some(((level, cols), r));
-                        r
-                    }
-                };
-                let Some(r) = rough else {
-                    return;
-                };
-                let _ = detail;
-                pending.push((k, level, bilinear_roughness(r, fx, fy)));
+                if let Some(r) = memo_roughness(&mut corners, (level, cols), taps) {
+                    pending.push((k, level, bilinear_roughness(r, fx, fy)));
+                }
             },
         );
         let Some(detail) = detail.as_deref() else {
             return;
         };
+        let spacing = self.spacings_m();
         // the data's roughness one and two stored levels coarser at the same points: both made
         // by the pyramid with the same kernel, their ratio is the local spectral slope (the
         // finest level may have been ingested with another kernel)
@@ -926,14 +907,7 @@ impl StoreHeights {
                     target,
                     true,
                     &mut |k, taps, fx, fy, _, (lc, cols)| {
-                        let rough = match corners {
-                            Some((key, r)) if key == (lc, cols) => r,
-                            _ => {
-                                let r = corner_roughness(taps);
-                                corners = Some(((lc, cols), r));
-                                r
-                            }
-                        };
+                        let rough = memo_roughness(&mut corners, (lc, cols), taps);
                         if let (Some(r), true) = (rough, lc == target) {
                             coarse[k][up - 1] = bilinear_roughness(r, fx, fy);
                         }
@@ -1002,9 +976,7 @@ impl HeightSource for StoreHeights {
             return base;
         };
         let fine = bilinear_roughness(r, f.fx, f.fy);
-        let spacing: Vec<f64> = (0..self.0.levels.len())
-            .map(|i| self.spacing_m(self.0.levels[i].0))
-            .collect();
+        let spacing = self.spacings_m();
         let level = self.0.index_of(f.id.level);
         let mut coarse = [f64::NAN; 2];
         for up in 1..=2.min(level) {
@@ -1028,6 +1000,23 @@ impl HeightSource for StoreHeights {
             detail.texel_m(texel.texel_colat, texel.texel_lon, colat),
         );
         (f64::from(base) + d.height_m) as f32
+    }
+}
+
+/// [`corner_roughness`] of `taps` whose columns are `key`, or the value `memo` holds for the
+/// same columns (the points of a row that share their 4×4 texels).
+fn memo_roughness(
+    memo: &mut Option<(ColumnIds, Option<[f64; 4]>)>,
+    key: ColumnIds,
+    taps: Taps<'_, f32>,
+) -> Option<[f64; 4]> {
+    match *memo {
+        Some((k, r)) if k == key => r,
+        _ => {
+            let r = corner_roughness(taps);
+            *memo = Some((key, r));
+            r
+        }
     }
 }
 

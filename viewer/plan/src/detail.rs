@@ -28,11 +28,8 @@
 
 use std::f64::consts::PI;
 
-use serde::Deserialize;
-
 /// How detail is synthesized (the `detail` source of the graph; every key optional).
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DetailParams {
     /// Seeds the noise: the same seed makes the same planet.
     pub seed: u64,

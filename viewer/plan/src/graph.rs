@@ -39,7 +39,7 @@
 //! kind = "detail"
 //! input = "world"           # a store's heights
 //! seed = 1                  # every key below optional: the same seed, the same planet
-//! hurst = 0.8               # 0.1 … 1 (default: the data's own): spectra fall as f^−(2·hurst+1)
+//! hurst = 0.7               # 0.1 … 1: the octaves' spectra fall as f^−(2·hurst + 1)
 //! amplitude = 1.0           # 0 … 4 times what the data's roughness implies
 //! color = 0.3               # 0 … 1: how much colours over it follow the synthesized ground
 //!
@@ -548,7 +548,7 @@ impl Graph {
                     match kind {
                         LayerKind::Height => {
                             let h = StoreHeightTiles::keeping_nodata(reader, true);
-                            store = Some(h.with_detail_of(None));
+                            store = Some(h.handle());
                             g.sources.push(Box::new(h));
                         }
                         LayerKind::Color => g.sources.push(Box::new(StoreColorTiles::new(reader))),

@@ -317,23 +317,16 @@ impl StoreHeightTiles {
     /// The same heights with `detail` synthesized below the data's resolution (the graph's
     /// `detail` source over a store).
     pub fn with_detail(&self, detail: Arc<Detail>) -> Self {
-        self.with_detail_of(Some(detail))
-    }
-
-    /// The same store's heights with `detail` (or none): what the graph keeps to derive detail
-    /// sources from.
-    pub fn with_detail_of(&self, detail: Option<Arc<Detail>>) -> Self {
         Self {
             reader: self.reader.clone(),
             keep_nodata: self.keep_nodata,
-            detail,
+            detail: Some(detail),
             shades: Arc::default(),
             pool: Pool::new(),
         }
     }
 
-    /// The same source, sharing its samplers and its shades (the graph keeps it to derive a
-    /// colour detail from).
+    /// The same source, sharing its shades (the graph keeps it to derive detail sources from).
     pub fn handle(&self) -> Self {
         Self {
             reader: self.reader.clone(),
@@ -342,11 +335,6 @@ impl StoreHeightTiles {
             shades: self.shades.clone(),
             pool: Pool::new(),
         }
-    }
-
-    /// The detail it synthesizes, if any.
-    pub fn detail(&self) -> Option<Arc<Detail>> {
-        self.detail.clone()
     }
 
     /// The store's planet radius, metres.

@@ -9,7 +9,7 @@ use sc_view_gpu::render::Renderer;
 use sc_view_plan::graph::default_workers;
 
 use super::streamer_for;
-use crate::cli::{LookArgs, OnOff};
+use crate::cli::LookArgs;
 
 /// Flies the flight file `flight_path` over `store` headless at `size`; writes the statistics
 /// (JSON) to `out` and returns them.
@@ -23,11 +23,7 @@ pub fn run(
     let flight = sc_view_plan::flight::parse(flight_path)?;
     super::check_output_file(out, "--stats")?;
     let s = streamer_for(store, None)?;
-    let sources = if look.detail == OnOff::On {
-        s.sources
-    } else {
-        s.without_detail
-    };
+    let sources = super::clipmap_sources(look, s.sources, s.without_detail);
     let mut r = Renderer::headless(w, h, s.radius)?;
     let stats = fly(
         &mut r,

@@ -125,6 +125,20 @@ pub fn check_output_file(out: &std::path::Path, what: &str) -> Result<()> {
     Ok(())
 }
 
+/// The clipmaps' sources `--detail` asks for: `with` (the graph's), or those with its detail
+/// switched off.
+pub fn clipmap_sources(
+    look: &crate::cli::LookArgs,
+    with: sc_view_plan::frame::StreamSources,
+    without: sc_view_plan::frame::StreamSources,
+) -> sc_view_plan::frame::StreamSources {
+    if look.detail == crate::cli::OnOff::On {
+        with
+    } else {
+        without
+    }
+}
+
 /// How `render` and `view` draw, from their shared options, with the sun placed for a camera
 /// that starts at `camera` and the source graph's atmosphere (Earth's when it has none).
 pub fn draw_options(

@@ -10,7 +10,7 @@ use sc_view_plan::camera::Camera;
 use sc_core::stats::{median, percentile};
 
 use super::{parse_size, streamer_for};
-use crate::cli::{OnOff, RenderArgs};
+use crate::cli::RenderArgs;
 
 /// Runs `render`.
 pub fn run(a: &RenderArgs) -> Result<ExitCode> {
@@ -63,11 +63,7 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
         atmosphere,
         ..
     } = streamer_for(&a.store, a.sources.as_deref())?;
-    let sources = if a.look.detail == OnOff::On {
-        sources
-    } else {
-        without_detail
-    };
+    let sources = super::clipmap_sources(&a.look, sources, without_detail);
     // a still picture: each level whole as soon as it is drawn
     let options = sc_view_plan::frame::DrawOptions {
         fade_in: false,

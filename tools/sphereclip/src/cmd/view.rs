@@ -11,7 +11,7 @@ use sc_view_plan::graph::StoreStreamer;
 use sc_view_window::{ViewOptions, view};
 
 use super::{parse_size, streamer_for};
-use crate::cli::{OnOff, ViewArgs};
+use crate::cli::ViewArgs;
 
 /// Runs `view`.
 pub fn run(a: &ViewArgs) -> Result<ExitCode> {
@@ -48,11 +48,7 @@ pub fn run(a: &ViewArgs) -> Result<ExitCode> {
     }
     let title = format!("sphereclip — {}", a.store.display());
     let detail = (sources != without_detail).then_some((sources, without_detail));
-    let sources = if a.look.detail == OnOff::On {
-        sources
-    } else {
-        without_detail
-    };
+    let sources = super::clipmap_sources(&a.look, sources, without_detail);
     let report = view(
         &streamer,
         sources,
