@@ -113,12 +113,17 @@ fn blend_of(l: u32, depth: f32) -> f32 {
     return smoothstep(0.0, 0.5, depth);
 }
 
-@vertex
-fn vs_main(v: VertexIn) -> VertexOut {
-    let view = ViewerConsts(frame.sin_v, frame.cos_v, frame.colat, frame.orient);
-    let off = map_offsets(view, v.pxy.x, v.pxy.y, v.one_minus_cos, v.seam);
-    let l = min(v.level, frame.level_hi);
-    let depth = select(v.depth, 1.0, v.level > frame.level_hi);
+// A mesh point's height and the level it reads: ring level `level`, `depth` within it (0 on
+// its outer ring … 1 at its inner edge), map offsets `off` from the viewer.
+struct MeshPoint {
+    h: f32,
+    l: u32,
+    depth: f32,
+};
+
+fn mesh_height(level: u32, depth_in: f32, off: vec2<f32>) -> MeshPoint {
+    let l = min(level, frame.level_hi);
+    let depth = select(depth_in, 1.0, level > frame.level_hi);
     // the mesh carries the heights of the next coarser level (its texels are about as far apart
     // as the ring's vertices; the level's own texels, twice as fine, go into the shading), with
     // that level's blend into the one coarser still towards the ring's outer edge
@@ -129,20 +134,34 @@ fn vs_main(v: VertexIn) -> VertexOut {
     if (a < 1.0) {
         h = mix(height_at(lv - 1u, texel_of(lv - 1u, off)), h, a);
     }
-    h = h * frame.exaggeration;
+    return MeshPoint(h * frame.exaggeration, l, depth);
+}
+
+// The vertex stage's output for the point of the sphere with attributes `p` (sin θ̃ cos ψ,
+// sin θ̃ sin ψ, 1 − cos θ̃), its height and level `mp`, the fragment's map offsets `off`.
+fn vertex_out(p: vec3<f32>, mp: MeshPoint, off: vec2<f32>) -> VertexOut {
+    let h = mp.h;
     // view space relative to the camera: (R + h)·p̃ − (0, 0, R + h_cam), with
     // (R + h)(1 − c) − R − h_cam = h − h_cam − (R + h)·c (no large cancellation)
     let r = frame.radius + h;
-    let rel = vec3<f32>(r * v.pxy.x, r * v.pxy.y, h - frame.cam_height - r * v.one_minus_cos);
+    let rel = vec3<f32>(r * p.x, r * p.y, h - frame.cam_height - r * p.z);
     var out: VertexOut;
     out.clip = frame.view_proj * vec4<f32>(rel, 1.0);
     out.height = h;
-    out.level = l;
+    out.level = mp.l;
     out.off = off;
-    out.lvl = f32(l) + depth;
-    out.up = vec3<f32>(v.pxy.x, v.pxy.y, 1.0 - v.one_minus_cos);
+    out.lvl = f32(mp.l) + mp.depth;
+    out.up = vec3<f32>(p.x, p.y, 1.0 - p.z);
     out.rel = rel;
     return out;
+}
+
+@vertex
+fn vs_main(v: VertexIn) -> VertexOut {
+    let view = ViewerConsts(frame.sin_v, frame.cos_v, frame.colat, frame.orient);
+    let off = map_offsets(view, v.pxy.x, v.pxy.y, v.one_minus_cos, v.seam);
+    let mp = mesh_height(v.level, v.depth, off);
+    return vertex_out(vec3<f32>(v.pxy, v.one_minus_cos), mp, off);
 }
 
 fn color_at(l: u32, t: vec2<f32>) -> vec4<f32> {

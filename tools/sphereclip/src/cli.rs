@@ -365,6 +365,25 @@ pub struct LookArgs {
     /// default on the store's heights and colours); off: the clipmaps show the data alone.
     #[arg(long, value_enum, default_value_t = OnOff::On)]
     pub detail: OnOff,
+    /// The geometry: spherical clipmaps (the hemisphere around the viewer) or icosahedral
+    /// triangular CDLOD; both read the same clipmaps, so they show the same data.
+    #[arg(long, value_enum, default_value_t = RendererKind::Clipmap)]
+    pub renderer: RendererKind,
+    /// CDLOD: segments of a patch side (2, 4, 8 or 16).
+    #[arg(long, default_value_t = 16)]
+    pub cdlod_patch: u32,
+    /// CDLOD: the largest size of a patch triangle on screen, pixels.
+    #[arg(long, default_value_t = 8.0)]
+    pub cdlod_pixels: f64,
+}
+
+/// `--renderer`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum RendererKind {
+    /// Spherical geometry clipmaps.
+    Clipmap,
+    /// Icosahedral triangular CDLOD.
+    Cdlod,
 }
 
 /// A switch.

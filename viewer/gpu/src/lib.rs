@@ -14,6 +14,22 @@ pub const CLIPMAP_WGSL: &str = concat!(
     include_str!("../../../shaders/clipmap.wgsl")
 );
 
+/// The WGSL of the CDLOD renderer: the clipmap renderer's (its height reads and fragment stage),
+/// CDLOD's geometry and its vertex stage.
+pub const CDLOD_WGSL: &str = concat!(
+    include_str!("../../../shaders/map_transform.wgsl"),
+    include_str!("../../../shaders/atmosphere_model.wgsl"),
+    include_str!("../../../shaders/clipmap.wgsl"),
+    include_str!("../../../shaders/cdlod_geometry.wgsl"),
+    include_str!("../../../shaders/cdlod.wgsl")
+);
+
+/// The WGSL of the CDLOD geometry probe (a compute pass over patch vertices).
+pub const CDLOD_PROBE_WGSL: &str = concat!(
+    include_str!("../../../shaders/cdlod_geometry.wgsl"),
+    include_str!("../../../shaders/cdlod_probe.wgsl")
+);
+
 /// The WGSL of the atmosphere's lookup tables (compute passes; the model first).
 pub const ATMOSPHERE_WGSL: &str = concat!(
     include_str!("../../../shaders/atmosphere_model.wgsl"),

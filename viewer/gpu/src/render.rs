@@ -10,6 +10,7 @@ use bytemuck::{Pod, Zeroable};
 use sc_store::LayerKind;
 use sc_view_plan::atmosphere::AtmosphereFrame;
 use sc_view_plan::camera::Camera;
+use sc_view_plan::cdlod::{CdlodFrame, CdlodUniform, LeafInstance, patch_mesh};
 use sc_view_plan::clipmap::{CLIPMAP_N, ColorSource, HeightSource, Region};
 use sc_view_plan::frame::{
     DrawOptions, FramePlan, FramePlanner, FrameStats, FrameUniform, LevelUniform, StreamSources,
@@ -69,6 +70,8 @@ pub struct ClipmapPass {
     frame_buf: wgpu::Buffer,
     level_buf: wgpu::Buffer,
     bind: wgpu::BindGroup,
+    /// The CDLOD renderer's resources (its pipelines share the layout, group 2 its own).
+    cdlod: CdlodResources,
     /// The CPU side: what each level holds, the streaming requests, the frame plans.
     planner: FramePlanner,
     /// What the last uploaded plan draws.
@@ -77,6 +80,59 @@ pub struct ClipmapPass {
     pub options: DrawOptions,
     /// Behind the planet and its atmosphere (linear RGB; the clear colour without atmosphere).
     pub space: [f64; 4],
+}
+
+/// CDLOD's pipelines, its patch (made for the patch size asked for), the leaves of the last frame.
+#[derive(Debug)]
+struct CdlodResources {
+    pipeline: wgpu::RenderPipeline,
+    wire: Option<wgpu::RenderPipeline>,
+    uniform: wgpu::Buffer,
+    bind: wgpu::BindGroup,
+    /// (segments, vertices, indices, index count) of the patch.
+    patch: Option<(u32, wgpu::Buffer, wgpu::Buffer, u32)>,
+    instances: Option<(wgpu::Buffer, u64)>,
+    /// Leaves drawn by the last frame uploaded; None: it drew clipmaps.
+    leaves: Option<u32>,
+}
+
+impl CdlodResources {
+    /// Writes a frame's uniform and leaves (buffers made or grown as needed).
+    fn upload(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, frame: &CdlodFrame) {
+        let n = frame.uniform.params[0];
+        if self.patch.as_ref().map(|p| p.0) != Some(n) {
+            let (v, i) = patch_mesh(n);
+            let vb = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("cdlod patch vertices"),
+                contents: bytemuck::cast_slice(&v),
+                usage: wgpu::BufferUsages::VERTEX,
+            });
+            let ib = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("cdlod patch indices"),
+                contents: bytemuck::cast_slice(&i),
+                usage: wgpu::BufferUsages::INDEX,
+            });
+            self.patch = Some((n, vb, ib, i.len() as u32));
+        }
+        queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&frame.uniform));
+        let bytes: &[u8] = bytemuck::cast_slice(&frame.leaves);
+        let need = (bytes.len() as u64).max(64).next_power_of_two();
+        if self.instances.as_ref().is_none_or(|b| b.1 < need) {
+            let buf = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("cdlod leaves"),
+                size: need,
+                usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            self.instances = Some((buf, need));
+        }
+        if let Some((buf, _)) = &self.instances
+            && !bytes.is_empty()
+        {
+            queue.write_buffer(buf, 0, bytes);
+        }
+        self.leaves = Some(frame.leaves.len() as u32);
+    }
 }
 
 fn clipmap_array(device: &wgpu::Device, label: &str, format: wgpu::TextureFormat) -> wgpu::Texture {
@@ -248,10 +304,47 @@ impl ClipmapPass {
                 .collect::<Vec<_>>(),
         });
         atmosphere.disable(queue);
+        let cdlod_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("cdlod"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::VERTEX,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            }],
+        });
+        let cdlod_uniform = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("cdlod"),
+            size: std::mem::size_of::<CdlodUniform>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let cdlod_bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("cdlod"),
+            layout: &cdlod_layout,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: cdlod_uniform.as_entire_binding(),
+            }],
+        });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("clipmap"),
             bind_group_layouts: &[Some(&layout), Some(&air_layout)],
             ..Default::default()
+        });
+        let cdlod_pipeline_layout =
+            device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("cdlod"),
+                bind_group_layouts: &[Some(&layout), Some(&air_layout), Some(&cdlod_layout)],
+                ..Default::default()
+            });
+        let cdlod_shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("cdlod.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(crate::CDLOD_WGSL.into()),
         });
         let make = |polygon_mode| {
             device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
@@ -291,6 +384,62 @@ impl ClipmapPass {
             })
         };
         let pipeline = make(wgpu::PolygonMode::Fill);
+        let make_cdlod = |polygon_mode| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some("cdlod"),
+                layout: Some(&cdlod_pipeline_layout),
+                vertex: wgpu::VertexState {
+                    module: &cdlod_shader,
+                    entry_point: Some("cdlod_vs"),
+                    compilation_options: Default::default(),
+                    buffers: &[
+                        wgpu::VertexBufferLayout {
+                            array_stride: 8,
+                            step_mode: wgpu::VertexStepMode::Vertex,
+                            attributes: &wgpu::vertex_attr_array![0 => Uint32x2],
+                        },
+                        wgpu::VertexBufferLayout {
+                            array_stride: std::mem::size_of::<LeafInstance>() as u64,
+                            step_mode: wgpu::VertexStepMode::Instance,
+                            attributes: &wgpu::vertex_attr_array![1 => Uint32, 2 => Uint32, 3 => Sint32x2, 4 => Sint32, 5 => Float32],
+                        },
+                    ],
+                },
+                primitive: wgpu::PrimitiveState {
+                    cull_mode: None,
+                    polygon_mode,
+                    ..Default::default()
+                },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: DEPTH_FORMAT,
+                    depth_write_enabled: Some(true),
+                    depth_compare: Some(wgpu::CompareFunction::Greater),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &cdlod_shader,
+                    entry_point: Some("fs_main"),
+                    compilation_options: Default::default(),
+                    targets: &[Some(format.into())],
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        let line_mode = device
+            .features()
+            .contains(wgpu::Features::POLYGON_MODE_LINE);
+        let cdlod = CdlodResources {
+            pipeline: make_cdlod(wgpu::PolygonMode::Fill),
+            wire: line_mode.then(|| make_cdlod(wgpu::PolygonMode::Line)),
+            uniform: cdlod_uniform,
+            bind: cdlod_bind,
+            patch: None,
+            instances: None,
+            leaves: None,
+        };
         // the sky: a screen-filling triangle where the terrain left the far plane
         let sky = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some("sky"),
@@ -340,6 +489,7 @@ impl ClipmapPass {
             frame_buf,
             level_buf,
             bind,
+            cdlod,
             planner,
             last: FrameStats::default(),
             options: DrawOptions::default(),
@@ -412,6 +562,10 @@ impl ClipmapPass {
         self.queue
             .write_buffer(&self.level_buf, 0, bytemuck::cast_slice(&plan.levels));
         self.last = plan.stats;
+        match &plan.cdlod {
+            Some(f) => self.cdlod.upload(&self.device, &self.queue, f),
+            None => self.cdlod.leaves = None,
+        }
         match self.options.atmosphere {
             Some(a) => {
                 let a = a.on_sphere(self.radius_m);
@@ -473,22 +627,40 @@ impl ClipmapPass {
     /// then the fill disc closing the finest one.
     pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>) {
         let (lo, hi) = (self.last.level_lo as usize, self.last.level_hi as usize);
-        let pipeline = match (&self.wire, self.options.wireframe) {
-            (Some(w), true) => w,
-            _ => &self.pipeline,
-        };
-        pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &self.bind, &[]);
         pass.set_bind_group(1, &self.atmosphere_bind, &[]);
-        pass.set_vertex_buffer(0, self.vertices.slice(..));
-        pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
-        pass.draw_indexed(
-            self.planner.hemisphere().level_ranges[lo].start
-                ..self.planner.hemisphere().level_ranges[hi].end,
-            0,
-            0..1,
-        );
-        pass.draw_indexed(self.planner.hemisphere().fill_ranges[hi].clone(), 0, 0..1);
+        let c = &self.cdlod;
+        if let (Some(leaves), Some((_, pv, pi, count)), Some((inst, _))) =
+            (c.leaves, &c.patch, &c.instances)
+        {
+            let pipeline = match (&c.wire, self.options.wireframe) {
+                (Some(w), true) => w,
+                _ => &c.pipeline,
+            };
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(2, &c.bind, &[]);
+            pass.set_vertex_buffer(0, pv.slice(..));
+            pass.set_vertex_buffer(1, inst.slice(..));
+            pass.set_index_buffer(pi.slice(..), wgpu::IndexFormat::Uint32);
+            if leaves > 0 {
+                pass.draw_indexed(0..*count, 0, 0..leaves);
+            }
+        } else {
+            let pipeline = match (&self.wire, self.options.wireframe) {
+                (Some(w), true) => w,
+                _ => &self.pipeline,
+            };
+            pass.set_pipeline(pipeline);
+            pass.set_vertex_buffer(0, self.vertices.slice(..));
+            pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
+            pass.draw_indexed(
+                self.planner.hemisphere().level_ranges[lo].start
+                    ..self.planner.hemisphere().level_ranges[hi].end,
+                0,
+                0..1,
+            );
+            pass.draw_indexed(self.planner.hemisphere().fill_ranges[hi].clone(), 0, 0..1);
+        }
         if self.options.atmosphere.is_some() {
             pass.set_pipeline(&self.sky);
             pass.draw(0..3, 0..1);

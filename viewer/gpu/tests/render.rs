@@ -4,8 +4,9 @@
 use glam::{Vec3, Vec4};
 use sc_view_gpu::render::Renderer;
 use sc_view_plan::camera::Camera;
+use sc_view_plan::cdlod::CdlodSpec;
 use sc_view_plan::clipmap::{ColorSource, HeightSource, LevelWindow};
-use sc_view_plan::frame::view_projection;
+use sc_view_plan::frame::{DrawOptions, Geometry, view_projection};
 use sc_view_plan::transform::Viewer;
 
 const R: f64 = sc_core::EARTH_RADIUS_M;
@@ -97,9 +98,27 @@ fn renderer(w: u32, h: u32) -> Renderer {
 
 #[test]
 fn no_cracks_below_the_horizon_from_the_ground_to_orbit() {
+    no_cracks(Geometry::Clipmap);
+}
+
+#[test]
+fn no_cracks_below_the_horizon_with_cdlod() {
+    no_cracks(Geometry::Cdlod(CdlodSpec::default()));
+    // small patches: many leaves, every level border and icosahedron edge in view
+    no_cracks(Geometry::Cdlod(CdlodSpec {
+        patch: 2,
+        pixel_error: 2.0,
+    }));
+}
+
+fn no_cracks(geometry: Geometry) {
     let (w, h) = (320, 180);
     let mut r = renderer(w, h);
     r.clear = [1.0, 0.0, 1.0, 1.0];
+    r.set_options(DrawOptions {
+        geometry,
+        ..Default::default()
+    });
     let cameras = [
         ("ground, Alps", Camera::parse("46.5,8.0,1.7,30,-4,60")),
         ("aircraft", Camera::parse("28.0,86.9,9000,200,-10,60")),
@@ -139,7 +158,7 @@ fn no_cracks_below_the_horizon_from_the_ground_to_orbit() {
             let path = std::env::temp_dir().join(format!("crack-{}.png", name.replace(' ', "_")));
             img.save(&path).ok();
             panic!(
-                "{name}: {} magenta pixels below the horizon, e.g. {:?} (levels {}..{}); image {}",
+                "{name} ({geometry:?}): {} magenta pixels below the horizon, e.g. {:?} (levels {}..{}); image {}",
                 holes.len(),
                 &holes[..holes.len().min(5)],
                 stats.level_lo,

@@ -39,3 +39,26 @@ fn atmosphere_wgsl_validates() {
         );
     }
 }
+
+#[test]
+fn cdlod_wgsl_validates() {
+    for (src, entries) in [
+        (sc_view_gpu::CDLOD_WGSL, &["cdlod_vs", "fs_main"][..]),
+        (sc_view_gpu::CDLOD_PROBE_WGSL, &["probe"][..]),
+    ] {
+        let module = naga::front::wgsl::parse_str(src)
+            .unwrap_or_else(|e| panic!("{}", e.emit_to_string(src)));
+        naga::valid::Validator::new(
+            naga::valid::ValidationFlags::all(),
+            naga::valid::Capabilities::default(),
+        )
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("{e:?}"));
+        for entry in entries {
+            assert!(
+                module.entry_points.iter().any(|e| e.name == *entry),
+                "{entry}"
+            );
+        }
+    }
+}

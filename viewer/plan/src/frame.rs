@@ -14,6 +14,7 @@ use sc_store::LayerKind;
 
 use crate::atmosphere::Atmosphere;
 use crate::camera::Camera;
+use crate::cdlod::{CdlodFrame, CdlodPlanner, CdlodSpec};
 use crate::clipmap::{
     CLIPMAP_N, ColorSource, HeightSource, Placement, Region, all_regions, changed_regions,
     fill_region,
@@ -91,6 +92,23 @@ pub struct FrameStats {
     pub level_failed: bool,
     /// A level drawn is still fading in ([`FADE_FRAMES`]).
     pub fading: bool,
+    /// CDLOD: leaves drawn, and tree nodes culled beyond the horizon and outside the frustum
+    /// (0 for the clipmap renderer).
+    pub leaves: u32,
+    /// See `leaves`.
+    pub culled_horizon: u32,
+    /// See `leaves`.
+    pub culled_frustum: u32,
+}
+
+/// Which geometry draws the planet; both read the same clipmaps.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum Geometry {
+    /// Spherical geometry clipmaps (the static hemisphere around the viewer).
+    #[default]
+    Clipmap,
+    /// Icosahedral triangular CDLOD (`crate::cdlod`).
+    Cdlod(CdlodSpec),
 }
 
 /// How to draw: shading, vertical scale, the sun, and the viewer's debug toggles.
@@ -112,6 +130,8 @@ pub struct DrawOptions {
     /// The atmosphere (sky, sun disc, aerial perspective), its shell set on the planet's sphere
     /// by the renderer; `None`: space is the clear colour and the terrain is lit as without air.
     pub atmosphere: Option<Atmosphere>,
+    /// The geometry.
+    pub geometry: Geometry,
 }
 
 impl Default for DrawOptions {
@@ -124,6 +144,7 @@ impl Default for DrawOptions {
             sun: Sun::default_for(0.0, 0.0),
             fade_in: true,
             atmosphere: None,
+            geometry: Geometry::Clipmap,
         }
     }
 }
@@ -188,6 +209,8 @@ pub struct FramePlan {
     pub stats: FrameStats,
     /// The ground height under the camera, metres.
     pub ground: f64,
+    /// With [`Geometry::Cdlod`]: the leaves to draw and their uniform.
+    pub cdlod: Option<CdlodFrame>,
 }
 
 /// The CPU side of the clipmap renderer: what each clipmap level holds, what was asked of the
@@ -207,11 +230,15 @@ pub struct FramePlanner {
     ground_prev: f64,
     /// Per height tile seen lately, its highest height and largest step between neighbouring
     /// texels (not recomputed every frame).
-    tile_top: HashMap<TileKey, (f32, f32)>,
+    tile_top: HashMap<TileKey, (f32, f32, f32)>,
     /// Shading, vertical scale and sun of the frames planned.
     pub options: DrawOptions,
     /// Per level, how far it has faded in (streamed frames).
     fades: Vec<f32>,
+    /// CDLOD's tree, while it draws.
+    cdlod: Option<CdlodPlanner>,
+    /// Per level, the lowest and highest height its clipmap holds (as drawn, not scaled).
+    ranges: Vec<Option<(f32, f32)>>,
 }
 
 impl FramePlanner {
@@ -230,6 +257,8 @@ impl FramePlanner {
             tile_top: HashMap::new(),
             options: DrawOptions::default(),
             fades: vec![0.0; levels],
+            cdlod: None,
+            ranges: vec![None; levels],
         }
     }
 
@@ -296,14 +325,7 @@ impl FramePlanner {
                 let keys = quad_keys(height, grid, &p, CLIPMAP_N);
                 let mut top = Some((f32::NEG_INFINITY, 0.0f32));
                 for k in keys {
-                    let t = match self.tile_top.get(&k) {
-                        Some(t) => Some(*t),
-                        None => streamer.cache().get(&k).map(|t| {
-                            let v = height_top_and_step(&t, CLIPMAP_N);
-                            self.tile_top.insert(k, v);
-                            v
-                        }),
-                    };
+                    let t = self.tile_extremes(streamer, k).map(|t| (t.0, t.1));
                     top = top.zip(t).map(|(a, b)| (a.0.max(b.0), a.1.max(b.1)));
                 }
                 if let Some((top, step)) = top
@@ -315,6 +337,19 @@ impl FramePlanner {
                 (bound - self.ground_prev) * self.options.exaggeration
             })
             .collect()
+    }
+
+    /// A made height tile's highest height, largest step between neighbouring texels and
+    /// lowest height as drawn (cached).
+    fn tile_extremes(&mut self, streamer: &Streamer, k: TileKey) -> Option<(f32, f32, f32)> {
+        match self.tile_top.get(&k) {
+            Some(t) => Some(*t),
+            None => streamer.cache().get(&k).map(|t| {
+                let v = height_extremes(&t, CLIPMAP_N);
+                self.tile_top.insert(k, v);
+                v
+            }),
+        }
     }
 
     /// GPU memory of the height and colour clipmaps, bytes.
@@ -338,11 +373,19 @@ impl FramePlanner {
         let mut filled = 0;
         for i in lo..=hi {
             let p = Placement::new(i, &viewer, CLIPMAP_N);
+            if self.held[held_index(LayerKind::Height)][i as usize].is_none() {
+                self.ranges[i as usize] = None;
+            }
             let todo = self.stale_regions(LayerKind::Height, i, &p);
             for r in &todo {
                 let data = fill_region(&p, CLIPMAP_N, *r, |lon, colat| {
                     [heights.height(lon, colat, p.win)]
                 });
+                let range = &mut self.ranges[i as usize];
+                for &v in &data {
+                    let v = if v.is_nan() { 0.0 } else { v };
+                    *range = Some(range.map_or((v, v), |(a, b)| (a.min(v), b.max(v))));
+                }
                 uploads.push(Upload::new(
                     LayerKind::Height,
                     i,
@@ -369,17 +412,17 @@ impl FramePlanner {
             let (lon, colat) = p.texel_centre(c.max(0) as u32, r.max(0) as u32);
             f64::from(heights.height(lon, colat, p.win))
         });
-        let stats = FrameStats {
+        let mut stats = FrameStats {
             level_lo: lo,
             level_hi: hi,
             level_wanted: hi,
             level_sharpest: hi,
             triangles: self.hemi.triangles(lo, hi),
             levels_filled: filled,
-            level_failed: false,
-            fading: false,
+            ..Default::default()
         };
         let frame = self.frame_uniform(&viewer, camera, (w, h), ground, colors.is_some(), stats);
+        let cdlod = self.plan_cdlod(camera, (w, h), &frame, &mut stats);
         FramePlan {
             uploads,
             tasks: Vec::new(),
@@ -387,7 +430,49 @@ impl FramePlanner {
             levels: self.level_uniforms.clone(),
             stats,
             ground,
+            cdlod,
         }
+    }
+
+    /// With [`Geometry::Cdlod`], the tree's leaves for this frame (its statistics into `stats`).
+    fn plan_cdlod(
+        &mut self,
+        camera: &Camera,
+        size: (u32, u32),
+        frame: &FrameUniform,
+        stats: &mut FrameStats,
+    ) -> Option<CdlodFrame> {
+        let Geometry::Cdlod(spec) = self.options.geometry else {
+            self.cdlod = None;
+            return None;
+        };
+        let planner = match &mut self.cdlod {
+            Some(p) if p.spec == spec => p,
+            slot => slot.insert(CdlodPlanner::new(spec)),
+        };
+        let k = self.options.exaggeration;
+        let (lo, hi) = (stats.level_lo, stats.level_hi);
+        let bounds: Vec<Option<(f64, f64)>> = (0..self.ranges.len() as u32)
+            .map(|i| {
+                let r = self.ranges[i as usize].filter(|_| (lo..=hi).contains(&i))?;
+                Some((f64::from(r.0) * k, f64::from(r.1) * k))
+            })
+            .collect();
+        let f = planner.plan(
+            camera,
+            size,
+            self.radius,
+            (
+                f64::from(frame.cam_height),
+                f64::from(frame.cam_height) - camera.alt,
+            ),
+            (&bounds, lo, hi),
+        );
+        stats.triangles = f.stats.triangles;
+        stats.leaves = f.stats.leaves;
+        stats.culled_horizon = f.stats.culled_horizon;
+        stats.culled_frustum = f.stats.culled_frustum;
+        Some(f)
     }
 
     /// The frame's uniforms.
@@ -570,6 +655,16 @@ impl FramePlanner {
                 filled += u32::from(!todo.is_empty());
             }
             self.level_uniforms[i as usize] = level_uniform(&p);
+            let mut range = None;
+            for k in quad_keys(sources.height, grid, &p, n) {
+                let t = self.tile_extremes(streamer, k);
+                range = match (range, t) {
+                    (None, Some(t)) => Some((t.2, t.0)),
+                    (Some((a, b)), Some(t)) => Some((f32::min(a, t.2), f32::max(b, t.0))),
+                    (r, None) => r,
+                };
+            }
+            self.ranges[i as usize] = range.filter(|r| r.0 <= r.1);
             drawn = Some((i, p, quad));
             if deadline.is_some_and(|d| Instant::now() >= d) {
                 break;
@@ -637,7 +732,7 @@ impl FramePlanner {
             _ => ground,
         };
         self.ground_prev = ground;
-        let stats = FrameStats {
+        let mut stats = FrameStats {
             level_lo: lo,
             level_hi: hi,
             level_wanted: wanted,
@@ -646,6 +741,7 @@ impl FramePlanner {
             levels_filled: filled,
             level_failed,
             fading,
+            ..Default::default()
         };
         let frame = self.frame_uniform(
             &viewer,
@@ -655,6 +751,7 @@ impl FramePlanner {
             sources.color.is_some(),
             stats,
         );
+        let cdlod = self.plan_cdlod(camera, (w, h), &frame, &mut stats);
         FramePlan {
             uploads,
             tasks: self.last_tasks.clone(),
@@ -662,6 +759,7 @@ impl FramePlanner {
             levels: self.level_uniforms.clone(),
             stats,
             ground,
+            cdlod,
         }
     }
 }
@@ -733,17 +831,18 @@ fn region_from_quad(quad: &[Tile], p: &Placement, r: Region, n: u32) -> Vec<u8> 
     out
 }
 
-/// A height tile's highest height and largest step between neighbouring texels (NaN texels
-/// skipped; colour tiles: no height).
-fn height_top_and_step(tile: &TileData, n: u32) -> (f32, f32) {
+/// A height tile's highest height, largest step between neighbouring texels (NaN texels
+/// skipped) and lowest height as drawn (NaN at sea level; colour tiles: no height).
+fn height_extremes(tile: &TileData, n: u32) -> (f32, f32, f32) {
     let TileData::Height(h) = tile else {
-        return (f32::NEG_INFINITY, 0.0);
+        return (f32::NEG_INFINITY, 0.0, f32::INFINITY);
     };
     let n = n as usize;
-    let (mut top, mut step) = (f32::NEG_INFINITY, 0.0f32);
+    let (mut top, mut step, mut bottom) = (f32::NEG_INFINITY, 0.0f32, f32::INFINITY);
     for (r, row) in h.chunks_exact(n).enumerate() {
         for (c, &v) in row.iter().enumerate() {
             top = top.max(v);
+            bottom = bottom.min(if v.is_nan() { 0.0 } else { v });
             if c + 1 < n {
                 step = step.max((row[c + 1] - v).abs());
             }
@@ -752,7 +851,7 @@ fn height_top_and_step(tile: &TileData, n: u32) -> (f32, f32) {
             }
         }
     }
-    (top, step)
+    (top, step, bottom)
 }
 
 /// The level whose heights the mesh of ring `i` carries (`shaders/clipmap.wgsl`, `vs_main`): the

@@ -6,6 +6,7 @@
 
 pub mod atmosphere;
 pub mod camera;
+pub mod cdlod;
 pub mod clipmap;
 pub mod detail;
 pub mod flight;

@@ -157,8 +157,21 @@ pub fn draw_options(
         (None, None) => Sun::default_for(camera.lat_deg, camera.lon_deg),
     };
     let lit = look.shading == crate::cli::Shading::Lit;
+    let geometry = match look.renderer {
+        crate::cli::RendererKind::Clipmap => sc_view_plan::frame::Geometry::Clipmap,
+        crate::cli::RendererKind::Cdlod => {
+            let spec = sc_view_plan::cdlod::CdlodSpec {
+                patch: look.cdlod_patch,
+                pixel_error: look.cdlod_pixels,
+            };
+            spec.check()
+                .map_err(|e| anyhow::anyhow!("--cdlod-patch/--cdlod-pixels: {e}"))?;
+            sc_view_plan::frame::Geometry::Cdlod(spec)
+        }
+    };
     Ok(sc_view_plan::frame::DrawOptions {
         lit,
+        geometry,
         exaggeration: k,
         sun,
         atmosphere: (lit && look.atmosphere == crate::cli::OnOff::On)
