@@ -10,7 +10,7 @@
 
 @compute @workgroup_size(64)
 fn probe(@builtin(global_invocation_id) id: vec3<u32>) {
-    let k = id.x;
+    let k = id.x + 65535u * 64u * id.y;
     if (k >= arrayLength(&probe_out)) {
         return;
     }

@@ -958,6 +958,15 @@ pub fn patch_mesh(n: u32) -> (Vec<[u32; 2]>, Vec<u32>) {
     (vertices, indices)
 }
 
+/// The border of a patch of `n` segments, counter-clockwise: (i, j) along j = 0, the diagonal,
+/// then i = 0.
+pub fn patch_border(n: u32) -> Vec<[u32; 2]> {
+    let along = (0..n).map(|i| [i, 0]);
+    let diagonal = (0..n).map(|k| [n - k, k]);
+    let back = (0..n).map(|k| [0, n - k]);
+    along.chain(diagonal).chain(back).collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

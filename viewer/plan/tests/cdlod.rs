@@ -8,7 +8,8 @@ use std::collections::HashMap;
 use glam::DVec3;
 use sc_view_plan::camera::Camera;
 use sc_view_plan::cdlod::{
-    CdlodFrame, CdlodPlanner, CdlodSpec, LeafInstance, attributes, vertex_f32, vertex_f64,
+    CdlodFrame, CdlodPlanner, CdlodSpec, LeafInstance, attributes, patch_border, vertex_f32,
+    vertex_f64,
 };
 use sc_view_plan::transform::{Viewer, visible_levels};
 
@@ -23,25 +24,10 @@ fn frame(planner: &CdlodPlanner, cam: &str, size: (u32, u32)) -> (Camera, CdlodF
     (cam, f)
 }
 
-/// The border of a leaf's patch, counter-clockwise: (i, j) along j = 0, the diagonal, i = 0.
-fn border(n: u32) -> Vec<[u32; 2]> {
-    let mut b = Vec::new();
-    for i in 0..n {
-        b.push([i, 0]);
-    }
-    for k in 0..n {
-        b.push([n - k, k]);
-    }
-    for k in 0..n {
-        b.push([0, n - k]);
-    }
-    b
-}
-
 /// Directed border segments of every leaf after the morph, as bit patterns, zero-length ones
 /// dropped.
 fn segments(f: &CdlodFrame, cam_height: f32, n: u32) -> Vec<([u32; 3], [u32; 3], LeafInstance)> {
-    let ring = border(n);
+    let ring = patch_border(n);
     let mut out = Vec::new();
     for leaf in &f.leaves {
         let pts: Vec<[u32; 3]> = ring
