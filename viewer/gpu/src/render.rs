@@ -514,6 +514,18 @@ impl ClipmapPass {
         self.planner.clipmap_bytes()
     }
 
+    /// GPU memory of the geometry the last frame drew, bytes: the static hemisphere's vertex and
+    /// index buffers, or CDLOD's patch, leaf instances (the buffer as allocated) and uniform.
+    pub fn geometry_bytes(&self) -> u64 {
+        let c = &self.cdlod;
+        match (c.leaves, &c.patch) {
+            (Some(_), Some((_, v, i, _))) => {
+                v.size() + i.size() + c.instances.as_ref().map_or(0, |b| b.1) + c.uniform.size()
+            }
+            _ => self.vertices.size() + self.indices.size(),
+        }
+    }
+
     /// Plans a frame with tiles sampled from the sources on this thread
     /// ([`FramePlanner::plan`]) and uploads it; returns the ground height under the camera
     /// (metres) and what the frame will draw.

@@ -19,7 +19,8 @@ use sc_view_gpu::render::{
     ClipmapPass, ImageReadback, RenderError, background, begin_pass, depth_target, device_for,
 };
 use sc_view_plan::camera::{Camera, CameraScript, Controller, Input, Mode};
-use sc_view_plan::frame::{DrawOptions, FrameStats, StreamSources};
+use sc_view_plan::cdlod::CdlodSpec;
+use sc_view_plan::frame::{DrawOptions, FrameStats, Geometry, StreamSources};
 use sc_view_plan::graph::{FilterHandle, FilterParams};
 use sc_view_plan::stream::Streamer;
 use sc_view_plan::sun::Sun;
@@ -351,6 +352,12 @@ impl App<'_> {
                         stats.level_wanted,
                         stats.triangles
                     ));
+                    if let Geometry::Cdlod(_) = options.geometry {
+                        ui.label(format!(
+                            "CDLOD: {} leaves drawn · culled: {} by frustum, {} by horizon",
+                            stats.leaves, stats.culled_frustum, stats.culled_horizon
+                        ));
+                    }
                     ui.label(format!(
                         "clipmaps {memory_mb:.1} MiB · {} updated this frame",
                         stats.levels_filled
@@ -381,6 +388,24 @@ impl App<'_> {
                         egui::Checkbox::new(&mut options.wireframe, "wireframe (F)"),
                     );
                     ui.checkbox(&mut options.level_colors, "level colours (L)");
+                    ui.horizontal(|ui| {
+                        let cdlod = match options.geometry {
+                            Geometry::Cdlod(spec) => spec,
+                            Geometry::Clipmap => CdlodSpec::default(),
+                        };
+                        ui.radio_value(&mut options.geometry, Geometry::Clipmap, "clipmaps");
+                        ui.radio_value(&mut options.geometry, Geometry::Cdlod(cdlod), "CDLOD");
+                    });
+                    if let Geometry::Cdlod(spec) = &mut options.geometry {
+                        let mut bits = spec.bits();
+                        ui.add(egui::Slider::new(&mut bits, 1..=4).text("patch: 2^n segments"));
+                        spec.patch = 1 << bits;
+                        ui.add(
+                            egui::Slider::new(&mut spec.pixel_error, 1.0..=32.0)
+                                .logarithmic(true)
+                                .text("triangle pixels"),
+                        );
+                    }
                     ui.checkbox(&mut options.lit, "lit (off: colour as stored)");
                     let mut air = options.atmosphere.is_some();
                     ui.add_enabled(options.lit, egui::Checkbox::new(&mut air, "atmosphere"));

@@ -25,6 +25,10 @@ pub fn run(
     let s = streamer_for(store, None)?;
     let sources = super::clipmap_sources(look, s.sources, s.without_detail);
     let mut r = Renderer::headless(w, h, s.radius)?;
+    r.set_options(sc_view_plan::frame::DrawOptions {
+        geometry: super::geometry(look)?,
+        ..Default::default()
+    });
     let stats = fly(
         &mut r,
         &s.streamer,

@@ -139,6 +139,22 @@ pub fn clipmap_sources(
     }
 }
 
+/// The geometry `--renderer` (and CDLOD's options) ask for.
+pub fn geometry(look: &crate::cli::LookArgs) -> Result<sc_view_plan::frame::Geometry> {
+    Ok(match look.renderer {
+        crate::cli::RendererKind::Clipmap => sc_view_plan::frame::Geometry::Clipmap,
+        crate::cli::RendererKind::Cdlod => {
+            let spec = sc_view_plan::cdlod::CdlodSpec {
+                patch: look.cdlod_patch,
+                pixel_error: look.cdlod_pixels,
+            };
+            spec.check()
+                .map_err(|e| anyhow::anyhow!("--cdlod-patch/--cdlod-pixels: {e}"))?;
+            sc_view_plan::frame::Geometry::Cdlod(spec)
+        }
+    })
+}
+
 /// How `render` and `view` draw, from their shared options, with the sun placed for a camera
 /// that starts at `camera` and the source graph's atmosphere (Earth's when it has none).
 pub fn draw_options(
@@ -157,21 +173,9 @@ pub fn draw_options(
         (None, None) => Sun::default_for(camera.lat_deg, camera.lon_deg),
     };
     let lit = look.shading == crate::cli::Shading::Lit;
-    let geometry = match look.renderer {
-        crate::cli::RendererKind::Clipmap => sc_view_plan::frame::Geometry::Clipmap,
-        crate::cli::RendererKind::Cdlod => {
-            let spec = sc_view_plan::cdlod::CdlodSpec {
-                patch: look.cdlod_patch,
-                pixel_error: look.cdlod_pixels,
-            };
-            spec.check()
-                .map_err(|e| anyhow::anyhow!("--cdlod-patch/--cdlod-pixels: {e}"))?;
-            sc_view_plan::frame::Geometry::Cdlod(spec)
-        }
-    };
     Ok(sc_view_plan::frame::DrawOptions {
         lit,
-        geometry,
+        geometry: geometry(look)?,
         exaggeration: k,
         sun,
         atmosphere: (lit && look.atmosphere == crate::cli::OnOff::On)

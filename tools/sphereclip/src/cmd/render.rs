@@ -113,6 +113,14 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
         (img, stats) = (i, s);
     }
     write_png(&img, out)?;
+    if stats.leaves > 0 {
+        crate::outln!(
+            "CDLOD: {} leaves drawn, {} nodes culled by the frustum, {} beyond the horizon",
+            stats.leaves,
+            stats.culled_frustum,
+            stats.culled_horizon
+        );
+    }
     crate::outln!(
         "rendered {} ({w}x{h}) on {}: levels {}..{}, {} triangles, complete after {complete_ms:.0} ms ({frames} frames); ground under the camera {:.1} m",
         out.display(),
@@ -121,6 +129,11 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
         stats.level_hi,
         stats.triangles,
         r.ground,
+    );
+    crate::outln!(
+        "GPU memory: clipmaps {:.1} MiB, geometry {:.2} MiB",
+        r.pass_mut().clipmap_bytes() as f64 / 1048576.0,
+        r.pass_mut().geometry_bytes() as f64 / 1048576.0
     );
     if a.frames > 1 {
         crate::outln!(
