@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The two renderers side by side on one store, same views, same size, one run: triangles, frame
 # and CPU time per frame of the complete view (median of FRAMES), leaves and culling, GPU memory.
-# Usage: bench/renderers.sh STORE [WxH] [FRAMES]
+# Usage: bench/renderers.sh STORE [WxH] [FRAMES]; RENDERERS="clipmap cdlod cdlod:8:16" picks the
+# renderers (cdlod:PATCH:PIXELS sets CDLOD's options).
 set -euo pipefail
 store=${1:?usage: bench/renderers.sh STORE [WxH] [FRAMES]}
 size=${2:-640x360}
@@ -19,9 +20,12 @@ views=(
 printf '| view | renderer | triangles | frame ms | CPU ms | leaves (culled frustum / horizon) | geometry MiB |\n|---|---|---|---|---|---|---|\n'
 for v in "${views[@]}"; do
   name=${v%% *}; cam=${v#* }
-  for r in clipmap cdlod; do
+  for r in ${RENDERERS:-clipmap cdlod cdlod:8:16}; do
+    IFS=: read -r kind patch pixels <<<"$r"
+    opts=(--renderer "$kind")
+    [ -n "${patch:-}" ] && opts+=(--cdlod-patch "$patch" --cdlod-pixels "$pixels")
     log=$("$bin" render "$store" --camera="$cam" --size "$size" --frames "$frames" \
-      --renderer "$r" --out "$out/$name-$r.png" 2>&1)
+      "${opts[@]}" --out "$out/$name-$kind.png" 2>&1)
     tri=$(sed -n 's/.* \([0-9]*\) triangles,.*/\1/p' <<<"$log")
     fr=$(sed -n 's/.*frame median \([0-9.]*\) ms.*/\1/p' <<<"$log")
     cpu=$(sed -n 's/.*CPU median \([0-9.]*\) ms.*/\1/p' <<<"$log")

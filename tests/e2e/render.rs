@@ -577,3 +577,70 @@ fn an_output_named_without_a_folder_lands_in_the_current_one() {
     assert!(o.status.success(), "{}", text(&o.stderr));
     assert!(dir.path().join("shot.png").is_file());
 }
+
+/// Mean absolute difference (/255) and share of pixels off by more than 30/255 between two
+/// pictures of the same size.
+fn difference(a: &image::RgbaImage, b: &image::RgbaImage) -> (f64, f64) {
+    let (mut sum, mut off, mut n) = (0.0, 0usize, 0usize);
+    for (p, q) in a.pixels().zip(b.pixels()) {
+        let d = (0..3)
+            .map(|c| (f64::from(p.0[c]) - f64::from(q.0[c])).abs())
+            .fold(0.0, f64::max);
+        sum += d;
+        off += usize::from(d > 30.0);
+        n += 1;
+    }
+    (sum / n as f64, off as f64 / n as f64)
+}
+
+#[test]
+fn cdlod_draws_the_clipmaps_data_and_refuses_bad_options() {
+    let store = crate::util::flat_blue_marble();
+    let dir = tempfile::tempdir().expect("tempdir");
+    // the same stored colour, unlit, through both geometries: on flat heights they differ only
+    // where the two meshes' chords cut the sphere differently (the limb)
+    for (name, cam) in [
+        ("space", "20,10,8000000,0,-90,40"),
+        ("north pole", "89.5,0,50000,0,-30,60"),
+        ("antimeridian", "-30,179.9,200000,270,-30,60"),
+    ] {
+        let a = dir.path().join("a.png");
+        let b = dir.path().join("b.png");
+        let clip = crate::util::render_png(&store, &a, cam, "320x180", &["--shading", "none"]);
+        let cd = crate::util::render_png(
+            &store,
+            &b,
+            cam,
+            "320x180",
+            &["--shading", "none", "--renderer", "cdlod"],
+        );
+        let (mean, off) = difference(&clip, &cd);
+        assert!(
+            mean <= 1.0 && off <= 0.005,
+            "{name}: CDLOD differs from the clipmaps by {mean:.2}/255 on average, {:.2} % of pixels by > 30",
+            off * 100.0
+        );
+    }
+    let png = dir.path().join("x.png");
+    for (extra, want) in [
+        (["--cdlod-patch", "3"], "2, 4, 8 or 16"),
+        (["--cdlod-pixels", "0"], "0.5..64"),
+    ] {
+        let mut args = vec![
+            "render",
+            s(&store),
+            "--camera",
+            "1,2,3",
+            "--out",
+            s(&png),
+            "--renderer",
+            "cdlod",
+        ];
+        args.extend_from_slice(&extra);
+        let o = run(&args);
+        assert!(!o.status.success(), "{args:?}");
+        let e = text(&o.stderr);
+        assert_eq!(e.trim().lines().count(), 1, "{e}");
+        assert!(e.contains(want), "{args:?}: {e}");
+    }
+}

@@ -76,6 +76,8 @@ pub struct ClipmapPass {
     planner: FramePlanner,
     /// What the last uploaded plan draws.
     last: FrameStats,
+    /// The last uploaded plan's frame uniform.
+    last_frame: FrameUniform,
     /// Debug toggles.
     pub options: DrawOptions,
     /// Behind the planet and its atmosphere (linear RGB; the clear colour without atmosphere).
@@ -492,6 +494,7 @@ impl ClipmapPass {
             cdlod,
             planner,
             last: FrameStats::default(),
+            last_frame: FrameUniform::zeroed(),
             options: DrawOptions::default(),
             space: SPACE,
         }
@@ -574,6 +577,7 @@ impl ClipmapPass {
         self.queue
             .write_buffer(&self.level_buf, 0, bytemuck::cast_slice(&plan.levels));
         self.last = plan.stats;
+        self.last_frame = plan.frame;
         match &plan.cdlod {
             Some(f) => self.cdlod.upload(&self.device, &self.queue, f),
             None => self.cdlod.leaves = None,
@@ -682,22 +686,31 @@ impl ClipmapPass {
 
 /// A depth target for the pass.
 pub fn depth_target(device: &wgpu::Device, w: u32, h: u32) -> wgpu::TextureView {
-    device
-        .create_texture(&wgpu::TextureDescriptor {
-            label: Some("depth target"),
-            size: wgpu::Extent3d {
-                width: w,
-                height: h,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: DEPTH_FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
-            view_formats: &[],
-        })
+    depth_texture(device, w, h, wgpu::TextureUsages::RENDER_ATTACHMENT)
         .create_view(&Default::default())
+}
+
+/// A depth texture for the pass with `usage`.
+fn depth_texture(
+    device: &wgpu::Device,
+    w: u32,
+    h: u32,
+    usage: wgpu::TextureUsages,
+) -> wgpu::Texture {
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("depth target"),
+        size: wgpu::Extent3d {
+            width: w,
+            height: h,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: DEPTH_FORMAT,
+        usage,
+        view_formats: &[],
+    })
 }
 
 /// Begins a render pass clearing `color` to `clear` and `depth` to the far plane (0).
@@ -826,8 +839,12 @@ pub struct Renderer {
     device: wgpu::Device,
     queue: wgpu::Queue,
     color: wgpu::Texture,
+    depth_texture: wgpu::Texture,
     depth: wgpu::TextureView,
     size: (u32, u32),
+    /// Read the depth buffer back with each frame ([`Self::depth`]).
+    pub keep_depth: bool,
+    depth_values: Vec<f32>,
     /// The adapter, in words (e.g. "llvmpipe (Vulkan, Cpu)").
     pub adapter: String,
     /// The clear colour (magenta in crack tests).
@@ -886,9 +903,18 @@ impl Renderer {
             usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
             view_formats: &[],
         });
+        let depth_tex = depth_texture(
+            &device,
+            width,
+            height,
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        );
         Ok(Self {
             pass: ClipmapPass::new(&device, &queue, COLOR_FORMAT, radius_m),
-            depth: depth_target(&device, width, height),
+            depth: depth_tex.create_view(&Default::default()),
+            depth_texture: depth_tex,
+            keep_depth: false,
+            depth_values: Vec::new(),
             device,
             queue,
             color,
@@ -902,6 +928,17 @@ impl Renderer {
     /// The image size, pixels.
     pub fn size(&self) -> (u32, u32) {
         self.size
+    }
+
+    /// The last frame's depth buffer (reversed Z: 0 at infinity, 1 at the near plane), row by
+    /// row, when [`Self::keep_depth`] is set.
+    pub fn depth(&self) -> &[f32] {
+        &self.depth_values
+    }
+
+    /// The last frame's uniform (its view-projection and camera height unproject the depth).
+    pub fn last_frame(&self) -> FrameUniform {
+        self.pass.last_frame
     }
 
     /// The clipmap pass (debug toggles, memory).
@@ -931,7 +968,8 @@ impl Renderer {
     ) -> Result<(image::RgbaImage, FrameStats, f64), RenderError> {
         let start = std::time::Instant::now();
         self.pass.space = self.clear;
-        let (_, stats) = self.pass.prepare(heights, colors, camera, self.size);
+        let (ground, stats) = self.pass.prepare(heights, colors, camera, self.size);
+        self.ground = ground;
         self.draw_and_read(stats, start)
     }
 
@@ -974,9 +1012,50 @@ impl Renderer {
             self.pass.draw(&mut pass);
         }
         let readback = ImageReadback::record(&self.device, &mut enc, &self.color, (w, h));
+        let depth = self.keep_depth.then(|| {
+            let row = (w * 4).div_ceil(256) * 256;
+            let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("depth readback"),
+                size: u64::from(row) * u64::from(h),
+                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+                mapped_at_creation: false,
+            });
+            enc.copy_texture_to_buffer(
+                wgpu::TexelCopyTextureInfo {
+                    texture: &self.depth_texture,
+                    mip_level: 0,
+                    origin: wgpu::Origin3d::ZERO,
+                    aspect: wgpu::TextureAspect::DepthOnly,
+                },
+                wgpu::TexelCopyBufferInfo {
+                    buffer: &buffer,
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(row),
+                        rows_per_image: Some(h),
+                    },
+                },
+                wgpu::Extent3d {
+                    width: w,
+                    height: h,
+                    depth_or_array_layers: 1,
+                },
+            );
+            (buffer, row)
+        });
         self.queue.submit([enc.finish()]);
         let cpu = start.elapsed().as_secs_f64();
         let img = readback.image(&self.device, false)?;
+        if let Some((buffer, row)) = depth {
+            let bytes = read_back(&self.device, &buffer)?;
+            self.depth_values.clear();
+            for line in bytes.chunks(row as usize).take(h as usize) {
+                self.depth_values
+                    .extend(bytemuck::pod_collect_to_vec::<u8, f32>(
+                        &line[..(w * 4) as usize],
+                    ));
+            }
+        }
         Ok((img, stats, cpu))
     }
 }

@@ -22,14 +22,16 @@
 //!   face's rule inside a face, towards the lower numbered icosahedron vertex on its edges), so
 //!   every leaf holding a vertex moves it to the same place.
 //! - **Split and morph distances.** Level L splits where the camera is nearer than D_L to the
-//!   leaf (a cone around the leaf's centre through its corners, over the heights the terrain
-//!   may take), D_L = D₀·2^−L: the pixel rule of the notes (a patch triangle no larger than
-//!   `pixel_error` pixels), but never under 4 leaf edges — below that a leaf's parent reaches
-//!   so far that the coarser neighbour would already morph where the finer one ends, or two
-//!   levels would meet. A vertex of level L morphs from 0.7·D_{L−1} and is on its parent's
-//!   lattice from 0.98·D_{L−1} (the camera's distance from the vertex's radial segment, which is
-//!   never less than the leaf's cone distance, so it is on the parent's lattice wherever a
-//!   coarser leaf touches it).
+//!   leaf (a cone around the leaf's centre through its corners, on the sphere of the ground
+//!   under the camera), D_L = D₀·2^−L: the notes' pixel rule (a patch triangle no larger than
+//!   `pixel_error` pixels), but never under [`MIN_SPLIT_EDGES`] leaf edges — below that a
+//!   leaf's parent reaches so far that the coarser neighbour would already morph where the finer
+//!   one ends, or two levels would meet. A vertex of level L morphs from
+//!   [`MORPH_START`]·D_{L−1} and is on its parent's lattice from [`MORPH_FULL`]·D_{L−1} (its own
+//!   distance on that sphere, never less than its leaf's cone distance, so it is on the parent's
+//!   lattice wherever a coarser leaf touches it; the coarser leaf's vertices there are nearer
+//!   than D_{L−1} + 1.15 edges, under its own morph start when the split distance is at least
+//!   1.15 / (2·MORPH_START − 1) ≈ 1.9 edges).
 //! - **Culling.** Horizon: a per-level table of the largest angular radius of a leaf, against the
 //!   horizon angle plus the notes' margin acos(R/(R + h_max)) for mountains beyond it; frustum:
 //!   the leaf's volume (its corners at the lowest terrain and, raised so its top plane clears
@@ -54,13 +56,14 @@ pub const FACES: usize = 20;
 pub const MAX_LEVEL: u32 = 26;
 
 /// Where a vertex starts to morph, as a share of its parent level's split distance.
-pub const MORPH_START: f64 = 0.7;
+pub const MORPH_START: f64 = 0.8;
 
 /// Where it is on the parent's lattice (a margin below 1 for f32 rounding).
 pub const MORPH_FULL: f64 = 0.98;
 
-/// A level's split distance is never under this many of its leaves' longest edge.
-pub const MIN_SPLIT_EDGES: f64 = 4.0;
+/// A level's split distance is never under this many of its leaves' longest edge (1.9 would
+/// do with [`MORPH_START`]; the rest is margin).
+pub const MIN_SPLIT_EDGES: f64 = 2.5;
 
 /// The lowest and highest terrain assumed by culling and splitting, metres (the ocean's deepest
 /// trench and Everest, with margins).
@@ -391,6 +394,16 @@ pub fn to_view(viewer: &Viewer, w: DVec3) -> DVec3 {
     let (s, k) = viewer.colat_rad.sin_cos();
     let o = viewer.orient();
     DVec3::new(o * (k * x - s * w.z), o * y, s * x + k * w.z)
+}
+
+/// A view-frame direction back in the world frame (the inverse of [`to_view`]).
+pub fn from_view(viewer: &Viewer, v: DVec3) -> DVec3 {
+    let o = viewer.orient();
+    let (tx, ty) = (o * v.x, o * v.y);
+    let (s, k) = viewer.colat_rad.sin_cos();
+    let (x, z) = (k * tx + s * v.z, -s * tx + k * v.z);
+    let (sl, cl) = viewer.lon_rad.sin_cos();
+    DVec3::new(x * cl - ty * sl, x * sl + ty * cl, z)
 }
 
 /// The clipmap vertex attributes (sin θ̃ cos ψ, sin θ̃ sin ψ, 1 − cos θ̃) of a view-frame
@@ -1051,6 +1064,8 @@ mod tests {
             };
             let at = to_view(&v, w(lat, lon));
             assert!((at - DVec3::Z).length() < 1e-12, "{lat},{lon}: {at}");
+            let q = w(lat * 0.3, lon - 40.0);
+            assert!((from_view(&v, to_view(&v, q)) - q).length() < 1e-12);
             let dlat = if lat > 0.0 { -0.05 } else { 0.05 };
             let (lat2, lon2) = (lat + dlat, lon + 0.2);
             let [px, py, c] = attributes(to_view(&v, w(lat2, lon2)));
