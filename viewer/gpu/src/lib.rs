@@ -1,9 +1,11 @@
 //! The GPU side of the spherical-clipmap viewer, on wgpu and without a window: the clipmap pass
-//! that uploads and draws the frames `sc_view_plan` plans, the headless renderer and its
-//! read-back, device setup, the map-transform probe, and the WGSL of `shaders/`.
+//! that uploads and draws the frames `sc_view_plan` plans (with spherical clipmaps or CDLOD),
+//! the headless renderer and its read-back, device setup, the map-transform and CDLOD probes,
+//! measurements of drawn geometry from depth, and the WGSL of `shaders/`.
 
 pub mod atmosphere;
 pub mod flight;
+pub mod measure;
 pub mod probe;
 pub mod render;
 
