@@ -8,26 +8,26 @@ use crate::render::{RenderError, gpu_device, read_back};
 use sc_view_plan::cdlod::{CdlodUniform, LeafInstance};
 use sc_view_plan::transform::TransformUniforms;
 
-/// A device with the probe pipeline.
+/// A compute pass `probe` of one WGSL module on a device of its own: its inputs bound at 0..k
+/// in order, its output at k.
 #[derive(Debug)]
-pub struct TransformProbe {
+struct ComputeProbe {
     device: wgpu::Device,
     queue: wgpu::Queue,
     pipeline: wgpu::ComputePipeline,
-    /// The adapter, in words.
-    pub adapter: String,
+    adapter: String,
 }
 
-impl TransformProbe {
-    /// Compiles the probe on the first adapter found.
-    pub fn new() -> Result<Self, RenderError> {
+impl ComputeProbe {
+    /// Compiles `wgsl`'s entry point `probe` on the first adapter found.
+    fn new(label: &str, wgsl: &str) -> Result<Self, RenderError> {
         let (device, queue, adapter) = gpu_device()?;
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("transform_probe.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(crate::PROBE_WGSL.into()),
+            label: Some(label),
+            source: wgpu::ShaderSource::Wgsl(wgsl.into()),
         });
         let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("transform probe"),
+            label: Some(label),
             layout: None,
             module: &module,
             entry_point: Some("probe"),
@@ -40,6 +40,82 @@ impl TransformProbe {
             pipeline,
             adapter,
         })
+    }
+
+    /// Runs `groups` workgroups over `inputs` (bytes and how each is bound) and returns the
+    /// `out_bytes` the pass wrote.
+    fn run(
+        &self,
+        inputs: &[(&[u8], wgpu::BufferUsages)],
+        out_bytes: u64,
+        groups: (u32, u32),
+    ) -> Result<Vec<u8>, RenderError> {
+        let buffers: Vec<wgpu::Buffer> = inputs
+            .iter()
+            .map(|(contents, usage)| {
+                self.device
+                    .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                        label: Some("probe input"),
+                        contents,
+                        usage: *usage,
+                    })
+            })
+            .collect();
+        let out = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("probe output"),
+            size: out_bytes,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let readback = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("readback"),
+            size: out_bytes,
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        let entries: Vec<wgpu::BindGroupEntry> = buffers
+            .iter()
+            .chain(std::iter::once(&out))
+            .enumerate()
+            .map(|(k, b)| wgpu::BindGroupEntry {
+                binding: k as u32,
+                resource: b.as_entire_binding(),
+            })
+            .collect();
+        let bind = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("probe"),
+            layout: &self.pipeline.get_bind_group_layout(0),
+            entries: &entries,
+        });
+        let mut enc = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+        {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &bind, &[]);
+            pass.dispatch_workgroups(groups.0, groups.1, 1);
+        }
+        enc.copy_buffer_to_buffer(&out, 0, &readback, 0, out_bytes);
+        self.queue.submit([enc.finish()]);
+        read_back(&self.device, &readback)
+    }
+}
+
+/// A device with the map-transform probe pipeline.
+#[derive(Debug)]
+pub struct TransformProbe {
+    probe: ComputeProbe,
+    /// The adapter, in words.
+    pub adapter: String,
+}
+
+impl TransformProbe {
+    /// Compiles the probe on the first adapter found.
+    pub fn new() -> Result<Self, RenderError> {
+        let probe = ComputeProbe::new("transform_probe.wgsl", crate::PROBE_WGSL)?;
+        let adapter = probe.adapter.clone();
+        Ok(Self { probe, adapter })
     }
 
     /// (Δφ, Δθ) for each vertex `[px, py, 1 − cos θ̃, seam]`, computed by the GPU.
@@ -52,63 +128,14 @@ impl TransformProbe {
             return Ok(Vec::new());
         }
         let uniform = [u.sin_v, u.cos_v, u.colat, u.orient];
-        let ubuf = self
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("viewer"),
-                contents: bytemuck::cast_slice(&uniform),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
-        let vbuf = self
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("vertices"),
-                contents: bytemuck::cast_slice(vertices),
-                usage: wgpu::BufferUsages::STORAGE,
-            });
-        let size = (vertices.len() * 8) as u64;
-        let obuf = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("offsets"),
-            size,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let readback = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("readback"),
-            size,
-            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-            mapped_at_creation: false,
-        });
-        let bind = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("probe"),
-            layout: &self.pipeline.get_bind_group_layout(0),
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: ubuf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: vbuf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: obuf.as_entire_binding(),
-                },
+        let bytes = self.probe.run(
+            &[
+                (bytemuck::cast_slice(&uniform), wgpu::BufferUsages::UNIFORM),
+                (bytemuck::cast_slice(vertices), wgpu::BufferUsages::STORAGE),
             ],
-        });
-        let mut enc = self
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
-        {
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &bind, &[]);
-            pass.dispatch_workgroups((vertices.len() as u32).div_ceil(64), 1, 1);
-        }
-        enc.copy_buffer_to_buffer(&obuf, 0, &readback, 0, size);
-        self.queue.submit([enc.finish()]);
-        let bytes = read_back(&self.device, &readback)?;
+            (vertices.len() * 8) as u64,
+            ((vertices.len() as u32).div_ceil(64), 1),
+        )?;
         Ok(bytemuck::pod_collect_to_vec(&bytes))
     }
 }
@@ -117,9 +144,7 @@ impl TransformProbe {
 /// by the WGSL of the vertex stage, read back.
 #[derive(Debug)]
 pub struct CdlodProbe {
-    device: wgpu::Device,
-    queue: wgpu::Queue,
-    pipeline: wgpu::ComputePipeline,
+    probe: ComputeProbe,
     /// The adapter, in words.
     pub adapter: String,
 }
@@ -127,25 +152,9 @@ pub struct CdlodProbe {
 impl CdlodProbe {
     /// Compiles the probe on the first adapter found.
     pub fn new() -> Result<Self, RenderError> {
-        let (device, queue, adapter) = gpu_device()?;
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("cdlod_probe.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(crate::CDLOD_PROBE_WGSL.into()),
-        });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("cdlod probe"),
-            layout: None,
-            module: &module,
-            entry_point: Some("probe"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
-        Ok(Self {
-            device,
-            queue,
-            pipeline,
-            adapter,
-        })
+        let probe = ComputeProbe::new("cdlod_probe.wgsl", crate::CDLOD_PROBE_WGSL)?;
+        let adapter = probe.adapter.clone();
+        Ok(Self { probe, adapter })
     }
 
     /// The attributes (px, py, 1 − cos θ̃) of patch vertex (i, j) of each leaf, morphed for a
@@ -159,20 +168,6 @@ impl CdlodProbe {
         if vertices.is_empty() {
             return Ok(Vec::new());
         }
-        let init = |label, contents: &[u8], usage| {
-            self.device
-                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some(label),
-                    contents,
-                    usage,
-                })
-        };
-        let ubuf = init("cdlod", bytemuck::bytes_of(u), wgpu::BufferUsages::UNIFORM);
-        let fbuf = init(
-            "frame",
-            bytemuck::cast_slice(&[radius, cam_height, 0.0, 0.0]),
-            wgpu::BufferUsages::UNIFORM,
-        );
         let input: Vec<[i32; 8]> = vertices
             .iter()
             .map(|(l, [i, j])| {
@@ -188,60 +183,20 @@ impl CdlodProbe {
                 ]
             })
             .collect();
-        let vbuf = init(
-            "vertices",
-            bytemuck::cast_slice(&input),
-            wgpu::BufferUsages::STORAGE,
-        );
-        let size = (vertices.len() * 16) as u64;
-        let obuf = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("positions"),
-            size,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let readback = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("readback"),
-            size,
-            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-            mapped_at_creation: false,
-        });
-        let bind = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("cdlod probe"),
-            layout: &self.pipeline.get_bind_group_layout(0),
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: ubuf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: fbuf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: vbuf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 3,
-                    resource: obuf.as_entire_binding(),
-                },
+        let groups = (vertices.len() as u32).div_ceil(64);
+        let bytes = self.probe.run(
+            &[
+                (bytemuck::bytes_of(u), wgpu::BufferUsages::UNIFORM),
+                (
+                    bytemuck::cast_slice(&[radius, cam_height, 0.0, 0.0]),
+                    wgpu::BufferUsages::UNIFORM,
+                ),
+                (bytemuck::cast_slice(&input), wgpu::BufferUsages::STORAGE),
             ],
-        });
-        let mut enc = self
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
-        {
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &bind, &[]);
-            let groups = (vertices.len() as u32).div_ceil(64);
+            (vertices.len() * 16) as u64,
             // at most 65535 workgroups a dimension
-            pass.dispatch_workgroups(groups.min(65535), groups.div_ceil(65535), 1);
-        }
-        enc.copy_buffer_to_buffer(&obuf, 0, &readback, 0, size);
-        self.queue.submit([enc.finish()]);
-        let bytes = read_back(&self.device, &readback)?;
+            (groups.min(65535), groups.div_ceil(65535)),
+        )?;
         let out: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&bytes);
         Ok(out.into_iter().map(|p| [p[0], p[1], p[2]]).collect())
     }

@@ -137,6 +137,57 @@ impl CdlodResources {
     }
 }
 
+/// What distinguishes the two terrain pipelines (the hemisphere's and CDLOD's): both draw
+/// into the same targets with the same depth test and the clipmap fragment stage.
+struct TerrainStage<'a> {
+    label: &'static str,
+    layout: &'a wgpu::PipelineLayout,
+    module: &'a wgpu::ShaderModule,
+    vertex_entry: &'static str,
+    buffers: &'a [wgpu::VertexBufferLayout<'a>],
+}
+
+impl TerrainStage<'_> {
+    fn pipeline(
+        &self,
+        device: &wgpu::Device,
+        format: wgpu::TextureFormat,
+        polygon_mode: wgpu::PolygonMode,
+    ) -> wgpu::RenderPipeline {
+        device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some(self.label),
+            layout: Some(self.layout),
+            vertex: wgpu::VertexState {
+                module: self.module,
+                entry_point: Some(self.vertex_entry),
+                compilation_options: Default::default(),
+                buffers: self.buffers,
+            },
+            primitive: wgpu::PrimitiveState {
+                cull_mode: None,
+                polygon_mode,
+                ..Default::default()
+            },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Greater),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: self.module,
+                entry_point: Some("fs_main"),
+                compilation_options: Default::default(),
+                targets: &[Some(format.into())],
+            }),
+            multiview_mask: None,
+            cache: None,
+        })
+    }
+}
+
 fn clipmap_array(device: &wgpu::Device, label: &str, format: wgpu::TextureFormat) -> wgpu::Texture {
     device.create_texture(&wgpu::TextureDescriptor {
         label: Some(label),
@@ -348,94 +399,47 @@ impl ClipmapPass {
             label: Some("cdlod.wgsl"),
             source: wgpu::ShaderSource::Wgsl(crate::CDLOD_WGSL.into()),
         });
-        let make = |polygon_mode| {
-            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some("clipmap"),
-                layout: Some(&pipeline_layout),
-                vertex: wgpu::VertexState {
-                    module: &shader,
-                    entry_point: Some("vs_main"),
-                    compilation_options: Default::default(),
-                    buffers: &[wgpu::VertexBufferLayout {
-                        array_stride: std::mem::size_of::<GpuVertex>() as u64,
-                        step_mode: wgpu::VertexStepMode::Vertex,
-                        attributes: &wgpu::vertex_attr_array![0 => Float32x2, 1 => Float32, 2 => Float32, 3 => Uint32, 4 => Float32],
-                    }],
-                },
-                primitive: wgpu::PrimitiveState {
-                    cull_mode: None,
-                    polygon_mode,
-                    ..Default::default()
-                },
-                depth_stencil: Some(wgpu::DepthStencilState {
-                    format: DEPTH_FORMAT,
-                    depth_write_enabled: Some(true),
-                    depth_compare: Some(wgpu::CompareFunction::Greater),
-                    stencil: Default::default(),
-                    bias: Default::default(),
-                }),
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &shader,
-                    entry_point: Some("fs_main"),
-                    compilation_options: Default::default(),
-                    targets: &[Some(format.into())],
-                }),
-                multiview_mask: None,
-                cache: None,
-            })
+        let hemisphere_buffers = [wgpu::VertexBufferLayout {
+            array_stride: std::mem::size_of::<GpuVertex>() as u64,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &wgpu::vertex_attr_array![0 => Float32x2, 1 => Float32, 2 => Float32, 3 => Uint32, 4 => Float32],
+        }];
+        let patch_buffers = [
+            wgpu::VertexBufferLayout {
+                array_stride: 8,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &wgpu::vertex_attr_array![0 => Uint32x2],
+            },
+            wgpu::VertexBufferLayout {
+                array_stride: std::mem::size_of::<LeafInstance>() as u64,
+                step_mode: wgpu::VertexStepMode::Instance,
+                attributes: &wgpu::vertex_attr_array![1 => Uint32, 2 => Uint32, 3 => Sint32x2, 4 => Sint32, 5 => Float32],
+            },
+        ];
+        let clipmap = TerrainStage {
+            label: "clipmap",
+            layout: &pipeline_layout,
+            module: &shader,
+            vertex_entry: "vs_main",
+            buffers: &hemisphere_buffers,
         };
-        let pipeline = make(wgpu::PolygonMode::Fill);
-        let make_cdlod = |polygon_mode| {
-            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some("cdlod"),
-                layout: Some(&cdlod_pipeline_layout),
-                vertex: wgpu::VertexState {
-                    module: &cdlod_shader,
-                    entry_point: Some("cdlod_vs"),
-                    compilation_options: Default::default(),
-                    buffers: &[
-                        wgpu::VertexBufferLayout {
-                            array_stride: 8,
-                            step_mode: wgpu::VertexStepMode::Vertex,
-                            attributes: &wgpu::vertex_attr_array![0 => Uint32x2],
-                        },
-                        wgpu::VertexBufferLayout {
-                            array_stride: std::mem::size_of::<LeafInstance>() as u64,
-                            step_mode: wgpu::VertexStepMode::Instance,
-                            attributes: &wgpu::vertex_attr_array![1 => Uint32, 2 => Uint32, 3 => Sint32x2, 4 => Sint32, 5 => Float32],
-                        },
-                    ],
-                },
-                primitive: wgpu::PrimitiveState {
-                    cull_mode: None,
-                    polygon_mode,
-                    ..Default::default()
-                },
-                depth_stencil: Some(wgpu::DepthStencilState {
-                    format: DEPTH_FORMAT,
-                    depth_write_enabled: Some(true),
-                    depth_compare: Some(wgpu::CompareFunction::Greater),
-                    stencil: Default::default(),
-                    bias: Default::default(),
-                }),
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &cdlod_shader,
-                    entry_point: Some("fs_main"),
-                    compilation_options: Default::default(),
-                    targets: &[Some(format.into())],
-                }),
-                multiview_mask: None,
-                cache: None,
-            })
+        let cdlod_stage = TerrainStage {
+            label: "cdlod",
+            layout: &cdlod_pipeline_layout,
+            module: &cdlod_shader,
+            vertex_entry: "cdlod_vs",
+            buffers: &patch_buffers,
         };
         let line_mode = device
             .features()
             .contains(wgpu::Features::POLYGON_MODE_LINE);
+        let make =
+            |stage: &TerrainStage, polygon_mode| stage.pipeline(device, format, polygon_mode);
+        let pipeline = make(&clipmap, wgpu::PolygonMode::Fill);
+        let wire = line_mode.then(|| make(&clipmap, wgpu::PolygonMode::Line));
         let cdlod = CdlodResources {
-            pipeline: make_cdlod(wgpu::PolygonMode::Fill),
-            wire: line_mode.then(|| make_cdlod(wgpu::PolygonMode::Line)),
+            pipeline: make(&cdlod_stage, wgpu::PolygonMode::Fill),
+            wire: line_mode.then(|| make(&cdlod_stage, wgpu::PolygonMode::Line)),
             uniform: cdlod_uniform,
             bind: cdlod_bind,
             patch: None,
@@ -470,10 +474,6 @@ impl ClipmapPass {
             multiview_mask: None,
             cache: None,
         });
-        let wire = device
-            .features()
-            .contains(wgpu::Features::POLYGON_MODE_LINE)
-            .then(|| make(wgpu::PolygonMode::Line));
         Self {
             device: device.clone(),
             queue: queue.clone(),

@@ -135,13 +135,12 @@ impl Icosahedron {
             }
         }
         let vertices: [DVec3; 12] = std::array::from_fn(|k| v[k].normalize());
-        // neighbours are 2 apart before normalising
-        let edge = (v[0] - v[1]).length().min((v[0] - v[3]).length());
+        // neighbours are the nearest pairs (2 apart before normalising)
         let edge = (0..12)
             .flat_map(|a| (0..12).map(move |b| (a, b)))
             .filter(|(a, b)| a != b)
             .map(|(a, b)| (v[a] - v[b]).length())
-            .fold(edge, f64::min);
+            .fold(f64::INFINITY, f64::min);
         let near = |a: usize, b: usize| ((v[a] - v[b]).length() - edge).abs() < 1e-9;
         let mut faces = Vec::new();
         for a in 0..12 {
