@@ -34,9 +34,5 @@ fn cdlod_vs(v: PatchIn) -> VertexOut {
     }
     let mp = mesh_height(level, depth, off);
     // the fragment's offsets continue across the seam beyond the pole within the leaf
-    var frag_off = off;
-    if (v.seam != 0.0) {
-        frag_off = map_offsets(view, p.x, p.y, p.z, v.seam);
-    }
-    return vertex_out(p, mp, frag_off);
+    return vertex_out(p, mp, v.seam);
 }

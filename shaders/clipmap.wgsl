@@ -71,11 +71,15 @@ struct VertexOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) height: f32,
     @location(1) @interpolate(flat) level: u32,
-    // map offsets from the viewer and the continuous level coordinate (level + depth in it):
-    // the fragment picks its clipmap level and blend from them, the same on both sides of a
-    // level border
-    @location(2) off: vec2<f32>,
+    // the continuous level coordinate (level + depth in it): the fragment picks its clipmap
+    // level and blend from it, the same on both sides of a level border
     @location(3) lvl: f32,
+    // the point of the unit sphere (sin θ̃ cos ψ, sin θ̃ sin ψ, 1 − cos θ̃) and its seam flag:
+    // interpolated, they give the fragment's own point, whose map offsets the fragment works
+    // out itself (offsets interpolated across a triangle bend features near a pole, where
+    // longitude is far from linear over a triangle)
+    @location(2) p: vec3<f32>,
+    @location(4) seam: f32,
     // the local up direction (view space)
     @location(5) up: vec3<f32>,
     // the point, view space relative to the camera, metres
@@ -138,8 +142,9 @@ fn mesh_height(level: u32, depth_in: f32, off: vec2<f32>) -> MeshPoint {
 }
 
 // The vertex stage's output for the point of the sphere with attributes `p` (sin θ̃ cos ψ,
-// sin θ̃ sin ψ, 1 − cos θ̃), its height and level `mp`, the fragment's map offsets `off`.
-fn vertex_out(p: vec3<f32>, mp: MeshPoint, off: vec2<f32>) -> VertexOut {
+// sin θ̃ sin ψ, 1 − cos θ̃), its height and level `mp`, the seam flag its fragments' map
+// offsets take (see `map_offsets`).
+fn vertex_out(p: vec3<f32>, mp: MeshPoint, seam: f32) -> VertexOut {
     let h = mp.h;
     // view space relative to the camera: (R + h)·p̃ − (0, 0, R + h_cam), with
     // (R + h)(1 − c) − R − h_cam = h − h_cam − (R + h)·c (no large cancellation)
@@ -149,7 +154,8 @@ fn vertex_out(p: vec3<f32>, mp: MeshPoint, off: vec2<f32>) -> VertexOut {
     out.clip = frame.view_proj * vec4<f32>(rel, 1.0);
     out.height = h;
     out.level = mp.l;
-    out.off = off;
+    out.p = p;
+    out.seam = seam;
     out.lvl = f32(mp.l) + mp.depth;
     out.up = vec3<f32>(p.x, p.y, 1.0 - p.z);
     out.rel = rel;
@@ -161,7 +167,7 @@ fn vs_main(v: VertexIn) -> VertexOut {
     let view = ViewerConsts(frame.sin_v, frame.cos_v, frame.colat, frame.orient);
     let off = map_offsets(view, v.pxy.x, v.pxy.y, v.one_minus_cos, v.seam);
     let mp = mesh_height(v.level, v.depth, off);
-    return vertex_out(vec3<f32>(v.pxy, v.one_minus_cos), mp, off);
+    return vertex_out(vec3<f32>(v.pxy, v.one_minus_cos), mp, v.seam);
 }
 
 fn color_at(l: u32, t: vec2<f32>) -> vec4<f32> {
@@ -295,9 +301,11 @@ fn terrain_in_air(frag: vec2<f32>, rel: vec3<f32>, albedo: vec3<f32>, n: vec3<f3
 
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
-    // derivatives first, in uniform control flow
-    let doff_x = dpdx(in.off);
-    let doff_y = dpdy(in.off);
+    // the fragment's map offsets from its own point; derivatives first, in uniform control flow
+    let view = ViewerConsts(frame.sin_v, frame.cos_v, frame.colat, frame.orient);
+    let off = map_offsets(view, in.p.x, in.p.y, in.p.z, in.seam);
+    let doff_x = dpdx(off);
+    let doff_y = dpdy(off);
     var albedo: vec3<f32>;
     let t = clamp(in.height / (6000.0 * frame.exaggeration), -1.0, 1.0);
     let land = vec3<f32>(0.12 + 0.5 * t, 0.25 + 0.35 * t, 0.05 + 0.6 * t);
@@ -307,17 +315,17 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let lf = clamp(floor(in.lvl), f32(frame.level_lo), f32(frame.level_hi));
     let l = u32(lf);
     let a = blend_of(l, in.lvl - lf);
-    let tl = texel_of(l, in.off);
+    let tl = texel_of(l, off);
     // the texture level by the pixel's footprint, trilinear between two clipmap levels
     let ring = select(lf, lf - 1.0 + a, l > frame.level_lo);
     // a level drawn for the first time fades in over the coarser one
-    let lc = lod_level(l, level_cap(l, ring, in.off), in.off, doff_x, doff_y);
+    let lc = lod_level(l, level_cap(l, ring, off), off, doff_x, doff_y);
     let l0 = u32(floor(lc));
     let f1 = lc - floor(lc);
     if (frame.has_color == 1u) {
-        var c = color_at(l0, texel_of(l0, in.off));
+        var c = color_at(l0, texel_of(l0, off));
         if (f1 > 0.0 && l0 < frame.level_hi) {
-            c = mix(c, color_at(l0 + 1u, texel_of(l0 + 1u, in.off)), f1);
+            c = mix(c, color_at(l0 + 1u, texel_of(l0 + 1u, off)), f1);
         }
         albedo = mix(albedo, c.rgb, clamp(c.a, 0.0, 1.0));
     }
@@ -328,9 +336,9 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
         return vec4<f32>(albedo, 1.0);
     }
     // smooth normals from the height clipmap (blended between levels like the heights)
-    var slope = slope_at(l0, texel_of(l0, in.off));
+    var slope = slope_at(l0, texel_of(l0, off));
     if (f1 > 0.0 && l0 < frame.level_hi) {
-        slope = mix(slope, slope_at(l0 + 1u, texel_of(l0 + 1u, in.off)), f1);
+        slope = mix(slope, slope_at(l0 + 1u, texel_of(l0 + 1u, off)), f1);
     }
     let n = surface_normal(in.up, slope, in.height);
     let sun = normalize(frame.sun.xyz);

@@ -18,7 +18,13 @@ struct Fidelity {
 const SPACE_PX: [u8; 3] = [255, 0, 255];
 
 fn compare(gpu: &image::RgbaImage, twin: &image::RgbaImage) -> Fidelity {
+    compare_within(gpu, twin, f64::INFINITY)
+}
+
+/// [`compare`] over the pixels within `radius` pixels of the picture's centre.
+fn compare_within(gpu: &image::RgbaImage, twin: &image::RgbaImage, radius: f64) -> Fidelity {
     let (w, h) = gpu.dimensions();
+    let (cx, cy) = (f64::from(w) / 2.0, f64::from(h) / 2.0);
     let globe = |x: u32, y: u32| {
         gpu.get_pixel(x, y).0[..3] != SPACE_PX && twin.get_pixel(x, y).0[..3] != SPACE_PX
     };
@@ -33,11 +39,12 @@ fn compare(gpu: &image::RgbaImage, twin: &image::RgbaImage) -> Fidelity {
     for y in 1..h - 2 {
         for x in 1..w - 2 {
             // inner globe pixels only: the rim mixes with space differently in the two
-            if !(globe(x, y)
-                && globe(x + 1, y)
-                && globe(x, y + 1)
-                && globe(x - 1, y)
-                && globe(x, y - 1))
+            if (f64::from(x) - cx).hypot(f64::from(y) - cy) > radius
+                || !(globe(x, y)
+                    && globe(x + 1, y)
+                    && globe(x, y + 1)
+                    && globe(x - 1, y)
+                    && globe(x, y - 1))
             {
                 continue;
             }
@@ -50,7 +57,7 @@ fn compare(gpu: &image::RgbaImage, twin: &image::RgbaImage) -> Fidelity {
             n += 1.0;
         }
     }
-    assert!(n > 10_000.0, "{n} globe pixels");
+    assert!(n > 2_000.0, "{n} globe pixels");
     Fidelity {
         mad: sum / n,
         off: off / n,
@@ -73,16 +80,16 @@ fn orbit_and_pole_views_match_the_cpu_reference_within_todays_bounds() {
     let store = flat_blue_marble();
     // (view, camera, today's mean, share off, sharpness; each 15 % worse than measured)
     let views = [
-        ("orbit-asia", "30,80,8000000,0,-90,40", 1.81, 0.0033, 0.88),
+        ("orbit-asia", "30,80,8000000,0,-90,40", 1.78, 0.0032, 0.88),
         (
             "orbit-americas",
             "10,-80,12000000,0,-90,50",
-            1.63,
-            0.0055,
+            1.62,
+            0.0054,
             0.90,
         ),
-        ("north-pole", "90,0,3000000,0,-90,50", 4.51, 0.0410, 0.81),
-        ("south-pole", "-90,0,3000000,0,-90,50", 1.70, 0.0131, 0.87),
+        ("north-pole", "90,0,3000000,0,-90,50", 4.33, 0.0372, 0.81),
+        ("south-pole", "-90,0,3000000,0,-90,50", 1.69, 0.0131, 0.87),
     ];
     for (name, cam, mad, off, sharp) in views {
         let gpu = shot(
@@ -111,6 +118,43 @@ fn orbit_and_pole_views_match_the_cpu_reference_within_todays_bounds() {
             "{name}: sharpness {:.2}",
             f.sharpness
         );
+    }
+}
+
+/// Near a pole longitude is far from linear over a triangle of the coarse rings a far camera
+/// draws there: map offsets interpolated across triangles bent the Lomonosov Ridge into an arc
+/// around the pole, with a cut along the meridian beyond it (within 40 px of the nadir, 3000 km
+/// over the pole: 4.98/255 mean, 10 % of the pixels off by > 30/255; 1.5° beside it: 2.87/255,
+/// 3.2 %). Each fragment works out its offsets from its own point (0.41 and 0.43/255, ≤ 0.02 %).
+#[test]
+fn the_ground_around_a_pole_is_where_the_twin_puts_it() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let store = flat_blue_marble();
+    for (name, cam) in [
+        ("over", "90,0,3000000,0,-90,50"),
+        ("beside", "88.5,40,3000000,0,-90,50"),
+    ] {
+        let gpu = shot(
+            &store,
+            &dir.path().join(format!("{name}.png")),
+            cam,
+            &["--shading", "none"],
+        );
+        let twin = shot(
+            &store,
+            &dir.path().join(format!("{name}-ref.png")),
+            cam,
+            &["--reference", "2"],
+        );
+        // the pole lies within 20 px of the centre; 40 px are 3.5° of ground
+        let f = compare_within(&gpu, &twin, 40.0);
+        eprintln!(
+            "{name}: mean |Δ| {:.2}/255, {:.2} % off by > 30/255 within 40 px of the nadir",
+            f.mad,
+            f.off * 100.0
+        );
+        assert!(f.mad <= 1.5, "{name}: mean {:.2}", f.mad);
+        assert!(f.off <= 0.01, "{name}: {:.2} % off", f.off * 100.0);
     }
 }
 
