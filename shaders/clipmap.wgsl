@@ -41,6 +41,11 @@ struct Level {
     // 0 … 1: how far the level has faded in since it was first drawn (over the coarser one)
     fade: f32,
     _p: f32,
+    // the colour window: as above, twice the texels at half the size
+    color_viewer_texel: vec2<f32>,
+    color_texels_per_rad: vec2<f32>,
+    color_size: vec2<u32>,
+    color_origin: vec2<u32>,
 };
 
 @group(0) @binding(0) var<uniform> frame: Frame;
@@ -170,6 +175,13 @@ fn vs_main(v: VertexIn) -> VertexOut {
     return vertex_out(vec3<f32>(v.pxy, v.one_minus_cos), mp, v.seam);
 }
 
+// The colour window's fractional texel of level l at map offsets `off`.
+fn color_texel_of(l: u32, off: vec2<f32>) -> vec2<f32> {
+    let lv = levels[l];
+    return lv.color_viewer_texel + off * lv.color_texels_per_rad;
+}
+
+// Colour at fractional texel t of level l's colour window: bilinear in linear light.
 fn color_at(l: u32, t: vec2<f32>) -> vec4<f32> {
     let lv = levels[l];
     let base = floor(t - vec2<f32>(0.5));
@@ -178,8 +190,8 @@ fn color_at(l: u32, t: vec2<f32>) -> vec4<f32> {
     for (var k = 0u; k < 4u; k = k + 1u) {
         let o = vec2<f32>(f32(k & 1u), f32(k >> 1u));
         let p = vec2<i32>(base + o);
-        let size = vec2<i32>(lv.size);
-        let wrapped = ((p + vec2<i32>(lv.origin)) % size + size) % size;
+        let size = vec2<i32>(lv.color_size);
+        let wrapped = ((p + vec2<i32>(lv.color_origin)) % size + size) % size;
         c[k] = textureLoad(colors, wrapped, i32(l), 0);
     }
     return mix(mix(c[0], c[1], f.x), mix(c[2], c[3], f.x), f.y);
@@ -219,31 +231,69 @@ fn level_tint(l: u32) -> vec3<f32> {
     return vec3<f32>(0.5 + 0.5 * cos(1.05 * k), 0.5 + 0.5 * cos(1.05 * k + 2.1), 0.5 + 0.5 * cos(1.05 * k + 4.2));
 }
 
-// The continuous clipmap level at which one texel covers about one pixel here: the ring's level
-// `l` less log2 of the pixel's footprint in l's colatitude texels (a longitude texel counted at
-// its ground size, sin θ of its angle), plus one (up to two texels a pixel: sharper, barely
-// aliased), within `cap` and the levels drawn. Across a ring border both sides agree: l's texels
-// are half l−1's. `doff_x`, `doff_y`: screen derivatives of the map offsets.
-fn lod_level(l: u32, cap: f32, off: vec2<f32>, doff_x: vec2<f32>, doff_y: vec2<f32>) -> f32 {
-    let tpr = levels[l].texels_per_rad;
+// Most colour samples a fragment takes along its footprint's longer axis.
+const MAX_ANISO: f32 = 8.0;
+
+// A pixel's footprint in the map: the screen derivatives of the map offsets, measured in a
+// window's colatitude texels (`tpr`: its texels per radian) (a longitude texel counted at its ground size, sin θ of its angle):
+// its shorter axis `minor` (texels) and its longer axis `axis` (map offsets) with length `major`.
+struct Footprint {
+    minor: f32,
+    major: f32,
+    axis: vec2<f32>,
+};
+
+fn footprint(tpr: vec2<f32>, off: vec2<f32>, doff_x: vec2<f32>, doff_y: vec2<f32>) -> Footprint {
     let s = abs(sin(frame.colat + frame.orient * off.y));
     let k = vec2<f32>(tpr.y * s, tpr.y);
-    let rho = max(length(doff_x * k), length(doff_y * k));
+    let ax = length(doff_x * k);
+    let ay = length(doff_y * k);
+    return Footprint(min(ax, ay), max(ax, ay), select(doff_y, doff_x, ax >= ay));
+}
+
+// How many colour samples a footprint takes along its longer axis (anisotropic filtering): as
+// many as the axes' ratio, at most MAX_ANISO; each covers major/n of it.
+fn aniso_taps(fp: Footprint) -> f32 {
+    return clamp(ceil(fp.major / max(fp.minor, 1e-12)), 1.0, MAX_ANISO);
+}
+
+// The continuous clipmap level at which one texel covers about one pixel here: the ring's level
+// `l` less log2 of the footprint `rho` in l's colatitude texels (the longer axis over the
+// samples taken along it), plus one (up to two texels a pixel: sharper, barely aliased), within
+// `cap` and the levels drawn. Across a ring border both sides agree: l's texels are half l−1's.
+fn lod_level(l: u32, cap: f32, rho: f32) -> f32 {
     let fine = f32(l) + 1.0 - log2(max(rho, 1e-6));
     return clamp(min(cap, fine), f32(frame.level_lo), f32(frame.level_hi));
+}
+
+// The colour at map offsets `off` from continuous level `lc`: trilinear between two clipmap
+// levels.
+fn color_trilinear(lc: f32, off: vec2<f32>) -> vec4<f32> {
+    let l0 = u32(floor(lc));
+    let f1 = lc - floor(lc);
+    var c = color_at(l0, color_texel_of(l0, off));
+    if (f1 > 0.0 && l0 < frame.level_hi) {
+        c = mix(c, color_at(l0 + 1u, color_texel_of(l0 + 1u, off)), f1);
+    }
+    return c;
 }
 
 // The finest continuous level whose data a fragment of ring `l` (continuous ring level `ring`)
 // may show: the ring's own, or up to two finer levels where their windows reach the fragment
 // (a ring's points east and west of the viewer often lie in the next finer window, whose
-// longitude span is rounded up), fading in over 16 texels inside a window's edge; each level
-// capped by how far it has faded in since it was first drawn.
-fn level_cap(l: u32, ring: f32, off: vec2<f32>) -> f32 {
+// longitude span is rounded up), fading in over 16 texels inside a window's edge — the colour
+// windows (`color`) or the heights'; each level capped by how far it has faded in since it was
+// first drawn.
+fn level_cap(l: u32, ring: f32, off: vec2<f32>, color: bool) -> f32 {
     var cap = min(ring, f32(l) - 1.0 + levels[l].fade);
     // level k only where k − 1 is wholly available
     for (var k = l + 1u; k <= min(l + 2u, frame.level_hi); k = k + 1u) {
-        let t = texel_of(k, off);
-        let size = vec2<f32>(levels[k].size);
+        var t = texel_of(k, off);
+        var size = vec2<f32>(levels[k].size);
+        if (color) {
+            t = color_texel_of(k, off);
+            size = vec2<f32>(levels[k].color_size);
+        }
         let edge = min(min(t.x, size.x - t.x), min(t.y, size.y - t.y));
         let inside = min(clamp((edge - 4.0) / 16.0, 0.0, 1.0), levels[k].fade);
         if (inside <= 0.0) {
@@ -299,13 +349,20 @@ fn terrain_in_air(frag: vec2<f32>, rel: vec3<f32>, albedo: vec3<f32>, n: vec3<f3
     return tone_map(lit * ap.transmittance + ap.radiance * atmo.sun.w);
 }
 
+// A difference of map offsets with its longitude part in (−π, π].
+fn wrap_lon(d: vec2<f32>) -> vec2<f32> {
+    return vec2<f32>(d.x - TAU * round(d.x / TAU), d.y);
+}
+
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     // the fragment's map offsets from its own point; derivatives first, in uniform control flow
     let view = ViewerConsts(frame.sin_v, frame.cos_v, frame.colat, frame.orient);
     let off = map_offsets(view, in.p.x, in.p.y, in.p.z, in.seam);
-    let doff_x = dpdx(off);
-    let doff_y = dpdy(off);
+    // a 2 × 2 quad next to the seam meridian may reach across it (near the viewer triangles are
+    // thin wedges): longitude differences are taken the short way round
+    let doff_x = wrap_lon(dpdx(off));
+    let doff_y = wrap_lon(dpdy(off));
     var albedo: vec3<f32>;
     let t = clamp(in.height / (6000.0 * frame.exaggeration), -1.0, 1.0);
     let land = vec3<f32>(0.12 + 0.5 * t, 0.25 + 0.35 * t, 0.05 + 0.6 * t);
@@ -315,18 +372,27 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let lf = clamp(floor(in.lvl), f32(frame.level_lo), f32(frame.level_hi));
     let l = u32(lf);
     let a = blend_of(l, in.lvl - lf);
-    let tl = texel_of(l, off);
-    // the texture level by the pixel's footprint, trilinear between two clipmap levels
+    // the texture level by the pixel's footprint, trilinear between two clipmap levels; a level
+    // drawn for the first time fades in over the coarser one (`level_cap`). Normals from the
+    // height clipmap at the level whose texels match the pixel:
     let ring = select(lf, lf - 1.0 + a, l > frame.level_lo);
-    // a level drawn for the first time fades in over the coarser one
-    let lc = lod_level(l, level_cap(l, ring, off), off, doff_x, doff_y);
+    let cap = level_cap(l, ring, off, false);
+    let lc = lod_level(l, cap, footprint(levels[l].texels_per_rad, off, doff_x, doff_y).major);
     let l0 = u32(floor(lc));
     let f1 = lc - floor(lc);
     if (frame.has_color == 1u) {
-        var c = color_at(l0, texel_of(l0, off));
-        if (f1 > 0.0 && l0 < frame.level_hi) {
-            c = mix(c, color_at(l0 + 1u, texel_of(l0 + 1u, off)), f1);
+        let fp = footprint(levels[l].color_texels_per_rad, off, doff_x, doff_y);
+        let cap = level_cap(l, ring, off, true);
+        // anisotropic: samples spread along the longer axis, each from the level whose texels
+        // match its share of it (the shorter axis); where that level is not at hand (capped),
+        // only as many as the level's texels fill the axis with (more would only blur)
+        let la = lod_level(l, cap, fp.major / aniso_taps(fp));
+        let n = clamp(ceil(fp.major / exp2(f32(l) + 1.0 - la)), 1.0, aniso_taps(fp));
+        var c = vec4<f32>(0.0);
+        for (var i = 0.0; i < n; i = i + 1.0) {
+            c = c + color_trilinear(la, off + fp.axis * ((i + 0.5) / n - 0.5));
         }
+        c = c / n;
         albedo = mix(albedo, c.rgb, clamp(c.a, 0.0, 1.0));
     }
     if ((frame.flags & 1u) != 0u) {

@@ -11,7 +11,7 @@ use sc_store::LayerKind;
 use sc_view_plan::atmosphere::AtmosphereFrame;
 use sc_view_plan::camera::Camera;
 use sc_view_plan::cdlod::{CdlodFrame, CdlodUniform, LeafInstance, patch_mesh};
-use sc_view_plan::clipmap::{CLIPMAP_N, ColorSource, HeightSource, Region};
+use sc_view_plan::clipmap::{CLIPMAP_N, COLOR_N, ColorSource, HeightSource, Region};
 use sc_view_plan::frame::{
     DrawOptions, FramePlan, FramePlanner, FrameStats, FrameUniform, LevelUniform, StreamSources,
 };
@@ -188,12 +188,17 @@ impl TerrainStage<'_> {
     }
 }
 
-fn clipmap_array(device: &wgpu::Device, label: &str, format: wgpu::TextureFormat) -> wgpu::Texture {
+fn clipmap_array(
+    device: &wgpu::Device,
+    label: &str,
+    format: wgpu::TextureFormat,
+    n: u32,
+) -> wgpu::Texture {
     device.create_texture(&wgpu::TextureDescriptor {
         label: Some(label),
         size: wgpu::Extent3d {
-            width: CLIPMAP_N,
-            height: CLIPMAP_N,
+            width: n,
+            height: n,
             depth_or_array_layers: HemisphereSpec::default().levels,
         },
         mip_level_count: 1,
@@ -254,11 +259,17 @@ impl ClipmapPass {
             contents: bytemuck::cast_slice(&hemi.indices),
             usage: wgpu::BufferUsages::INDEX,
         });
-        let heights = clipmap_array(device, "height clipmap", wgpu::TextureFormat::R32Float);
+        let heights = clipmap_array(
+            device,
+            "height clipmap",
+            wgpu::TextureFormat::R32Float,
+            CLIPMAP_N,
+        );
         let colors = clipmap_array(
             device,
             "colour clipmap",
             wgpu::TextureFormat::Rgba8UnormSrgb,
+            COLOR_N,
         );
         let texture = wgpu::BindingType::Texture {
             sample_type: wgpu::TextureSampleType::Float { filterable: false },
@@ -1162,6 +1173,20 @@ mod tests {
             ),
             ("size", std::mem::offset_of!(LevelUniform, size)),
             ("origin", std::mem::offset_of!(LevelUniform, origin)),
+            ("fade", std::mem::offset_of!(LevelUniform, fade)),
+            (
+                "color_viewer_texel",
+                std::mem::offset_of!(LevelUniform, color_viewer_texel),
+            ),
+            (
+                "color_texels_per_rad",
+                std::mem::offset_of!(LevelUniform, color_texels_per_rad),
+            ),
+            ("color_size", std::mem::offset_of!(LevelUniform, color_size)),
+            (
+                "color_origin",
+                std::mem::offset_of!(LevelUniform, color_origin),
+            ),
         ];
         for (name, off) in rust {
             let w = members

@@ -18,8 +18,15 @@ use crate::detail::{Detail, bilinear_roughness, corner_residuals};
 use crate::geometry::level_outer;
 use crate::transform::Viewer;
 
-/// Texels per side of a clipmap level.
+/// Texels per side of a clipmap level (heights; tiles are this size).
 pub const CLIPMAP_N: u32 = 512;
+
+/// Texels per side of a colour clipmap level: twice the heights', at half their texel size, so
+/// that colour keeps one texel a pixel farther out from the point under the camera (and around a
+/// pole, where a window spans the whole circle with this many texels of longitude). Level i's
+/// colour texels are the grid level i + 1 has at [`CLIPMAP_N`]; a window overlaps up to 3 × 3
+/// of its tiles.
+pub const COLOR_N: u32 = 2 * CLIPMAP_N;
 
 /// Most bytes of decoded store tiles one layer's reader keeps.
 pub const TILE_CACHE_BYTES: usize = 192 << 20;

@@ -16,7 +16,7 @@ use crate::atmosphere::Atmosphere;
 use crate::camera::Camera;
 use crate::cdlod::{CdlodFrame, CdlodPlanner, CdlodSpec};
 use crate::clipmap::{
-    CLIPMAP_N, ColorSource, HeightSource, Placement, Region, all_regions, changed_regions,
+    CLIPMAP_N, COLOR_N, ColorSource, HeightSource, Placement, Region, all_regions, changed_regions,
     fill_region,
 };
 use crate::geometry::{Hemisphere, HemisphereSpec, level_outer};
@@ -62,6 +62,15 @@ pub struct LevelUniform {
     /// How far the level has faded in since it was first drawn (0 … 1).
     pub fade: f32,
     pub _p: f32,
+    /// The colour window's `viewer_texel`, `texels_per_rad`, `size` and `origin` ([`COLOR_N`]
+    /// texels a side).
+    pub color_viewer_texel: [f32; 2],
+    /// See `color_viewer_texel`.
+    pub color_texels_per_rad: [f32; 2],
+    /// See `color_viewer_texel`.
+    pub color_size: [u32; 2],
+    /// See `color_viewer_texel`.
+    pub color_origin: [u32; 2],
 }
 
 /// Frames over which a level newly drawn fades in over the coarser one (no pop when detail
@@ -218,8 +227,13 @@ pub struct FramePlan {
 #[derive(Debug)]
 pub struct FramePlanner {
     hemi: Hemisphere,
-    /// Per layer (heights, colours) and level, where its data was last filled (None: never).
-    held: [Vec<Option<Placement>>; 2],
+    /// Per layer (heights, colours) and level, where its data was last filled and the window's
+    /// size (None: never).
+    held: [Vec<Option<(Placement, u32)>>; 2],
+    /// Texels a side of the colour windows this frame: [`COLOR_N`], or [`CLIPMAP_N`] where the
+    /// colour is shaded by the heights' detail (made at twice the resolution, detail costs
+    /// 2–5× the tiles; see `plan_streamed`).
+    color_n: u32,
     level_uniforms: Vec<LevelUniform>,
     radius: f64,
     /// The tasks last posted to a streamer (posted again only when they change).
@@ -249,6 +263,7 @@ impl FramePlanner {
         Self {
             hemi,
             held: [vec![None; levels], vec![None; levels]],
+            color_n: COLOR_N,
             level_uniforms: vec![LevelUniform::zeroed(); levels],
             radius: radius_m,
             last_tasks: Vec::new(),
@@ -281,13 +296,22 @@ impl FramePlanner {
     /// whose world texels changed since the level was last filled (all at first; §5). Records
     /// `p` as what the level holds once they are written.
     fn stale_regions(&mut self, layer: LayerKind, i: u32, p: &Placement) -> Vec<Region> {
+        let n = self.layer_n(layer);
         let held = &mut self.held[held_index(layer)][i as usize];
         let todo = match *held {
-            Some(old) => changed_regions(&old, p, CLIPMAP_N),
-            None => all_regions(p, CLIPMAP_N),
+            Some((old, m)) if m == n => changed_regions(&old, p, n),
+            _ => all_regions(p, n),
         };
-        *held = Some(*p);
+        *held = Some((*p, n));
         todo
+    }
+
+    /// Texels a side of a layer's clipmap levels this frame.
+    fn layer_n(&self, layer: LayerKind) -> u32 {
+        match layer {
+            LayerKind::Height => CLIPMAP_N,
+            LayerKind::Color => self.color_n,
+        }
     }
 
     /// Levels to draw for `camera` into a target `h` pixels high (§4.5).
@@ -354,7 +378,9 @@ impl FramePlanner {
 
     /// GPU memory of the height and colour clipmaps, bytes.
     pub fn clipmap_bytes(&self) -> u64 {
-        u64::from(CLIPMAP_N * CLIPMAP_N * self.hemi.spec.levels) * (4 + 4)
+        u64::from(self.hemi.spec.levels)
+            * (u64::from(CLIPMAP_N).pow(2) + u64::from(COLOR_N).pow(2))
+            * 4
     }
 
     /// The frame from `camera` into a `w × h` target, its tiles sampled from the sources on this
@@ -369,6 +395,7 @@ impl FramePlanner {
     ) -> FramePlan {
         let viewer = Viewer::from_deg(camera.lat_deg, camera.lon_deg);
         let (lo, hi) = self.visible(camera, h);
+        self.color_n = COLOR_N;
         let mut uploads = Vec::new();
         let mut filled = 0;
         for i in lo..=hi {
@@ -394,16 +421,17 @@ impl FramePlanner {
                 ));
             }
             filled += u32::from(!todo.is_empty());
+            let (pc, _) = layer_window(i, &viewer, self.color_n);
             if let Some(c) = colors.as_deref_mut() {
-                let todo = self.stale_regions(LayerKind::Color, i, &p);
+                let todo = self.stale_regions(LayerKind::Color, i, &pc);
                 for r in &todo {
                     let rgba =
-                        fill_region(&p, CLIPMAP_N, *r, |lon, colat| c.color(lon, colat, p.win));
+                        fill_region(&pc, COLOR_N, *r, |lon, colat| c.color(lon, colat, pc.win));
                     uploads.push(Upload::new(LayerKind::Color, i, *r, rgba));
                 }
                 filled += u32::from(!todo.is_empty());
             }
-            self.level_uniforms[i as usize] = level_uniform(&p);
+            self.level_uniforms[i as usize] = level_uniform(&p, &pc, self.color_n);
         }
         // the ground under the camera, as drawn: the mesh there carries the heights of the level
         // before the finest drawn (see `vertex_level`)
@@ -526,6 +554,13 @@ impl FramePlanner {
     ) -> FramePlan {
         let n = CLIPMAP_N;
         debug_assert_eq!(streamer.tile_size(), n);
+        // colour shaded by the heights' detail needs the detail at the colour's texels: at
+        // COLOR_N that costs 2–5× the tile work (a pole view from 3000 km: 21 → 111 s to
+        // complete), so such colour keeps the heights' window size
+        self.color_n = match sources.color {
+            Some(c) if streamer.dependents(sources.height).contains(&c) => CLIPMAP_N,
+            _ => COLOR_N,
+        };
         let viewer = Viewer::from_deg(camera.lat_deg, camera.lon_deg);
         let levels = self.hemi.spec.levels;
         let (lo, sharpest) = self.visible(camera, h);
@@ -568,17 +603,22 @@ impl FramePlanner {
         } else {
             wanted
         };
-        for &(i, p, grid) in &windows {
+        for &(i, ..) in &windows {
             let crossed_slowly = step * PREFETCH_FINER_FRAMES < 2.0 * level_outer(i);
-            for &(_, src) in &layers {
-                let quad = quad_keys(src, grid, &p, n);
+            for &(layer, src) in &layers {
+                let n = self.layer_n(layer);
+                let (p, grid) = layer_window(i, &viewer, n);
+                let quad = window_keys(src, grid, &p, n);
                 if i <= wanted {
-                    tasks.extend(quad.map(Task::visible));
+                    tasks.extend(quad.iter().copied().map(Task::visible));
                 } else if i == edge {
-                    tasks.extend(quad.map(|k| Task::prefetch(k, 1)));
+                    tasks.extend(quad.iter().map(|&k| Task::prefetch(k, 1)));
                 } else if crossed_slowly {
                     // needed only when the camera tilts down or descends
-                    tasks.extend(quad.map(|k| Task::prefetch(k, PREFETCH_FINER_FRAMES as u32)));
+                    tasks.extend(
+                        quad.iter()
+                            .map(|&k| Task::prefetch(k, PREFETCH_FINER_FRAMES as u32)),
+                    );
                 }
                 focus.insert((src, grid), (quad[0].x, quad[0].y));
             }
@@ -603,10 +643,10 @@ impl FramePlanner {
                         lon_rad: viewer.lon_rad + dlon * f,
                         colat_rad: (viewer.colat_rad + dcolat * f).clamp(1e-9, PI - 1e-9),
                     };
-                    let p = Placement::new(i, &ahead, n);
-                    let grid = GridId::of(i, &p, n);
-                    for &(_, src) in &layers {
-                        for key in quad_keys(src, grid, &p, n) {
+                    for &(layer, src) in &layers {
+                        let n = self.layer_n(layer);
+                        let (p, grid) = layer_window(i, &ahead, n);
+                        for key in window_keys(src, grid, &p, n) {
                             tasks.push(Task::prefetch(key, f.ceil() as u32));
                         }
                     }
@@ -625,11 +665,18 @@ impl FramePlanner {
         let mut filled = 0;
         let mut level_failed = false;
         for &(i, p, grid) in windows.iter().filter(|(i, ..)| *i <= wanted) {
-            let quad: Option<Vec<Vec<Tile>>> = layers
+            let placed: Vec<(LayerKind, Placement, Vec<TileKey>)> = layers
                 .iter()
-                .map(|&(_, src)| {
-                    quad_keys(src, grid, &p, n)
-                        .iter()
+                .map(|&(layer, src)| {
+                    let n = self.layer_n(layer);
+                    let (lp, lg) = layer_window(i, &viewer, n);
+                    (layer, lp, window_keys(src, lg, &lp, n))
+                })
+                .collect();
+            let quad: Option<Vec<Vec<Tile>>> = placed
+                .iter()
+                .map(|(_, _, keys)| {
+                    keys.iter()
                         .map(|k| match streamer.cache().get(k) {
                             Some(t) => Some(t),
                             None if i == lo && drawn.is_none() => streamer.wait_for(k, wait),
@@ -639,22 +686,21 @@ impl FramePlanner {
                 })
                 .collect();
             let Some(quad) = quad else {
-                level_failed = layers.iter().any(|&(_, src)| {
-                    quad_keys(src, grid, &p, n)
-                        .iter()
-                        .any(|k| streamer.cache().is_failed(k))
-                });
+                level_failed = placed
+                    .iter()
+                    .any(|(_, _, keys)| keys.iter().any(|k| streamer.cache().is_failed(k)));
                 break;
             };
-            for (&(layer, _), tiles) in layers.iter().zip(&quad) {
-                let todo = self.stale_regions(layer, i, &p);
+            for ((layer, lp, keys), tiles) in placed.iter().zip(&quad) {
+                let todo = self.stale_regions(*layer, i, lp);
                 for r in &todo {
-                    let bytes = region_from_quad(tiles, &p, *r, n);
-                    uploads.push(Upload::new(layer, i, *r, bytes));
+                    let bytes = region_from_tiles(keys, tiles, lp, *r, self.layer_n(*layer));
+                    uploads.push(Upload::new(*layer, i, *r, bytes));
                 }
                 filled += u32::from(!todo.is_empty());
             }
-            self.level_uniforms[i as usize] = level_uniform(&p);
+            self.level_uniforms[i as usize] =
+                level_uniform(&p, &layer_window(i, &viewer, self.color_n).0, self.color_n);
             let mut range = None;
             for k in quad_keys(sources.height, grid, &p, n) {
                 let t = self.tile_extremes(streamer, k);
@@ -675,7 +721,8 @@ impl FramePlanner {
             None => {
                 // nothing made yet (or the coarsest level failed): the sphere at sea level
                 if let Some(&(i, p, _)) = windows.first() {
-                    self.level_uniforms[i as usize] = level_uniform(&p);
+                    self.level_uniforms[i as usize] =
+                        level_uniform(&p, &layer_window(i, &viewer, self.color_n).0, self.color_n);
                 }
                 lo
             }
@@ -772,18 +819,63 @@ fn held_index(layer: LayerKind) -> usize {
     }
 }
 
-/// The uniform of a level placed at `p`.
-fn level_uniform(p: &Placement) -> LevelUniform {
-    LevelUniform {
-        viewer_texel: p.viewer_texel.map(|v| v as f32),
-        texels_per_rad: [
+/// Level `i`'s window of `n` texels a side (a power of two times [`CLIPMAP_N`]) around `viewer`:
+/// its placement and the grid of its tiles. A colour window of [`COLOR_N`] texels has the texels
+/// of level i + 1's grid (half as large, one more tile around the circle), which tiles of
+/// [`CLIPMAP_N`] cover.
+pub fn layer_window(i: u32, viewer: &Viewer, n: u32) -> (Placement, GridId) {
+    let p = Placement::new(i, viewer, n);
+    let grid = GridId::of(i, &p, n);
+    let s = (n / CLIPMAP_N).max(1).trailing_zeros();
+    (
+        p,
+        GridId {
+            level: i + s,
+            k: grid.k + s,
+        },
+    )
+}
+
+/// The tiles a window of `n` texels a side at `p` overlaps: the quad where `n` is the tiles'
+/// size (see [`quad_keys`]), else every tile its texels touch, row-major, each once.
+fn window_keys(source: u32, grid: GridId, p: &Placement, n: u32) -> Vec<TileKey> {
+    let t = CLIPMAP_N;
+    if n == t {
+        return quad_keys(source, grid, p, t).to_vec();
+    }
+    let (tt, w) = (i64::from(t), i64::from(n));
+    let mut keys = Vec::with_capacity(9);
+    for y in p.v0.div_euclid(tt)..=(p.v0 + w - 1).div_euclid(tt) {
+        for x in p.u0.div_euclid(tt)..=(p.u0 + w - 1).div_euclid(tt) {
+            let k = TileKey::at(source, grid, x * tt, y * tt, t);
+            if !keys.contains(&k) {
+                keys.push(k);
+            }
+        }
+    }
+    keys
+}
+
+/// The uniform of a level whose heights are placed at `p` and colours at `pc` (`cn` texels a
+/// side).
+fn level_uniform(p: &Placement, pc: &Placement, cn: u32) -> LevelUniform {
+    let tpr = |p: &Placement| {
+        [
             (1.0 / p.win.texel_lon) as f32,
             (1.0 / p.win.texel_colat) as f32,
-        ],
+        ]
+    };
+    LevelUniform {
+        viewer_texel: p.viewer_texel.map(|v| v as f32),
+        texels_per_rad: tpr(p),
         size: [CLIPMAP_N, CLIPMAP_N],
         origin: p.origin(CLIPMAP_N),
         fade: 1.0,
         _p: 0.0,
+        color_viewer_texel: pc.viewer_texel.map(|v| v as f32),
+        color_texels_per_rad: tpr(pc),
+        color_size: [cn, cn],
+        color_origin: pc.origin(cn),
     }
 }
 
@@ -807,20 +899,46 @@ fn quad_index(p: &Placement, c: u32, r: u32, n: u32) -> usize {
     (dy * 2 + dx) as usize
 }
 
-/// The texture bytes of region `r` from the quad: a region lies within one tile, at the same
-/// offsets (toroidal addressing), so its rows are copied as they are.
-fn region_from_quad(quad: &[Tile], p: &Placement, r: Region, n: u32) -> Vec<u8> {
-    let [ox, oy] = p.origin(n);
-    let c = (r.x + n - ox) % n;
-    let row = (r.y + n - oy) % n;
-    let tile = &quad[quad_index(p, c, row, n)];
-    let bytes = tile.texel_bytes();
+/// The texture bytes of region `r` of a window of `w` texels a side at `p` (toroidal
+/// addressing: texture texel (x, y) holds window texel ((x − ox) mod w, (y − oy) mod w)), from
+/// its tiles `tiles` (named by `keys`, [`CLIPMAP_N`] a side): each row is copied in runs, one
+/// per tile it crosses (a region of a window as large as its tiles lies within one).
+fn region_from_tiles(
+    keys: &[TileKey],
+    tiles: &[Tile],
+    p: &Placement,
+    r: Region,
+    w: u32,
+) -> Vec<u8> {
+    let n = i64::from(CLIPMAP_N);
+    let [ox, oy] = p.origin(w);
     let mut out = Vec::with_capacity((r.w * r.h * 4) as usize);
+    let mut height = false;
     for y in r.y..r.y + r.h {
-        let start = ((y * n + r.x) * 4) as usize;
-        out.extend_from_slice(&bytes[start..start + (r.w * 4) as usize]);
+        let v = p.v0 + i64::from((y + w - oy) % w);
+        let mut u = p.u0 + i64::from((r.x + w - ox) % w);
+        let mut left = i64::from(r.w);
+        while left > 0 {
+            let run = left.min(n - u.rem_euclid(n));
+            let key = TileKey::at(keys[0].source, keys[0].grid, u, v, CLIPMAP_N);
+            match keys.iter().position(|k| *k == key) {
+                Some(i) => {
+                    height = matches!(*tiles[i], TileData::Height(_));
+                    let start = ((v.rem_euclid(n) * n + u.rem_euclid(n)) * 4) as usize;
+                    out.extend_from_slice(
+                        &tiles[i].texel_bytes()[start..start + (run * 4) as usize],
+                    );
+                }
+                None => {
+                    debug_assert!(false, "window texel ({u}, {v}) outside its tiles");
+                    out.resize(out.len() + (run * 4) as usize, 0);
+                }
+            }
+            u += run;
+            left -= run;
+        }
     }
-    if let TileData::Height(_) = **tile {
+    if height {
         // nodata that no overlay filled is drawn at sea level
         for v in out.chunks_exact_mut(4) {
             if f32::from_ne_bytes([v[0], v[1], v[2], v[3]]).is_nan() {
