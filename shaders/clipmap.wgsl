@@ -232,7 +232,7 @@ fn level_tint(l: u32) -> vec3<f32> {
 }
 
 // Most colour samples a fragment takes along its footprint's longer axis.
-const MAX_ANISO: f32 = 8.0;
+const MAX_ANISO: f32 = 4.0;
 
 // A pixel's footprint in the map: the screen derivatives of the map offsets, measured in a
 // window's colatitude texels (`tpr`: its texels per radian) (a longitude texel counted at its ground size, sin θ of its angle):

@@ -86,8 +86,8 @@ fn orbit_and_pole_views_match_the_cpu_reference_within_todays_bounds() {
         (
             "orbit-americas",
             "10,-80,12000000,0,-90,50",
-            1.18,
-            0.0014,
+            1.19,
+            0.0016,
             0.95,
         ),
         ("north-pole", "90,0,3000000,0,-90,50", 1.69, 0.0043, 0.94),
