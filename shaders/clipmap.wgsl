@@ -235,8 +235,9 @@ fn level_tint(l: u32) -> vec3<f32> {
 const MAX_ANISO: f32 = 4.0;
 
 // A pixel's footprint in the map: the screen derivatives of the map offsets, measured in a
-// window's colatitude texels (`tpr`: its texels per radian) (a longitude texel counted at its ground size, sin θ of its angle):
-// its shorter axis `minor` (texels) and its longer axis `axis` (map offsets) with length `major`.
+// window's colatitude texels (`tpr`: its texels per radian; a longitude texel counted at its
+// ground size, sin θ of its angle): its shorter axis `minor` (texels) and its longer axis
+// `axis` (map offsets) with length `major`.
 struct Footprint {
     minor: f32,
     major: f32,
