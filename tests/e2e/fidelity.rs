@@ -69,13 +69,14 @@ fn shot(store: &Path, out: &Path, camera: &str, extra: &[&str]) -> image::RgbaIm
     render_png(store, out, camera, "480x270", extra)
 }
 
-/// One view by the renderer (unlit) and by its twin (2 × 2 rays a pixel), saved in `dir` as
+/// One view by the renderer (unlit) and by its twin (`rays` × `rays` a pixel), saved in `dir` as
 /// NAME.png and NAME-ref.png.
 fn gpu_and_twin(
     store: &Path,
     dir: &Path,
     name: &str,
     camera: &str,
+    rays: u32,
 ) -> (image::RgbaImage, image::RgbaImage) {
     let gpu = shot(
         store,
@@ -87,37 +88,31 @@ fn gpu_and_twin(
         store,
         &dir.join(format!("{name}-ref.png")),
         camera,
-        &["--reference", "2"],
+        &["--reference", &rays.to_string()],
     );
     (gpu, twin)
 }
 
 /// The renderer's colour comes from clipmap windows of 1024 texels, the level chosen per pixel
-/// from its footprint, filtered anisotropically; far from the point under the camera (and over
-/// the poles, where windows span the whole circle) a window's texels are still coarser than the
-/// store's. These bounds hold what it reaches now (printed) and fail if it gets worse; the
-/// targets (mean ≤ 1.0/255, ≤ 0.3 % off by > 30/255, sharpness ≥ 0.9) are met at the south pole
-/// and sharpness everywhere; elsewhere 0.03–0.43 % are off and the mean is 1.2–1.7/255 (the twin
-/// at 2 × 2 rays is itself 0.5–0.9/255 from one at 6 × 6 in these views).
+/// from its footprint, filtered anisotropically. Against the twin at 6 × 6 rays a pixel (within
+/// 0.01–0.10/255 of one at 8 × 8: converged; at 2 × 2 it was 0.2–0.9/255 off, more than the
+/// renderer) the targets hold — mean ≤ 1.0/255, ≤ 0.3 % of pixels off by > 30/255, sharpness
+/// ≥ 0.9 — except the north pole's mean (1.53/255): far from the nadir its window spans the
+/// whole circle, so its longitude texels (2π/1024) are coarser than the store's there; that
+/// bound holds what it reaches now and fails if it gets worse.
 #[test]
-fn orbit_and_pole_views_match_the_cpu_reference_within_todays_bounds() {
+fn orbit_and_pole_views_match_the_cpu_reference() {
     let dir = tempfile::tempdir().expect("tempdir");
     let store = flat_blue_marble();
-    // (view, camera, today's mean, share off, sharpness; each 15 % worse than measured)
+    // (view, camera, bound on the mean /255)
     let views = [
-        ("orbit-asia", "30,80,8000000,0,-90,40", 1.23, 0.0003, 1.00),
-        (
-            "orbit-americas",
-            "10,-80,12000000,0,-90,50",
-            1.19,
-            0.0016,
-            0.95,
-        ),
-        ("north-pole", "90,0,3000000,0,-90,50", 1.69, 0.0043, 0.94),
-        ("south-pole", "-90,0,3000000,0,-90,50", 0.65, 0.0024, 0.97),
+        ("orbit-asia", "30,80,8000000,0,-90,40", 1.0),
+        ("orbit-americas", "10,-80,12000000,0,-90,50", 1.0),
+        ("north-pole", "90,0,3000000,0,-90,50", 1.53 * 1.1),
+        ("south-pole", "-90,0,3000000,0,-90,50", 1.0),
     ];
-    for (name, cam, mad, off, sharp) in views {
-        let (gpu, twin) = gpu_and_twin(&store, dir.path(), name, cam);
+    for (name, cam, mad) in views {
+        let (gpu, twin) = gpu_and_twin(&store, dir.path(), name, cam, 6);
         let f = compare(&gpu, &twin);
         eprintln!(
             "{name}: mean |Δ| {:.2}/255, {:.2} % off by > 30/255, sharpness {:.2} of the reference",
@@ -125,13 +120,9 @@ fn orbit_and_pole_views_match_the_cpu_reference_within_todays_bounds() {
             f.off * 100.0,
             f.sharpness
         );
-        assert!(f.mad <= mad * 1.15, "{name}: mean {:.2}", f.mad);
-        assert!(f.off <= off * 1.15, "{name}: {:.2} % off", f.off * 100.0);
-        assert!(
-            f.sharpness >= sharp / 1.15,
-            "{name}: sharpness {:.2}",
-            f.sharpness
-        );
+        assert!(f.mad <= mad, "{name}: mean {:.2}", f.mad);
+        assert!(f.off <= 0.003, "{name}: {:.2} % off", f.off * 100.0);
+        assert!(f.sharpness >= 0.9, "{name}: sharpness {:.2}", f.sharpness);
     }
 }
 
@@ -148,7 +139,7 @@ fn the_ground_around_a_pole_is_where_the_twin_puts_it() {
         ("over", "90,0,3000000,0,-90,50"),
         ("beside", "88.5,40,3000000,0,-90,50"),
     ] {
-        let (gpu, twin) = gpu_and_twin(&store, dir.path(), name, cam);
+        let (gpu, twin) = gpu_and_twin(&store, dir.path(), name, cam, 2);
         // the pole lies within 20 px of the centre; 40 px are 3.5° of ground
         let f = compare_within(&gpu, &twin, 40.0);
         eprintln!(
@@ -185,7 +176,7 @@ fn checkerboard_store(dir: &Path) -> std::path::PathBuf {
 fn a_checkerboard_has_no_stair_steps_at_any_distance_from_the_nadir() {
     let dir = tempfile::tempdir().expect("tempdir");
     let store = checkerboard_store(dir.path());
-    let (gpu, twin) = gpu_and_twin(&store, dir.path(), "c", "20,10,8000000,0,-90,40");
+    let (gpu, twin) = gpu_and_twin(&store, dir.path(), "c", "20,10,8000000,0,-90,40", 6);
     let (w, h) = gpu.dimensions();
     let (cx, cy) = (f64::from(w) / 2.0, f64::from(h) / 2.0);
     // the disc's radius: the farthest globe pixel from the centre along the middle row

@@ -7,7 +7,7 @@
 //! is the finest not finer than the clipmap's texel (bilinear; beyond a pole the row continues at
 //! longitude + 180°).
 
-use std::collections::HashMap;
+use rustc_hash::FxHashMap;
 use std::f64::consts::PI;
 use std::sync::Arc;
 
@@ -242,7 +242,9 @@ struct StoreLevels<T: TileSample + ZeroedSample> {
     grid: GridSpec,
     /// Stored levels, coarse to fine, each with its stored anisotropies (0 first).
     levels: Vec<(u32, Vec<u32>)>,
-    tiles: HashMap<TileId, Option<Vec<T>>>,
+    /// Decoded tiles (`None`: missing or unreadable), hashed cheaply: a point's samples look
+    /// up a tile per texel.
+    tiles: FxHashMap<TileId, Option<Vec<T>>>,
     /// Bytes held in `tiles` (bounded by `budget`, [`TILE_CACHE_BYTES`] by default).
     tile_bytes: usize,
     budget: usize,
@@ -283,7 +285,7 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
             reader,
             grid,
             levels,
-            tiles: HashMap::new(),
+            tiles: FxHashMap::default(),
             tile_bytes: 0,
             budget: TILE_CACHE_BYTES,
             errors: Vec::new(),
@@ -457,8 +459,8 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
         let (tile, k) = self.tile_of(f.id, f.x0 + dx, f.y0 + dy)?;
         if !self.tiles.contains_key(&tile) {
             self.bound_cache();
+            self.load(tile);
         }
-        self.load(tile);
         let ch = T::KIND.channels();
         self.tiles
             .get(&tile)
@@ -979,7 +981,10 @@ impl HeightSource for StoreHeights {
         if !magnified || base.is_nan() {
             return base;
         }
-        let (Some(detail), Some(r)) = (self.2.clone(), corner_roughness(taps)) else {
+        let Some(detail) = self.2.clone() else {
+            return base;
+        };
+        let Some(r) = corner_roughness(taps) else {
             return base;
         };
         let fine = bilinear_roughness(r, f.fx, f.fy);

@@ -101,9 +101,23 @@ impl RayCaster {
     pub fn render(
         &mut self,
         camera: &Camera,
+        size: (u32, u32),
+        s: u32,
+        background: [u8; 4],
+    ) -> Vec<u8> {
+        self.render_rows(camera, size, s, background, (0, 1))
+    }
+
+    /// [`RayCaster::render`] of the rows `first`, `first + step`, … only (the others stay
+    /// zero): ray-casters over their own readers draw a picture's rows in parallel, each pixel
+    /// the same as the whole picture's.
+    pub fn render_rows(
+        &mut self,
+        camera: &Camera,
         (w, h): (u32, u32),
         s: u32,
         background: [u8; 4],
+        (first, step): (u32, u32),
     ) -> Vec<u8> {
         let ground = {
             let p = unit_of(camera.lat_deg, camera.lon_deg);
@@ -133,7 +147,7 @@ impl RayCaster {
         });
         let mut out = vec![0u8; (w * h * 4) as usize];
         let n = f64::from(s * s);
-        for y in 0..h {
+        for y in (first..h).step_by(step.max(1) as usize) {
             for x in 0..w {
                 let mut acc = [0.0f64; 3];
                 for sy in 0..s {
