@@ -17,6 +17,7 @@ pub mod reference;
 pub mod stream;
 pub mod sun;
 pub mod transform;
+pub mod warp;
 
 use std::path::PathBuf;
 

@@ -69,6 +69,47 @@ fn hit_sphere(o: [f64; 3], d: [f64; 3], r: f64) -> Option<f64> {
     (t > 0.0).then_some(t)
 }
 
+/// A camera's eye and axes in the planet's frame (metres; unit vectors), as
+/// [`crate::frame::view_projection`] places it in the viewer's local frame.
+#[derive(Debug, Clone, Copy)]
+pub struct ViewFrame {
+    /// The eye, metres from the planet's centre.
+    pub eye: [f64; 3],
+    /// The direction through the picture's centre.
+    pub forward: [f64; 3],
+    /// The picture's right.
+    pub right: [f64; 3],
+    /// The picture's up.
+    pub up: [f64; 3],
+}
+
+impl ViewFrame {
+    /// For `camera` over ground at `ground_radius` metres from the centre.
+    pub fn new(camera: &Camera, ground_radius: f64) -> Self {
+        let eye = scale(
+            unit_of(camera.lat_deg, camera.lon_deg),
+            ground_radius + camera.alt,
+        );
+        let (slat, clat) = camera.lat_deg.to_radians().sin_cos();
+        let (slon, clon) = camera.lon_deg.to_radians().sin_cos();
+        let north = [-slat * clon, -slat * slon, clat];
+        let east = [-slon, clon, 0.0];
+        let up = [clat * clon, clat * slon, slat];
+        let (sh, ch) = camera.heading.to_radians().sin_cos();
+        let pitch = camera.pitch.to_radians();
+        let horiz = add(scale(north, ch), scale(east, sh));
+        let forward = add(scale(horiz, pitch.cos()), scale(up, pitch.sin()));
+        let screen_up = if pitch.abs() > 1.5 { horiz } else { up };
+        let right = normalize(cross(forward, screen_up));
+        Self {
+            eye,
+            forward,
+            right,
+            up: cross(right, forward),
+        }
+    }
+}
+
 impl RayCaster {
     /// Over a store's colour levels (`colors`) and, if it has them, its height levels; heights
     /// scaled by `exaggeration`, on a sphere of `radius` metres.
@@ -123,23 +164,12 @@ impl RayCaster {
             let p = unit_of(camera.lat_deg, camera.lon_deg);
             self.height_at(p)
         };
-        let eye = scale(
-            unit_of(camera.lat_deg, camera.lon_deg),
-            self.radius + ground + camera.alt,
-        );
-        // the camera's frame, as `view_projection` builds it in the viewer's local frame
-        let (slat, clat) = camera.lat_deg.to_radians().sin_cos();
-        let (slon, clon) = camera.lon_deg.to_radians().sin_cos();
-        let north = [-slat * clon, -slat * slon, clat];
-        let east = [-slon, clon, 0.0];
-        let up = [clat * clon, clat * slon, slat];
-        let (sh, ch) = camera.heading.to_radians().sin_cos();
-        let pitch = camera.pitch.to_radians();
-        let horiz = add(scale(north, ch), scale(east, sh));
-        let forward = add(scale(horiz, pitch.cos()), scale(up, pitch.sin()));
-        let screen_up = if pitch.abs() > 1.5 { horiz } else { up };
-        let right = normalize(cross(forward, screen_up));
-        let true_up = cross(right, forward);
+        let ViewFrame {
+            eye,
+            forward,
+            right,
+            up: true_up,
+        } = ViewFrame::new(camera, self.radius + ground);
         let ty = (camera.fov.to_radians() / 2.0).tan();
         let tx = ty * f64::from(w) / f64::from(h);
         let bg: [f64; 3] = std::array::from_fn(|c| {
