@@ -106,16 +106,18 @@ impl ComputeProbe {
 #[derive(Debug)]
 pub struct TransformProbe {
     probe: ComputeProbe,
-    /// The adapter, in words.
-    pub adapter: String,
 }
 
 impl TransformProbe {
     /// Compiles the probe on the first adapter found.
     pub fn new() -> Result<Self, RenderError> {
         let probe = ComputeProbe::new("transform_probe.wgsl", crate::PROBE_WGSL)?;
-        let adapter = probe.adapter.clone();
-        Ok(Self { probe, adapter })
+        Ok(Self { probe })
+    }
+
+    /// The adapter, in words.
+    pub fn adapter(&self) -> &str {
+        &self.probe.adapter
     }
 
     /// (Δφ, Δθ) for each vertex `[px, py, 1 − cos θ̃, seam]`, computed by the GPU.
@@ -145,16 +147,18 @@ impl TransformProbe {
 #[derive(Debug)]
 pub struct CdlodProbe {
     probe: ComputeProbe,
-    /// The adapter, in words.
-    pub adapter: String,
 }
 
 impl CdlodProbe {
     /// Compiles the probe on the first adapter found.
     pub fn new() -> Result<Self, RenderError> {
         let probe = ComputeProbe::new("cdlod_probe.wgsl", crate::CDLOD_PROBE_WGSL)?;
-        let adapter = probe.adapter.clone();
-        Ok(Self { probe, adapter })
+        Ok(Self { probe })
+    }
+
+    /// The adapter, in words.
+    pub fn adapter(&self) -> &str {
+        &self.probe.adapter
     }
 
     /// The attributes (px, py, 1 − cos θ̃) of patch vertex (i, j) of each leaf, morphed for a

@@ -129,7 +129,7 @@ fn gpu_vertices_are_within_the_clipmap_renderers_precision_of_the_f64_twin() {
         }
         eprintln!(
             "{cam} on {}: {} vertices, {near:.2e} m within 30 km, {rel:.2e} of the distance",
-            p.adapter,
+            p.adapter(),
             list.len()
         );
         assert!(near <= 6.8e-3, "{cam}: {near} m within 30 km");

@@ -121,5 +121,5 @@ fn gpu_transform_matches_f64_from_the_ground_to_orbit_everywhere() {
     let probe = TransformProbe::new().unwrap_or_else(|e| {
         panic!("{e} — GPU tests need an adapter; `make test` installs mesa-vulkan-drivers")
     });
-    check(Some(&probe), &probe.adapter.clone());
+    check(Some(&probe), probe.adapter());
 }

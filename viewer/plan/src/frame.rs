@@ -431,7 +431,7 @@ impl FramePlanner {
                 }
                 filled += u32::from(!todo.is_empty());
             }
-            self.level_uniforms[i as usize] = level_uniform(&p, &pc, self.color_n);
+            self.level_uniforms[i as usize] = level_uniform(i, &viewer, self.color_n);
         }
         // the ground under the camera, as drawn: the mesh there carries the heights of the level
         // before the finest drawn (see `vertex_level`)
@@ -569,8 +569,8 @@ impl FramePlanner {
             .collect();
         let windows: Vec<(u32, Placement, GridId)> = (lo..=(sharpest + 1).min(levels - 1))
             .map(|i| {
-                let p = Placement::new(i, &viewer, n);
-                (i, p, GridId::of(i, &p, n))
+                let (p, grid) = layer_window(i, &viewer, n);
+                (i, p, grid)
             })
             .collect();
         // levels whose ground is out of view are not drawn (the coarser disc covers it unseen),
@@ -699,8 +699,7 @@ impl FramePlanner {
                 }
                 filled += u32::from(!todo.is_empty());
             }
-            self.level_uniforms[i as usize] =
-                level_uniform(&p, &layer_window(i, &viewer, self.color_n).0, self.color_n);
+            self.level_uniforms[i as usize] = level_uniform(i, &viewer, self.color_n);
             let mut range = None;
             for k in quad_keys(sources.height, grid, &p, n) {
                 let t = self.tile_extremes(streamer, k);
@@ -720,9 +719,8 @@ impl FramePlanner {
             Some((i, ..)) => *i,
             None => {
                 // nothing made yet (or the coarsest level failed): the sphere at sea level
-                if let Some(&(i, p, _)) = windows.first() {
-                    self.level_uniforms[i as usize] =
-                        level_uniform(&p, &layer_window(i, &viewer, self.color_n).0, self.color_n);
+                if let Some(&(i, ..)) = windows.first() {
+                    self.level_uniforms[i as usize] = level_uniform(i, &viewer, self.color_n);
                 }
                 lo
             }
@@ -856,9 +854,11 @@ fn window_keys(source: u32, grid: GridId, p: &Placement, n: u32) -> Vec<TileKey>
     keys
 }
 
-/// The uniform of a level whose heights are placed at `p` and colours at `pc` (`cn` texels a
-/// side).
-fn level_uniform(p: &Placement, pc: &Placement, cn: u32) -> LevelUniform {
+/// Level `i`'s uniform around `viewer`: its heights' window of [`CLIPMAP_N`] texels and its
+/// colours' of `cn`.
+fn level_uniform(i: u32, viewer: &Viewer, cn: u32) -> LevelUniform {
+    let (p, _) = layer_window(i, viewer, CLIPMAP_N);
+    let (pc, _) = layer_window(i, viewer, cn);
     let tpr = |p: &Placement| {
         [
             (1.0 / p.win.texel_lon) as f32,
@@ -867,13 +867,13 @@ fn level_uniform(p: &Placement, pc: &Placement, cn: u32) -> LevelUniform {
     };
     LevelUniform {
         viewer_texel: p.viewer_texel.map(|v| v as f32),
-        texels_per_rad: tpr(p),
+        texels_per_rad: tpr(&p),
         size: [CLIPMAP_N, CLIPMAP_N],
         origin: p.origin(CLIPMAP_N),
         fade: 1.0,
         _p: 0.0,
         color_viewer_texel: pc.viewer_texel.map(|v| v as f32),
-        color_texels_per_rad: tpr(pc),
+        color_texels_per_rad: tpr(&pc),
         color_size: [cn, cn],
         color_origin: pc.origin(cn),
     }
