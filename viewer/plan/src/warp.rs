@@ -442,4 +442,80 @@ mod tests {
             assert!(within >= 0.95, "{v}: {:.1} %", within * 100.0);
         }
     }
+
+    /// The renderer's promise (§3): cells between one and a few pixels on screen. A 512² mesh
+    /// warped for a 1280×720 picture, on the sea-level sphere: the longer edge of every cell
+    /// wholly in view and facing the eye is 1–8 px for 95 % of them (medians 2.2–3.7 px; the
+    /// same mesh unwarped leaves the ground view 88 %, its 97.5th percentile at 17 px).
+    #[test]
+    fn visible_cells_span_one_to_a_few_pixels() {
+        let (w, h) = (1280.0, 720.0);
+        for v in VIEWS {
+            let c = cam(v);
+            let map = ViewerMap::for_camera(&c, R, 0.0);
+            let imp = importance(
+                &map,
+                128,
+                &c,
+                R,
+                (720, w / h),
+                &ImportanceParams::default(),
+                |_| 0.0,
+                |_| f64::INFINITY,
+            );
+            let g = warp(&map, 128, &imp, 512);
+            let f = ViewFrame::new(&c, R);
+            let [eye, fwd, right, up] = [f.eye, f.forward, f.right, f.up].map(DVec3::from_array);
+            let ty = (c.fov.to_radians() / 2.0).tan();
+            let tx = ty * w / h;
+            let m = g.m;
+            let screen: Vec<Option<(f64, f64)>> = g
+                .xy
+                .iter()
+                .map(|&[x, y]| {
+                    let u = map.point(x, y);
+                    let d = u * R - eye;
+                    let z = d.dot(fwd);
+                    let (sx, sy) = (d.dot(right) / z / tx, d.dot(up) / z / ty);
+                    let shown =
+                        z > 0.0 && sx.abs() <= 1.0 && sy.abs() <= 1.0 && u.dot(eye - u * R) > 0.0;
+                    shown.then_some(((sx + 1.0) * w / 2.0, (1.0 - sy) * h / 2.0))
+                })
+                .collect();
+            let mut sizes = Vec::new();
+            for j in 0..m - 1 {
+                for i in 0..m - 1 {
+                    let corners = [(i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)]
+                        .map(|(a, b)| screen[b * m + a]);
+                    let Some(q) = corners.iter().copied().collect::<Option<Vec<_>>>() else {
+                        continue;
+                    };
+                    let edge = |a: (f64, f64), b: (f64, f64)| (a.0 - b.0).hypot(a.1 - b.1);
+                    sizes.push(
+                        edge(q[0], q[1])
+                            .max(edge(q[1], q[2]))
+                            .max(edge(q[2], q[3]))
+                            .max(edge(q[3], q[0])),
+                    );
+                }
+            }
+            sizes.sort_by(f64::total_cmp);
+            let at = |p: f64| sizes[((sizes.len() - 1) as f64 * p) as usize];
+            let within = sizes.iter().filter(|s| (1.0..=8.0).contains(*s)).count() as f64
+                / sizes.len() as f64;
+            eprintln!(
+                "{v}: {} visible cells, longer edge px: 2.5 % {:.2}, median {:.2}, 97.5 % {:.2}; {:.1} % within 1..8",
+                sizes.len(),
+                at(0.025),
+                at(0.5),
+                at(0.975),
+                within * 100.0
+            );
+            assert!(
+                within >= 0.95,
+                "{v}: {:.1} % within 1..8 px",
+                within * 100.0
+            );
+        }
+    }
 }
