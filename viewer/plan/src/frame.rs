@@ -913,7 +913,6 @@ fn region_from_tiles(
     let n = i64::from(CLIPMAP_N);
     let [ox, oy] = p.origin(w);
     let mut out = Vec::with_capacity((r.w * r.h * 4) as usize);
-    let mut height = false;
     for y in r.y..r.y + r.h {
         let v = p.v0 + i64::from((y + w - oy) % w);
         let mut u = p.u0 + i64::from((r.x + w - ox) % w);
@@ -923,7 +922,6 @@ fn region_from_tiles(
             let key = TileKey::at(keys[0].source, keys[0].grid, u, v, CLIPMAP_N);
             match keys.iter().position(|k| *k == key) {
                 Some(i) => {
-                    height = matches!(*tiles[i], TileData::Height(_));
                     let start = ((v.rem_euclid(n) * n + u.rem_euclid(n)) * 4) as usize;
                     out.extend_from_slice(
                         &tiles[i].texel_bytes()[start..start + (run * 4) as usize],
@@ -938,7 +936,11 @@ fn region_from_tiles(
             left -= run;
         }
     }
-    if height {
+    // a window's tiles are all of its layer
+    if tiles
+        .first()
+        .is_some_and(|t| matches!(**t, TileData::Height(_)))
+    {
         // nodata that no overlay filled is drawn at sea level
         for v in out.chunks_exact_mut(4) {
             if f32::from_ne_bytes([v[0], v[1], v[2], v[3]]).is_nan() {

@@ -12,8 +12,9 @@
 //!
 //! [`importance`] is the paper's I = min(I_v·S_f·S_b, I_s), with the view distance, frustum and
 //! back-face terms worked out on the sphere (the frustum as its enclosing cone, back-facing as
-//! the ground turned away from the eye); [`warp`] is its two-pass separable warp (rows, then
-//! columns, the importance resampled with the coordinates), at any output size (§3.4's zoom).
+//! the ground turned away from the eye); [`warp`] is its two-pass separable warp (rows as in the
+//! paper, then one warp shared by all columns, so that no cell folds), at any output size
+//! (§3.4's zoom).
 
 use glam::DVec3;
 
@@ -249,10 +250,12 @@ fn warp_line<const K: usize>(values: &[[f64; K]], imp: &[f64], m: usize) -> Vec<
 }
 
 /// The paper's separable warp of the identity geometry image of an `n × n` grid over `map` by
-/// the importance map `imp` (as [`importance`] lays it out): each row, then each column of the
-/// result with its resampled importance, resampled to `m × m` vertices (`m > n` zooms, §3.4).
-/// Every row and column stays in order (importance is positive), so no cell of a smoothly
-/// varying importance folds.
+/// the importance map `imp` (as [`importance`] lays it out), resampled to `m × m` vertices
+/// (`m > n` zooms, §3.4): each row by its own importance, then the rows by one warp driven by
+/// each row's greatest resampled importance. (The paper warps each column by its own; adjacent
+/// columns then blend different rows, and cells fold where importance changes fast.) Each
+/// output row is one blend of two input rows, x increasing along it and y constant: no cell
+/// folds, whatever the (positive) importance.
 pub fn warp(map: &ViewerMap, n: usize, imp: &[f64], m: usize) -> GeometryImage {
     assert!(
         n >= 2 && m >= 2 && imp.len() == n * n,
@@ -354,7 +357,7 @@ mod tests {
     /// A view's warp: its importance at n² and the geometry image at m².
     fn view_warp(camera: &str, n: usize, m: usize) -> (ViewerMap, Camera, GeometryImage) {
         let c = cam(camera);
-        let map = ViewerMap::for_camera(&c, R, 9000.0);
+        let map = ViewerMap::for_camera(&c, R, 0.0);
         let imp = importance(
             &map,
             n,
@@ -451,19 +454,7 @@ mod tests {
     fn visible_cells_span_one_to_a_few_pixels() {
         let (w, h) = (1280.0, 720.0);
         for v in VIEWS {
-            let c = cam(v);
-            let map = ViewerMap::for_camera(&c, R, 0.0);
-            let imp = importance(
-                &map,
-                128,
-                &c,
-                R,
-                (720, w / h),
-                &ImportanceParams::default(),
-                |_| 0.0,
-                |_| f64::INFINITY,
-            );
-            let g = warp(&map, 128, &imp, 512);
+            let (map, c, g) = view_warp(v, 128, 512);
             let f = ViewFrame::new(&c, R);
             let [eye, fwd, right, up] = [f.eye, f.forward, f.right, f.up].map(DVec3::from_array);
             let ty = (c.fov.to_radians() / 2.0).tan();
