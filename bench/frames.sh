@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Frame and CPU time of the three views (ground, aircraft, space) at 1280×720 on the adapter wgpu
+# Frame and CPU time of the four views (ground, aircraft, space, north pole) at 1280×720 on the adapter wgpu
 # picks (lavapipe here), two binaries side by side in one run: BEFORE (e.g. a build of an older
 # commit) and this checkout's. Each view is rendered REPS times by each, alternating, with
 # --frames 11 (one complete view, then 10 still frames); prints the medians over the repetitions.
@@ -15,7 +15,7 @@ out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
 export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp/sphereclip-xdg}
 mkdir -p -m 700 "$XDG_RUNTIME_DIR"
-views=("ground 46.5,8.0,1.7,30,-4,60" "aircraft 28.0,86.9,9000,200,-10,60" "space 30,80,8000000,0,-90,40")
+views=("ground 46.5,8.0,1.7,30,-4,60" "aircraft 28.0,86.9,9000,200,-10,60" "space 30,80,8000000,0,-90,40" "pole 90,0,3000000,0,-90,50")
 median() { sort -n | awk '{a[NR]=$1} END {print (NR % 2) ? a[(NR+1)/2] : (a[NR/2] + a[NR/2+1]) / 2}'; }
 printf '%-9s %-7s %12s %10s %12s\n' view binary "frame ms" "CPU ms" "complete ms"
 for v in "${views[@]}"; do

@@ -40,8 +40,11 @@ struct Level {
     origin: vec2<u32>,
     // 0 … 1: how far the level has faded in since it was first drawn (over the coarser one)
     fade: f32,
-    _p: f32,
-    // the colour window: as above, twice the texels at half the size
+    // sides of the colour window that are no edge: 1 round the whole circle, 2 its first row at
+    // the north pole, 4 its last at the south pole
+    color_open: u32,
+    // the colour window: as above, twice the texels at half the size; a window round the whole
+    // circle is 2N × N/2, its columns laid out in two strips one below the other (`color_at`)
     color_viewer_texel: vec2<f32>,
     color_texels_per_rad: vec2<f32>,
     color_size: vec2<u32>,
@@ -181,18 +184,23 @@ fn color_texel_of(l: u32, off: vec2<f32>) -> vec2<f32> {
     return lv.color_viewer_texel + off * lv.color_texels_per_rad;
 }
 
-// Colour at fractional texel t of level l's colour window: bilinear in linear light.
+// Colour at fractional texel t of level l's colour window: bilinear in linear light. A window
+// wider than high lies in strips of its columns, each as wide as the texture, one below the other
+// (sc_view_plan's `Placement::texture_regions`).
 fn color_at(l: u32, t: vec2<f32>) -> vec4<f32> {
     let lv = levels[l];
     let base = floor(t - vec2<f32>(0.5));
     let f = t - vec2<f32>(0.5) - base;
+    let size = vec2<i32>(lv.color_size);
+    let side = size.x / max(size.x / (2 * size.y), 1);
     var c = array<vec4<f32>, 4>();
     for (var k = 0u; k < 4u; k = k + 1u) {
         let o = vec2<f32>(f32(k & 1u), f32(k >> 1u));
         let p = vec2<i32>(base + o);
-        let size = vec2<i32>(lv.color_size);
         let wrapped = ((p + vec2<i32>(lv.color_origin)) % size + size) % size;
-        c[k] = textureLoad(colors, wrapped, i32(l), 0);
+        let strip = wrapped.x / side;
+        let at = vec2<i32>(wrapped.x - strip * side, wrapped.y + strip * size.y);
+        c[k] = textureLoad(colors, at, i32(l), 0);
     }
     return mix(mix(c[0], c[1], f.x), mix(c[2], c[3], f.x), f.y);
 }
@@ -284,6 +292,26 @@ fn color_trilinear(lc: f32, off: vec2<f32>) -> vec4<f32> {
     return c;
 }
 
+// How far inside level k's window (its colour window with `color`, else its heights') map
+// offsets `off` lie: 0 within 4 texels of an edge, fading in to 1 over the next 16; sides that
+// are no edge (a round colour window's longitude sides, its rows at a pole) do not count.
+fn window_inside(k: u32, off: vec2<f32>, color: bool) -> f32 {
+    var t = texel_of(k, off);
+    var size = vec2<f32>(levels[k].size);
+    var open = 0u;
+    if (color) {
+        t = color_texel_of(k, off);
+        size = vec2<f32>(levels[k].color_size);
+        open = levels[k].color_open;
+    }
+    let far = 1e9;
+    let ex = select(min(t.x, size.x - t.x), far, (open & 1u) != 0u);
+    let top = select(t.y, far, (open & 2u) != 0u);
+    let bottom = select(size.y - t.y, far, (open & 4u) != 0u);
+    let edge = min(ex, min(top, bottom));
+    return clamp((edge - 4.0) / 16.0, 0.0, 1.0);
+}
+
 // The finest continuous level whose data a fragment of ring `l` (continuous ring level `ring`)
 // may show: the ring's own, or up to two finer levels where their windows reach the fragment
 // (a ring's points east and west of the viewer often lie in the next finer window, whose
@@ -292,16 +320,14 @@ fn color_trilinear(lc: f32, off: vec2<f32>) -> vec4<f32> {
 // first drawn.
 fn level_cap(l: u32, ring: f32, off: vec2<f32>, color: bool) -> f32 {
     var cap = min(ring, f32(l) - 1.0 + levels[l].fade);
+    // a round colour window covers half a square one's colatitude: beyond it, the next coarser
+    // level's (which covers the ring)
+    if (color && (levels[l].color_open & 1u) != 0u && l > frame.level_lo) {
+        cap = min(cap, f32(l) - 1.0 + window_inside(l, off, true));
+    }
     // level k only where k − 1 is wholly available
     for (var k = l + 1u; k <= min(l + 2u, frame.level_hi); k = k + 1u) {
-        var t = texel_of(k, off);
-        var size = vec2<f32>(levels[k].size);
-        if (color) {
-            t = color_texel_of(k, off);
-            size = vec2<f32>(levels[k].color_size);
-        }
-        let edge = min(min(t.x, size.x - t.x), min(t.y, size.y - t.y));
-        let inside = min(clamp((edge - 4.0) / 16.0, 0.0, 1.0), levels[k].fade);
+        let inside = min(window_inside(k, off, color), levels[k].fade);
         if (inside <= 0.0) {
             break;
         }
@@ -393,10 +419,25 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
         // match its share of it (the shorter axis); where that level is not at hand (capped),
         // only as many as the level's texels fill the axis with (more would only blur)
         let la = lod_level(l, level_cap(l, ring, off, true), fp.major / taps);
-        let n = clamp(ceil(fp.major / exp2(f32(l) + LOD_BIAS - la)), 1.0, taps);
+        var n = clamp(ceil(fp.major / exp2(f32(l) + LOD_BIAS - la)), 1.0, taps);
+        var axis = fp.axis;
+        // a round window's longitude texels are finer than its colatitude ones near the pole
+        // (2π/2N at every level): as many samples as the pixel covers of them, along its axis
+        // that crosses the most
+        let lt = min(u32(ceil(la)), frame.level_hi);
+        if ((levels[lt].color_open & 1u) != 0u) {
+            let tpr = levels[lt].color_texels_per_rad;
+            let tx = length(doff_x * tpr);
+            let ty = length(doff_y * tpr);
+            let nt = clamp(ceil(max(tx, ty)), 1.0, MAX_ANISO);
+            if (nt > n) {
+                n = nt;
+                axis = select(doff_y, doff_x, tx >= ty);
+            }
+        }
         var c = vec4<f32>(0.0);
         for (var i = 0.0; i < n; i = i + 1.0) {
-            c = c + color_trilinear(la, off + fp.axis * ((i + 0.5) / n - 0.5));
+            c = c + color_trilinear(la, off + axis * ((i + 0.5) / n - 0.5));
         }
         c = c / n;
         albedo = mix(albedo, c.rgb, clamp(c.a, 0.0, 1.0));

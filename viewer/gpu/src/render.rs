@@ -1174,6 +1174,7 @@ mod tests {
             ("size", std::mem::offset_of!(LevelUniform, size)),
             ("origin", std::mem::offset_of!(LevelUniform, origin)),
             ("fade", std::mem::offset_of!(LevelUniform, fade)),
+            ("color_open", std::mem::offset_of!(LevelUniform, color_open)),
             (
                 "color_viewer_texel",
                 std::mem::offset_of!(LevelUniform, color_viewer_texel),

@@ -61,9 +61,11 @@ pub struct LevelUniform {
     pub origin: [u32; 2],
     /// How far the level has faded in since it was first drawn (0 … 1).
     pub fade: f32,
-    pub _p: f32,
-    /// The colour window's `viewer_texel`, `texels_per_rad`, `size` and `origin` ([`COLOR_N`]
-    /// texels a side).
+    /// Sides of the colour window that are no edge ([`OPEN_ROUND`], [`OPEN_NORTH`],
+    /// [`OPEN_SOUTH`]).
+    pub color_open: u32,
+    /// The colour window's `viewer_texel`, `texels_per_rad`, `size` (columns, rows; a round
+    /// window's are laid out in strips: [`Placement::strips`]) and `origin`.
     pub color_viewer_texel: [f32; 2],
     /// See `color_viewer_texel`.
     pub color_texels_per_rad: [f32; 2],
@@ -72,6 +74,13 @@ pub struct LevelUniform {
     /// See `color_viewer_texel`.
     pub color_origin: [u32; 2],
 }
+
+/// `LevelUniform::color_open`: the window goes round the whole circle (no longitude edge).
+pub const OPEN_ROUND: u32 = 1;
+/// `LevelUniform::color_open`: the window's first row is at the north pole.
+pub const OPEN_NORTH: u32 = 2;
+/// `LevelUniform::color_open`: the window's last row is at the south pole.
+pub const OPEN_SOUTH: u32 = 4;
 
 /// Frames over which a level newly drawn fades in over the coarser one (no pop when detail
 /// arrives).
@@ -227,9 +236,8 @@ pub struct FramePlan {
 #[derive(Debug)]
 pub struct FramePlanner {
     hemi: Hemisphere,
-    /// Per layer (heights, colours) and level, where its data was last filled and the window's
-    /// size (None: never).
-    held: [Vec<Option<(Placement, u32)>>; 2],
+    /// Per layer (heights, colours) and level, where its data was last filled (None: never).
+    held: [Vec<Option<Placement>>; 2],
     /// Texels a side of the colour windows this frame: [`COLOR_N`], or [`CLIPMAP_N`] where the
     /// colour is shaded by the heights' detail (made at twice the resolution, detail costs
     /// 2–5× the tiles; see `plan_streamed`).
@@ -296,21 +304,21 @@ impl FramePlanner {
     /// whose world texels changed since the level was last filled (all at first; §5). Records
     /// `p` as what the level holds once they are written.
     fn stale_regions(&mut self, layer: LayerKind, i: u32, p: &Placement) -> Vec<Region> {
-        let n = self.layer_n(layer);
         let held = &mut self.held[held_index(layer)][i as usize];
         let todo = match *held {
-            Some((old, m)) if m == n => changed_regions(&old, p, n),
-            _ => all_regions(p, n),
+            Some(old) => changed_regions(&old, p),
+            None => all_regions(p),
         };
-        *held = Some((*p, n));
+        *held = Some(*p);
         todo
     }
 
-    /// Texels a side of a layer's clipmap levels this frame.
-    fn layer_n(&self, layer: LayerKind) -> u32 {
+    /// Level `i`'s window of a layer this frame around `viewer`, `lo` the coarsest level drawn:
+    /// see [`layer_window`] and [`color_window`].
+    fn window(&self, layer: LayerKind, i: u32, viewer: &Viewer, lo: u32) -> (Placement, GridId) {
         match layer {
-            LayerKind::Height => CLIPMAP_N,
-            LayerKind::Color => self.color_n,
+            LayerKind::Height => layer_window(i, viewer, CLIPMAP_N),
+            LayerKind::Color => color_window(i, viewer, self.color_n, lo),
         }
     }
 
@@ -405,9 +413,7 @@ impl FramePlanner {
             }
             let todo = self.stale_regions(LayerKind::Height, i, &p);
             for r in &todo {
-                let data = fill_region(&p, CLIPMAP_N, *r, |lon, colat| {
-                    [heights.height(lon, colat, p.win)]
-                });
+                let data = fill_region(&p, *r, |lon, colat| [heights.height(lon, colat, p.win)]);
                 let range = &mut self.ranges[i as usize];
                 for &v in &data {
                     let v = if v.is_nan() { 0.0 } else { v };
@@ -421,17 +427,18 @@ impl FramePlanner {
                 ));
             }
             filled += u32::from(!todo.is_empty());
-            let (pc, _) = layer_window(i, &viewer, self.color_n);
+            let (pc, _) = self.window(LayerKind::Color, i, &viewer, lo);
             if let Some(c) = colors.as_deref_mut() {
                 let todo = self.stale_regions(LayerKind::Color, i, &pc);
                 for r in &todo {
-                    let rgba =
-                        fill_region(&pc, COLOR_N, *r, |lon, colat| c.color(lon, colat, pc.win));
-                    uploads.push(Upload::new(LayerKind::Color, i, *r, rgba));
+                    for (part, at) in pc.texture_regions(*r) {
+                        let rgba = fill_region(&pc, part, |lon, colat| c.color(lon, colat, pc.win));
+                        uploads.push(Upload::new(LayerKind::Color, i, at, rgba));
+                    }
                 }
                 filled += u32::from(!todo.is_empty());
             }
-            self.level_uniforms[i as usize] = level_uniform(i, &viewer, self.color_n);
+            self.level_uniforms[i as usize] = level_uniform(i, &viewer, self.color_n, lo);
         }
         // the ground under the camera, as drawn: the mesh there carries the heights of the level
         // before the finest drawn (see `vertex_level`)
@@ -606,9 +613,8 @@ impl FramePlanner {
         for &(i, ..) in &windows {
             let crossed_slowly = step * PREFETCH_FINER_FRAMES < 2.0 * level_outer(i);
             for &(layer, src) in &layers {
-                let n = self.layer_n(layer);
-                let (p, grid) = layer_window(i, &viewer, n);
-                let quad = window_keys(src, grid, &p, n);
+                let (p, grid) = self.window(layer, i, &viewer, lo);
+                let quad = window_keys(src, grid, &p);
                 if i <= wanted {
                     tasks.extend(quad.iter().copied().map(Task::visible));
                 } else if i == edge {
@@ -644,9 +650,8 @@ impl FramePlanner {
                         colat_rad: (viewer.colat_rad + dcolat * f).clamp(1e-9, PI - 1e-9),
                     };
                     for &(layer, src) in &layers {
-                        let n = self.layer_n(layer);
-                        let (p, grid) = layer_window(i, &ahead, n);
-                        for key in window_keys(src, grid, &p, n) {
+                        let (p, grid) = self.window(layer, i, &ahead, lo);
+                        for key in window_keys(src, grid, &p) {
                             tasks.push(Task::prefetch(key, f.ceil() as u32));
                         }
                     }
@@ -668,9 +673,8 @@ impl FramePlanner {
             let placed: Vec<(LayerKind, Placement, Vec<TileKey>)> = layers
                 .iter()
                 .map(|&(layer, src)| {
-                    let n = self.layer_n(layer);
-                    let (lp, lg) = layer_window(i, &viewer, n);
-                    (layer, lp, window_keys(src, lg, &lp, n))
+                    let (lp, lg) = self.window(layer, i, &viewer, lo);
+                    (layer, lp, window_keys(src, lg, &lp))
                 })
                 .collect();
             let quad: Option<Vec<Vec<Tile>>> = placed
@@ -694,12 +698,14 @@ impl FramePlanner {
             for ((layer, lp, keys), tiles) in placed.iter().zip(&quad) {
                 let todo = self.stale_regions(*layer, i, lp);
                 for r in &todo {
-                    let bytes = region_from_tiles(keys, tiles, lp, *r, self.layer_n(*layer));
-                    uploads.push(Upload::new(*layer, i, *r, bytes));
+                    for (part, at) in lp.texture_regions(*r) {
+                        let bytes = region_from_tiles(keys, tiles, lp, part);
+                        uploads.push(Upload::new(*layer, i, at, bytes));
+                    }
                 }
                 filled += u32::from(!todo.is_empty());
             }
-            self.level_uniforms[i as usize] = level_uniform(i, &viewer, self.color_n);
+            self.level_uniforms[i as usize] = level_uniform(i, &viewer, self.color_n, lo);
             let mut range = None;
             for k in quad_keys(sources.height, grid, &p, n) {
                 let t = self.tile_extremes(streamer, k);
@@ -720,7 +726,7 @@ impl FramePlanner {
             None => {
                 // nothing made yet (or the coarsest level failed): the sphere at sea level
                 if let Some(&(i, ..)) = windows.first() {
-                    self.level_uniforms[i as usize] = level_uniform(i, &viewer, self.color_n);
+                    self.level_uniforms[i as usize] = level_uniform(i, &viewer, self.color_n, lo);
                 }
                 lo
             }
@@ -823,27 +829,47 @@ fn held_index(layer: LayerKind) -> usize {
 /// [`CLIPMAP_N`] cover.
 pub fn layer_window(i: u32, viewer: &Viewer, n: u32) -> (Placement, GridId) {
     let p = Placement::new(i, viewer, n);
-    let grid = GridId::of(i, &p, n);
-    let s = (n / CLIPMAP_N).max(1).trailing_zeros();
-    (
-        p,
-        GridId {
-            level: i + s,
-            k: grid.k + s,
-        },
-    )
+    (p, grid_of(&p))
 }
 
-/// The tiles a window of `n` texels a side at `p` overlaps: the quad where `n` is the tiles'
-/// size (see [`quad_keys`]), else every tile its texels touch, row-major, each once.
-fn window_keys(source: u32, grid: GridId, p: &Placement, n: u32) -> Vec<TileKey> {
+/// Level `i`'s colour window of `n` texels a side around `viewer`, `lo` the coarsest level
+/// drawn: where it goes round the whole circle and is larger than the tiles, laid out round
+/// ([`Placement::round`]: twice the longitude texels, half the rows) but for level `lo`, whose
+/// window must cover everything drawn. A round window that does not reach a fragment leaves it
+/// to the next coarser level, whose window covers this level's ring (the shader's
+/// `level_cap`).
+pub fn color_window(i: u32, viewer: &Viewer, n: u32, lo: u32) -> (Placement, GridId) {
+    let p = if n > CLIPMAP_N && i > lo {
+        Placement::round(i, viewer, n)
+    } else {
+        Placement::new(i, viewer, n)
+    };
+    (p, grid_of(&p))
+}
+
+/// The grid of [`CLIPMAP_N`]-texel tiles with a window's texel size.
+fn grid_of(p: &Placement) -> GridId {
+    let n = f64::from(CLIPMAP_N);
+    // level L's colatitude texel is 2·outer(L)/N = π·2^−L/N
+    let level = (PI / (n * p.win.texel_colat)).log2().round();
+    let k = (2.0 * PI / (n * p.win.texel_lon)).log2().round();
+    GridId {
+        level: level.max(0.0) as u32,
+        k: k.max(0.0) as u32,
+    }
+}
+
+/// The tiles a window at `p` overlaps: the quad where the window is the tiles' size (see
+/// [`quad_keys`]), else every tile its texels touch, row-major, each once.
+fn window_keys(source: u32, grid: GridId, p: &Placement) -> Vec<TileKey> {
     let t = CLIPMAP_N;
-    if n == t {
+    if p.size == [t, t] {
         return quad_keys(source, grid, p, t).to_vec();
     }
-    let (tt, w) = (i64::from(t), i64::from(n));
+    let tt = i64::from(t);
+    let [w, h] = p.size.map(i64::from);
     let mut keys = Vec::with_capacity(9);
-    for y in p.v0.div_euclid(tt)..=(p.v0 + w - 1).div_euclid(tt) {
+    for y in p.v0.div_euclid(tt)..=(p.v0 + h - 1).div_euclid(tt) {
         for x in p.u0.div_euclid(tt)..=(p.u0 + w - 1).div_euclid(tt) {
             let k = TileKey::at(source, grid, x * tt, y * tt, t);
             if !keys.contains(&k) {
@@ -855,10 +881,21 @@ fn window_keys(source: u32, grid: GridId, p: &Placement, n: u32) -> Vec<TileKey>
 }
 
 /// Level `i`'s uniform around `viewer`: its heights' window of [`CLIPMAP_N`] texels and its
-/// colours' of `cn`.
-fn level_uniform(i: u32, viewer: &Viewer, cn: u32) -> LevelUniform {
+/// colours' of `cn` ([`color_window`], `lo` the coarsest level drawn).
+fn level_uniform(i: u32, viewer: &Viewer, cn: u32, lo: u32) -> LevelUniform {
     let (p, _) = layer_window(i, viewer, CLIPMAP_N);
-    let (pc, _) = layer_window(i, viewer, cn);
+    let (pc, _) = color_window(i, viewer, cn, lo);
+    let rows = (PI / pc.win.texel_colat).round() as i64;
+    let mut open = 0;
+    if pc.is_round() {
+        open |= OPEN_ROUND;
+        if pc.v0 == 0 {
+            open |= OPEN_NORTH;
+        }
+        if pc.v0 + i64::from(pc.size[1]) == rows {
+            open |= OPEN_SOUTH;
+        }
+    }
     let tpr = |p: &Placement| {
         [
             (1.0 / p.win.texel_lon) as f32,
@@ -869,13 +906,13 @@ fn level_uniform(i: u32, viewer: &Viewer, cn: u32) -> LevelUniform {
         viewer_texel: p.viewer_texel.map(|v| v as f32),
         texels_per_rad: tpr(&p),
         size: [CLIPMAP_N, CLIPMAP_N],
-        origin: p.origin(CLIPMAP_N),
+        origin: p.origin(),
         fade: 1.0,
-        _p: 0.0,
+        color_open: open,
         color_viewer_texel: pc.viewer_texel.map(|v| v as f32),
         color_texels_per_rad: tpr(&pc),
-        color_size: [cn, cn],
-        color_origin: pc.origin(cn),
+        color_size: pc.size,
+        color_origin: pc.origin(),
     }
 }
 
@@ -899,22 +936,17 @@ fn quad_index(p: &Placement, c: u32, r: u32, n: u32) -> usize {
     (dy * 2 + dx) as usize
 }
 
-/// The texture bytes of region `r` of a window of `w` texels a side at `p` (toroidal
-/// addressing: texture texel (x, y) holds window texel ((x − ox) mod w, (y − oy) mod w)), from
-/// its tiles `tiles` (named by `keys`, [`CLIPMAP_N`] a side): each row is copied in runs, one
-/// per tile it crosses (a region of a window as large as its tiles lies within one).
-fn region_from_tiles(
-    keys: &[TileKey],
-    tiles: &[Tile],
-    p: &Placement,
-    r: Region,
-    w: u32,
-) -> Vec<u8> {
+/// The texture bytes of region `r` of a window of `w × h` texels at `p` (toroidal addressing:
+/// texture texel (x, y) holds window texel ((x − ox) mod w, (y − oy) mod h)), from its tiles
+/// `tiles` (named by `keys`, [`CLIPMAP_N`] a side): each row is copied in runs, one per tile it
+/// crosses (a region of a window as large as its tiles lies within one).
+fn region_from_tiles(keys: &[TileKey], tiles: &[Tile], p: &Placement, r: Region) -> Vec<u8> {
     let n = i64::from(CLIPMAP_N);
-    let [ox, oy] = p.origin(w);
+    let [ox, oy] = p.origin();
+    let [w, h] = p.size;
     let mut out = Vec::with_capacity((r.w * r.h * 4) as usize);
     for y in r.y..r.y + r.h {
-        let v = p.v0 + i64::from((y + w - oy) % w);
+        let v = p.v0 + i64::from((y + h - oy) % h);
         let mut u = p.u0 + i64::from((r.x + w - ox) % w);
         let mut left = i64::from(r.w);
         while left > 0 {

@@ -164,7 +164,7 @@ fn polar_texels_come_from_the_anisotropic_levels_and_never_from_a_missing_row() 
         let mut seen_aniso = false;
         for i in clip_levels {
             let p = Placement::new(i, &viewer, n);
-            let data = fill_level(&mut heights, &p, n);
+            let data = fill_level(&mut heights, &p);
             for &v in &data {
                 // every texel is some stored level's marker (0 would be a missing row read as sea)
                 let (level, aniso) = ((v / 1000.0) as u32, ((v % 1000.0) / 100.0) as u32);
@@ -212,7 +212,7 @@ fn where_a_fine_level_has_no_tiles_the_next_coarser_one_serves() {
     // a fine clipmap level far from the patch: level 2's marker, never 0 (sea level)
     let viewer = Viewer::from_deg(-40.0, 120.0);
     let p = Placement::new(8, &viewer, CLIPMAP_N);
-    let data = fill_level(&mut heights, &p, CLIPMAP_N);
+    let data = fill_level(&mut heights, &p);
     assert!(
         data.iter()
             .all(|&v| v == marker(LevelId::iso(2).expect("level"))),
