@@ -21,18 +21,10 @@ fn cdlod_vs(v: PatchIn) -> VertexOut {
     let p = cdlod_vertex(v.face, v.level, v.corner, v.sigma, v.ij, frame.radius, frame.cam_height);
     let view = ViewerConsts(frame.sin_v, frame.cos_v, frame.colat, frame.orient);
     // the height by the clipmap ring level of the point (a function of the point alone, so
-    // every leaf holding it agrees): level i spans θ̃ from π/2·2^−i in to π/2·2^−(i+1)
+    // every leaf holding it agrees)
     let off = map_offsets(view, p.x, p.y, p.z, 0.0);
-    let theta = 2.0 * asin(sqrt(0.5 * p.z));
-    let lam = log2(1.5707964 / max(theta, 1e-30));
-    let ring = clamp(floor(lam), 0.0, 25.0);
-    var level = u32(ring);
-    var depth = clamp(lam - ring, 0.0, 1.0);
-    if (level < frame.level_lo) {
-        level = frame.level_lo;
-        depth = 0.0;
-    }
-    let mp = mesh_height(level, depth, off);
+    let rp = ring_of(p.z);
+    let mp = mesh_height(rp.level, rp.depth, off);
     // the fragment's offsets continue across the seam beyond the pole within the leaf
     return vertex_out(p, mp, v.seam);
 }

@@ -88,8 +88,6 @@ struct VertexOut {
     // longitude is far from linear over a triangle)
     @location(2) p: vec3<f32>,
     @location(4) seam: f32,
-    // the local up direction (view space)
-    @location(5) up: vec3<f32>,
     // the point, view space relative to the camera, metres
     @location(6) rel: vec3<f32>,
 };
@@ -149,6 +147,25 @@ fn mesh_height(level: u32, depth_in: f32, off: vec2<f32>) -> MeshPoint {
     return MeshPoint(h * frame.exaggeration, l, depth);
 }
 
+// The clipmap ring level of the sphere point with 1 − cos θ̃ = `one_minus_cos` (level i spans θ̃
+// from π/2·2^−i in to π/2·2^−(i+1)) and how deep in it the point lies, not coarser than the
+// coarsest level drawn: where the meshes that are not the hemisphere's (CDLOD's, the warped
+// one) take their heights, a function of the point alone.
+struct RingPoint {
+    level: u32,
+    depth: f32,
+};
+
+fn ring_of(one_minus_cos: f32) -> RingPoint {
+    let theta = 2.0 * asin(sqrt(0.5 * one_minus_cos));
+    let lam = log2(1.5707964 / max(theta, 1e-30));
+    let ring = clamp(floor(lam), 0.0, 25.0);
+    if (u32(ring) < frame.level_lo) {
+        return RingPoint(frame.level_lo, 0.0);
+    }
+    return RingPoint(u32(ring), clamp(lam - ring, 0.0, 1.0));
+}
+
 // The vertex stage's output for the point of the sphere with attributes `p` (sin θ̃ cos ψ,
 // sin θ̃ sin ψ, 1 − cos θ̃), its height and level `mp`, the seam flag its fragments' map
 // offsets take (see `map_offsets`).
@@ -165,7 +182,6 @@ fn vertex_out(p: vec3<f32>, mp: MeshPoint, seam: f32) -> VertexOut {
     out.p = p;
     out.seam = seam;
     out.lvl = f32(mp.l) + mp.depth;
-    out.up = vec3<f32>(p.x, p.y, 1.0 - p.z);
     out.rel = rel;
     return out;
 }
@@ -453,11 +469,13 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     if (f1 > 0.0 && l0 < frame.level_hi) {
         slope = mix(slope, slope_at(l0 + 1u, texel_of(l0 + 1u, off)), f1);
     }
-    let n = surface_normal(in.up, slope, in.height);
+    // the local up direction (view space)
+    let up = vec3<f32>(in.p.x, in.p.y, 1.0 - in.p.z);
+    let n = surface_normal(up, slope, in.height);
     let sun = normalize(frame.sun.xyz);
     // Lambert under a sun fixed in the world, a little sky light; the night side is dark
     // (the sky light fades out with the sun's elevation over the sphere there)
-    let day = smoothstep(-0.1, 0.1, dot(normalize(in.up), sun));
+    let day = smoothstep(-0.1, 0.1, dot(normalize(up), sun));
     let light = 0.04 + 0.16 * day + 0.8 * max(dot(n, sun), 0.0);
     if (atmo.camera.w == 0.0) {
         return vec4<f32>(albedo * light, 1.0);

@@ -82,6 +82,10 @@ pub const OPEN_NORTH: u32 = 2;
 /// `LevelUniform::color_open`: the window's last row is at the south pole.
 pub const OPEN_SOUTH: u32 = 4;
 
+/// The highest ground the planner allows for when it works out what a camera can see over the
+/// horizon, metres (above Everest).
+const MAX_GROUND_M: f64 = 9000.0;
+
 /// Frames over which a level newly drawn fades in over the coarser one (no pop when detail
 /// arrives).
 pub const FADE_FRAMES: u32 = 8;
@@ -313,21 +317,12 @@ impl FramePlanner {
         todo
     }
 
-    /// Level `i`'s window of a layer this frame around `viewer`, `lo` the coarsest level drawn:
-    /// see [`layer_window`] and [`color_window`].
-    fn window(&self, layer: LayerKind, i: u32, viewer: &Viewer, lo: u32) -> (Placement, GridId) {
-        match layer {
-            LayerKind::Height => layer_window(i, viewer, CLIPMAP_N),
-            LayerKind::Color => color_window(i, viewer, self.color_n, lo),
-        }
-    }
-
     /// Levels to draw for `camera` into a target `h` pixels high (§4.5).
     fn visible(&self, camera: &Camera, h: u32) -> (u32, u32) {
         visible_levels(
             self.radius,
             camera.alt,
-            9000.0,
+            MAX_GROUND_M,
             camera.fov.to_radians(),
             h,
             self.hemi.spec.n,
@@ -427,7 +422,7 @@ impl FramePlanner {
                 ));
             }
             filled += u32::from(!todo.is_empty());
-            let (pc, _) = self.window(LayerKind::Color, i, &viewer, lo);
+            let (pc, _) = color_window(i, &viewer, self.color_n, lo);
             if let Some(c) = colors.as_deref_mut() {
                 let todo = self.stale_regions(LayerKind::Color, i, &pc);
                 for r in &todo {
@@ -438,7 +433,7 @@ impl FramePlanner {
                 }
                 filled += u32::from(!todo.is_empty());
             }
-            self.level_uniforms[i as usize] = level_uniform(i, &viewer, self.color_n, lo);
+            self.level_uniforms[i as usize] = level_uniform(&p, &pc);
         }
         // the ground under the camera, as drawn: the mesh there carries the heights of the level
         // before the finest drawn (see `vertex_level`)
@@ -580,6 +575,15 @@ impl FramePlanner {
                 (i, p, grid)
             })
             .collect();
+        // each level's colour window, placed once (its uniform needs it without colour too)
+        let color_windows: Vec<(Placement, GridId)> = windows
+            .iter()
+            .map(|&(i, ..)| color_window(i, &viewer, self.color_n, lo))
+            .collect();
+        let placed = |k: usize, layer: LayerKind| match layer {
+            LayerKind::Height => (windows[k].1, windows[k].2),
+            LayerKind::Color => color_windows[k],
+        };
         // levels whose ground is out of view are not drawn (the coarser disc covers it unseen),
         // only prefetched: tilting the camera down finds their tiles made
         let rises = self.rises(streamer, sources.height, &windows);
@@ -610,10 +614,10 @@ impl FramePlanner {
         } else {
             wanted
         };
-        for &(i, ..) in &windows {
+        for (k, &(i, ..)) in windows.iter().enumerate() {
             let crossed_slowly = step * PREFETCH_FINER_FRAMES < 2.0 * level_outer(i);
             for &(layer, src) in &layers {
-                let (p, grid) = self.window(layer, i, &viewer, lo);
+                let (p, grid) = placed(k, layer);
                 let quad = window_keys(src, grid, &p);
                 if i <= wanted {
                     tasks.extend(quad.iter().copied().map(Task::visible));
@@ -650,7 +654,10 @@ impl FramePlanner {
                         colat_rad: (viewer.colat_rad + dcolat * f).clamp(1e-9, PI - 1e-9),
                     };
                     for &(layer, src) in &layers {
-                        let (p, grid) = self.window(layer, i, &ahead, lo);
+                        let (p, grid) = match layer {
+                            LayerKind::Height => layer_window(i, &ahead, n),
+                            LayerKind::Color => color_window(i, &ahead, self.color_n, lo),
+                        };
                         for key in window_keys(src, grid, &p) {
                             tasks.push(Task::prefetch(key, f.ceil() as u32));
                         }
@@ -669,15 +676,18 @@ impl FramePlanner {
         let mut drawn = None;
         let mut filled = 0;
         let mut level_failed = false;
-        for &(i, p, grid) in windows.iter().filter(|(i, ..)| *i <= wanted) {
-            let placed: Vec<(LayerKind, Placement, Vec<TileKey>)> = layers
+        for (k, &(i, p, grid)) in windows.iter().enumerate() {
+            if i > wanted {
+                break;
+            }
+            let level: Vec<(LayerKind, Placement, Vec<TileKey>)> = layers
                 .iter()
                 .map(|&(layer, src)| {
-                    let (lp, lg) = self.window(layer, i, &viewer, lo);
+                    let (lp, lg) = placed(k, layer);
                     (layer, lp, window_keys(src, lg, &lp))
                 })
                 .collect();
-            let quad: Option<Vec<Vec<Tile>>> = placed
+            let quad: Option<Vec<Vec<Tile>>> = level
                 .iter()
                 .map(|(_, _, keys)| {
                     keys.iter()
@@ -690,12 +700,12 @@ impl FramePlanner {
                 })
                 .collect();
             let Some(quad) = quad else {
-                level_failed = placed
+                level_failed = level
                     .iter()
                     .any(|(_, _, keys)| keys.iter().any(|k| streamer.cache().is_failed(k)));
                 break;
             };
-            for ((layer, lp, keys), tiles) in placed.iter().zip(&quad) {
+            for ((layer, lp, keys), tiles) in level.iter().zip(&quad) {
                 let todo = self.stale_regions(*layer, i, lp);
                 for r in &todo {
                     for (part, at) in lp.texture_regions(*r) {
@@ -705,7 +715,7 @@ impl FramePlanner {
                 }
                 filled += u32::from(!todo.is_empty());
             }
-            self.level_uniforms[i as usize] = level_uniform(i, &viewer, self.color_n, lo);
+            self.level_uniforms[i as usize] = level_uniform(&p, &color_windows[k].0);
             let mut range = None;
             for k in quad_keys(sources.height, grid, &p, n) {
                 let t = self.tile_extremes(streamer, k);
@@ -725,8 +735,9 @@ impl FramePlanner {
             Some((i, ..)) => *i,
             None => {
                 // nothing made yet (or the coarsest level failed): the sphere at sea level
-                if let Some(&(i, ..)) = windows.first() {
-                    self.level_uniforms[i as usize] = level_uniform(i, &viewer, self.color_n, lo);
+                if let (Some(&(i, p, _)), Some((pc, _))) = (windows.first(), color_windows.first())
+                {
+                    self.level_uniforms[i as usize] = level_uniform(&p, pc);
                 }
                 lo
             }
@@ -880,11 +891,9 @@ fn window_keys(source: u32, grid: GridId, p: &Placement) -> Vec<TileKey> {
     keys
 }
 
-/// Level `i`'s uniform around `viewer`: its heights' window of [`CLIPMAP_N`] texels and its
-/// colours' of `cn` ([`color_window`], `lo` the coarsest level drawn).
-fn level_uniform(i: u32, viewer: &Viewer, cn: u32, lo: u32) -> LevelUniform {
-    let (p, _) = layer_window(i, viewer, CLIPMAP_N);
-    let (pc, _) = color_window(i, viewer, cn, lo);
+/// A level's uniform: its heights' window `p` ([`layer_window`]) and its colours' `pc`
+/// ([`color_window`]).
+fn level_uniform(p: &Placement, pc: &Placement) -> LevelUniform {
     let rows = (PI / pc.win.texel_colat).round() as i64;
     let mut open = 0;
     if pc.is_round() {
@@ -904,13 +913,13 @@ fn level_uniform(i: u32, viewer: &Viewer, cn: u32, lo: u32) -> LevelUniform {
     };
     LevelUniform {
         viewer_texel: p.viewer_texel.map(|v| v as f32),
-        texels_per_rad: tpr(&p),
+        texels_per_rad: tpr(p),
         size: [CLIPMAP_N, CLIPMAP_N],
         origin: p.origin(),
         fade: 1.0,
         color_open: open,
         color_viewer_texel: pc.viewer_texel.map(|v| v as f32),
-        color_texels_per_rad: tpr(&pc),
+        color_texels_per_rad: tpr(pc),
         color_size: pc.size,
         color_origin: pc.origin(),
     }

@@ -149,9 +149,9 @@ impl RayCaster {
         self.render_rows(camera, size, s, background, (0, 1))
     }
 
-    /// [`RayCaster::render`] of the rows `first`, `first + step`, … only (the others stay
-    /// zero): ray-casters over their own readers draw a picture's rows in parallel, each pixel
-    /// the same as the whole picture's.
+    /// [`RayCaster::render`] of the rows `first`, `first + step`, … only, one after the other:
+    /// ray-casters over their own readers draw a picture's rows in parallel, each pixel the same
+    /// as the whole picture's.
     pub fn render_rows(
         &mut self,
         camera: &Camera,
@@ -175,9 +175,10 @@ impl RayCaster {
         let bg: [f64; 3] = std::array::from_fn(|c| {
             f64::from(sc_core::color::srgb_to_linear(f32::from(background[c])))
         });
-        let mut out = vec![0u8; (w * h * 4) as usize];
+        let rows = (first..h).step_by(step.max(1) as usize);
+        let mut out = vec![0u8; (w * 4) as usize * rows.len()];
         let n = f64::from(s * s);
-        for y in (first..h).step_by(step.max(1) as usize) {
+        for (i, y) in rows.enumerate() {
             for x in 0..w {
                 let mut acc = [0.0f64; 3];
                 for sy in 0..s {
@@ -199,7 +200,7 @@ impl RayCaster {
                         }
                     }
                 }
-                let o = ((y * w + x) * 4) as usize;
+                let o = (i * w as usize + x as usize) * 4;
                 for k in 0..3 {
                     out[o + k] = sc_core::color::linear_to_srgb(acc[k] as f32);
                 }

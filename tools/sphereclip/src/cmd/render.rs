@@ -164,9 +164,6 @@ fn reference(
     let reader = sc_store::StoreReader::open(&a.store)
         .with_context(|| format!("cannot read store {}", a.store.display()))?;
     let radius = reader.meta().radius_m;
-    if StoreColors::new(reader.clone()).is_none() {
-        bail!("the store has no colour layer: {}", a.store.display());
-    }
     let options = super::draw_options(&a.look, camera, None)?;
     // the clear colour is linear light, as the GPU's sRGB target takes it
     let bg = clear.map(|v| sc_core::color::linear_to_srgb(v as f32));
@@ -174,33 +171,36 @@ fn reference(
     // interleaved rows, one ray-caster (and tile cache) a thread: every pixel is what one
     // thread would draw
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get()) as u32;
+    let casters = (0..threads)
+        .map(|_| {
+            let colors = StoreColors::new(reader.clone())?;
+            Some(sc_view_plan::reference::RayCaster::new(
+                colors,
+                StoreHeights::new(reader.clone()),
+                radius,
+                options.exaggeration,
+            ))
+        })
+        .collect::<Option<Vec<_>>>()
+        .with_context(|| format!("the store has no colour layer: {}", a.store.display()))?;
     let parts = std::thread::scope(|scope| {
-        let jobs: Vec<_> = (0..threads)
-            .map(|t| {
-                let reader = reader.clone();
-                let exaggeration = options.exaggeration;
-                scope.spawn(move || {
-                    let colors = StoreColors::new(reader.clone())?;
-                    let mut rc = sc_view_plan::reference::RayCaster::new(
-                        colors,
-                        StoreHeights::new(reader),
-                        radius,
-                        exaggeration,
-                    );
-                    Some(rc.render_rows(camera, (w, h), n, bg, (t, threads)))
-                })
+        let jobs: Vec<_> = casters
+            .into_iter()
+            .zip(0..)
+            .map(|(mut rc, t)| {
+                scope.spawn(move || rc.render_rows(camera, (w, h), n, bg, (t, threads)))
             })
             .collect();
         jobs.into_iter()
-            .map(|j| j.join().ok().flatten())
+            .map(|j| j.join().ok())
             .collect::<Option<Vec<_>>>()
     })
     .context("a ray-casting thread failed")?;
     let row = (w * 4) as usize;
     let mut rgba = vec![0u8; row * h as usize];
     for (y, dst) in rgba.chunks_mut(row).enumerate() {
-        let part = &parts[y % threads as usize];
-        dst.copy_from_slice(&part[y * row..(y + 1) * row]);
+        let (part, i) = (&parts[y % threads as usize], y / threads as usize);
+        dst.copy_from_slice(&part[i * row..(i + 1) * row]);
     }
     let img = image::RgbaImage::from_raw(w, h, rgba).context("image size")?;
     write_png(&img, out)?;
