@@ -4,7 +4,9 @@
 
 use std::path::Path;
 
-use crate::util::{flat_blue_marble, flat_planet, render_png};
+use crate::util::{
+    flat_blue_marble, flat_planet, global_raster, ok, one_line_failure, render_png, run, s,
+};
 
 /// Mean absolute difference (/255 per channel), the share of pixels off by more than 30/255 in
 /// any channel, and the renderer's edge sharpness relative to the twin's (mean gradient
@@ -231,3 +233,30 @@ fn a_checkerboard_has_no_stair_steps_at_any_distance_from_the_nadir() {
 /// of 512 texels, isotropic, 0.20, 0.29, 2.89, 10.0 %; of 256 and the ring's level 0.03, 10.6,
 /// 43.5, 43.0 %). The outermost ring's few are the limb's foreshortened edges.
 const BOUND: [f64; 4] = [0.0005, 0.0005, 0.0005, 0.0013];
+
+/// The twin needs the store's colour: over heights alone it says so in one line, exit code 1,
+/// and writes no picture (its ray-casters are made before any thread starts).
+#[test]
+fn the_twin_over_a_store_without_colour_fails_in_one_line() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let store = dir.path().join("heights.zarr");
+    let flat = dir.path().join("flat.tif");
+    global_raster(&flat, &["-bands", "1", "-ot", "Float32", "-burn", "0"]);
+    ok(&run(&["ingest", s(&store), s(&flat), "--level", "2"]));
+    let out = dir.path().join("twin.png");
+    let o = run(&[
+        "render",
+        s(&store),
+        "--camera",
+        "0,0,8000000,0,-90,40",
+        "--size",
+        "32x18",
+        "--out",
+        s(&out),
+        "--reference",
+        "1",
+    ]);
+    let line = one_line_failure(&o, "the twin without colour");
+    assert!(line.contains("no colour layer"), "{line}");
+    assert!(!out.exists(), "a picture was written");
+}
