@@ -1,19 +1,21 @@
 //! What detail below the data costs the tile workers: one 512² height tile of the default graph
 //! of STORE, with detail and without, at clipmap levels 9 … 21 around a point (by default the
 //! ground view in the Alps), on one thread; the median of REPS makings (each from a fresh
-//! source, so no store tile is cached between them). First, the time of one noise evaluation.
-//! Usage: `detail_tiles STORE [LAT LON] [REPS]`.
+//! source, so no store tile is cached between them), and a checksum of the tile with detail
+//! (FNV-1a of its heights' bits: a change that claims the same output keeps it). First, the
+//! time of one noise evaluation.
+//! Usage: `detail_tiles STORE [LAT LON] [REPS] [LEVELS]` (LEVELS: comma-separated, e.g. `11,15`).
 
 use std::f64::consts::PI;
 use std::time::Instant;
 
 use sc_view_plan::graph::Graph;
-use sc_view_plan::stream::{GridId, TileKey};
+use sc_view_plan::stream::{GridId, TileData, TileKey};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
     let Some(store) = args.get(1) else {
-        return Err("usage: detail_tiles STORE [LAT LON] [REPS]".into());
+        return Err("usage: detail_tiles STORE [LAT LON] [REPS] [LEVELS]".into());
     };
     let lat: f64 = args.get(2).map(|a| a.parse()).transpose()?.unwrap_or(46.5);
     let lon: f64 = args.get(3).map(|a| a.parse()).transpose()?.unwrap_or(8.0);
@@ -23,6 +25,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .transpose()?
         .unwrap_or(3)
         .max(1);
+    let levels: Vec<u32> = match args.get(5) {
+        Some(l) => l.split(',').map(str::parse).collect::<Result<_, _>>()?,
+        None => vec![9, 11, 13, 15, 17, 19, 21],
+    };
     let evals = 10_000_000u32;
     let t = Instant::now();
     let mut sum = 0.0;
@@ -39,16 +45,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     let n = 512u32;
     println!(
-        "{:<6} {:>10} {:>12} {:>12} {:>7}",
-        "level", "texel m", "without ms", "with ms", "ratio"
+        "{:<6} {:>10} {:>12} {:>12} {:>7} {:>18}",
+        "level", "texel m", "without ms", "with ms", "ratio", "checksum"
     );
-    for level in [9u32, 11, 13, 15, 17, 19, 21] {
+    for level in levels {
         let grid = GridId { level, k: level };
         let w = grid.window(n);
         let u = ((lon.to_radians() + PI) / w.texel_lon) as i64;
         let v = ((90.0 - lat).to_radians() / w.texel_colat) as i64;
-        let time = |detail: bool| -> Result<f64, Box<dyn std::error::Error>> {
+        let time = |detail: bool| -> Result<(f64, u64), Box<dyn std::error::Error>> {
             let mut ms = Vec::new();
+            let mut sum = 0xcbf2_9ce4_8422_2325u64;
             for _ in 0..reps {
                 let g = Graph::for_store(std::path::Path::new(store))?;
                 let source = if detail {
@@ -58,15 +65,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 };
                 let key = TileKey::at(source, grid, u, v, n);
                 let t = Instant::now();
-                g.sources[source as usize].make(&key, n, &[])?;
+                let tile = g.sources[source as usize].make(&key, n, &[])?;
                 ms.push(t.elapsed().as_secs_f64() * 1e3);
+                sum = 0xcbf2_9ce4_8422_2325;
+                if let TileData::Height(h) = tile {
+                    for v in h {
+                        sum = (sum ^ u64::from(v.to_bits())).wrapping_mul(0x100_0000_01b3);
+                    }
+                }
             }
             ms.sort_by(f64::total_cmp);
-            Ok(ms[ms.len() / 2])
+            Ok((ms[ms.len() / 2], sum))
         };
-        let (without, with) = (time(false)?, time(true)?);
+        let ((without, _), (with, sum)) = (time(false)?, time(true)?);
         println!(
-            "{level:<6} {:>10.2} {without:>12.1} {with:>12.1} {:>7.1}",
+            "{level:<6} {:>10.2} {without:>12.1} {with:>12.1} {:>7.1} {sum:>18x}",
             w.texel_colat * sc_core::EARTH_RADIUS_M,
             with / without
         );

@@ -544,7 +544,7 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
     /// the row's level (no tile, or a nodata texel) are sampled again from the next coarser level.
     fn sample_row(&mut self, lons: &[f64], colat: f64, win: LevelWindow, emit: &mut EmitFn<'_, T>) {
         let all: Vec<usize> = (0..lons.len()).collect();
-        self.sample_points(lons, &all, colat, win, self.levels.len() - 1, false, emit);
+        self.sample_points(lons, &all, colat, win, self.levels.len() - 1, emit);
     }
 
     /// Whether level `id`'s rows are farther apart than a clipmap texel of `win` (the data is
@@ -553,9 +553,7 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
         PI / self.grid.height(id) as f64 > win.texel_colat * (1.0 + 1e-9)
     }
 
-    /// [`Self::sample_row`] for the points `which` of `lons`, from the levels up to index `cap`;
-    /// with `all_taps`, the 4×4 taps even where the level is not magnified.
-    #[allow(clippy::too_many_arguments)]
+    /// [`Self::sample_row`] for the points `which` of `lons`, from the levels up to index `cap`.
     fn sample_points(
         &mut self,
         lons: &[f64],
@@ -563,7 +561,6 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
         colat: f64,
         win: LevelWindow,
         cap: usize,
-        all_taps: bool,
         emit: &mut EmitFn<'_, T>,
     ) {
         let Some(&first) = which.first() else {
@@ -572,7 +569,6 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
         let (f, idx) = self.locate_in(lons[first], colat, win, cap);
         // only heights are interpolated from more than their four corners
         let magnified = T::KIND == LayerKind::Height && self.magnified(f.id, win);
-        let outer = magnified || all_taps;
         let (_, _, flip) = sc_core::pole::fold_lon_colat(0.0, colat);
         // the points' columns in this level: the same for every row of a tile, so a full row
         // reuses the previous row's when the level and the longitudes are the same
@@ -594,7 +590,7 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
         let mut ids = Vec::with_capacity(cols.len() * 4);
         for (r, &j) in rows.iter().enumerate() {
             // the outer rows only where they are used (magnified heights)
-            let used = outer || (1..=2).contains(&r);
+            let used = magnified || (1..=2).contains(&r);
             for &tx in cols {
                 let id = used
                     .then(|| TileId::new(self.grid, f.id, tx, j / t).ok())
@@ -618,32 +614,26 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
             });
             let row_off = rows.map(|j| ((j & (t - 1)) * t) as usize);
             let empty = row_data[1..=2].iter().flatten().all(|d| d.is_none());
-            // a texel: None when its tile holds no data
-            let get = |(s, o): (usize, usize), r: usize| -> Option<&[T]> {
-                let k = (row_off[r] + o) * ch;
-                row_data[r][s].map(|d| &d[k..k + ch])
-            };
             if empty && idx > 0 {
                 // nothing here at this level (a regional level elsewhere): all fall back
                 missing.extend_from_slice(which);
             } else {
                 for ((&k, &fx), cs) in which.iter().zip(&columns.fx).zip(&columns.taps) {
-                    // the outer twelve only where they are used (magnified heights)
-                    let taps: Taps<'_, T> = if outer {
-                        std::array::from_fn(|r| cs.map(|c| get(c, r)))
-                    } else {
-                        std::array::from_fn(|r| {
-                            std::array::from_fn(|c| {
-                                let inner = (1..=2).contains(&r) && (1..=2).contains(&c);
-                                inner.then(|| get(cs[c], r)).flatten()
-                            })
-                        })
+                    let texels = Texels {
+                        id: f.id,
+                        y0: f.y0,
+                        tile_cols: cols,
+                        tile: t,
+                        rows: &row_data,
+                        row_off,
+                        cols: *cs,
+                        ch,
+                        outer: magnified,
                     };
-                    let inner = [taps[1][1], taps[1][2], taps[2][1], taps[2][2]];
-                    if idx > 0 && inner.iter().any(|c| c.is_none_or(T::is_void)) {
+                    if idx > 0 && texels.corners().iter().any(|c| c.is_none_or(T::is_void)) {
                         missing.push(k);
                     } else {
-                        emit(k, taps, fx, f.fy, magnified, (idx, *cs));
+                        emit(k, &texels, fx, f.fy, magnified, (idx, *cs));
                     }
                 }
             }
@@ -654,7 +644,7 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
             self.columns.insert(0, columns);
         }
         if !missing.is_empty() {
-            self.sample_points(lons, &missing, colat, win, idx - 1, all_taps, emit);
+            self.sample_points(lons, &missing, colat, win, idx - 1, emit);
         }
     }
 
@@ -663,6 +653,40 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
         std::array::from_fn(|r| {
             std::array::from_fn(|c| self.texel(f, c as i64 - 1, r as i64 - 1).map(<[T]>::to_vec))
         })
+    }
+
+    /// Where (`lon`, `colat`) falls in the isotropic level of index `idx`, as
+    /// [`Self::locate_in`] finds it for a texel of that level's own size, with `x0` wrapped
+    /// into the level (a key for the footprint).
+    fn iso_footprint(&self, lon: f64, colat: f64, idx: usize) -> Footprint {
+        let id = LevelId {
+            level: self.levels[idx].0,
+            aniso: 0,
+        };
+        let (lo, c, _) = sc_core::pole::fold_lon_colat(lon, colat);
+        let x = self.grid.column_of_lon_rad(id, lo);
+        let y = self
+            .grid
+            .row_of_colat_rad(id, c)
+            .clamp(0.0, (self.grid.height(id) - 1) as f64);
+        let (x0, y0) = (x.floor(), y.floor());
+        Footprint {
+            id,
+            x0: (x0 as i64).rem_euclid(self.grid.width(id) as i64),
+            y0: y0 as i64,
+            fx: x - x0,
+            fy: y - y0,
+        }
+    }
+}
+
+impl StoreLevels<f32> {
+    /// [`corner_roughness`] of the 4×4 texels around footprint `f`.
+    fn roughness_at(&mut self, f: &Footprint) -> Option<[f64; 4]> {
+        let owned = self.taps(f);
+        corner_roughness(std::array::from_fn(|r| {
+            std::array::from_fn(|c| owned[r][c].as_deref())
+        }))
     }
 }
 
@@ -731,13 +755,76 @@ impl Columns {
 /// are `[1..=2][1..=2]` (None: no data).
 type Taps<'a, T> = [[Option<&'a [T]>; 4]; 4];
 
+/// A point's texels in a row [`StoreLevels::sample_points`] samples, looked up only when asked
+/// for: the points of a row share their columns, so most of them need none beyond the four
+/// corners (a memo holds what their columns gave).
+struct Texels<'a, T> {
+    /// The level and row of the footprint's origin (x₀, y₀).
+    id: LevelId,
+    y0: i64,
+    /// The store tile columns touched, by slot, and the tiles' size.
+    tile_cols: &'a [u64],
+    tile: u64,
+    /// Per row of the neighbourhood, the touched store tiles' data by slot.
+    rows: &'a [Vec<Option<&'a [T]>>; 4],
+    /// Per row, its first texel's offset in its tile.
+    row_off: [usize; 4],
+    /// The four columns: (tile slot, offset in the tile row).
+    cols: [(usize, usize); 4],
+    ch: usize,
+    /// Whether the outer twelve are read (magnified heights).
+    outer: bool,
+}
+
+impl<'a, T> Texels<'a, T> {
+    /// Texel `[r][c]` of [`Taps`] (None where its tile holds no data, or outside the four
+    /// corners when the outer twelve are not read).
+    #[inline]
+    fn tap(&self, r: usize, c: usize) -> Option<&'a [T]> {
+        let inner = (1..=2).contains(&r) && (1..=2).contains(&c);
+        if !(self.outer || inner) {
+            return None;
+        }
+        let (s, o) = self.cols[c];
+        let k = (self.row_off[r] + o) * self.ch;
+        self.rows[r][s].map(|d| &d[k..k + self.ch])
+    }
+
+    /// The bilinear corners: north-west, north-east, south-west, south-east.
+    #[inline]
+    fn corners(&self) -> [Option<&'a [T]>; 4] {
+        [
+            self.tap(1, 1),
+            self.tap(1, 2),
+            self.tap(2, 1),
+            self.tap(2, 2),
+        ]
+    }
+
+    /// All sixteen.
+    fn all(&self) -> Taps<'a, T> {
+        std::array::from_fn(|r| std::array::from_fn(|c| self.tap(r, c)))
+    }
+
+    /// The footprint's level and origin (x₀ wrapped into the level, y₀), as
+    /// [`StoreLevels::iso_footprint`] gives them.
+    fn origin(&self) -> FootprintKey {
+        let (s, o) = self.cols[1];
+        (
+            self.id,
+            (self.tile_cols[s] * self.tile) as i64 + o as i64,
+            self.y0,
+        )
+    }
+}
+
 /// Which texel columns a point's taps come from: the level's index and, per column, (tile
 /// slot, offset) — equal for the points of a row that share a column (see [`Columns`]).
 type ColumnIds = (usize, [(usize, usize); 4]);
 
-/// What receives the samples of a row: point index, taps, fx, fy, whether the level is
-/// magnified, and the taps' columns.
-type EmitFn<'e, T> = dyn for<'a> FnMut(usize, Taps<'a, T>, f64, f64, bool, ColumnIds) + 'e;
+/// What receives the samples of a row: point index, texels, fx, fy, whether the level is
+/// magnified, and the texels' columns.
+type EmitFn<'e, T> = dyn for<'a> FnMut(usize, &Texels<'a, T>, f64, f64, bool, ColumnIds) + 'e;
 
 /// Catmull-Rom through `p` (texels at −1, 0, 1, 2) at fraction `t` between 0 and 1, in the
 /// form that returns a constant exactly.
@@ -751,7 +838,14 @@ fn catmull_rom(p: [f32; 4], t: f32) -> f32 {
 /// else bilinear between the four corners, a corner without data read as sea level (or NaN
 /// with `keep`).
 fn height_from_taps(taps: Taps<'_, f32>, fx: f32, fy: f32, magnified: bool, keep: bool) -> f32 {
-    height_from_columns(taps, fx, fy, magnified, keep, |_, column| column())
+    height_from_columns(
+        |r, c| taps[r][c],
+        fx,
+        fy,
+        magnified,
+        keep,
+        |_, column| column(),
+    )
 }
 
 /// A tap's value, NaN where it has none.
@@ -765,8 +859,8 @@ fn tap_value(t: Option<&[f32]>) -> f32 {
 /// [`height_from_taps`] with the Catmull-Rom of each column (down the four rows, at `fy`) asked
 /// of `column(c, compute)`, which may return a value it computed for the same column before
 /// (the points of a row share their columns and `fy`).
-fn height_from_columns(
-    taps: Taps<'_, f32>,
+fn height_from_columns<'a>(
+    tap: impl Fn(usize, usize) -> Option<&'a [f32]>,
     fx: f32,
     fy: f32,
     magnified: bool,
@@ -776,7 +870,7 @@ fn height_from_columns(
     if magnified {
         let v: [f32; 4] = std::array::from_fn(|c| {
             column(c, &|| {
-                catmull_rom(std::array::from_fn(|r| tap_value(taps[r][c])), fy)
+                catmull_rom(std::array::from_fn(|r| tap_value(tap(r, c))), fy)
             })
         });
         // a NaN tap makes its column NaN
@@ -789,7 +883,7 @@ fn height_from_columns(
         _ if keep => f32::NAN,
         _ => 0.0,
     };
-    let (a, b, c, d) = (v(taps[1][1]), v(taps[1][2]), v(taps[2][1]), v(taps[2][2]));
+    let (a, b, c, d) = (v(tap(1, 1)), v(tap(1, 2)), v(tap(2, 1)), v(tap(2, 2)));
     let top = a + (b - a) * fx;
     let bottom = c + (d - c) * fx;
     top + (bottom - top) * fy
@@ -828,24 +922,55 @@ impl ZeroedSample for u8 {
 /// [`StoreHeights::with_detail`], detail below the data's resolution is added where the data is
 /// magnified.
 #[derive(Debug)]
-pub struct StoreHeights(StoreLevels<f32>, bool, Option<Arc<Detail>>);
+pub struct StoreHeights(StoreLevels<f32>, bool, Option<Arc<Detail>>, Roughness);
+
+/// The data's roughness at the four texels around each footprint origin (level, x₀, y₀) seen,
+/// [`corner_residuals`] of the 4×4 texels there (None where any lacks data): the points of a
+/// tile share a few, each a plane fit of nine texels four times over.
+#[derive(Debug, Default)]
+struct Roughness(FxHashMap<FootprintKey, Option<[f64; 4]>>);
+
+/// A footprint's level and origin (x₀ wrapped into the level, y₀).
+type FootprintKey = (LevelId, i64, i64);
+
+impl Roughness {
+    /// Footprints kept before starting afresh (a few MiB).
+    const MAX: usize = 1 << 15;
+
+    /// The roughness at `key`, computed by `compute` the first time.
+    fn at(
+        &mut self,
+        key: FootprintKey,
+        compute: impl FnOnce() -> Option<[f64; 4]>,
+    ) -> Option<[f64; 4]> {
+        if let Some(r) = self.0.get(&key) {
+            return *r;
+        }
+        if self.0.len() >= Self::MAX {
+            self.0.clear();
+        }
+        let r = compute();
+        self.0.insert(key, r);
+        r
+    }
+}
 
 impl StoreHeights {
     /// Over the height levels of `reader`; `None` if it has none.
     pub fn new(reader: StoreReader) -> Option<Self> {
-        StoreLevels::new(reader).map(|l| Self(l, false, None))
+        StoreLevels::new(reader).map(|l| Self(l, false, None, Roughness::default()))
     }
 
     /// With `keep`, a texel any of whose bilinear corners is nodata or missing is NaN (an
     /// overlay shows what lies below there).
     pub fn keep_nodata(self, keep: bool) -> Self {
-        Self(self.0, keep, self.2)
+        Self(self.0, keep, self.2, self.3)
     }
 
     /// Adds `detail` below the data's resolution: at a texel finer than the store level that
     /// serves it (the finest with data there), where all 4×4 texels around the point hold data.
     pub fn with_detail(self, detail: Option<Arc<Detail>>) -> Self {
-        Self(self.0, self.1, detail)
+        Self(self.0, self.1, detail, self.3)
     }
 
     /// The row spacing of each stored level on the ground, metres, by index.
@@ -921,15 +1046,16 @@ impl StoreHeights {
         let mut memo: [(Option<Key>, f32); 8] = [(None, f32::NAN); 8];
         let mut next = 0;
         let mut corners: Option<(ColumnIds, Option<[f64; 4]>)> = None;
+        let rough = &mut self.3;
         // points with detail: (index, level, the data's roughness there)
         let mut pending: Vec<(usize, usize, f64)> = Vec::new();
         self.0.sample_row(
             lons,
             colat,
             texel,
-            &mut |k, taps, fx, fy, magnified, (level, cols)| {
+            &mut |k, texels, fx, fy, magnified, (level, cols)| {
                 let base = height_from_columns(
-                    taps,
+                    |r, c| texels.tap(r, c),
                     fx as f32,
                     fy as f32,
                     magnified,
@@ -949,7 +1075,15 @@ impl StoreHeights {
                 if detail.is_none() || !magnified || base.is_nan() {
                     return;
                 }
-                if let Some(r) = memo_roughness(&mut corners, (level, cols), taps) {
+                let r = match corners {
+                    Some((key, r)) if key == (level, cols) => r,
+                    _ => {
+                        let r = rough.at(texels.origin(), || corner_roughness(texels.all()));
+                        corners = Some(((level, cols), r));
+                        r
+                    }
+                };
+                if let Some(r) = r {
                     pending.push((k, level, bilinear_roughness(r, fx, fy)));
                 }
             },
@@ -961,45 +1095,35 @@ impl StoreHeights {
         // the data's roughness one and two stored levels coarser at the same points: both made
         // by the pyramid with the same kernel, their ratio is the local spectral slope (the
         // finest level may have been ingested with another kernel)
-        let mut coarse = vec![[f64::NAN; 2]; lons.len()];
-        let mut levels: Vec<usize> = pending.iter().map(|p| p.1).filter(|&l| l > 0).collect();
-        levels.sort_unstable();
-        levels.dedup();
-        for level in levels {
-            let which: Vec<usize> = pending
-                .iter()
-                .filter(|p| p.1 == level)
-                .map(|p| p.0)
-                .collect();
-            for up in 1..=2.min(level) {
-                let target = level - up;
-                let win = self.0.level_texel(target);
-                let mut corners: Option<(ColumnIds, Option<[f64; 4]>)> = None;
-                self.0.sample_points(
-                    lons,
-                    &which,
-                    colat,
-                    win,
-                    target,
-                    true,
-                    &mut |k, taps, fx, fy, _, (lc, cols)| {
-                        let rough = memo_roughness(&mut corners, (lc, cols), taps);
-                        if let (Some(r), true) = (rough, lc == target) {
-                            coarse[k][up - 1] = bilinear_roughness(r, fx, fy);
-                        }
-                    },
-                );
-            }
-        }
+        // per coarser level, the last footprint's (the points of a row share a few)
+        let mut last: [Option<(FootprintKey, Option<[f64; 4]>)>; 2] = [None; 2];
+        let sin_cos_colat = colat.sin_cos();
+        let texel_m = detail.texel_m(texel.texel_colat, texel.texel_lon, colat);
         for &(k, level, fine) in &pending {
-            let hurst = local_hurst(coarse[k], level, &spacing);
-            let d = detail.sample(
-                lons[k],
-                colat,
+            let mut coarse = [f64::NAN; 2];
+            for up in 1..=2.min(level) {
+                let f = self.0.iso_footprint(lons[k], colat, level - up);
+                let key = (f.id, f.x0, f.y0);
+                let r = match last[up - 1] {
+                    Some((l, r)) if l == key => r,
+                    _ => {
+                        let levels = &mut self.0;
+                        let r = self.3.at(key, || levels.roughness_at(&f));
+                        last[up - 1] = Some((key, r));
+                        r
+                    }
+                };
+                if let Some(r) = r {
+                    coarse[up - 1] = bilinear_roughness(r, f.fx, f.fy);
+                }
+            }
+            let hurst = local_hurst(coarse, level, &spacing);
+            let d = detail.sample_at(
+                detail.point_from(sin_cos_colat, lons[k].sin_cos()),
                 spacing[level],
-                data_roughness(fine, coarse[k], hurst),
+                data_roughness(fine, coarse, hurst),
                 hurst,
-                detail.texel_m(texel.texel_colat, texel.texel_lon, colat),
+                texel_m,
             );
             row[k] = (f64::from(row[k]) + d.height_m) as f32;
             if let Some(s) = shade.as_deref_mut() {
@@ -1079,23 +1203,6 @@ impl HeightSource for StoreHeights {
             detail.texel_m(texel.texel_colat, texel.texel_lon, colat),
         );
         (f64::from(base) + d.height_m) as f32
-    }
-}
-
-/// [`corner_roughness`] of `taps` whose columns are `key`, or the value `memo` holds for the
-/// same columns (the points of a row that share their 4×4 texels).
-fn memo_roughness(
-    memo: &mut Option<(ColumnIds, Option<[f64; 4]>)>,
-    key: ColumnIds,
-    taps: Taps<'_, f32>,
-) -> Option<[f64; 4]> {
-    match *memo {
-        Some((k, r)) if k == key => r,
-        _ => {
-            let r = corner_roughness(taps);
-            *memo = Some((key, r));
-            r
-        }
     }
 }
 
@@ -1366,9 +1473,8 @@ impl StoreColors {
         out.resize(start + lons.len() * 4, 0);
         let row = &mut out[start..];
         self.0
-            .sample_row(lons, colat, texel, &mut |k, taps, fx, fy, _, _| {
-                let corners = [taps[1][1], taps[1][2], taps[2][1], taps[2][2]];
-                row[k * 4..k * 4 + 4].copy_from_slice(&blend_rgba(corners, fx, fy));
+            .sample_row(lons, colat, texel, &mut |k, texels, fx, fy, _, _| {
+                row[k * 4..k * 4 + 4].copy_from_slice(&blend_rgba(texels.corners(), fx, fy));
             });
     }
 }

@@ -343,6 +343,8 @@ pub struct Detail {
     frames: Vec<Frame>,
     /// a₀ per metre of the data's plane residual, for H = 0.1, 0.2 … 1.0.
     gains: [f64; 10],
+    /// With the settings' Hurst exponent H: (2^−H, a₀ per metre of residual).
+    fixed: Option<(f64, f64)>,
 }
 
 impl Detail {
@@ -352,12 +354,18 @@ impl Detail {
             .map(|i| Frame::new(params.seed, i))
             .collect();
         let gains = std::array::from_fn(|i| calibrate(0.1 * (i + 1) as f64));
-        Self {
+        let mut d = Self {
             params,
             radius_m,
             frames,
             gains,
-        }
+            fixed: None,
+        };
+        d.fixed = params.hurst.map(|h| {
+            let h = h.clamp(0.1, 1.0);
+            (2f64.powf(-h), d.gain(h))
+        });
+        d
     }
 
     /// a₀ per metre of the data's plane residual for Hurst exponent `h` (0.1 … 1, linear between
@@ -383,8 +391,13 @@ impl Detail {
     /// The point of the sphere at (`lon`, `colat`), metres (colatitudes beyond a pole are the
     /// other side: the same point from both sides).
     pub fn point_m(&self, lon: f64, colat: f64) -> [f64; 3] {
-        let (st, ct) = colat.sin_cos();
-        let (sl, cl) = lon.sin_cos();
+        self.point_from(colat.sin_cos(), lon.sin_cos())
+    }
+
+    /// [`Self::point_m`] from the sine and cosine of the colatitude and of the longitude (a row
+    /// of points shares the first).
+    #[inline]
+    pub fn point_from(&self, (st, ct): (f64, f64), (sl, cl): (f64, f64)) -> [f64; 3] {
         [
             self.radius_m * st * cl,
             self.radius_m * st * sl,
@@ -411,18 +424,30 @@ impl Detail {
         data_hurst: Option<f64>,
         texel_m: f64,
     ) -> DetailSample {
-        let hurst = self
-            .params
-            .hurst
-            .or(data_hurst)
-            .unwrap_or(DEFAULT_HURST)
-            .clamp(0.1, 1.0);
-        let a0 = self.gain(hurst) * residual_m * self.params.amplitude;
+        let p = self.point_m(lon, colat);
+        self.sample_at(p, d0_m, residual_m, data_hurst, texel_m)
+    }
+
+    /// [`Self::sample`] at the point `p` of [`Self::point_m`].
+    pub fn sample_at(
+        &self,
+        p: [f64; 3],
+        d0_m: f64,
+        residual_m: f64,
+        data_hurst: Option<f64>,
+        texel_m: f64,
+    ) -> DetailSample {
+        let (gain, step) = match self.fixed {
+            Some((step, gain)) => (gain, step),
+            None => {
+                let hurst = data_hurst.unwrap_or(DEFAULT_HURST).clamp(0.1, 1.0);
+                (self.gain(hurst), 2f64.powf(-hurst))
+            }
+        };
+        let a0 = gain * residual_m * self.params.amplitude;
         if a0 <= 0.0 || !a0.is_finite() || FIRST_LATTICE * d0_m < FADE_TEXELS * texel_m {
             return DetailSample::default();
         }
-        let p = self.point_m(lon, colat);
-        let step = 2f64.powf(-hurst);
         let (mut height, mut shade) = (0.0, 0.0);
         let (mut lambda, mut a) = (FIRST_LATTICE * d0_m, a0);
         for f in &self.frames {
