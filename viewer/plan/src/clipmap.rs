@@ -14,7 +14,7 @@ use std::sync::Arc;
 use sc_core::{GridSpec, LevelId, TileId};
 use sc_store::{LayerKind, StoreReader, TileRead, TileSample};
 
-use crate::detail::{Detail, bilinear_roughness, corner_residuals};
+use crate::detail::{Detail, DetailPoint, bilinear_roughness, corner_residuals};
 use crate::geometry::level_outer;
 use crate::transform::Viewer;
 
@@ -1099,6 +1099,7 @@ impl StoreHeights {
         let mut last: [Option<(FootprintKey, Option<[f64; 4]>)>; 2] = [None; 2];
         let sin_cos_colat = colat.sin_cos();
         let texel_m = detail.texel_m(texel.texel_colat, texel.texel_lon, colat);
+        let mut points = Vec::with_capacity(pending.len());
         for &(k, level, fine) in &pending {
             let mut coarse = [f64::NAN; 2];
             for up in 1..=2.min(level) {
@@ -1118,13 +1119,15 @@ impl StoreHeights {
                 }
             }
             let hurst = local_hurst(coarse, level, &spacing);
-            let d = detail.sample_at(
-                detail.point_from(sin_cos_colat, lons[k].sin_cos()),
-                spacing[level],
-                data_roughness(fine, coarse, hurst),
-                hurst,
+            points.push(DetailPoint {
+                p: detail.point_from(sin_cos_colat, lons[k].sin_cos()),
+                d0_m: spacing[level],
+                residual_m: data_roughness(fine, coarse, hurst),
+                data_hurst: hurst,
                 texel_m,
-            );
+            });
+        }
+        for (&(k, _, _), d) in pending.iter().zip(detail.sample_many(&points)) {
             row[k] = (f64::from(row[k]) + d.height_m) as f32;
             if let Some(s) = shade.as_deref_mut() {
                 s[k] = d.shade as f32;
