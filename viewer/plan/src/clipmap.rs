@@ -331,6 +331,20 @@ struct Footprint {
     fy: f64,
 }
 
+impl Footprint {
+    /// The footprint at fractional column `x` and row `y` of level `id`.
+    fn at(id: LevelId, x: f64, y: f64) -> Self {
+        let (x0, y0) = (x.floor(), y.floor());
+        Self {
+            id,
+            x0: x0 as i64,
+            y0: y0 as i64,
+            fx: x - x0,
+            fy: y - y0,
+        }
+    }
+}
+
 impl<T: TileSample + ZeroedSample> StoreLevels<T> {
     fn new(reader: StoreReader) -> Option<Self> {
         let mut levels: Vec<(u32, Vec<u32>)> = Vec::new();
@@ -397,8 +411,7 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
                 break;
             }
             let h = self.grid.height(id);
-            let x = self.grid.column_of_lon_rad(id, lo);
-            let y = self.grid.row_of_colat_rad(id, c).clamp(0.0, (h - 1) as f64);
+            let (x, y) = self.position(id, lo, c);
             // both rows of the bilinear footprint must exist in an anisotropic level
             let rows = [y.floor() as u64, (y.floor() as u64 + 1).min(h - 1)];
             let tile = u64::from(self.grid.tile_size());
@@ -412,17 +425,7 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
             best = (id, x, y);
         }
         let (id, x, y) = best;
-        let (x0, y0) = (x.floor(), y.floor());
-        (
-            Footprint {
-                id,
-                x0: x0 as i64,
-                y0: y0 as i64,
-                fx: x - x0,
-                fy: y - y0,
-            },
-            idx,
-        )
+        (Footprint::at(id, x, y), idx)
     }
 
     /// [`Self::locate_in`] over all levels, falling back level by level to coarser ones until the
@@ -655,6 +658,19 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
         })
     }
 
+    /// The fractional column and row of folded (`lon`, `colat`) in level `id`, the row clamped
+    /// to the level's rows.
+    fn position(&self, id: LevelId, lon: f64, colat: f64) -> (f64, f64) {
+        let h = self.grid.height(id);
+        let x = self.grid.column_of_lon_rad(id, lon);
+        (
+            x,
+            self.grid
+                .row_of_colat_rad(id, colat)
+                .clamp(0.0, (h - 1) as f64),
+        )
+    }
+
     /// Where (`lon`, `colat`) falls in the isotropic level of index `idx`, as
     /// [`Self::locate_in`] finds it for a texel of that level's own size, with `x0` wrapped
     /// into the level (a key for the footprint).
@@ -664,19 +680,10 @@ impl<T: TileSample + ZeroedSample> StoreLevels<T> {
             aniso: 0,
         };
         let (lo, c, _) = sc_core::pole::fold_lon_colat(lon, colat);
-        let x = self.grid.column_of_lon_rad(id, lo);
-        let y = self
-            .grid
-            .row_of_colat_rad(id, c)
-            .clamp(0.0, (self.grid.height(id) - 1) as f64);
-        let (x0, y0) = (x.floor(), y.floor());
-        Footprint {
-            id,
-            x0: (x0 as i64).rem_euclid(self.grid.width(id) as i64),
-            y0: y0 as i64,
-            fx: x - x0,
-            fy: y - y0,
-        }
+        let (x, y) = self.position(id, lo, c);
+        let mut f = Footprint::at(id, x, y);
+        f.x0 = f.x0.rem_euclid(self.grid.width(id) as i64);
+        f
     }
 }
 
@@ -953,6 +960,24 @@ impl Roughness {
         self.0.insert(key, r);
         r
     }
+
+    /// [`Self::at`], or what `last` holds if it is for the same `key` (the points of a row
+    /// share a few footprints, one after another); `last` then holds `key`'s.
+    fn at_or_last(
+        &mut self,
+        last: &mut Option<(FootprintKey, Option<[f64; 4]>)>,
+        key: FootprintKey,
+        compute: impl FnOnce() -> Option<[f64; 4]>,
+    ) -> Option<[f64; 4]> {
+        if let Some((k, r)) = *last
+            && k == key
+        {
+            return r;
+        }
+        let r = self.at(key, compute);
+        *last = Some((key, r));
+        r
+    }
 }
 
 impl StoreHeights {
@@ -1045,7 +1070,7 @@ impl StoreHeights {
         type Key = (usize, (usize, usize));
         let mut memo: [(Option<Key>, f32); 8] = [(None, f32::NAN); 8];
         let mut next = 0;
-        let mut corners: Option<(ColumnIds, Option<[f64; 4]>)> = None;
+        let mut corners: Option<(FootprintKey, Option<[f64; 4]>)> = None;
         let rough = &mut self.3;
         // points with detail: (index, level, the data's roughness there)
         let mut pending: Vec<(usize, usize, f64)> = Vec::new();
@@ -1075,14 +1100,9 @@ impl StoreHeights {
                 if detail.is_none() || !magnified || base.is_nan() {
                     return;
                 }
-                let r = match corners {
-                    Some((key, r)) if key == (level, cols) => r,
-                    _ => {
-                        let r = rough.at(texels.origin(), || corner_roughness(texels.all()));
-                        corners = Some(((level, cols), r));
-                        r
-                    }
-                };
+                let r = rough.at_or_last(&mut corners, texels.origin(), || {
+                    corner_roughness(texels.all())
+                });
                 if let Some(r) = r {
                     pending.push((k, level, bilinear_roughness(r, fx, fy)));
                 }
@@ -1104,16 +1124,12 @@ impl StoreHeights {
             let mut coarse = [f64::NAN; 2];
             for up in 1..=2.min(level) {
                 let f = self.0.iso_footprint(lons[k], colat, level - up);
-                let key = (f.id, f.x0, f.y0);
-                let r = match last[up - 1] {
-                    Some((l, r)) if l == key => r,
-                    _ => {
-                        let levels = &mut self.0;
-                        let r = self.3.at(key, || levels.roughness_at(&f));
-                        last[up - 1] = Some((key, r));
-                        r
-                    }
-                };
+                let levels = &mut self.0;
+                let r = self
+                    .3
+                    .at_or_last(&mut last[up - 1], (f.id, f.x0, f.y0), || {
+                        levels.roughness_at(&f)
+                    });
                 if let Some(r) = r {
                     coarse[up - 1] = bilinear_roughness(r, f.fx, f.fy);
                 }

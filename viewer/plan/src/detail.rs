@@ -203,45 +203,40 @@ pub const LANES: usize = 8;
 /// arithmetic lane by lane, never fused).
 pub fn noise_lanes(q: &[[f64; 3]; LANES], seed: u64) -> [f64; LANES] {
     #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx512f")
-            && std::arch::is_x86_feature_detected!("avx512dq")
-        {
-            return wide::avx512(q, seed);
-        }
-        if std::arch::is_x86_feature_detected!("avx2") {
-            return wide::avx2(q, seed);
-        }
+    if let Some(n) = wide::noise_lanes(q, seed) {
+        return n;
     }
     std::array::from_fn(|l| gradient_noise(q[l], seed))
 }
 
-/// [`noise_lanes`] compiled for the CPU features it checked for.
+/// [`noise_lanes`] compiled for AVX-512 and for AVX2, each called only where the CPU has it.
 #[cfg(target_arch = "x86_64")]
 #[allow(unsafe_code)]
 mod wide {
     use super::{LANES, gradient_noise};
 
+    /// The lanes in the widest vectors the CPU has; None where it has neither.
+    pub(super) fn noise_lanes(q: &[[f64; 3]; LANES], seed: u64) -> Option<[f64; LANES]> {
+        use std::arch::is_x86_feature_detected as has;
+        if has!("avx512f") && has!("avx512dq") && has!("avx512vl") {
+            // SAFETY: the CPU has every feature the function is compiled for
+            return Some(unsafe { avx512(q, seed) });
+        }
+        if has!("avx2") {
+            // SAFETY: as above
+            return Some(unsafe { avx2(q, seed) });
+        }
+        None
+    }
+
     #[target_feature(enable = "avx512f,avx512dq,avx512vl,avx2")]
-    fn lanes_avx512(q: &[[f64; 3]; LANES], seed: u64) -> [f64; LANES] {
+    fn avx512(q: &[[f64; 3]; LANES], seed: u64) -> [f64; LANES] {
         std::array::from_fn(|l| gradient_noise(q[l], seed))
     }
 
     #[target_feature(enable = "avx2")]
-    fn lanes_avx2(q: &[[f64; 3]; LANES], seed: u64) -> [f64; LANES] {
+    fn avx2(q: &[[f64; 3]; LANES], seed: u64) -> [f64; LANES] {
         std::array::from_fn(|l| gradient_noise(q[l], seed))
-    }
-
-    /// Only where the CPU has AVX-512 F and DQ.
-    pub(super) fn avx512(q: &[[f64; 3]; LANES], seed: u64) -> [f64; LANES] {
-        // SAFETY: the caller checked that the CPU has the features it is compiled for
-        unsafe { lanes_avx512(q, seed) }
-    }
-
-    /// Only where the CPU has AVX2.
-    pub(super) fn avx2(q: &[[f64; 3]; LANES], seed: u64) -> [f64; LANES] {
-        // SAFETY: the caller checked that the CPU has the features it is compiled for
-        unsafe { lanes_avx2(q, seed) }
     }
 }
 
@@ -416,6 +411,19 @@ struct Octaves {
     step: f64,
 }
 
+impl Octaves {
+    /// Adds the octave of weight `w` whose noise there is `g` ([`gradient_noise`]) to `out`,
+    /// and moves on to the next.
+    #[inline]
+    fn add(&mut self, out: &mut DetailSample, w: f64, g: f64) {
+        let n = w * self.a * (g / NOISE_STD);
+        out.height_m += n;
+        out.shade += n / self.lambda;
+        self.lambda *= 0.5;
+        self.a *= self.step;
+    }
+}
+
 /// The detail synthesizer of one planet (see the module documentation).
 #[derive(Debug, Clone)]
 pub struct Detail {
@@ -518,30 +526,22 @@ impl Detail {
         data_hurst: Option<f64>,
         texel_m: f64,
     ) -> DetailSample {
-        let Some(Octaves {
-            mut lambda,
-            mut a,
-            step,
-        }) = self.first_octave(d0_m, residual_m, data_hurst, texel_m)
-        else {
+        let Some(mut o) = self.first_octave(d0_m, residual_m, data_hurst, texel_m) else {
             return DetailSample::default();
         };
-        let (mut height, mut shade) = (0.0, 0.0);
+        let mut out = DetailSample::default();
         for f in &self.frames {
-            let w = Self::weight(lambda, texel_m);
+            let w = Self::weight(o.lambda, texel_m);
             if w <= 0.0 {
                 break;
             }
-            let n = w * a * f.noise(p, lambda);
-            height += n;
-            shade += n / lambda;
-            lambda *= 0.5;
-            a *= step;
+            o.add(
+                &mut out,
+                w,
+                gradient_noise(f.lattice_point(p, o.lambda), f.seed),
+            );
         }
-        DetailSample {
-            height_m: height,
-            shade,
-        }
+        out
     }
 
     /// [`Self::sample_at`] at many points, the same values bit for bit: each octave's noise
@@ -577,11 +577,7 @@ impl Detail {
                 });
                 let noise = noise_lanes(&q, f.seed);
                 for (((k, o), &w), g) in chunk.iter_mut().zip(ws).zip(noise) {
-                    let n = w * o.a * (g / NOISE_STD);
-                    out[*k].height_m += n;
-                    out[*k].shade += n / o.lambda;
-                    o.lambda *= 0.5;
-                    o.a *= o.step;
+                    o.add(&mut out[*k], w, g);
                 }
             }
         }
