@@ -999,6 +999,16 @@ fn write_shard(
                             }
                             let a = planes[3][k].clamp(0.0, 1.0) * fw[k];
                             let px = &mut cur[k * 4..k * 4 + 4];
+                            changed = true;
+                            if a == 1.0 {
+                                // what the compositing below gives for an opaque texel, exactly
+                                // (out_a = 1, the old colour weighted by 0)
+                                for c in 0..3 {
+                                    px[c] = linear_to_srgb(planes[c][k]);
+                                }
+                                px[3] = 255;
+                                continue;
+                            }
                             // non-premultiplied "over" compositing in linear light; opaque
                             // sources simply replace what was there
                             let old_a = f32::from(px[3]) / 255.0;
@@ -1015,7 +1025,6 @@ fn write_shard(
                                 px[c] = linear_to_srgb(lin);
                             }
                             px[3] = ((out_a * 255.0).round() as u8).max(1);
-                            changed = true;
                         }
                     }
                 }

@@ -997,8 +997,25 @@ impl RasterSource {
             )));
         }
         let memory = self.reserve(w, h, rw, rh)?;
-        let mut planes = vec![vec![f32::NAN; w * h]; nplanes];
         let raw = self.read_cached(cmin, rmin, rw, rh)?;
+        let own_columns = info
+            .lon_period_px
+            .is_none_or(|p| ((c0 + w as i64 - 1) as f64) < p);
+        if direct && own_columns && raw.len() == nplanes {
+            // every row and column of the window is the source's own, in order (a wrapping
+            // source's columns below one period map to themselves): the pixels read are the
+            // window
+            return Ok(Window {
+                c0,
+                r0,
+                w,
+                h,
+                step: 1,
+                planes: raw,
+                memory: Some(memory),
+            });
+        }
+        let mut planes = vec![vec![f32::NAN; w * h]; nplanes];
         // the source column of each window column (index into a row of `raw`), once per side
         // of the pole rather than once per row
         let col_map = |flipped: bool| -> Vec<Option<usize>> {
