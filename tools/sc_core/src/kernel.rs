@@ -201,12 +201,6 @@ impl KernelLut {
         }
     }
 
-    /// Whether [`Self::weight`] is Keys' cubic, which [`cubic_weight`] evaluates without the
-    /// kernel's choice in the loop.
-    pub fn is_cubic(&self) -> bool {
-        self.kernel == Kernel::Cubic
-    }
-
     #[inline]
     fn lookup(&self, d: f64) -> f64 {
         let f = d * self.scale;
@@ -214,13 +208,6 @@ impl KernelLut {
         let t = f - i as f64;
         self.table[i] + t * (self.table[i + 1] - self.table[i])
     }
-}
-
-/// Keys' cubic at normalised distance `d` (either sign), as [`KernelLut::weight`] gives it for
-/// [`Kernel::Cubic`].
-#[inline]
-pub fn cubic_weight(d: f64) -> f64 {
-    keys_cubic(d.abs())
 }
 
 /// Keys' cubic (a = −0.5) at distance `d ≥ 0`: both pieces evaluated and one picked, so a run

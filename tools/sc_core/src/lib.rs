@@ -21,7 +21,7 @@ mod tile;
 pub mod workers;
 
 pub use grid::{GeoRect, GridSpec, LonLat, TexelPos};
-pub use kernel::{Footprint, Kernel, KernelLut, cubic_weight};
+pub use kernel::{Footprint, Kernel, KernelLut};
 pub use level::{ANISO_MAX, LEVEL_MAX, LevelId, aniso_min_abs_lat_deg};
 pub use tile::{ShardId, TileId};
 

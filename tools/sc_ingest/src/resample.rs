@@ -804,31 +804,33 @@ impl RowPass {
         };
         // at most this many taps a texel: ceil(a)..=floor(a + 2·reach)
         let most = (2.0 * reach).floor() as usize + 1;
-        let lanes = !self.scalar && whole && most <= SEP_MAX && self.sums.len() <= 4;
+        let columns = if whole {
+            Columns::Whole(whole_w, whole_p)
+        } else {
+            Columns::Each {
+                weights: &self.weights,
+                positive: &self.positive,
+            }
+        };
+        // lanes only where every column carries the same weight sums
+        let lanes = (!self.scalar && whole && most <= SEP_MAX && self.sums.len() <= 4)
+            .then_some((whole_w, whole_p));
         for (chunk, xs) in xs.chunks(LANES).enumerate() {
             let base = base + chunk * LANES;
-            if lanes && let Ok(xs) = <&[f64; LANES]>::try_from(xs) {
-                let whole = (whole_w, whole_p);
-                if let Some((vals, ok)) = lanes::texels(&taps, &self.sums, xs, most, whole) {
-                    for (plane, vals) in out.iter_mut().zip(&vals) {
-                        for (l, v) in vals.iter().enumerate() {
-                            if ok[l] {
-                                plane[base + l] = *v;
-                            }
+            if let Some(whole) = lanes
+                && let Ok(xs) = <&[f64; LANES]>::try_from(xs)
+                && let Some((vals, ok)) = lanes::texels(&taps, &self.sums, xs, most, whole)
+            {
+                for (plane, vals) in out.iter_mut().zip(&vals) {
+                    for (l, v) in vals.iter().enumerate() {
+                        if ok[l] {
+                            plane[base + l] = *v;
                         }
                     }
-                    continue;
                 }
+                continue;
             }
             for (l, &x) in xs.iter().enumerate() {
-                let columns = if whole {
-                    Columns::Whole(whole_w, whole_p)
-                } else {
-                    Columns::Each {
-                        weights: &self.weights,
-                        positive: &self.positive,
-                    }
-                };
                 if let Some(vals) = taps.filter(&self.sums, x, columns) {
                     for (plane, v) in out.iter_mut().zip(vals) {
                         plane[base + l] = v;
@@ -934,6 +936,7 @@ impl Taps<'_> {
 
 /// The vertical pass's sums of the weights and of the positive weights of the valid samples:
 /// per column, or one value for every column (no sample of the span missing).
+#[derive(Clone, Copy)]
 enum Columns<'a> {
     Each {
         weights: &'a [f64],
@@ -980,8 +983,9 @@ mod lanes {
     #[cfg(target_arch = "x86_64")]
     #[allow(unsafe_code)]
     mod avx2 {
-        use super::super::{LANES, SEP_MAX, Taps, enough};
+        use super::super::{LANES, Taps, enough};
         use super::Planes;
+        use sc_core::Kernel;
         use std::arch::x86_64::*;
 
         const _: () = assert!(LANES == 4, "four f64 lanes in 256 bits");
@@ -999,7 +1003,8 @@ mod lanes {
             _mm256_blendv_pd(if_false, if_true, mask)
         }
 
-        /// Keys' cubic as `sc_core::cubic_weight` evaluates it, operation for operation.
+        /// Keys' cubic as `KernelLut::weight` evaluates it for `Kernel::Cubic` (sc_core's
+        /// `keys_cubic` of `|d|`), operation for operation.
         #[target_feature(enable = "avx2")]
         fn cubic(d: __m256d) -> __m256d {
             const A: f64 = -0.5;
@@ -1059,7 +1064,7 @@ mod lanes {
                     _mm256_cmp_pd::<_CMP_LE_OQ>(hi, c(cb)),
                 ),
             );
-            if _mm256_movemask_pd(fits) != 0b1111 || most > SEP_MAX {
+            if _mm256_movemask_pd(fits) != 0b1111 {
                 return None;
             }
             let inv_su = c(taps.inv_su);
@@ -1068,7 +1073,7 @@ mod lanes {
             let span = sums.first().map_or(0, Vec::len);
             // padded taps read the span's last column (and are not added)
             let last = span.checked_sub(1)?;
-            let is_cubic = taps.lut.is_cubic();
+            let is_cubic = taps.lut.kernel() == Kernel::Cubic;
             let zero = c(-0.0);
             let (mut wsum, mut wpos) = (zero, zero);
             let mut acc = [zero; 4];
@@ -1093,16 +1098,14 @@ mod lanes {
                     *a = select(_mm256_add_pd(*a, _mm256_mul_pd(w, v)), *a, on);
                 }
             }
-            let (wsum, wpos) = (lanes(wsum), lanes(wpos));
+            // the valid samples' weight sum as the scalar path multiplies it: whole_w · Σ wx
+            let sum = _mm256_mul_pd(c(whole_w), wsum);
+            let (sum_l, wpos) = (lanes(sum), lanes(wpos));
             let mut ok = [false; LANES];
             let mut out = [[f32::NAN; LANES]; 4];
             for (l, ok) in ok.iter_mut().enumerate() {
-                *ok = enough(wpos[l] * taps.wy_pos, whole_w * wsum[l], whole_p * wpos[l]);
+                *ok = enough(wpos[l] * taps.wy_pos, sum_l[l], whole_p * wpos[l]);
             }
-            let sum = _mm256_mul_pd(
-                c(whole_w),
-                _mm256_set_pd(wsum[3], wsum[2], wsum[1], wsum[0]),
-            );
             for (o, a) in out.iter_mut().zip(&acc).take(sums.len()) {
                 *o = lanes(_mm256_div_pd(*a, sum)).map(|v| v as f32);
             }
