@@ -677,6 +677,7 @@ fn run_step(
 ) -> Result<()> {
     let root = writer.root().to_path_buf();
     let threads = thread_count(plan);
+    writer.set_threads(threads);
     let step_start = Instant::now();
     writer.ensure_level(step.layer, step.out)?;
     // a fresh reader per step sees the levels the previous steps wrote

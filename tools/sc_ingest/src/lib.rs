@@ -765,6 +765,7 @@ fn write_shards(
     // one worker thread per core, each with its own GDAL handles (opened once: opening a gzipped
     // NetCDF costs seconds), taking shards in order
     let workers = rayon::current_num_threads();
+    writer.set_threads(workers);
     sc_core::workers::run(todo.len(), workers, open_set, |sources, k| {
         do_shard(sources, todo[k])
     })

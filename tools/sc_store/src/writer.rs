@@ -67,6 +67,9 @@ pub struct StoreWriter {
     initial: StoreMeta,
     /// Whether shards keep their previous version under `.sphereclip/undo` before being replaced.
     undo: std::sync::atomic::AtomicBool,
+    /// The threads the process gives this writer: the shard writers open at a time share them
+    /// to encode their tiles ([`StoreWriter::set_threads`]).
+    threads: std::sync::atomic::AtomicUsize,
     access: Access,
     _lock: File,
 }
@@ -355,9 +358,30 @@ impl StoreWriter {
             initial: meta.clone(),
             meta: Mutex::new(meta),
             undo: std::sync::atomic::AtomicBool::new(false),
+            threads: std::sync::atomic::AtomicUsize::new(1),
             access: Access::Alone,
             _lock: lock,
         })
+    }
+
+    /// The threads this process runs shard writers on (1 unless set). A shard's tiles are
+    /// encoded on its share of them: all of them when it is the only shard writer open (the
+    /// coarse levels of a build are one shard each), one when as many writers are open as
+    /// threads. The bytes do not depend on it.
+    pub fn set_threads(&self, threads: usize) {
+        self.threads
+            .store(threads.max(1), std::sync::atomic::Ordering::Relaxed);
+    }
+
+    /// How many threads a shard writer finishing now may encode its tiles on.
+    fn encode_threads(&self) -> usize {
+        let open = self
+            .claimed
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .len()
+            .max(1);
+        (self.threads.load(std::sync::atomic::Ordering::Relaxed) / open).max(1)
     }
 
     fn lock_meta(&self) -> std::sync::MutexGuard<'_, StoreMeta> {
@@ -462,6 +486,7 @@ impl StoreWriter {
             0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
             n => n,
         };
+        self.set_threads(threads);
         let written = std::sync::atomic::AtomicU64::new(0);
         sc_core::workers::run(
             (sx * sy) as usize,
@@ -513,6 +538,12 @@ impl StoreWriter {
                 self.root.display()
             )));
         }
+        // tiles encoded on several threads are still placed in index order, so that a shard's
+        // bytes do not depend on the threads (zarrs' default places them as they complete)
+        let in_order = zarrs::array::CodecSpecificOptions::default().with_option(
+            zarrs::array::codec::ShardingCodecOptions::default()
+                .with_subchunk_write_order(zarrs::array::codec::SubchunkWriteOrder::C),
+        );
         let write = if exists {
             let meta = self.meta();
             crate::layout::check_file(&self.root, kind, level, &meta).map_err(&zerr)?;
@@ -543,7 +574,8 @@ impl StoreWriter {
                 .map_err(|e| zerr(e.to_string()))?;
             array.store_metadata().map_err(|e| zerr(e.to_string()))?;
             array
-        };
+        }
+        .with_codec_specific_options(&in_order);
         let read = Array::open(self.fs.clone(), &path).map_err(|e| zerr(e.to_string()))?;
         let mut listed = true;
         {
@@ -1094,9 +1126,9 @@ impl<T: TileSample> ShardWriter<'_, T> {
         let indices = T::KIND.chunk_indices(self.shard.x, self.shard.y);
         self.writer.save_undo(T::KIND, self.shard, &self.path)?;
         let samples = std::mem::take(&mut self.samples);
-        // one thread per shard: zarrs places concurrently encoded tiles in completion order, which
-        // would make a shard's bytes differ run to run (parallelism lives one level up, per shard)
-        let options = zarrs::array::codec::api::CodecOptions::default().with_concurrent_target(1);
+        // the tiles are placed in index order whatever the threads (see `level_arrays`)
+        let options = zarrs::array::codec::api::CodecOptions::default()
+            .with_concurrent_target(self.writer.encode_threads());
         self.arrays
             .write
             .store_chunk_opt(&indices, samples, &options)
