@@ -711,12 +711,12 @@ fn a_format_1_store_is_read_as_before_and_upgraded_in_place_resumably() {
     let o = run(&["upgrade", s(&old)]);
     ok(&o);
     let said = text(&o.stdout);
-    assert!(said.contains("from format 1.0 to 2.0"), "{said}");
+    assert!(said.contains("from format 1.0 to 3.0"), "{said}");
     let after = all_tiles(&old);
     assert_eq!(tiles, after, "the tiles are those the format-1 store held");
     let meta: serde_json::Value =
         serde_json::from_slice(&std::fs::read(old.join("zarr.json")).expect("read")).expect("json");
-    assert_eq!(meta["attributes"]["sphereclip"]["format_version"], "2.0");
+    assert_eq!(meta["attributes"]["sphereclip"]["format_version"], "3.0");
     assert_eq!(meta["attributes"]["sphereclip"]["complete"], true);
     assert!(meta["consolidated_metadata"]["metadata"]["height/L02/lat"].is_object());
     let levels = meta["attributes"]["sphereclip"]["layers"]["height"]["levels"]
@@ -740,7 +740,7 @@ fn a_format_1_store_is_read_as_before_and_upgraded_in_place_resumably() {
     ]));
     let o = run(&["upgrade", s(&old)]);
     ok(&o);
-    assert!(text(&o.stdout).contains("already format 2.0"));
+    assert!(text(&o.stdout).contains("already format 3.0"));
     // killed after any step, a rerun finishes with the same bytes
     let n = kill_points_resume(
         Some(&format1_store(&dir.path().join("base"))),

@@ -175,7 +175,7 @@ fn bad_stores_get_one_line_errors() {
     let t = std::fs::read_to_string(&zj).expect("read");
     std::fs::write(
         &zj,
-        t.replace("\"format_version\": \"2.0\"", "\"format_version\": \"7.2\""),
+        t.replace("\"format_version\": \"3.0\"", "\"format_version\": \"7.2\""),
     )
     .expect("write");
     let o = run(&["info", root.to_str().expect("utf8")]);

@@ -7,8 +7,15 @@ use sc_core::{GridSpec, LevelId};
 
 use crate::{LayerKind, Result, StoreError};
 
-/// Major format version: readers refuse stores with a larger one.
-pub const FORMAT_MAJOR: u32 = 2;
+/// Major format version: readers refuse stores with a larger one. 1: a level is one array;
+/// 2: a level is a group holding the data array, its coordinates and its grid mapping; 3: as 2,
+/// and a height level's pcodec encoder settings (compression level, mode, delta encoding) are
+/// the writer's choice (readers of format 2 accepted only pcodec's defaults).
+pub const FORMAT_MAJOR: u32 = 3;
+/// The oldest major format this sphereclip writes into (older stores are read, and converted
+/// by `upgrade`). A store keeps its format when written: levels new to a store of format 2 are
+/// written as format 2 has them.
+pub const WRITABLE_MAJOR: u32 = 2;
 /// Minor format version: additions a reader of the same major may ignore.
 pub const FORMAT_MINOR: u32 = 0;
 
@@ -179,8 +186,7 @@ impl StoreMeta {
         Ok(meta)
     }
 
-    /// The major format version (1: a level is one array; 2: a level is a group holding the
-    /// data array, its coordinates and its grid mapping).
+    /// The major format version (see [`FORMAT_MAJOR`]).
     pub fn format_major(&self) -> u32 {
         self.format_version
             .split('.')

@@ -166,7 +166,7 @@ fn check_new_root(root: &Path) -> Result<()> {
 
 /// Refuses to write into a store of an older format (it is read, and `upgrade` converts it).
 fn check_writable(root: &Path, meta: &StoreMeta) -> Result<()> {
-    if meta.format_major() < crate::meta::FORMAT_MAJOR {
+    if meta.format_major() < crate::meta::WRITABLE_MAJOR {
         return Err(StoreError::Format {
             what: format!(
                 "store format {} is read but not written by this sphereclip; convert it first with `sphereclip upgrade {}`",
@@ -551,8 +551,9 @@ impl StoreWriter {
             Array::new_with_metadata(self.durable.clone(), &path, read.metadata().clone())
                 .map_err(|e| zerr(e.to_string()))?
         } else {
-            let builder = crate::layout::builder(kind, level, grid, shard_tiles, self.height_codec)
-                .map_err(&zerr)?;
+            let builder =
+                crate::layout::builder(kind, level, grid, shard_tiles, self.height_codec, major)
+                    .map_err(&zerr)?;
             // the groups first (Zarr v3 has no implicit groups): the layer's, then the level's
             // with its coordinates and grid mapping, then the data array
             let layer_meta = self.root.join(kind.name()).join("zarr.json");

@@ -327,12 +327,12 @@ fn not_a_store_and_newer_versions_are_refused() {
     let text = std::fs::read_to_string(&zj).expect("read");
     std::fs::write(
         &zj,
-        text.replace("\"format_version\": \"2.0\"", "\"format_version\": \"3.0\""),
+        text.replace("\"format_version\": \"3.0\"", "\"format_version\": \"4.0\""),
     )
     .expect("write");
     let e = StoreReader::open(&root).expect_err("newer");
     assert!(matches!(e, StoreError::UnsupportedVersion { .. }), "{e}");
-    assert!(e.to_string().contains("3.0"), "{e}");
+    assert!(e.to_string().contains("4.0"), "{e}");
     let e = StoreWriter::open(&root).expect_err("newer");
     assert!(matches!(e, StoreError::UnsupportedVersion { .. }), "{e}");
 }
@@ -366,10 +366,10 @@ fn the_same_tiles_give_the_same_bytes() {
     }
 }
 
-/// pcodec's compression level is the writer's choice: a level written at another one reads
-/// and takes new shards; another codec is damage.
+/// pcodec's encoder settings are the writer's choice: a level written with others reads and
+/// takes new shards; another codec is damage.
 #[test]
-fn levels_written_at_another_pcodec_level_read_and_extend() {
+fn levels_written_with_other_pcodec_settings_read_and_extend() {
     let dir = tempfile::tempdir().expect("tempdir");
     let root = dir.path().join("s.zarr");
     let level = LevelId::iso(2).expect("valid");
@@ -389,7 +389,12 @@ fn levels_written_at_another_pcodec_level_read_and_extend() {
     let pco = &mut json["codecs"][0]["configuration"]["codecs"][0];
     assert_eq!(pco["name"], "numcodecs.pcodec");
     assert_ne!(pco["configuration"]["level"], 3);
-    pco["configuration"]["level"] = 3.into();
+    let c = &mut pco["configuration"];
+    c["level"] = 3.into();
+    c["mode_spec"] = "classic".into();
+    c["delta_spec"] = "try_lookback".into();
+    c["delta_encoding_order"] = serde_json::Value::Null;
+    c["equal_pages_up_to"] = 1000.into();
     let other = serde_json::to_string_pretty(&json).expect("json");
     std::fs::write(&meta, &other).expect("write");
     let second = TileId { level, x: 4, y: 2 };
@@ -412,4 +417,76 @@ fn levels_written_at_another_pcodec_level_read_and_extend() {
         .and_then(|w| w.shard_writer::<f32>(first.shard(2)).map(|_| ()))
         .expect_err("another codec");
     assert!(err.to_string().contains("codecs"), "{err}");
+}
+
+/// The pcodec settings of the height level `key` of the store at `root`.
+fn pcodec_settings(root: &std::path::Path, key: &str) -> serde_json::Value {
+    let meta = root.join(format!("height/{key}/height/zarr.json"));
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&meta).expect("read")).expect("json");
+    let pco = &json["codecs"][0]["configuration"]["codecs"][0];
+    assert_eq!(pco["name"], "numcodecs.pcodec");
+    pco["configuration"].clone()
+}
+
+fn format_version(root: &std::path::Path) -> serde_json::Value {
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(root.join("zarr.json")).expect("read"))
+            .expect("json");
+    json["attributes"]["sphereclip"]["format_version"].clone()
+}
+
+/// New height levels of a format-3 store fix pcodec's delta encoding at order 2; a store of
+/// format 2 is written as format 2 (its new levels with pcodec's defaults, which its readers
+/// require) and keeps its version.
+#[test]
+fn new_levels_get_the_pcodec_settings_of_the_store_format() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let root = dir.path().join("s.zarr");
+    let t = 32;
+    let put = |w: &StoreWriter, tile: TileId| {
+        let mut sw = w.shard_writer::<f32>(tile.shard(2)).expect("claim");
+        sw.put_tile(tile, &height_tile(tile, t)).expect("put");
+        sw.finish().expect("finish");
+        w.commit(None).expect("commit");
+    };
+    let l2 = TileId {
+        level: LevelId::iso(2).expect("valid"),
+        x: 1,
+        y: 1,
+    };
+    put(&StoreWriter::create(&root, config()).expect("create"), l2);
+    assert_eq!(format_version(&root), "3.0");
+    let c = pcodec_settings(&root, "L02");
+    assert_eq!(c["delta_spec"], "try_consecutive");
+    assert_eq!(c["delta_encoding_order"], 2);
+    assert_eq!(c["mode_spec"], "auto");
+    // the same store as format 2 would have it
+    let zj = root.join("zarr.json");
+    let text = std::fs::read_to_string(&zj).expect("read");
+    std::fs::write(
+        &zj,
+        text.replace("\"format_version\": \"3.0\"", "\"format_version\": \"2.0\""),
+    )
+    .expect("write");
+    let l3 = TileId {
+        level: LevelId::iso(3).expect("valid"),
+        x: 5,
+        y: 2,
+    };
+    put(
+        &StoreWriter::open(&root).expect("open a format-2 store"),
+        l3,
+    );
+    assert_eq!(format_version(&root), "2.0");
+    let c = pcodec_settings(&root, "L03");
+    assert_eq!(c["delta_spec"], "auto");
+    assert_eq!(c["delta_encoding_order"], serde_json::Value::Null);
+    assert_eq!(c["level"], 8);
+    let r = StoreReader::open(&root).expect("open");
+    for tile in [l2, l3] {
+        let mut got = vec![0f32; t * t];
+        r.read_tile(tile, &mut got).expect("read");
+        assert!(same_bits(&got, &height_tile(tile, t)), "{tile:?}");
+    }
 }
