@@ -5,7 +5,8 @@ use std::path::Path;
 use rand::{Rng, SeedableRng, rngs::StdRng};
 use sc_core::{GridSpec, LevelId, ShardId, TileId};
 use sc_store::{
-    LayerKind, StoreConfig, StoreError, StoreReader, StoreWriter, TileRead, TileSample,
+    FORMAT_MAJOR, FORMAT_MINOR, LayerKind, StoreConfig, StoreError, StoreReader, StoreWriter,
+    TileRead, TileSample,
 };
 
 fn config() -> StoreConfig {
@@ -323,13 +324,7 @@ fn not_a_store_and_newer_versions_are_refused() {
 
     let root = dir.path().join("s.zarr");
     write_sample_store(&root);
-    let zj = root.join("zarr.json");
-    let text = std::fs::read_to_string(&zj).expect("read");
-    std::fs::write(
-        &zj,
-        text.replace("\"format_version\": \"3.0\"", "\"format_version\": \"4.0\""),
-    )
-    .expect("write");
+    set_format_version(&root, "4.0");
     let e = StoreReader::open(&root).expect_err("newer");
     assert!(matches!(e, StoreError::UnsupportedVersion { .. }), "{e}");
     assert!(e.to_string().contains("4.0"), "{e}");
@@ -429,6 +424,19 @@ fn pcodec_settings(root: &std::path::Path, key: &str) -> serde_json::Value {
     pco["configuration"].clone()
 }
 
+/// Rewrites the format version a store of the current format says it has.
+fn set_format_version(root: &std::path::Path, version: &str) {
+    let zj = root.join("zarr.json");
+    let text = std::fs::read_to_string(&zj).expect("read");
+    let now = format!("\"format_version\": \"{FORMAT_MAJOR}.{FORMAT_MINOR}\"");
+    assert!(text.contains(&now), "a store of the current format");
+    std::fs::write(
+        &zj,
+        text.replace(&now, &format!("\"format_version\": \"{version}\"")),
+    )
+    .expect("write");
+}
+
 fn format_version(root: &std::path::Path) -> serde_json::Value {
     let json: serde_json::Value =
         serde_json::from_slice(&std::fs::read(root.join("zarr.json")).expect("read"))
@@ -462,13 +470,7 @@ fn new_levels_get_the_pcodec_settings_of_the_store_format() {
     assert_eq!(c["delta_encoding_order"], 2);
     assert_eq!(c["mode_spec"], "auto");
     // the same store as format 2 would have it
-    let zj = root.join("zarr.json");
-    let text = std::fs::read_to_string(&zj).expect("read");
-    std::fs::write(
-        &zj,
-        text.replace("\"format_version\": \"3.0\"", "\"format_version\": \"2.0\""),
-    )
-    .expect("write");
+    set_format_version(&root, "2.0");
     let l3 = TileId {
         level: LevelId::iso(3).expect("valid"),
         x: 5,
