@@ -76,6 +76,19 @@ pub(crate) struct InputCounts {
 }
 
 impl InputCounts {
+    /// Adds what `other` counted (sums and spans: the same whatever the order).
+    fn merge(&mut self, other: &InputCounts) {
+        let grow = |a: Option<(u64, u64)>, b: Option<(u64, u64)>| match (a, b) {
+            (Some((a0, a1)), Some((b0, b1))) => Some((a0.min(b0), a1.max(b1))),
+            (a, b) => a.or(b),
+        };
+        self.footprint += other.footprint;
+        self.covered += other.covered;
+        self.valid += other.valid;
+        self.cols = grow(self.cols, other.cols);
+        self.rows = grow(self.rows, other.rows);
+    }
+
     fn add_tile(&mut self, grid: GridSpec, tile: TileId, samples: &TileSamples) {
         let t = grid.tile_size() as u64;
         let (ox, oy) = tile.origin_texel(grid);
@@ -743,17 +756,76 @@ fn write_shards(
             })
             .collect()
     };
-    let do_shard = |sources: &[RasterSource], shard: ShardId| -> Result<()> {
-        let Some(shard_tiles) = plan.shards.get(&shard) else {
+    // the work is tiles, shard after shard: every worker takes the next tile, so the last
+    // shards are not left to one worker while the others wait. A shard is written by the
+    // worker that puts its last tile (its bytes do not depend on who put which tile).
+    let mut items: Vec<(usize, Option<TileId>)> = Vec::new();
+    for (k, shard) in todo.iter().enumerate() {
+        let Some(shard_tiles) = plan.shards.get(shard) else {
             return Err(IngestError::Usage(format!(
                 "{shard} is not a shard of this ingest plan"
             )));
         };
-        let s = write_shard(writer, plan, &lut, sources, shard, shard_tiles)?;
-        tiles.fetch_add(s.tiles, std::sync::atomic::Ordering::Relaxed);
+        if shard_tiles.is_empty() {
+            items.push((k, None));
+        }
+        items.extend(shard_tiles.keys().map(|&t| (k, Some(t))));
+    }
+    let mut left = vec![0usize; todo.len()];
+    for &(k, _) in &items {
+        left[k] += 1;
+    }
+    let slots: Vec<std::sync::Mutex<Option<OpenShard<'_>>>> =
+        left.iter().map(|_| Default::default()).collect();
+    let do_item = |sources: &[RasterSource], (k, tile): (usize, Option<TileId>)| -> Result<()> {
+        let shard = todo[k];
+        let lock = |k: usize| slots[k].lock().unwrap_or_else(|e| e.into_inner());
+        let (t, idxs) = match tile {
+            Some(t) => (Some(t), &plan.shards[&shard][&t]),
+            None => (None, &Vec::new()),
+        };
+        let mut current = {
+            let mut slot = lock(k);
+            if slot.is_none() {
+                tracing::debug!(layer = %settings.layer, %shard, tiles = left[k], "ingest: resampling shard");
+                *slot = Some(OpenShard::claim(
+                    writer,
+                    plan.grid,
+                    settings.layer,
+                    shard,
+                    left[k],
+                )?);
+            }
+            let open = slot.as_mut().expect("just made");
+            match t {
+                Some(t) => Some(open.get_tile(t)?),
+                None => None,
+            }
+        };
+        let mut st = ShardStats::default();
+        let changed = match (t, current.as_mut()) {
+            (Some(t), Some(cur)) => make_tile(plan, &lut, sources, t, idxs, cur, &mut st)?,
+            _ => false,
+        };
+        let finished = {
+            let mut slot = lock(k);
+            let open = slot.as_mut().expect("open until its last tile");
+            if let (true, Some(t), Some(cur)) = (changed, t, &current) {
+                open.put_tile(t, cur)?;
+            }
+            open.stats.merge(st);
+            open.left -= 1;
+            if open.left == 0 { slot.take() } else { None }
+        };
+        let Some(open) = finished else {
+            return Ok(());
+        };
+        let stats = open.finish()?;
+        tracing::debug!(%shard, tiles_with_data = stats.tiles, "ingest: shard done");
+        tiles.fetch_add(stats.tiles, std::sync::atomic::Ordering::Relaxed);
         let record = journal::ShardRecord {
-            range: s.range.map(|r| (settings.layer, shard.level, r)),
-            inputs: s.inputs,
+            range: stats.range.map(|r| (settings.layer, shard.level, r)),
+            inputs: stats.inputs,
         };
         sc_store::fault::pause("shard-durable");
         journal.mark_done(&shard, record)?;
@@ -763,11 +835,11 @@ fn write_shards(
         Ok(())
     };
     // one worker thread per core, each with its own GDAL handles (opened once: opening a gzipped
-    // NetCDF costs seconds), taking shards in order
+    // NetCDF costs seconds)
     let workers = rayon::current_num_threads();
     writer.set_threads(workers);
-    sc_core::workers::run(todo.len(), workers, open_set, |sources, k| {
-        do_shard(sources, todo[k])
+    sc_core::workers::run(items.len(), workers, open_set, |sources, i| {
+        do_item(sources, items[i])
     })
     .map_err(|e| match e {
         sc_core::workers::Stopped::Failed(e) => e,
@@ -917,128 +989,203 @@ fn feather_weights(plane0: &[f32], t: usize, width: u32) -> Vec<f32> {
     d.iter().map(|&x| (x / width as f32).min(1.0)).collect()
 }
 
+/// What the tiles of a shard made: tiles holding data, the value range of those changed, and
+/// each input's counts.
+#[derive(Default)]
 struct ShardStats {
     tiles: u64,
     range: Option<(f64, f64)>,
     inputs: BTreeMap<usize, InputCounts>,
 }
 
-fn write_shard(
-    writer: &StoreWriter,
+impl ShardStats {
+    /// Adds what `other` counted (the same whatever the order).
+    fn merge(&mut self, other: ShardStats) {
+        self.tiles += other.tiles;
+        if let Some((lo, hi)) = other.range {
+            self.range = Some(self.range.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
+        }
+        for (i, c) in other.inputs {
+            self.inputs.entry(i).or_default().merge(&c);
+        }
+    }
+}
+
+/// A shard being written: its writer, what its tiles counted so far and how many are left.
+struct OpenShard<'w> {
+    writer: LayerWriter<'w>,
+    stats: ShardStats,
+    left: usize,
+    /// Texels of a tile.
+    texels: usize,
+}
+
+/// A shard writer of the layer being ingested.
+enum LayerWriter<'w> {
+    Height(sc_store::ShardWriter<'w, f32>),
+    Color(sc_store::ShardWriter<'w, u8>),
+}
+
+/// A tile's samples as the layer stores them.
+enum TileBuf {
+    Height(Vec<f32>),
+    Color(Vec<u8>),
+}
+
+impl<'w> OpenShard<'w> {
+    fn claim(
+        writer: &'w StoreWriter,
+        grid: GridSpec,
+        layer: LayerKind,
+        shard: ShardId,
+        left: usize,
+    ) -> Result<Self> {
+        let t = grid.tile_size() as usize;
+        let writer = match layer {
+            LayerKind::Height => LayerWriter::Height(writer.shard_writer::<f32>(shard)?),
+            LayerKind::Color => LayerWriter::Color(writer.shard_writer::<u8>(shard)?),
+        };
+        Ok(Self {
+            writer,
+            stats: ShardStats::default(),
+            left,
+            texels: t * t,
+        })
+    }
+
+    /// The tile as the shard holds it now.
+    fn get_tile(&self, tile: TileId) -> Result<TileBuf> {
+        let n = self.texels;
+        Ok(match &self.writer {
+            LayerWriter::Height(sw) => {
+                let mut v = vec![f32::NAN; n];
+                sw.get_tile(tile, &mut v)?;
+                TileBuf::Height(v)
+            }
+            LayerWriter::Color(sw) => {
+                let mut v = vec![0u8; n * 4];
+                sw.get_tile(tile, &mut v)?;
+                TileBuf::Color(v)
+            }
+        })
+    }
+
+    fn put_tile(&mut self, tile: TileId, buf: &TileBuf) -> Result<()> {
+        match (&mut self.writer, buf) {
+            (LayerWriter::Height(sw), TileBuf::Height(v)) => sw.put_tile(tile, v)?,
+            (LayerWriter::Color(sw), TileBuf::Color(v)) => sw.put_tile(tile, v)?,
+            _ => {
+                return Err(IngestError::Usage(format!(
+                    "{tile}: a tile of another layer"
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// Writes the shard; returns what its tiles counted.
+    fn finish(self) -> Result<ShardStats> {
+        match self.writer {
+            LayerWriter::Height(sw) => sw.finish()?,
+            LayerWriter::Color(sw) => sw.finish()?,
+        }
+        Ok(self.stats)
+    }
+}
+
+/// Resamples `tile` from the inputs `idxs` over what `cur` holds (the tile as the store has it),
+/// counting into `st`; returns whether any input changed it.
+fn make_tile(
     plan: &Plan,
     lut: &Kernels,
     sources: &[RasterSource],
-    shard: ShardId,
-    tiles: &BTreeMap<TileId, Vec<usize>>,
-) -> Result<ShardStats> {
+    tile: TileId,
+    idxs: &[usize],
+    cur: &mut TileBuf,
+    st: &mut ShardStats,
+) -> Result<bool> {
     let t = plan.grid.tile_size() as usize;
     let n = t * t;
-    let mut st = ShardStats {
-        tiles: 0,
-        range: None,
-        inputs: BTreeMap::new(),
-    };
-    tracing::debug!(layer = %plan.settings.layer, %shard, tiles = tiles.len(), "ingest: resampling shard");
-    match plan.settings.layer {
-        LayerKind::Height => {
-            let mut sw = writer.shard_writer::<f32>(shard)?;
-            let mut cur = vec![f32::NAN; n];
-            for (&tile, idxs) in tiles {
-                sw.get_tile(tile, &mut cur)?;
-                let mut changed = false;
-                for &i in idxs {
-                    if let Some(samples) = resample_tile(&sources[i], plan.grid, tile, lut)? {
-                        st.inputs
-                            .entry(i)
-                            .or_default()
-                            .add_tile(plan.grid, tile, &samples);
-                        let planes = samples.planes;
-                        let fw = feather_weights(&planes[0], t, plan.settings.feather_texels);
-                        for ((c, v), w) in cur.iter_mut().zip(&planes[0]).zip(&fw) {
-                            if !v.is_nan() {
-                                // fade in from the input's own edges where data already exists
-                                *c = if c.is_nan() {
-                                    *v
-                                } else {
-                                    w * v + (1.0 - w) * *c
-                                };
-                                changed = true;
-                            }
-                        }
-                    }
-                }
-                let range = f32::value_range(&cur);
-                if range.is_some() {
-                    st.tiles += 1;
-                }
-                if changed {
-                    if let Some((lo, hi)) = range {
-                        st.range = Some(st.range.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
-                    }
-                    sw.put_tile(tile, &cur)?;
-                }
-            }
-            sw.finish()?;
-        }
-        LayerKind::Color => {
-            let mut sw = writer.shard_writer::<u8>(shard)?;
-            let mut cur = vec![0u8; n * 4];
-            for (&tile, idxs) in tiles {
-                sw.get_tile(tile, &mut cur)?;
-                let mut changed = false;
-                for &i in idxs {
-                    if let Some(samples) = resample_tile(&sources[i], plan.grid, tile, lut)? {
-                        st.inputs
-                            .entry(i)
-                            .or_default()
-                            .add_tile(plan.grid, tile, &samples);
-                        let planes = samples.planes;
-                        let fw = feather_weights(&planes[0], t, plan.settings.feather_texels);
-                        for k in 0..n {
-                            if planes[0][k].is_nan() {
-                                continue;
-                            }
-                            let a = planes[3][k].clamp(0.0, 1.0) * fw[k];
-                            let px = &mut cur[k * 4..k * 4 + 4];
+    let mut changed = false;
+    match cur {
+        TileBuf::Height(cur) => {
+            for &i in idxs {
+                if let Some(samples) = resample_tile(&sources[i], plan.grid, tile, lut)? {
+                    st.inputs
+                        .entry(i)
+                        .or_default()
+                        .add_tile(plan.grid, tile, &samples);
+                    let planes = samples.planes;
+                    let fw = feather_weights(&planes[0], t, plan.settings.feather_texels);
+                    for ((c, v), w) in cur.iter_mut().zip(&planes[0]).zip(&fw) {
+                        if !v.is_nan() {
+                            // fade in from the input's own edges where data already exists
+                            *c = if c.is_nan() {
+                                *v
+                            } else {
+                                w * v + (1.0 - w) * *c
+                            };
                             changed = true;
-                            if a == 1.0 {
-                                // what the compositing below gives for an opaque texel, exactly
-                                // (out_a = 1, the old colour weighted by 0)
-                                for c in 0..3 {
-                                    px[c] = linear_to_srgb(planes[c][k]);
-                                }
-                                px[3] = 255;
-                                continue;
-                            }
-                            // non-premultiplied "over" compositing in linear light; opaque
-                            // sources simply replace what was there
-                            let old_a = f32::from(px[3]) / 255.0;
-                            let out_a = a + old_a * (1.0 - a);
-                            for c in 0..3 {
-                                // (over nothing, the old colour counts for nothing)
-                                let old = if px[3] == 0 {
-                                    0.0
-                                } else {
-                                    sc_core::color::srgb_byte_to_linear(px[c])
-                                };
-                                let lin =
-                                    (planes[c][k] * a + old * old_a * (1.0 - a)) / out_a.max(1e-6);
-                                px[c] = linear_to_srgb(lin);
-                            }
-                            px[3] = ((out_a * 255.0).round() as u8).max(1);
                         }
                     }
                 }
-                if cur.chunks_exact(4).any(|p| p[3] > 0) {
-                    st.tiles += 1;
-                }
-                if changed {
-                    sw.put_tile(tile, &cur)?;
+            }
+            let range = f32::value_range(cur);
+            if range.is_some() {
+                st.tiles += 1;
+            }
+            if changed {
+                st.range = range;
+            }
+        }
+        TileBuf::Color(cur) => {
+            for &i in idxs {
+                if let Some(samples) = resample_tile(&sources[i], plan.grid, tile, lut)? {
+                    st.inputs
+                        .entry(i)
+                        .or_default()
+                        .add_tile(plan.grid, tile, &samples);
+                    let planes = samples.planes;
+                    let fw = feather_weights(&planes[0], t, plan.settings.feather_texels);
+                    for k in 0..n {
+                        if planes[0][k].is_nan() {
+                            continue;
+                        }
+                        let a = planes[3][k].clamp(0.0, 1.0) * fw[k];
+                        let px = &mut cur[k * 4..k * 4 + 4];
+                        changed = true;
+                        if a == 1.0 {
+                            // what the compositing below gives for an opaque texel, exactly
+                            // (out_a = 1, the old colour weighted by 0)
+                            for c in 0..3 {
+                                px[c] = linear_to_srgb(planes[c][k]);
+                            }
+                            px[3] = 255;
+                            continue;
+                        }
+                        // non-premultiplied "over" compositing in linear light; opaque
+                        // sources simply replace what was there
+                        let old_a = f32::from(px[3]) / 255.0;
+                        let out_a = a + old_a * (1.0 - a);
+                        for c in 0..3 {
+                            // (over nothing, the old colour counts for nothing)
+                            let old = if px[3] == 0 {
+                                0.0
+                            } else {
+                                sc_core::color::srgb_byte_to_linear(px[c])
+                            };
+                            let lin =
+                                (planes[c][k] * a + old * old_a * (1.0 - a)) / out_a.max(1e-6);
+                            px[c] = linear_to_srgb(lin);
+                        }
+                        px[3] = ((out_a * 255.0).round() as u8).max(1);
+                    }
                 }
             }
-            sw.finish()?;
+            if cur.chunks_exact(4).any(|p| p[3] > 0) {
+                st.tiles += 1;
+            }
         }
     }
-    tracing::debug!(%shard, tiles_with_data = st.tiles, "ingest: shard done");
-    Ok(st)
+    Ok(changed)
 }

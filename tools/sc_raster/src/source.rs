@@ -1123,6 +1123,45 @@ impl RasterSource {
             .collect())
     }
 
+    /// The bands of a rectangle inside the raster as bytes, when every band used is 8-bit
+    /// (GDAL's `Byte`): a quarter of the memory of reading them as `f32`, and their conversion
+    /// is a table lookup. `None` for other sources.
+    fn read_byte_bands(
+        &self,
+        c0: i64,
+        r0: i64,
+        w: usize,
+        h: usize,
+    ) -> Result<Option<Vec<Vec<u8>>>> {
+        let Backend::Gdal(ds) = &self.backend else {
+            return Ok(None);
+        };
+        let path = &self.info.path;
+        let mut out = Vec::with_capacity(self.info.bands.len());
+        for &b in &self.info.bands {
+            let band = ds.rasterband(b).map_err(gdal_err(path))?;
+            if band.band_type() != GdalDataType::UInt8 {
+                return Ok(None);
+            }
+            let mut buf = vec![0u8; w * h];
+            serialized(is_serial(ds), || {
+                band.read_into_slice::<u8>(
+                    (c0 as isize, r0 as isize),
+                    (w, h),
+                    (w, h),
+                    &mut buf,
+                    None,
+                )
+            })
+            .map_err(|e| RasterError::Gdal {
+                detail: format!("reading pixels {c0},{r0} {w}x{h}: {e}"),
+                path: path.to_path_buf(),
+            })?;
+            out.push(buf);
+        }
+        Ok(Some(out))
+    }
+
     /// Reads a rectangle inside the raster, converting to planes with nodata as NaN.
     fn read_raw(&self, c0: i64, r0: i64, w: usize, h: usize) -> Result<Vec<Vec<f32>>> {
         self.read_raw_into(c0, r0, w, h, (w, h))
@@ -1287,6 +1326,15 @@ impl RasterSource {
                 Ok(vec![v])
             }
             SampleRole::Color => {
+                let stretch = |b: usize, v: f32| -> f32 {
+                    let (a, o) = info.stretch.get(b).copied().unwrap_or((1.0, 0.0));
+                    ((f64::from(v) * a + o).clamp(0.0, 255.0)) as f32
+                };
+                if (ow, oh) == (w, h)
+                    && let Some(raw) = self.read_byte_bands(c0, r0, w, h)?
+                {
+                    return Ok(byte_colour_planes(&raw, info.nodata, &stretch));
+                }
                 let raw: Vec<Vec<f32>> = info
                     .bands
                     .iter()
@@ -1294,10 +1342,6 @@ impl RasterSource {
                     .collect::<Result<_>>()?;
                 let n = ow * oh;
                 let mut planes = vec![vec![0f32; n]; 4];
-                let stretch = |b: usize, v: f32| -> f32 {
-                    let (a, o) = info.stretch.get(b).copied().unwrap_or((1.0, 0.0));
-                    ((f64::from(v) * a + o).clamp(0.0, 255.0)) as f32
-                };
                 for i in 0..n {
                     let invalid = info.nodata.is_some_and(|nd| f64::from(raw[0][i]) == nd)
                         || raw[0][i].is_nan();
@@ -1336,6 +1380,47 @@ impl RasterSource {
             }
         }
     }
+}
+
+/// The colour planes [`RasterSource::read_raw_into`] makes from byte bands: what it computes
+/// per pixel from each band's value (`stretch`, sRGB to linear light), looked up in a table of
+/// the 256 values a byte holds.
+fn byte_colour_planes(
+    raw: &[Vec<u8>],
+    nodata: Option<f64>,
+    stretch: &dyn Fn(usize, f32) -> f32,
+) -> Vec<Vec<f32>> {
+    let linear: Vec<[f32; 256]> = (0..raw.len().min(3))
+        .map(|b| std::array::from_fn(|v| srgb_to_linear(stretch(b, v as f32))))
+        .collect();
+    // alpha, from the second band of grey + alpha or the fourth of RGBA; opaque otherwise
+    let alpha: [f32; 256] = match raw.len() {
+        2 => std::array::from_fn(|v| stretch(1, v as f32)),
+        n if n >= 4 => std::array::from_fn(|v| stretch(3, v as f32)),
+        _ => [255.0; 256],
+    };
+    let void: [bool; 256] = std::array::from_fn(|v| nodata.is_some_and(|nd| v as f64 == nd));
+    let n = raw[0].len();
+    let mut planes = vec![vec![0f32; n]; 4];
+    let alpha_band = match raw.len() {
+        2 => Some(&raw[1]),
+        n if n >= 4 => Some(&raw[3]),
+        _ => None,
+    };
+    let rgb = if raw.len() >= 3 { [0, 1, 2] } else { [0, 0, 0] };
+    for i in 0..n {
+        let a = alpha_band.map_or(255.0, |band| alpha[usize::from(band[i])]);
+        let v0 = usize::from(raw[0][i]);
+        if void[v0] || a <= 0.0 {
+            planes[0][i] = f32::NAN;
+            continue;
+        }
+        for (p, &b) in rgb.iter().enumerate() {
+            planes[p][i] = linear[b][usize::from(raw[b][i])];
+        }
+        planes[3][i] = a / 255.0;
+    }
+    planes
 }
 
 /// A whole small source decoded into planes, shared by the handles of every worker thread.

@@ -81,3 +81,89 @@ fn windows_of_a_global_source_wrap_round_the_antimeridian() {
         assert_window(&win, at, what);
     }
 }
+
+/// sRGB byte → linear light, in f64 from the formula.
+fn srgb_linear(v: u8) -> f64 {
+    let c = f64::from(v) / 255.0;
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// 8-bit colour sources of one to four bands (grey, grey + alpha, RGB with a nodata value, RGBA),
+/// every byte value in every band: a window's planes are the bands' pixels in linear light, alpha
+/// in 0..1, NaN where the first band is nodata or alpha is 0.
+#[test]
+fn windows_of_byte_colour_sources_are_their_pixels_in_linear_light() {
+    use gdal::DriverManager;
+    use gdal::raster::Buffer;
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (w, h) = (64usize, 48usize);
+    // band b's pixel i: a different walk through 0..=255 per band, alpha 0 and 255 included
+    let value = |b: usize, i: usize| ((i * (2 * b + 1) + 37 * b) % 256) as u8;
+    for bands in 1..=4usize {
+        let path = dir.path().join(format!("bytes{bands}.tif"));
+        let nodata = (bands == 3).then_some(value(0, 5));
+        {
+            let driver = DriverManager::get_driver_by_name("GTiff").expect("GTiff");
+            let mut ds = driver
+                .create_with_band_type::<u8, _>(&path, w, h, bands)
+                .expect("create");
+            ds.set_geo_transform(&[10.0, 0.01, 0.0, 50.0, 0.0, -0.01])
+                .expect("geotransform");
+            ds.set_spatial_ref(&gdal::spatial_ref::SpatialRef::from_epsg(4326).expect("srs"))
+                .expect("srs");
+            for b in 0..bands {
+                let mut band = ds.rasterband(b + 1).expect("band");
+                if b == 0
+                    && let Some(nd) = nodata
+                {
+                    band.set_no_data_value(Some(f64::from(nd))).expect("nodata");
+                }
+                if bands == 2 && b == 1 || bands == 4 && b == 3 {
+                    band.set_color_interpretation(gdal::raster::ColorInterpretation::AlphaBand)
+                        .expect("alpha");
+                }
+                let mut buf = Buffer::new((w, h), (0..w * h).map(|i| value(b, i)).collect());
+                band.write((0, 0), (w, h), &mut buf).expect("write");
+            }
+        }
+        let src = RasterSource::open(&path, SampleRole::Color, &SourceOptions::default())
+            .unwrap_or_else(|e| panic!("open {bands} bands: {e}"));
+        let (c0, r0, ww, hh) = (3, 2, 50, 40);
+        let win = src.read_region(c0, r0, ww, hh).expect("read");
+        assert_eq!(win.planes.len(), 4);
+        for j in 0..hh {
+            for i in 0..ww {
+                let px = (r0 as usize + j) * w + c0 as usize + i;
+                let k = j * ww + i;
+                let what = format!("{bands} bands, window texel ({i}, {j})");
+                let alpha = match bands {
+                    2 => value(1, px),
+                    4 => value(3, px),
+                    _ => 255,
+                };
+                if Some(value(0, px)) == nodata || alpha == 0 {
+                    assert!(win.planes[0][k].is_nan(), "{what}: no data");
+                    continue;
+                }
+                let rgb = if bands >= 3 { [0, 1, 2] } else { [0, 0, 0] };
+                for (p, b) in rgb.into_iter().enumerate() {
+                    let want = srgb_linear(value(b, px));
+                    let got = f64::from(win.planes[p][k]);
+                    assert!(
+                        (got - want).abs() < 1e-6,
+                        "{what}: plane {p} {got} != {want}"
+                    );
+                }
+                let got = f64::from(win.planes[3][k]);
+                assert!(
+                    (got - f64::from(alpha) / 255.0).abs() < 1e-6,
+                    "{what}: alpha {got}"
+                );
+            }
+        }
+    }
+}
