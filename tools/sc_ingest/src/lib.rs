@@ -1105,31 +1105,23 @@ fn make_tile(
     st: &mut ShardStats,
 ) -> Result<bool> {
     let t = plan.grid.tile_size() as usize;
-    let n = t * t;
     let mut changed = false;
+    for &i in idxs {
+        let Some(samples) = resample_tile(&sources[i], plan.grid, tile, lut)? else {
+            continue;
+        };
+        st.inputs
+            .entry(i)
+            .or_default()
+            .add_tile(plan.grid, tile, &samples);
+        let fw = feather_weights(&samples.planes[0], t, plan.settings.feather_texels);
+        changed |= match cur {
+            TileBuf::Height(cur) => heights_over(cur, &samples.planes, &fw),
+            TileBuf::Color(cur) => colour_over(cur, &samples.planes, &fw),
+        };
+    }
     match cur {
         TileBuf::Height(cur) => {
-            for &i in idxs {
-                if let Some(samples) = resample_tile(&sources[i], plan.grid, tile, lut)? {
-                    st.inputs
-                        .entry(i)
-                        .or_default()
-                        .add_tile(plan.grid, tile, &samples);
-                    let planes = samples.planes;
-                    let fw = feather_weights(&planes[0], t, plan.settings.feather_texels);
-                    for ((c, v), w) in cur.iter_mut().zip(&planes[0]).zip(&fw) {
-                        if !v.is_nan() {
-                            // fade in from the input's own edges where data already exists
-                            *c = if c.is_nan() {
-                                *v
-                            } else {
-                                w * v + (1.0 - w) * *c
-                            };
-                            changed = true;
-                        }
-                    }
-                }
-            }
             let range = f32::value_range(cur);
             if range.is_some() {
                 st.tiles += 1;
@@ -1139,53 +1131,65 @@ fn make_tile(
             }
         }
         TileBuf::Color(cur) => {
-            for &i in idxs {
-                if let Some(samples) = resample_tile(&sources[i], plan.grid, tile, lut)? {
-                    st.inputs
-                        .entry(i)
-                        .or_default()
-                        .add_tile(plan.grid, tile, &samples);
-                    let planes = samples.planes;
-                    let fw = feather_weights(&planes[0], t, plan.settings.feather_texels);
-                    for k in 0..n {
-                        if planes[0][k].is_nan() {
-                            continue;
-                        }
-                        let a = planes[3][k].clamp(0.0, 1.0) * fw[k];
-                        let px = &mut cur[k * 4..k * 4 + 4];
-                        changed = true;
-                        if a == 1.0 {
-                            // what the compositing below gives for an opaque texel, exactly
-                            // (out_a = 1, the old colour weighted by 0)
-                            for c in 0..3 {
-                                px[c] = linear_to_srgb(planes[c][k]);
-                            }
-                            px[3] = 255;
-                            continue;
-                        }
-                        // non-premultiplied "over" compositing in linear light; opaque
-                        // sources simply replace what was there
-                        let old_a = f32::from(px[3]) / 255.0;
-                        let out_a = a + old_a * (1.0 - a);
-                        for c in 0..3 {
-                            // (over nothing, the old colour counts for nothing)
-                            let old = if px[3] == 0 {
-                                0.0
-                            } else {
-                                sc_core::color::srgb_byte_to_linear(px[c])
-                            };
-                            let lin =
-                                (planes[c][k] * a + old * old_a * (1.0 - a)) / out_a.max(1e-6);
-                            px[c] = linear_to_srgb(lin);
-                        }
-                        px[3] = ((out_a * 255.0).round() as u8).max(1);
-                    }
-                }
-            }
             if cur.chunks_exact(4).any(|p| p[3] > 0) {
                 st.tiles += 1;
             }
         }
     }
     Ok(changed)
+}
+
+/// Lays an input's heights (`planes[0]`, NaN where it has none) over a tile, faded in by `fw`
+/// from the input's own edges where the tile already holds data; returns whether any texel
+/// took a value.
+fn heights_over(cur: &mut [f32], planes: &[Vec<f32>], fw: &[f32]) -> bool {
+    let mut changed = false;
+    for ((c, v), w) in cur.iter_mut().zip(&planes[0]).zip(fw) {
+        if !v.is_nan() {
+            *c = if c.is_nan() {
+                *v
+            } else {
+                w * v + (1.0 - w) * *c
+            };
+            changed = true;
+        }
+    }
+    changed
+}
+
+/// Lays an input's colour (linear-light planes and alpha, NaN in plane 0 where it has none) over
+/// a tile of sRGB bytes with their alpha: non-premultiplied "over" in linear light, its alpha
+/// scaled by `fw`; returns whether any texel took a value.
+fn colour_over(cur: &mut [u8], planes: &[Vec<f32>], fw: &[f32]) -> bool {
+    let mut changed = false;
+    for (k, px) in cur.chunks_exact_mut(4).enumerate() {
+        if planes[0][k].is_nan() {
+            continue;
+        }
+        let a = planes[3][k].clamp(0.0, 1.0) * fw[k];
+        changed = true;
+        if a == 1.0 {
+            // what the compositing below gives for an opaque texel, exactly (out_a = 1, the old
+            // colour weighted by 0)
+            for c in 0..3 {
+                px[c] = linear_to_srgb(planes[c][k]);
+            }
+            px[3] = 255;
+            continue;
+        }
+        let old_a = f32::from(px[3]) / 255.0;
+        let out_a = a + old_a * (1.0 - a);
+        for c in 0..3 {
+            // (over nothing, the old colour counts for nothing)
+            let old = if px[3] == 0 {
+                0.0
+            } else {
+                sc_core::color::srgb_byte_to_linear(px[c])
+            };
+            let lin = (planes[c][k] * a + old * old_a * (1.0 - a)) / out_a.max(1e-6);
+            px[c] = linear_to_srgb(lin);
+        }
+        px[3] = ((out_a * 255.0).round() as u8).max(1);
+    }
+    changed
 }

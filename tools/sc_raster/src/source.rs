@@ -1144,19 +1144,7 @@ impl RasterSource {
                 return Ok(None);
             }
             let mut buf = vec![0u8; w * h];
-            serialized(is_serial(ds), || {
-                band.read_into_slice::<u8>(
-                    (c0 as isize, r0 as isize),
-                    (w, h),
-                    (w, h),
-                    &mut buf,
-                    None,
-                )
-            })
-            .map_err(|e| RasterError::Gdal {
-                detail: format!("reading pixels {c0},{r0} {w}x{h}: {e}"),
-                path: path.to_path_buf(),
-            })?;
+            read_pixels(ds, &band, path, (c0, r0, w, h), (w, h), None, &mut buf)?;
             out.push(buf);
         }
         Ok(Some(out))
@@ -1266,28 +1254,15 @@ impl RasterSource {
                     // buffer as it was: what such a block reads as (nodata, else 0) goes in first
                     let empty = band.no_data_value().unwrap_or(0.0) as f32;
                     let mut buf = vec![empty; ow * oh];
-                    serialized(is_serial(ds), || {
-                        // encoded heights cannot be averaged channel by channel: they are
-                        // decimated (nearest pixels) instead
-                        let alg = ((ow, oh) != (w, h)).then_some(
-                            if self.opts.height_encoding.is_some() {
-                                gdal::raster::ResampleAlg::NearestNeighbour
-                            } else {
-                                gdal::raster::ResampleAlg::Average
-                            },
-                        );
-                        band.read_into_slice::<f32>(
-                            (c0 as isize, r0 as isize),
-                            (w, h),
-                            (ow, oh),
-                            &mut buf,
-                            alg,
-                        )
-                    })
-                    .map_err(|e| RasterError::Gdal {
-                        detail: format!("reading pixels {c0},{r0} {w}x{h}: {e}"),
-                        path: path.to_path_buf(),
-                    })?;
+                    // encoded heights cannot be averaged channel by channel: they are decimated
+                    // (nearest pixels) instead
+                    let alg =
+                        ((ow, oh) != (w, h)).then_some(if self.opts.height_encoding.is_some() {
+                            gdal::raster::ResampleAlg::NearestNeighbour
+                        } else {
+                            gdal::raster::ResampleAlg::Average
+                        });
+                    read_pixels(ds, &band, path, (c0, r0, w, h), (ow, oh), alg, &mut buf)?;
                     Ok(buf)
                 }
             }
@@ -1380,6 +1355,26 @@ impl RasterSource {
             }
         }
     }
+}
+
+/// Reads the `w×h` pixels at (`c0`, `r0`) of `band` into `buf` of `ow×oh` (resampled by `alg`
+/// when the sizes differ), under the lock of drivers that are not thread-safe.
+fn read_pixels<T: gdal::raster::GdalType + Copy>(
+    ds: &Dataset,
+    band: &gdal::raster::RasterBand<'_>,
+    path: &Path,
+    (c0, r0, w, h): (i64, i64, usize, usize),
+    (ow, oh): (usize, usize),
+    alg: Option<gdal::raster::ResampleAlg>,
+    buf: &mut [T],
+) -> Result<()> {
+    serialized(is_serial(ds), || {
+        band.read_into_slice::<T>((c0 as isize, r0 as isize), (w, h), (ow, oh), buf, alg)
+    })
+    .map_err(|e| RasterError::Gdal {
+        detail: format!("reading pixels {c0},{r0} {w}x{h}: {e}"),
+        path: path.to_path_buf(),
+    })
 }
 
 /// The colour planes [`RasterSource::read_raw_into`] makes from byte bands: what it computes
