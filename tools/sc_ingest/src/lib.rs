@@ -771,29 +771,28 @@ fn write_shards(
         }
         items.extend(shard_tiles.keys().map(|&t| (k, Some(t))));
     }
-    let mut left = vec![0usize; todo.len()];
-    for &(k, _) in &items {
-        left[k] += 1;
-    }
     let slots: Vec<std::sync::Mutex<Option<OpenShard<'_>>>> =
-        left.iter().map(|_| Default::default()).collect();
+        todo.iter().map(|_| Default::default()).collect();
     let do_item = |sources: &[RasterSource], (k, tile): (usize, Option<TileId>)| -> Result<()> {
         let shard = todo[k];
         let lock = |k: usize| slots[k].lock().unwrap_or_else(|e| e.into_inner());
+        let shard_tiles = &plan.shards[&shard];
         let (t, idxs) = match tile {
-            Some(t) => (Some(t), &plan.shards[&shard][&t]),
+            Some(t) => (Some(t), &shard_tiles[&t]),
             None => (None, &Vec::new()),
         };
         let mut current = {
             let mut slot = lock(k);
             if slot.is_none() {
-                tracing::debug!(layer = %settings.layer, %shard, tiles = left[k], "ingest: resampling shard");
+                // its items: one per tile, or the one that writes a shard without tiles
+                let items = shard_tiles.len().max(1);
+                tracing::debug!(layer = %settings.layer, %shard, tiles = shard_tiles.len(), "ingest: resampling shard");
                 *slot = Some(OpenShard::claim(
                     writer,
                     plan.grid,
                     settings.layer,
                     shard,
-                    left[k],
+                    items,
                 )?);
             }
             let open = slot.as_mut().expect("just made");

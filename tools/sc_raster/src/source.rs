@@ -1317,38 +1317,18 @@ impl RasterSource {
                     .collect::<Result<_>>()?;
                 let n = ow * oh;
                 let mut planes = vec![vec![0f32; n]; 4];
+                let (rgb, alpha_band) = colour_bands(raw.len());
                 for i in 0..n {
                     let invalid = info.nodata.is_some_and(|nd| f64::from(raw[0][i]) == nd)
                         || raw[0][i].is_nan();
-                    let (r, g, b, a) = match raw.len() {
-                        1 => {
-                            let v = stretch(0, raw[0][i]);
-                            (v, v, v, 255.0)
-                        }
-                        2 => {
-                            let v = stretch(0, raw[0][i]);
-                            (v, v, v, stretch(1, raw[1][i]))
-                        }
-                        3 => (
-                            stretch(0, raw[0][i]),
-                            stretch(1, raw[1][i]),
-                            stretch(2, raw[2][i]),
-                            255.0,
-                        ),
-                        _ => (
-                            stretch(0, raw[0][i]),
-                            stretch(1, raw[1][i]),
-                            stretch(2, raw[2][i]),
-                            stretch(3, raw[3][i]),
-                        ),
-                    };
+                    let a = alpha_band.map_or(255.0, |b| stretch(b, raw[b][i]));
                     if invalid || a <= 0.0 {
                         planes[0][i] = f32::NAN;
                         continue;
                     }
-                    planes[0][i] = srgb_to_linear(r);
-                    planes[1][i] = srgb_to_linear(g);
-                    planes[2][i] = srgb_to_linear(b);
+                    for (p, &b) in rgb.iter().enumerate() {
+                        planes[p][i] = srgb_to_linear(stretch(b, raw[b][i]));
+                    }
                     planes[3][i] = a / 255.0;
                 }
                 Ok(planes)
@@ -1377,6 +1357,17 @@ fn read_pixels<T: gdal::raster::GdalType + Copy>(
     })
 }
 
+/// Which of a colour source's `n` bands are red, green and blue, and which is alpha: grey (1),
+/// grey + alpha (2), RGB (3), RGBA (4 or more, the first four).
+fn colour_bands(n: usize) -> ([usize; 3], Option<usize>) {
+    match n {
+        1 => ([0, 0, 0], None),
+        2 => ([0, 0, 0], Some(1)),
+        3 => ([0, 1, 2], None),
+        _ => ([0, 1, 2], Some(3)),
+    }
+}
+
 /// The colour planes [`RasterSource::read_raw_into`] makes from byte bands: what it computes
 /// per pixel from each band's value (`stretch`, sRGB to linear light), looked up in a table of
 /// the 256 values a byte holds.
@@ -1385,26 +1376,17 @@ fn byte_colour_planes(
     nodata: Option<f64>,
     stretch: &dyn Fn(usize, f32) -> f32,
 ) -> Vec<Vec<f32>> {
+    let (rgb, alpha_band) = colour_bands(raw.len());
     let linear: Vec<[f32; 256]> = (0..raw.len().min(3))
         .map(|b| std::array::from_fn(|v| srgb_to_linear(stretch(b, v as f32))))
         .collect();
-    // alpha, from the second band of grey + alpha or the fourth of RGBA; opaque otherwise
-    let alpha: [f32; 256] = match raw.len() {
-        2 => std::array::from_fn(|v| stretch(1, v as f32)),
-        n if n >= 4 => std::array::from_fn(|v| stretch(3, v as f32)),
-        _ => [255.0; 256],
-    };
+    let alpha: Option<(&[u8], [f32; 256])> =
+        alpha_band.map(|b| (&raw[b][..], std::array::from_fn(|v| stretch(b, v as f32))));
     let void: [bool; 256] = std::array::from_fn(|v| nodata.is_some_and(|nd| v as f64 == nd));
     let n = raw[0].len();
     let mut planes = vec![vec![0f32; n]; 4];
-    let alpha_band = match raw.len() {
-        2 => Some(&raw[1]),
-        n if n >= 4 => Some(&raw[3]),
-        _ => None,
-    };
-    let rgb = if raw.len() >= 3 { [0, 1, 2] } else { [0, 0, 0] };
     for i in 0..n {
-        let a = alpha_band.map_or(255.0, |band| alpha[usize::from(band[i])]);
+        let a = alpha.map_or(255.0, |(band, table)| table[usize::from(band[i])]);
         let v0 = usize::from(raw[0][i]);
         if void[v0] || a <= 0.0 {
             planes[0][i] = f32::NAN;
