@@ -29,6 +29,7 @@
 //! Values travel premultiplied by coverage: `v·c` per channel and `c` (1 valid, 0 nodata; colour
 //! alpha), so nodata gets zero weight and every step renormalises over valid samples.
 
+use std::cell::RefCell;
 use std::collections::HashMap;
 use std::f64::consts::PI;
 use std::rc::Rc;
@@ -142,6 +143,55 @@ impl RowWindow {
         } else {
             (std::borrow::Cow::Owned(self.sub(m0, m1)), 0)
         }
+    }
+}
+
+/// A source row's window as [`RowAcc::add`] reads it, with its polyphase components made once
+/// per decimation that asks for them: a source row serves a dozen output rows in a band.
+#[derive(Debug)]
+pub struct SourceRow {
+    /// The window.
+    pub win: RowWindow,
+    split: RefCell<Vec<(usize, Rc<Split>)>>,
+}
+
+/// The `qs` polyphase components of a window: component r holds samples r, r + qs, r + 2·qs, …
+/// of the values and of the coverage (none for a full window).
+#[derive(Debug)]
+struct Split {
+    v: Vec<Vec<f64>>,
+    c: Vec<Vec<f64>>,
+}
+
+impl SourceRow {
+    /// The window, its components not made yet.
+    pub fn new(win: RowWindow) -> Self {
+        Self {
+            win,
+            split: RefCell::new(Vec::new()),
+        }
+    }
+
+    /// The window's `qs` polyphase components (single channel).
+    fn split(&self, qs: usize) -> Rc<Split> {
+        if let Some((_, s)) = self.split.borrow().iter().find(|(q, _)| *q == qs) {
+            return s.clone();
+        }
+        let comps = |x: &[f64]| -> Vec<Vec<f64>> {
+            (0..qs)
+                .map(|r| x.iter().skip(r).step_by(qs).copied().collect())
+                .collect()
+        };
+        let s = Rc::new(Split {
+            v: comps(&self.win.v),
+            c: if self.win.full {
+                Vec::new()
+            } else {
+                comps(&self.win.c)
+            },
+        });
+        self.split.borrow_mut().push((qs, s.clone()));
+        s
     }
 }
 
@@ -420,16 +470,21 @@ impl RowAcc {
     }
 
     /// Adds one source row (`src` must cover `taps.needs(first, first + len)`).
-    pub fn add(&mut self, taps: &PairTaps, src: &RowWindow) {
+    pub fn add(&mut self, taps: &PairTaps, src: &SourceRow) {
         let ch = self.ch;
         let (k0, k1) = (self.first, self.first + self.w.len() as i64);
         let (m0, m1) = taps.needs(k0, k1);
-        // a window that covers what is needed is used in place (offset), others are copied
-        let (s, off) = src.covering(m0, m1);
         if taps.p == 1 && ch == 1 {
-            self.add_polyphase(taps, &s, off as i64 - m0);
+            let win = &src.win;
+            if win.first <= m0 && m1 <= win.first + win.len() as i64 {
+                self.add_polyphase(taps, src, win.first);
+            } else {
+                self.add_polyphase(taps, &SourceRow::new(win.sub(m0, m1)), m0);
+            }
             return;
         }
+        // a window that covers what is needed is used in place (offset), others are copied
+        let (s, off) = src.win.covering(m0, m1);
         let off = off as i64;
         for (k, kx) in (k0..k1).enumerate() {
             let ph = &taps.phases[kx.rem_euclid(taps.p) as usize];
@@ -454,55 +509,53 @@ impl RowAcc {
     }
 
     /// One phase, one channel: tap by tap over all columns (`acc[k] += w_t·src[qs·k + b + t]`),
-    /// on the source split into its `qs` polyphase components so that every pass is a
-    /// contiguous, vectorisable multiply-add. `shift` maps source indices into `s`. Same sums
+    /// on the source's `qs` polyphase components so that every tap is a contiguous,
+    /// vectorisable multiply-add. `first` is the source index of `src`'s first sample. Same sums
     /// in the same order as the per-column loop's partial sums would not be: results differ from
     /// it in the last bits, but are the same on every machine and thread count.
-    fn add_polyphase(&mut self, taps: &PairTaps, s: &RowWindow, shift: i64) {
+    fn add_polyphase(&mut self, taps: &PairTaps, src: &SourceRow, first: i64) {
         let ph = &taps.phases[0];
         let qs = taps.qs as usize;
         let len = self.w.len();
-        let base0 = (taps.qs * self.first + ph.b + shift) as usize;
+        let base0 = (taps.qs * self.first + ph.b - first) as usize;
         for w in &mut self.w {
             *w += ph.wsum;
         }
-        let comps = |x: &[f64]| -> Vec<Vec<f64>> {
-            (0..qs)
-                .map(|c| x[base0 + c..].iter().step_by(qs).copied().collect())
+        let s = &src.win;
+        let split = (qs > 1).then(|| src.split(qs));
+        // tap t reads sample base0 + t + qs·k for column k: in component (base0 + t) mod qs
+        fn tap_sources<'a>(
+            w: &[f64],
+            (base0, qs, len): (usize, usize, usize),
+            whole: &'a [f64],
+            comps: Option<&'a [Vec<f64>]>,
+        ) -> Vec<(f64, &'a [f64])> {
+            w.iter()
+                .enumerate()
+                .map(|(t, &w)| {
+                    let i = base0 + t;
+                    let x = match comps {
+                        None => &whole[i..i + len],
+                        Some(c) => &c[i % qs][i / qs..i / qs + len],
+                    };
+                    (w, x)
+                })
                 .collect()
-        };
-        let axpy = |acc: &mut [f64], comps: &[Vec<f64>]| {
-            for (t, &w) in ph.w.iter().enumerate() {
-                let comp = &comps[t % qs];
-                let src = &comp[t / qs..t / qs + len];
-                for (a, x) in acc.iter_mut().zip(src) {
-                    *a += w * x;
-                }
-            }
-        };
-        if qs == 1 {
-            let src = &s.v[base0..];
-            for (t, &w) in ph.w.iter().enumerate() {
-                for (a, x) in self.v.iter_mut().zip(&src[t..t + len]) {
-                    *a += w * x;
-                }
-            }
-        } else {
-            axpy(&mut self.v, &comps(&s.v));
         }
+        let at = (base0, qs, len);
+        lanes::taps_into(
+            &mut self.v,
+            &tap_sources(&ph.w, at, &s.v, split.as_ref().map(|x| x.v.as_slice())),
+        );
         if s.full {
             for c in &mut self.c {
                 *c += ph.wsum;
             }
-        } else if qs == 1 {
-            let src = &s.c[base0..];
-            for (t, &w) in ph.w.iter().enumerate() {
-                for (a, x) in self.c.iter_mut().zip(&src[t..t + len]) {
-                    *a += w * x;
-                }
-            }
         } else {
-            axpy(&mut self.c, &comps(&s.c));
+            lanes::taps_into(
+                &mut self.c,
+                &tap_sources(&ph.w, at, &s.c, split.as_ref().map(|x| x.c.as_slice())),
+            );
         }
     }
 
@@ -523,6 +576,66 @@ impl RowAcc {
         }
         out.full = full;
         out
+    }
+}
+
+/// The filters' multiply-adds over many taps, compiled again for AVX-512 and AVX2 and chosen at
+/// run time. Multiplications and additions stay separate operations in the same order, so every
+/// version gives the same bits.
+#[allow(unsafe_code)]
+mod lanes {
+    /// `acc[k] += w·x[k]` for each `(w, x)` of `taps` in turn (each `x` at least as long as
+    /// `acc`): the rounding of one pass over `acc` per tap, with blocks of `acc` held in registers
+    /// across the taps.
+    pub(super) fn taps_into(acc: &mut [f64], taps: &[(f64, &[f64])]) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::is_x86_feature_detected as has;
+            if has!("avx512f") {
+                // SAFETY: the CPU has every feature the function is compiled for
+                return unsafe { avx512(acc, taps) };
+            }
+            if has!("avx2") {
+                // SAFETY: as above
+                return unsafe { avx2(acc, taps) };
+            }
+        }
+        blocks::<8>(acc, taps);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx2")]
+    fn avx512(acc: &mut [f64], taps: &[(f64, &[f64])]) {
+        blocks::<32>(acc, taps);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn avx2(acc: &mut [f64], taps: &[(f64, &[f64])]) {
+        blocks::<16>(acc, taps);
+    }
+
+    #[inline(always)]
+    fn blocks<const B: usize>(acc: &mut [f64], taps: &[(f64, &[f64])]) {
+        let len = acc.len();
+        let mut k0 = 0;
+        while k0 + B <= len {
+            let mut a = [0.0f64; B];
+            a.copy_from_slice(&acc[k0..k0 + B]);
+            for &(w, x) in taps {
+                let x = &x[k0..k0 + B];
+                for i in 0..B {
+                    a[i] += w * x[i];
+                }
+            }
+            acc[k0..k0 + B].copy_from_slice(&a);
+            k0 += B;
+        }
+        for &(w, x) in taps {
+            for (a, x) in acc[k0..].iter_mut().zip(&x[k0..len]) {
+                *a += w * x;
+            }
+        }
     }
 }
 
@@ -658,7 +771,7 @@ impl LevelFilter {
         let mut rows = Vec::with_capacity((r1 - r0) as usize);
         // source rows serve ~2·reach/ρ' consecutive output rows with the same window: keep the
         // rows of the current reach
-        let mut recent: HashMap<(u64, u32), Rc<RowWindow>> = HashMap::new();
+        let mut recent: HashMap<(u64, u32), Rc<SourceRow>> = HashMap::new();
         for j in r0..r1 {
             let pole = j == 0 || j + 1 == h;
             let lat = if j == 0 {
@@ -691,6 +804,8 @@ impl LevelFilter {
                 .max(0.0)) as u64;
             let js1 =
                 ((((PI / 2.0 - (lat - self.reach)) / (PI / hs as f64)).ceil()) as u64).min(hs);
+            // rows go south: the rows north of this reach serve no later output row
+            recent.retain(|&(r, _), _| r >= js0);
             for js in js0..js1 {
                 let lat_s = row_lat(js, hs);
                 let a_s = source_natural_aniso(lat_s, max_src);
@@ -709,12 +824,14 @@ impl LevelFilter {
                     continue;
                 }
                 let win = match recent.get(&(js, a_s)) {
-                    Some(w) if w.first <= m0 && m1 <= w.first + w.len() as i64 => w.clone(),
+                    Some(w) if w.win.first <= m0 && m1 <= w.win.first + w.win.len() as i64 => {
+                        w.clone()
+                    }
                     _ => {
                         // a little wider than this pair needs: the next rows' reach differs by
                         // a few samples
                         let pad = 8 + (m1 - m0) / 16;
-                        let w = Rc::new(src.window(js, a_s, m0 - pad, m1 + pad)?);
+                        let w = Rc::new(SourceRow::new(src.window(js, a_s, m0 - pad, m1 + pad)?));
                         recent.insert((js, a_s), w.clone());
                         w
                     }
@@ -935,6 +1052,43 @@ mod tests {
         }
         // out of reach
         assert!(PairTaps::new(&lut, rho, (0.0, 128), (0.5, 256), 1.0).is_none());
+    }
+
+    #[test]
+    fn taps_in_lanes_give_the_bits_of_one_pass_per_tap() {
+        let mut state = 7u64;
+        let mut next = move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        // lengths around every block size, few and many taps, values of mixed magnitude
+        for len in [0, 1, 7, 8, 9, 15, 16, 17, 31, 32, 33, 63, 100, 257] {
+            for ntaps in [1, 2, 12, 41] {
+                let xs: Vec<Vec<f64>> = (0..ntaps)
+                    .map(|_| (0..len + 3).map(|_| next() * 1e4).collect())
+                    .collect();
+                let ws: Vec<f64> = (0..ntaps).map(|_| next()).collect();
+                let start: Vec<f64> = (0..len).map(|_| next() * 1e-3).collect();
+                let mut want = start.clone();
+                for (w, x) in ws.iter().zip(&xs) {
+                    for (a, x) in want.iter_mut().zip(x) {
+                        *a += w * x;
+                    }
+                }
+                let mut got = start;
+                let taps: Vec<(f64, &[f64])> =
+                    ws.iter().zip(&xs).map(|(&w, x)| (w, &x[..])).collect();
+                lanes::taps_into(&mut got, &taps);
+                assert!(
+                    want.iter()
+                        .zip(&got)
+                        .all(|(a, b)| a.to_bits() == b.to_bits()),
+                    "{len} columns, {ntaps} taps"
+                );
+            }
+        }
     }
 
     #[test]
