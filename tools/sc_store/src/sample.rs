@@ -94,6 +94,8 @@ pub trait TileSample: ElementOwned + Copy + Send + Sync + 'static {
     const FILL: Self;
     /// Value range of the valid samples of a tile, if it has any and the layer tracks ranges.
     fn value_range(samples: &[Self]) -> Option<(f64, f64)>;
+    /// The samples' bytes in memory (little-endian on the machines we build for, as stored).
+    fn as_bytes(samples: &[Self]) -> &[u8];
 }
 
 impl TileSample for f32 {
@@ -108,6 +110,9 @@ impl TileSample for f32 {
             });
         (lo <= hi).then(|| (f64::from(lo), f64::from(hi)))
     }
+    fn as_bytes(samples: &[Self]) -> &[u8] {
+        bytemuck::cast_slice(samples)
+    }
 }
 
 impl TileSample for u8 {
@@ -115,5 +120,8 @@ impl TileSample for u8 {
     const FILL: Self = 0;
     fn value_range(_: &[Self]) -> Option<(f64, f64)> {
         None
+    }
+    fn as_bytes(samples: &[Self]) -> &[u8] {
+        samples
     }
 }

@@ -22,6 +22,27 @@ pub(crate) struct ShardIndex {
 const EMPTY: u64 = u64::MAX;
 
 impl ShardIndex {
+    /// A shard's bytes from its encoded tiles `(index, bytes)` in index order, of `tiles` in
+    /// all: the tiles one after the other, then the index (`(offset, nbytes)` little-endian per
+    /// tile, both `u64::MAX` where a tile is missing) and its crc32c.
+    pub(crate) fn assemble(tiles: usize, encoded: Vec<(usize, Vec<u8>)>) -> Vec<u8> {
+        let data: usize = encoded.iter().map(|(_, b)| b.len()).sum();
+        let mut entries = vec![(EMPTY, EMPTY); tiles];
+        let mut out = Vec::with_capacity(data + tiles * 16 + 4);
+        for (k, b) in encoded {
+            entries[k] = (out.len() as u64, b.len() as u64);
+            out.extend_from_slice(&b);
+        }
+        let index_at = out.len();
+        for (offset, nbytes) in entries {
+            out.extend_from_slice(&offset.to_le_bytes());
+            out.extend_from_slice(&nbytes.to_le_bytes());
+        }
+        let crc = crc32c::crc32c(&out[index_at..]);
+        out.extend_from_slice(&crc.to_le_bytes());
+        out
+    }
+
     /// Reads the index of the shard file at `path` holding `tiles` tiles. `Ok(None)`: no file.
     /// `Err(detail)`: truncated, checksum mismatch or byte ranges outside the file.
     pub(crate) fn read(path: &Path, tiles: usize) -> Result<Option<Self>, String> {

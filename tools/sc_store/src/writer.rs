@@ -100,6 +100,65 @@ pub fn open_plan(root: &Path) -> Option<String> {
 struct LevelArrays {
     write: Array<DurableFs>,
     read: Array<FilesystemStore>,
+    /// How a tile is encoded inside a shard, from the level's metadata
+    tiles: TileCodecs,
+}
+
+/// The codecs of one tile inside a shard (the sharding codec's inner codecs), and the tile's
+/// shape, data type and fill value: [`ShardWriter::finish`] encodes tiles with them and lays out
+/// the shard itself (tiles in index order, then the index, as zarrs' sharding codec with
+/// `SubchunkWriteOrder::C` does), so that a shard with few tiles costs only what those tiles do.
+struct TileCodecs {
+    chain: zarrs::array::CodecChain,
+    shape: Vec<std::num::NonZeroU64>,
+    data_type: zarrs::array::DataType,
+    fill: zarrs::array::FillValue,
+}
+
+impl TileCodecs {
+    /// From the metadata of a level array: sharding with the index at the end (what
+    /// [`crate::layout::builder`] writes and `layout::check` requires).
+    fn of(array: &Array<DurableFs>) -> std::result::Result<Self, String> {
+        use zarrs::array::codec::{ShardingCodecConfiguration, ShardingIndexLocation};
+        let zarrs::array::ArrayMetadata::V3(m) = array.metadata() else {
+            return Err("not a Zarr v3 array".into());
+        };
+        let Some(sharding) = m.codecs.first().filter(|c| c.name() == "sharding_indexed") else {
+            return Err("the array is not sharded".into());
+        };
+        let ShardingCodecConfiguration::V1(cfg) = sharding
+            .to_typed_configuration::<ShardingCodecConfiguration>()
+            .map_err(|e| e.to_string())?
+        else {
+            return Err("unknown sharding configuration".into());
+        };
+        if cfg.index_location != ShardingIndexLocation::End {
+            return Err("the shard index is not at the end".into());
+        }
+        Ok(Self {
+            chain: zarrs::array::CodecChain::from_metadata(&cfg.codecs)
+                .map_err(|e| e.to_string())?,
+            shape: cfg.chunk_shape.to_vec(),
+            data_type: array.data_type().clone(),
+            fill: array.fill_value().clone(),
+        })
+    }
+
+    /// One tile's encoded bytes.
+    fn encode(&self, samples: &[u8]) -> std::result::Result<Vec<u8>, String> {
+        use zarrs::array::codec::api::ArrayToBytesCodecTraits;
+        let options = zarrs::array::codec::api::CodecOptions::default();
+        self.chain
+            .encode(
+                zarrs::array::ArrayBytes::new_flen(std::borrow::Cow::Borrowed(samples)),
+                &self.shape,
+                &self.data_type,
+                &self.fill,
+                &options,
+            )
+            .map(|b| b.into_owned())
+            .map_err(|e| e.to_string())
+    }
 }
 
 impl std::fmt::Debug for LevelArrays {
@@ -577,6 +636,7 @@ impl StoreWriter {
             array
         }
         .with_codec_specific_options(&in_order);
+        let tiles = TileCodecs::of(&write).map_err(&zerr)?;
         let read = Array::open(self.fs.clone(), &path).map_err(|e| zerr(e.to_string()))?;
         let mut listed = true;
         {
@@ -601,7 +661,7 @@ impl StoreWriter {
         if !listed {
             self.write_group_meta()?;
         }
-        let a = Arc::new(LevelArrays { write, read });
+        let a = Arc::new(LevelArrays { write, read, tiles });
         arrays.insert((kind, level), a.clone());
         Ok(a)
     }
@@ -644,54 +704,34 @@ impl StoreWriter {
         let indices = kind.chunk_indices(shard.x, shard.y);
         let shard_path = self.root.join(arrays.read.chunk_key(&indices).as_str());
         let t = self.lock_meta().shard_tiles;
-        // a shard without a file holds nodata: nothing to decode
-        if !load || !shard_path.exists() {
-            let n = (t * u64::from(grid.tile_size())).pow(2) as usize * kind.channels();
-            return Ok(ShardWriter {
-                writer: self,
-                arrays,
-                shard,
-                grid,
-                shard_tiles,
-                samples: vec![T::FILL; n],
-                range: None,
-                path: shard_path,
-            });
-        }
-        if let Err(detail) = crate::shard_index::ShardIndex::read(&shard_path, (t * t) as usize) {
-            self.release(kind, shard);
-            return Err(StoreError::Corrupt {
-                what: format!("{kind} {shard}"),
-                detail,
-                path: shard_path,
-            });
-        }
-        let existing =
-            arrays
-                .read
-                .retrieve_chunk::<Vec<T>>(&indices)
-                .map_err(|e| StoreError::Corrupt {
-                    what: format!("{kind} {shard}"),
-                    detail: e.to_string(),
-                    path: shard_path.clone(),
-                });
-        let samples = match existing {
-            Ok(s) => s,
-            Err(e) => {
-                self.release(kind, shard);
-                return Err(e);
-            }
-        };
-        Ok(ShardWriter {
+        let mut sw = ShardWriter {
             writer: self,
             arrays,
             shard,
             grid,
             shard_tiles,
-            samples,
+            tiles: vec![None; (t * t) as usize],
             range: None,
             path: shard_path,
-        })
+        };
+        // a shard without a file holds nodata: nothing to decode
+        if !load || !sw.path.exists() {
+            return Ok(sw);
+        }
+        let corrupt = |detail: String| StoreError::Corrupt {
+            what: format!("{kind} {shard}"),
+            detail,
+            path: sw.path.clone(),
+        };
+        // the writer releases its claim when dropped on the way out
+        crate::shard_index::ShardIndex::read(&sw.path, (t * t) as usize).map_err(corrupt)?;
+        let existing = sw
+            .arrays
+            .read
+            .retrieve_chunk::<Vec<T>>(&indices)
+            .map_err(|e| corrupt(e.to_string()))?;
+        sw.load(&existing);
+        Ok(sw)
     }
 
     fn release(&self, kind: LayerKind, shard: ShardId) {
@@ -1024,14 +1064,15 @@ fn remove_stale_temp_files(root: &Path) {
 }
 
 /// Writer of one shard. Put tiles, then [`ShardWriter::finish`]; dropping it unfinished discards
-/// the changes and leaves the shard on disk as it was.
+/// the changes and leaves the shard on disk as it was. It holds only the tiles that have data.
 pub struct ShardWriter<'w, T: TileSample> {
     writer: &'w StoreWriter,
     arrays: Arc<LevelArrays>,
     shard: ShardId,
     grid: GridSpec,
     shard_tiles: u64,
-    samples: Vec<T>,
+    /// the shard's tiles, row-major; `None`: nodata
+    tiles: Vec<Option<Vec<T>>>,
     range: Option<(f64, f64)>,
     path: PathBuf,
 }
@@ -1056,7 +1097,12 @@ impl<T: TileSample> ShardWriter<'_, T> {
         self.shard.tiles(self.grid, self.shard_tiles)
     }
 
-    fn tile_offset(&self, tile: TileId) -> Result<(usize, usize)> {
+    fn tile_samples(&self) -> usize {
+        (self.grid.tile_size() as usize).pow(2) * T::KIND.channels()
+    }
+
+    /// Index of `tile` among the shard's tiles (row-major).
+    fn tile_index(&self, tile: TileId) -> Result<usize> {
         if tile.level != self.shard.level || tile.shard(self.shard_tiles) != self.shard {
             return Err(StoreError::Usage(format!(
                 "{tile} is not in {}",
@@ -1066,32 +1112,44 @@ impl<T: TileSample> ShardWriter<'_, T> {
         if tile.x >= self.grid.tiles_x(tile.level) || tile.y >= self.grid.tiles_y(tile.level) {
             return Err(StoreError::Usage(format!("{tile} is outside its level")));
         }
-        let t = self.grid.tile_size() as usize;
-        let lx = (tile.x % self.shard_tiles) as usize * t;
-        let ly = (tile.y % self.shard_tiles) as usize * t;
-        Ok((lx, ly))
+        let s = self.shard_tiles;
+        Ok(((tile.y % s) * s + tile.x % s) as usize)
     }
 
-    fn row_len(&self) -> usize {
-        self.shard_tiles as usize * self.grid.tile_size() as usize * T::KIND.channels()
+    /// Takes the tiles of a decoded shard (row-major samples of the whole shard) that hold data.
+    fn load(&mut self, samples: &[T]) {
+        let t = self.grid.tile_size() as usize;
+        let c = T::KIND.channels();
+        let s = self.shard_tiles as usize;
+        let row = s * t * c;
+        for (k, slot) in self.tiles.iter_mut().enumerate() {
+            let (x0, y0) = ((k % s) * t * c, (k / s) * t);
+            let mut tile = Vec::with_capacity(t * t * c);
+            for r in 0..t {
+                let at = (y0 + r) * row + x0;
+                tile.extend_from_slice(&samples[at..at + t * c]);
+            }
+            if !is_fill(&tile) {
+                *slot = Some(tile);
+            }
+        }
     }
 
     /// Replaces one tile: `T×T×channels` samples, row-major from the north-west corner.
     pub fn put_tile(&mut self, tile: TileId, samples: &[T]) -> Result<()> {
-        let (lx, ly) = self.tile_offset(tile)?;
-        let t = self.grid.tile_size() as usize;
-        let c = T::KIND.channels();
-        if samples.len() != t * t * c {
+        let k = self.tile_index(tile)?;
+        let n = self.tile_samples();
+        if samples.len() != n {
+            let t = self.grid.tile_size();
+            let c = T::KIND.channels();
             return Err(StoreError::Usage(format!(
-                "expected {} samples for a {t}x{t}x{c} tile, found {} for {tile}",
-                t * t * c,
+                "expected {n} samples for a {t}x{t}x{c} tile, found {} for {tile}",
                 samples.len()
             )));
         }
-        let row = self.row_len();
-        for r in 0..t {
-            let dst = (ly + r) * row + lx * c;
-            self.samples[dst..dst + t * c].copy_from_slice(&samples[r * t * c..(r + 1) * t * c]);
+        match &mut self.tiles[k] {
+            Some(v) => v.copy_from_slice(samples),
+            slot => *slot = Some(samples.to_vec()),
         }
         if let Some((lo, hi)) = T::value_range(samples) {
             self.range = Some(match self.range {
@@ -1104,39 +1162,79 @@ impl<T: TileSample> ShardWriter<'_, T> {
 
     /// Copies one tile of the shard as it stands into `out`.
     pub fn get_tile(&self, tile: TileId, out: &mut [T]) -> Result<()> {
-        let (lx, ly) = self.tile_offset(tile)?;
-        let t = self.grid.tile_size() as usize;
-        let c = T::KIND.channels();
-        if out.len() != t * t * c {
+        let k = self.tile_index(tile)?;
+        let n = self.tile_samples();
+        if out.len() != n {
             return Err(StoreError::Usage(format!(
-                "expected a buffer of {} samples, found {}",
-                t * t * c,
+                "expected a buffer of {n} samples, found {}",
                 out.len()
             )));
         }
-        let row = self.row_len();
-        for r in 0..t {
-            let src = (ly + r) * row + lx * c;
-            out[r * t * c..(r + 1) * t * c].copy_from_slice(&self.samples[src..src + t * c]);
+        match &self.tiles[k] {
+            Some(v) => out.copy_from_slice(v),
+            None => out.fill(T::FILL),
         }
         Ok(())
     }
 
-    /// Encodes the shard and replaces its file atomically and durably.
-    pub fn finish(mut self) -> Result<()> {
+    /// Encodes the shard and replaces its file atomically and durably (removes it when no tile
+    /// holds data). The bytes are those of zarrs' sharding codec with the tiles in index order:
+    /// each tile that is not all fill encoded by the level's inner codecs, one after the other,
+    /// then the index. Tiles are encoded on the threads the writer has to itself; the bytes do
+    /// not depend on how many.
+    pub fn finish(self) -> Result<()> {
         let indices = T::KIND.chunk_indices(self.shard.x, self.shard.y);
         self.writer.save_undo(T::KIND, self.shard, &self.path)?;
-        let samples = std::mem::take(&mut self.samples);
-        // the tiles are placed in index order whatever the threads (see `level_arrays`)
-        let options = zarrs::array::codec::api::CodecOptions::default()
-            .with_concurrent_target(self.writer.encode_threads());
-        self.arrays
-            .write
-            .store_chunk_opt(&indices, samples, &options)
-            .map_err(|e| StoreError::Format {
-                what: format!("writing {} {}: {e}", T::KIND, self.shard),
-                path: self.path.clone(),
-            })?;
+        let format_err = |e: String| StoreError::Format {
+            what: format!("writing {} {}: {e}", T::KIND, self.shard),
+            path: self.path.clone(),
+        };
+        let present: Vec<(usize, &[T])> = self
+            .tiles
+            .iter()
+            .enumerate()
+            .filter_map(|(k, t)| t.as_deref().map(|t| (k, t)))
+            .filter(|(_, t)| !is_fill(t))
+            .collect();
+        if present.is_empty() {
+            self.arrays
+                .write
+                .erase_chunk(&indices)
+                .map_err(|e| format_err(e.to_string()))?;
+        } else {
+            let codecs = &self.arrays.tiles;
+            let threads = self.writer.encode_threads().min(present.len());
+            let per = present.len().div_ceil(threads);
+            let encoded = std::thread::scope(|scope| {
+                let parts: Vec<_> = present
+                    .chunks(per)
+                    .map(|part| {
+                        scope.spawn(move || {
+                            part.iter()
+                                .map(|&(k, t)| Ok((k, codecs.encode(T::as_bytes(t))?)))
+                                .collect::<std::result::Result<Vec<_>, String>>()
+                        })
+                    })
+                    .collect();
+                let mut all = Vec::with_capacity(present.len());
+                for p in parts {
+                    all.extend(
+                        p.join()
+                            .map_err(|_| "a tile encoder panicked".to_string())??,
+                    );
+                }
+                Ok::<_, String>(all)
+            })
+            .map_err(format_err)?;
+            let bytes = crate::shard_index::ShardIndex::assemble(self.tiles.len(), encoded);
+            let key = self.arrays.write.chunk_key(&indices);
+            zarrs::storage::WritableStorageTraits::set(
+                self.writer.durable.as_ref(),
+                &key,
+                bytes.into(),
+            )
+            .map_err(|e| format_err(e.to_string()))?;
+        }
         tracing::debug!(layer = %T::KIND, shard = %self.shard, path = %self.path.display(), "store: shard written");
         if let Some((lo, hi)) = self.range {
             let mut ranges = self
@@ -1151,6 +1249,16 @@ impl<T: TileSample> ShardWriter<'_, T> {
         }
         Ok(())
     }
+}
+
+/// Whether every sample of a tile is the fill value, byte for byte (zarrs' rule: such a tile is
+/// not stored).
+fn is_fill<T: TileSample>(samples: &[T]) -> bool {
+    let fill = [T::FILL];
+    let fill = T::as_bytes(&fill);
+    T::as_bytes(samples)
+        .chunks_exact(fill.len())
+        .all(|b| b == fill)
 }
 
 impl<T: TileSample> Drop for ShardWriter<'_, T> {

@@ -492,3 +492,139 @@ fn new_levels_get_the_pcodec_settings_of_the_store_format() {
         assert!(same_bits(&got, &height_tile(tile, t)), "{tile:?}");
     }
 }
+
+/// Re-encodes the shard file at `path` with zarrs' own sharding codec (tiles in index order) from
+/// the shard zarrs decodes from it: the bytes a writer through zarrs would have made.
+fn zarrs_encoding(level_dir: &Path, path: &Path, indices: &[u64]) -> Vec<u8> {
+    use zarrs::array::codec::api::{ArrayToBytesCodecTraits, CodecOptions};
+    use zarrs::array::{Array, ArrayBytes};
+    let store = std::sync::Arc::new(
+        zarrs::filesystem::FilesystemStore::new(level_dir.parent().expect("root")).expect("fs"),
+    );
+    let name = level_dir.file_name().expect("name").to_string_lossy();
+    let array = Array::open(store, &format!("/{name}")).expect("array");
+    let in_order = zarrs::array::CodecSpecificOptions::default().with_option(
+        zarrs::array::codec::ShardingCodecOptions::default()
+            .with_subchunk_write_order(zarrs::array::codec::SubchunkWriteOrder::C),
+    );
+    let array = array.with_codec_specific_options(&in_order);
+    let bytes: Vec<u8> = array
+        .retrieve_chunk::<ArrayBytes<'static>>(indices)
+        .expect("decode")
+        .into_fixed()
+        .expect("fixed")
+        .into_owned();
+    assert!(path.exists());
+    let shape = array.chunk_shape(indices).expect("shape");
+    array
+        .codecs()
+        .encode(
+            ArrayBytes::new_flen(bytes),
+            &shape,
+            array.data_type(),
+            array.fill_value(),
+            &CodecOptions::default(),
+        )
+        .expect("encode")
+        .into_owned()
+}
+
+/// Shards are laid out by the writer itself (only the tiles with data are held and encoded):
+/// their bytes are what zarrs' sharding codec makes of the same shard, for heights and colour,
+/// with tiles missing, tiles of nodata only (not stored), partial nodata and every tile present;
+/// a shard left with no data has no file.
+#[test]
+fn shards_are_the_bytes_zarrs_sharding_makes() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let root = dir.path().join("s.zarr");
+    let cfg = StoreConfig {
+        grid: GridSpec::new(32).expect("valid"),
+        shard_tiles: 4,
+        ..StoreConfig::default()
+    };
+    let level = LevelId::iso(3).expect("valid");
+    let w = StoreWriter::create(&root, cfg).expect("create");
+    let t = 32;
+    let shard = |x, y| ShardId { level, x, y };
+    // heights: (0, 0) every tile, the second tile all nodata; (1, 0) three tiles, one with a
+    // nodata row; (0, 1) nodata only
+    let mut sw = w.shard_writer::<f32>(shard(0, 0)).expect("claim");
+    for tile in sw.tiles().collect::<Vec<_>>() {
+        let v = if (tile.x, tile.y) == (1, 0) {
+            vec![f32::NAN; t * t]
+        } else {
+            height_tile(tile, t)
+        };
+        sw.put_tile(tile, &v).expect("put");
+    }
+    sw.finish().expect("finish");
+    let mut sw = w.shard_writer::<f32>(shard(1, 0)).expect("claim");
+    for (x, y) in [(4, 0), (7, 2), (5, 3)] {
+        let tile = TileId { level, x, y };
+        let mut v = height_tile(tile, t);
+        if x == 7 {
+            v[t..2 * t].fill(f32::NAN);
+        }
+        sw.put_tile(tile, &v).expect("put");
+    }
+    sw.finish().expect("finish");
+    let mut sw = w.shard_writer::<f32>(shard(0, 1)).expect("claim");
+    sw.put_tile(TileId { level, x: 2, y: 5 }, &vec![f32::NAN; t * t])
+        .expect("put");
+    sw.finish().expect("finish");
+    // colour: two tiles, one of them transparent black (nodata)
+    let mut sw = w.shard_writer::<u8>(shard(1, 1)).expect("claim");
+    let a = TileId { level, x: 6, y: 6 };
+    sw.put_tile(a, &color_tile(a, t)).expect("put");
+    sw.put_tile(TileId { level, x: 4, y: 4 }, &vec![0u8; t * t * 4])
+        .expect("put");
+    sw.finish().expect("finish");
+    w.commit(None).expect("commit");
+
+    let r = StoreReader::open(&root).expect("open");
+    let mut checked = 0;
+    for (kind, s) in [
+        (LayerKind::Height, shard(0, 0)),
+        (LayerKind::Height, shard(1, 0)),
+        (LayerKind::Color, shard(1, 1)),
+    ] {
+        let first = TileId {
+            level,
+            x: s.x * 4,
+            y: s.y * 4,
+        };
+        let path = r.shard_path(kind, first).expect("path");
+        let level_dir = root.join(kind.name()).join(level.key()).join(kind.name());
+        let indices: Vec<u64> = if kind == LayerKind::Color {
+            vec![s.y, s.x, 0]
+        } else {
+            vec![s.y, s.x]
+        };
+        let ours = std::fs::read(&path).expect("read");
+        let theirs = zarrs_encoding(&level_dir, &path, &indices);
+        assert!(
+            ours == theirs,
+            "{kind} {s}: the shard's bytes differ from zarrs' encoding ({} and {} bytes)",
+            ours.len(),
+            theirs.len()
+        );
+        checked += 1;
+    }
+    assert_eq!(checked, 3);
+    let empty = r
+        .shard_path(LayerKind::Height, TileId { level, x: 0, y: 4 })
+        .expect("path");
+    assert!(!empty.exists(), "a shard of nodata only has no file");
+    // the all-nodata tiles read as missing, the others as written
+    let mut buf = vec![0f32; t * t];
+    let nodata = TileId { level, x: 1, y: 0 };
+    assert_eq!(
+        r.read_tile(nodata, &mut buf).expect("read"),
+        TileRead::Missing
+    );
+    let b = TileId { level, x: 7, y: 2 };
+    r.read_tile(b, &mut buf).expect("read");
+    let mut want = height_tile(b, t);
+    want[t..2 * t].fill(f32::NAN);
+    assert!(same_bits(&buf, &want));
+}
