@@ -523,10 +523,7 @@ impl Fingerprints {
             return Ok(f.clone());
         }
         let f = match std::fs::read(path) {
-            Ok(bytes) => {
-                let h = Sha256::digest(&bytes);
-                h[..16].iter().map(|b| format!("{b:02x}")).collect()
-            }
+            Ok(bytes) => fingerprint(Some(&bytes)),
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => "-".to_string(),
             Err(source) => {
                 return Err(BuildError::Io {
@@ -540,6 +537,25 @@ impl Fingerprints {
             .unwrap_or_else(|e| e.into_inner())
             .insert(path.to_path_buf(), f.clone());
         Ok(f)
+    }
+
+    /// Notes the fingerprint of a shard this build has just written.
+    fn wrote(&self, path: &Path, f: &str) {
+        self.memo
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .insert(path.to_path_buf(), f.to_string());
+    }
+}
+
+/// The fingerprint of a shard file's bytes (`None`: no file).
+fn fingerprint(bytes: Option<&[u8]>) -> String {
+    match bytes {
+        Some(b) => Sha256::digest(b)[..16]
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect(),
+        None => "-".to_string(),
     }
 }
 
@@ -753,7 +769,7 @@ fn run_step(
             }
         } else {
             drop(c);
-            let (texels, range, repaired) = match step.layer {
+            let (texels, range, repaired, written) = match step.layer {
                 LayerKind::Height => build_shard::<f32>(
                     writer,
                     base_reader,
@@ -775,7 +791,9 @@ fn run_step(
                     inner,
                 )?,
             };
-            rec.insert("self".into(), own_fingerprint(&out_path)?);
+            // the later steps read this shard as it was written
+            fps.wrote(&out_path, &written);
+            rec.insert("self".into(), written);
             manifest.record(&shard, Entry { deps: rec, range })?;
             let mut c = counts.lock().unwrap_or_else(|e| e.into_inner());
             c.written += 1;
@@ -1148,9 +1166,10 @@ impl TileRowJob<'_> {
     }
 }
 
-/// What building one shard did: texels computed, their value range, and with a repair the damaged
-/// tiles whose ingested data is lost (empty when the level is derived only).
-type Built = (u64, Option<(f64, f64)>, Option<Vec<TileId>>);
+/// What building one shard did: texels computed, their value range, with a repair the damaged
+/// tiles whose ingested data is lost (empty when the level is derived only), and the fingerprint
+/// of the shard written.
+type Built = (u64, Option<(f64, f64)>, Option<Vec<TileId>>, String);
 
 /// Computes and writes one output shard with `inner` threads; returns what it did ([`Built`]).
 /// The bytes do not depend on `inner`.
@@ -1268,6 +1287,7 @@ fn build_shard<T: Texel>(
             Ok(())
         })?;
     }
-    sw.finish()?;
-    Ok((texels, range, repaired))
+    let mut written = String::new();
+    sw.finish_with(|bytes| written = fingerprint(bytes))?;
+    Ok((texels, range, repaired, written))
 }

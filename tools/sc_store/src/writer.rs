@@ -1183,6 +1183,12 @@ impl<T: TileSample> ShardWriter<'_, T> {
     /// then the index. Tiles are encoded on the threads the writer has to itself; the bytes do
     /// not depend on how many.
     pub fn finish(self) -> Result<()> {
+        self.finish_with(|_| {})
+    }
+
+    /// [`Self::finish`], handing `written` the shard's bytes before they are written (`None`:
+    /// the shard holds no data and its file is removed).
+    pub fn finish_with(self, written: impl FnOnce(Option<&[u8]>)) -> Result<()> {
         let indices = T::KIND.chunk_indices(self.shard.x, self.shard.y);
         self.writer.save_undo(T::KIND, self.shard, &self.path)?;
         let format_err = |e: String| StoreError::Format {
@@ -1197,6 +1203,7 @@ impl<T: TileSample> ShardWriter<'_, T> {
             .filter(|(_, t)| !is_fill(t))
             .collect();
         if present.is_empty() {
+            written(None);
             self.arrays
                 .write
                 .erase_chunk(&indices)
@@ -1227,6 +1234,7 @@ impl<T: TileSample> ShardWriter<'_, T> {
             })
             .map_err(format_err)?;
             let bytes = crate::shard_index::ShardIndex::assemble(self.tiles.len(), encoded);
+            written(Some(&bytes));
             let key = self.arrays.write.chunk_key(&indices);
             zarrs::storage::WritableStorageTraits::set(
                 self.writer.durable.as_ref(),
