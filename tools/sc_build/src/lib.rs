@@ -27,7 +27,7 @@ use sc_store::BuildRecord;
 use sc_store::{LayerKind, StoreError, StoreReader, StoreWriter, TileRead};
 use sha2::{Digest, Sha256};
 
-use rows::{StoreRows, Texel, iso};
+use rows::{StoreRows, TILE_CACHE_BYTES, Texel, TileCache, iso};
 
 /// Errors of the builder. One line each.
 #[derive(Debug, thiserror::Error)]
@@ -506,6 +506,22 @@ fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     })
 }
 
+/// What a build learns of the shards and tiles it touches, for its later steps.
+struct Seen {
+    fps: Fingerprints,
+    tiles: TileCache,
+}
+
+impl Seen {
+    /// With a tile cache of `budget` bytes (0: none).
+    fn new(budget: usize) -> Self {
+        Self {
+            fps: Fingerprints::default(),
+            tiles: TileCache::new(budget),
+        }
+    }
+}
+
 /// SHA-256 (hex, 128 bits shown) of shard files, each read once per build.
 #[derive(Default)]
 struct Fingerprints {
@@ -616,7 +632,7 @@ fn run_steps(
         total,
         on_shard,
     };
-    let fps = Fingerprints::default();
+    let seen = Seen::new(TILE_CACHE_BYTES);
     let mut summary = Summary {
         levels: plan.levels(),
         ..Summary::default()
@@ -634,7 +650,7 @@ fn run_steps(
             step,
             &w.shards,
             None,
-            &fps,
+            &seen,
             &progress,
             &mut summary,
         )?;
@@ -687,10 +703,17 @@ fn run_step(
     step: &Step,
     shards: &[ShardId],
     task: Option<&Path>,
-    fps: &Fingerprints,
+    seen: &Seen,
     progress: &Progress<'_>,
     summary: &mut Summary,
 ) -> Result<()> {
+    let fps = &seen.fps;
+    // the tiles later steps read: this level's, and the finer level's while ℓ is filtered
+    seen.tiles.keep(|layer, level| {
+        layer == step.layer
+            && (level.level == step.out.level
+                || (step.kind == StepKind::Filter && level.level == step.out.level + 1))
+    });
     let root = writer.root().to_path_buf();
     let threads = thread_count(plan);
     writer.set_threads(threads);
@@ -773,6 +796,7 @@ fn run_step(
                 LayerKind::Height => build_shard::<f32>(
                     writer,
                     base_reader,
+                    &seen.tiles,
                     plan,
                     step,
                     shard,
@@ -783,6 +807,7 @@ fn run_step(
                 LayerKind::Color => build_shard::<u8>(
                     writer,
                     base_reader,
+                    &seen.tiles,
                     plan,
                     step,
                     shard,
@@ -961,7 +986,8 @@ pub fn run_task(
         total,
         on_shard,
     };
-    let fps = Fingerprints::default();
+    // tasks share levels with other processes: what they read is read from the store
+    let seen = Seen::new(0);
     let mut summary = Summary::default();
     on_shard(0, total);
     for (k, shards) in work {
@@ -975,7 +1001,7 @@ pub fn run_task(
             step,
             shards,
             Some(task),
-            &fps,
+            &seen,
             &progress,
             &mut summary,
         )?;
@@ -1083,6 +1109,7 @@ type TileRowSpans = Vec<(u64, u64, Vec<sc_core::pyramid::RowWindow>)>;
 /// What one worker needs to compute tile rows of one step.
 struct TileRowJob<'a> {
     reader: &'a StoreReader,
+    cache: &'a TileCache,
     plan: &'a Plan,
     step: &'a Step,
     src_level: u32,
@@ -1103,6 +1130,7 @@ impl TileRowJob<'_> {
         let (c0, c1) = self.cols;
         let mut rr = RowReader::new(StoreRows::<T>::new(
             self.reader,
+            self.cache,
             self.src_level,
             self.stored.to_vec(),
         ));
@@ -1177,6 +1205,7 @@ type Built = (u64, Option<(f64, f64)>, Option<Vec<TileId>>, String);
 fn build_shard<T: Texel>(
     writer: &StoreWriter,
     reader: &StoreReader,
+    cache: &TileCache,
     plan: &Plan,
     step: &Step,
     shard: ShardId,
@@ -1191,6 +1220,7 @@ fn build_shard<T: Texel>(
     let w = grid.width(out);
     let job = TileRowJob {
         reader,
+        cache,
         plan,
         step,
         src_level,
@@ -1249,6 +1279,8 @@ fn build_shard<T: Texel>(
                     range = Some(range.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
                 }
                 sw.put_tile(id, &tile_buf)?;
+                // the next steps read the tile as written
+                cache.put(id, &std::sync::Arc::new(tile_buf.clone()));
                 texels += t * t;
             }
         }

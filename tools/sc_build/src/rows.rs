@@ -1,12 +1,13 @@
 //! Store levels as [`StoredRows`]: windows of periodic rows read from tiles, decoded into the
 //! premultiplied form the filters work in, and encoded back into tiles.
 
+use std::any::Any;
 use std::collections::HashMap;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use sc_core::pyramid::{MIN_COVERAGE, RowWindow, StoredRows};
 use sc_core::{GridSpec, LevelId, TileId};
-use sc_store::{StoreError, StoreReader, TileRead, TileSample};
+use sc_store::{LayerKind, StoreError, StoreReader, TileRead, TileSample};
 
 /// A stored sample type as the filters see it.
 pub(crate) trait Texel: TileSample + DefaultFill {
@@ -81,9 +82,77 @@ impl Texel for u8 {
     }
 }
 
+/// Tiles a build wrote or read, kept for the later steps that read them again (decoding a tile
+/// costs more than filtering it: a level's tiles are read by its next anisotropic level and by the
+/// next coarser level), within a budget of bytes; the steps drop what no later step reads. A
+/// cached tile holds what reading it from the store gives (a tile of nodata only reads as missing,
+/// which the filters take the same way).
+pub(crate) struct TileCache {
+    budget: usize,
+    inner: Mutex<CachedTiles>,
+}
+
+#[derive(Default)]
+struct CachedTiles {
+    tiles: HashMap<(LayerKind, TileId), (Arc<dyn Any + Send + Sync>, usize)>,
+    bytes: usize,
+}
+
+/// Bytes of tiles a build keeps in memory for its later steps.
+pub(crate) const TILE_CACHE_BYTES: usize = 128 << 20;
+
+impl TileCache {
+    /// A cache of at most `budget` bytes of samples (0: none kept).
+    pub(crate) fn new(budget: usize) -> Self {
+        Self {
+            budget,
+            inner: Mutex::new(CachedTiles::default()),
+        }
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, CachedTiles> {
+        self.inner.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    fn get<T: Texel>(&self, id: TileId) -> Option<Arc<Vec<T>>> {
+        let any = self.lock().tiles.get(&(T::KIND, id))?.0.clone();
+        any.downcast::<Vec<T>>().ok()
+    }
+
+    /// Keeps `tile` (it replaces what was kept of it) if the budget has room.
+    pub(crate) fn put<T: Texel>(&self, id: TileId, tile: &Arc<Vec<T>>) {
+        let size = std::mem::size_of_val(tile.as_slice());
+        let mut c = self.lock();
+        let old = c.tiles.get(&(T::KIND, id)).map_or(0, |t| t.1);
+        if c.bytes - old + size > self.budget {
+            if let Some((_, n)) = c.tiles.remove(&(T::KIND, id)) {
+                c.bytes -= n;
+            }
+            return;
+        }
+        c.bytes = c.bytes - old + size;
+        c.tiles.insert((T::KIND, id), (tile.clone(), size));
+    }
+
+    /// Drops the tiles of the levels `keep` refuses.
+    pub(crate) fn keep(&self, keep: impl Fn(LayerKind, LevelId) -> bool) {
+        let mut c = self.lock();
+        let mut freed = 0;
+        c.tiles.retain(|(layer, id), (_, n)| {
+            let k = keep(*layer, id.level);
+            if !k {
+                freed += *n;
+            }
+            k
+        });
+        c.bytes -= freed;
+    }
+}
+
 /// One isotropic level of a store and its stored anisotropic levels, read through a tile cache.
 pub(crate) struct StoreRows<'r, T: Texel> {
     reader: &'r StoreReader,
+    shared: &'r TileCache,
     grid: GridSpec,
     level: u32,
     /// anisotropies whose array exists
@@ -94,11 +163,17 @@ pub(crate) struct StoreRows<'r, T: Texel> {
 
 impl<'r, T: Texel> StoreRows<'r, T> {
     /// Level `level` of layer `T::KIND`, reading the anisotropic levels listed in `stored`.
-    pub(crate) fn new(reader: &'r StoreReader, level: u32, stored: Vec<u32>) -> Self {
+    pub(crate) fn new(
+        reader: &'r StoreReader,
+        shared: &'r TileCache,
+        level: u32,
+        stored: Vec<u32>,
+    ) -> Self {
         let grid = reader.meta().grid;
         let t = grid.tile_size() as usize;
         Self {
             reader,
+            shared,
             grid,
             level,
             stored,
@@ -117,9 +192,17 @@ impl<'r, T: Texel> StoreRows<'r, T> {
         if let Some(t) = self.tiles.get(&id) {
             return Ok(t.clone());
         }
-        let t = match self.reader.read_tile::<T>(id, &mut self.buf)? {
-            TileRead::Present => Some(Arc::new(self.buf.clone())),
-            TileRead::Missing => None,
+        let t = if let Some(t) = self.shared.get::<T>(id) {
+            Some(t)
+        } else {
+            match self.reader.read_tile::<T>(id, &mut self.buf)? {
+                TileRead::Present => {
+                    let t = Arc::new(self.buf.clone());
+                    self.shared.put(id, &t);
+                    Some(t)
+                }
+                TileRead::Missing => None,
+            }
         };
         self.tiles.insert(id, t.clone());
         Ok(t)
@@ -204,5 +287,49 @@ impl DefaultFill for f32 {
 impl DefaultFill for u8 {
     fn default_fill() -> Self {
         0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tile(level: u32, x: u64) -> TileId {
+        TileId {
+            level: iso(level),
+            x,
+            y: 0,
+        }
+    }
+
+    #[test]
+    fn the_tile_cache_keeps_within_its_budget_and_drops_what_no_step_reads() {
+        let t = |v: f32| Arc::new(vec![v; 256]);
+        let cache = TileCache::new(3 * 1024);
+        cache.put(tile(4, 0), &t(1.0));
+        cache.put(tile(4, 1), &t(2.0));
+        cache.put(tile(3, 0), &t(3.0));
+        // over budget: not kept
+        cache.put(tile(3, 1), &t(4.0));
+        assert_eq!(cache.get::<f32>(tile(4, 1)).expect("kept")[0], 2.0);
+        assert!(cache.get::<f32>(tile(3, 1)).is_none());
+        // another sample type of the same tile is another layer's tile
+        assert!(cache.get::<u8>(tile(4, 0)).is_none());
+        // replacing a tile keeps the newest
+        cache.put(tile(4, 0), &t(5.0));
+        assert_eq!(cache.get::<f32>(tile(4, 0)).expect("kept")[0], 5.0);
+        // dropping level 4 makes room again
+        cache.keep(|_, l| l.level == 3);
+        assert!(cache.get::<f32>(tile(4, 0)).is_none());
+        cache.put(tile(3, 1), &t(6.0));
+        assert_eq!(cache.get::<f32>(tile(3, 1)).expect("kept")[0], 6.0);
+        assert_eq!(cache.get::<f32>(tile(3, 0)).expect("kept")[0], 3.0);
+        // a new version of a tile that does not fit is not served in its old version
+        cache.put(tile(3, 0), &Arc::new(vec![7.0; 2048]));
+        assert!(cache.get::<f32>(tile(3, 0)).is_none());
+        // no budget: nothing kept
+        let none = TileCache::new(0);
+        none.put(tile(4, 0), &t(1.0));
+        assert!(none.get::<f32>(tile(4, 0)).is_none());
     }
 }
