@@ -15,7 +15,7 @@
 
 mod rows;
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -694,6 +694,14 @@ impl Progress<'_> {
     }
 }
 
+/// Runs `f(k)` for every k in `0..n` on `threads` workers; the first error stops them.
+fn on_workers(n: usize, threads: usize, f: impl Fn(usize) -> Result<()> + Sync) -> Result<()> {
+    sc_core::workers::run(n, threads, || Ok(()), |_, k| f(k)).map_err(|e| match e {
+        sc_core::workers::Stopped::Failed(e) => e,
+        sc_core::workers::Stopped::Panicked => BuildError::WorkerPanicked,
+    })
+}
+
 /// Builds `shards` of one step, adding what it did to `summary`. `task`: the folder of a task's
 /// own manifests (a task of a plan run by many processes), else the store's manifests are used.
 #[allow(clippy::too_many_arguments)]
@@ -739,24 +747,31 @@ fn run_step(
     let base_reader = &reader;
     // steps with fewer shards than threads split each shard's tile rows between threads
     let inner = (threads / shards.len().max(1)).max(1);
-    let do_shard = |shard: ShardId| -> Result<()> {
-        tracing::debug!(layer = %step.layer, %shard, "build: filtering shard");
-        let deps = footprint(
+    // the input shards a shard's record names, with their files
+    let inputs = |shard: ShardId| -> Result<Vec<(ShardId, PathBuf)>> {
+        footprint(
             plan.grid,
             plan.shard_tiles,
             step,
             shard,
             plan.settings.kernel,
-        );
-        let mut rec = BTreeMap::new();
-        for d in &deps {
+        )
+        .into_iter()
+        .map(|d| {
             let tile = TileId {
                 level: d.level,
                 x: d.x * plan.shard_tiles,
                 y: d.y * plan.shard_tiles,
             };
-            let p = base_reader.shard_path(step.layer, tile)?;
-            rec.insert(shard_key(d), fps.of(&p)?);
+            Ok((d, base_reader.shard_path(step.layer, tile)?))
+        })
+        .collect()
+    };
+    let do_shard = |shard: ShardId| -> Result<()> {
+        tracing::debug!(layer = %step.layer, %shard, "build: filtering shard");
+        let mut rec = BTreeMap::new();
+        for (d, p) in inputs(shard)? {
+            rec.insert(shard_key(&d), fps.of(&p)?);
         }
         let out_tile = TileId {
             level: shard.level,
@@ -836,12 +851,14 @@ fn run_step(
     let mut order = shards.to_vec();
     let ny = ShardId::counts(plan.grid, step.out, plan.shard_tiles).1;
     order.sort_by_key(|s| (s.y.min(ny - 1 - s.y), s.y, s.x));
-    sc_core::workers::run(order.len(), threads, || Ok(()), |_, k| do_shard(order[k])).map_err(
-        |e| match e {
-            sc_core::workers::Stopped::Failed(e) => e,
-            sc_core::workers::Stopped::Panicked => BuildError::WorkerPanicked,
-        },
-    )?;
+    // neighbouring shards share input shards: each is fingerprinted once, all on every thread
+    let mut files = BTreeSet::new();
+    for &shard in &order {
+        files.extend(inputs(shard)?.into_iter().map(|(_, p)| p));
+    }
+    let files: Vec<PathBuf> = files.into_iter().collect();
+    on_workers(files.len(), threads, |k| fps.of(&files[k]).map(|_| ()))?;
+    on_workers(order.len(), threads, |k| do_shard(order[k]))?;
     if task.is_some() {
         manifest.flush()?;
     }
