@@ -640,6 +640,9 @@ fn run_steps(
     on_shard(0, total);
     // only the shards finer data can reach are visited; the others count as without data
     let work = plan.work(writer.root())?;
+    // every level the steps write, listed in the store's metadata at once
+    let levels: Vec<_> = plan.steps.iter().map(|s| (s.layer, s.out)).collect();
+    writer.ensure_levels(&levels)?;
     for (step, w) in plan.steps.iter().zip(&work) {
         let unreached = (step.shards.len() - w.shards.len()) as u64;
         summary.shards_empty += unreached;

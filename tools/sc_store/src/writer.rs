@@ -578,10 +578,40 @@ impl StoreWriter {
         self.level_arrays(kind, level).map(|_| ())
     }
 
+    /// [`Self::ensure_level`] for several levels, listing the new ones in the store's metadata
+    /// once (a build makes all the levels of its plan before the first step).
+    pub fn ensure_levels(&self, levels: &[(LayerKind, LevelId)]) -> Result<()> {
+        // the metadata written under the lock, as each level's was
+        let mut arrays = self.arrays.lock().unwrap_or_else(PoisonError::into_inner);
+        let mut listed = false;
+        for &(kind, level) in levels {
+            listed |= self.open_level(&mut arrays, kind, level)?.1;
+        }
+        if listed {
+            self.write_group_meta()?;
+        }
+        Ok(())
+    }
+
     fn level_arrays(&self, kind: LayerKind, level: LevelId) -> Result<Arc<LevelArrays>> {
         let mut arrays = self.arrays.lock().unwrap_or_else(PoisonError::into_inner);
+        let (a, listed) = self.open_level(&mut arrays, kind, level)?;
+        if listed {
+            self.write_group_meta()?;
+        }
+        Ok(a)
+    }
+
+    /// The arrays of a level, made if the store has none; whether the level was newly listed in
+    /// the metadata (which the caller then writes).
+    fn open_level(
+        &self,
+        arrays: &mut HashMap<LevelKey, Arc<LevelArrays>>,
+        kind: LayerKind,
+        level: LevelId,
+    ) -> Result<(Arc<LevelArrays>, bool)> {
         if let Some(a) = arrays.get(&(kind, level)) {
-            return Ok(a.clone());
+            return Ok((a.clone(), false));
         }
         let (grid, shard_tiles, radius_m, major) = {
             let m = self.lock_meta();
@@ -657,13 +687,10 @@ impl StoreWriter {
                 listed = false;
             }
         }
-        // an array a killed writer made but never listed is listed now
-        if !listed {
-            self.write_group_meta()?;
-        }
         let a = Arc::new(LevelArrays { write, read, tiles });
         arrays.insert((kind, level), a.clone());
-        Ok(a)
+        // an array a killed writer made but never listed is listed too
+        Ok((a, !listed))
     }
 
     /// Claims `shard` of layer `T::KIND` and returns its writer, holding what the shard already
