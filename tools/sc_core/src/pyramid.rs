@@ -560,22 +560,29 @@ impl RowAcc {
     }
 
     /// The filtered row: premultiplied values and coverage divided by the weight (a column with
-    /// no weight has no coverage).
-    pub fn finish(self) -> RowWindow {
+    /// no weight has no coverage), in the sums' own buffers.
+    pub fn finish(mut self) -> RowWindow {
         let ch = self.ch;
-        let mut out = RowWindow::empty(self.n, self.first, self.w.len(), ch);
         let mut full = true;
         for (k, &w) in self.w.iter().enumerate() {
+            let (v, c) = (&mut self.v[k * ch..(k + 1) * ch], &mut self.c[k]);
             if w.abs() > 1e-300 {
-                for q in 0..ch {
-                    out.v[k * ch + q] = self.v[k * ch + q] / w;
-                }
-                out.c[k] = self.c[k] / w;
+                v.iter_mut().for_each(|x| *x /= w);
+                *c /= w;
+            } else {
+                v.fill(0.0);
+                *c = 0.0;
             }
-            full &= out.c[k] == 1.0;
+            full &= *c == 1.0;
         }
-        out.full = full;
-        out
+        RowWindow {
+            n: self.n,
+            first: self.first,
+            ch,
+            v: self.v,
+            c: self.c,
+            full,
+        }
     }
 }
 
@@ -849,6 +856,9 @@ impl LevelFilter {
                 }
                 r.full = nat.full;
                 r
+            } else if u == 1 && nat.first == c0 && nat.len() as i64 == c1 - c0 {
+                // the natural row is the stored one
+                nat
             } else {
                 upsample(&nat, u, c0, c1)
             });
