@@ -7,7 +7,7 @@
 //!
 //! Work is one output shard per task, one worker thread per core. A shard's bytes do not depend
 //! on the thread count or the order. What each shard was built from is recorded in a manifest per
-//! output level (`STORE/.sphereclip/build/LAYER-LEVEL.json`: the settings and a SHA-256 of every
+//! output level (`STORE/.sphereclip/build/LAYER-LEVEL.json`: the settings and a BLAKE3 hash of every
 //! finest-base shard file in the shard's footprint), written after the shard is durable. A rerun
 //! skips shards whose record still matches: that is both the resume after a kill and the
 //! incremental rebuild after an ingest changed a region (only shards whose footprint touches a
@@ -25,7 +25,6 @@ use sc_core::pyramid::{LevelFilter, RowReader, halve, halve_needs};
 use sc_core::{ANISO_MAX, GridSpec, Kernel, LevelId, ShardId, TileId};
 use sc_store::BuildRecord;
 use sc_store::{LayerKind, StoreError, StoreReader, StoreWriter, TileRead};
-use sha2::{Digest, Sha256};
 
 use rows::{StoreRows, TILE_CACHE_BYTES, Texel, TileCache, iso};
 
@@ -78,8 +77,9 @@ struct StepCounts {
     lost: Vec<String>,
 }
 
-/// Version of the construction, part of every shard's record: a change rebuilds everything.
-const BUILDER: &str = "pyramid-1";
+/// Version of the construction and of its records (2: fingerprints by BLAKE3), part of every
+/// shard's record: a change rebuilds everything.
+const BUILDER: &str = "pyramid-2";
 
 /// What to build.
 #[derive(Debug, Clone)]
@@ -522,7 +522,7 @@ impl Seen {
     }
 }
 
-/// SHA-256 (hex, 128 bits shown) of shard files, each read once per build.
+/// BLAKE3 (hex, 128 bits shown) of shard files, each read once per build.
 #[derive(Default)]
 struct Fingerprints {
     memo: Mutex<HashMap<PathBuf, String>>,
@@ -567,7 +567,7 @@ impl Fingerprints {
 /// The fingerprint of a shard file's bytes (`None`: no file).
 fn fingerprint(bytes: Option<&[u8]>) -> String {
     match bytes {
-        Some(b) => Sha256::digest(b)[..16]
+        Some(b) => blake3::hash(b).as_bytes()[..16]
             .iter()
             .map(|b| format!("{b:02x}"))
             .collect(),
@@ -641,8 +641,7 @@ fn run_steps(
     // only the shards finer data can reach are visited; the others count as without data
     let work = plan.work(writer.root())?;
     // every level the steps write, listed in the store's metadata at once
-    let levels: Vec<_> = plan.steps.iter().map(|s| (s.layer, s.out)).collect();
-    writer.ensure_levels(&levels)?;
+    writer.ensure_levels(&plan.work_shapes())?;
     for (step, w) in plan.steps.iter().zip(&work) {
         let unreached = (step.shards.len() - w.shards.len()) as u64;
         summary.shards_empty += unreached;
@@ -969,8 +968,7 @@ impl Plan {
     /// kernel, grid, shard size, steps).
     pub fn hash(&self) -> String {
         let text = format!("{}|{:?}", settings_hash(self), self.levels());
-        let h = Sha256::digest(text.as_bytes());
-        h[..16].iter().map(|b| format!("{b:02x}")).collect()
+        fingerprint(Some(text.as_bytes()))
     }
 }
 
