@@ -510,6 +510,8 @@ fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 struct Seen {
     fps: Fingerprints,
     tiles: TileCache,
+    /// the reader of the last step, whose levels the next one takes as they are
+    reader: Mutex<Option<StoreReader>>,
 }
 
 impl Seen {
@@ -518,7 +520,19 @@ impl Seen {
         Self {
             fps: Fingerprints::default(),
             tiles: TileCache::new(budget),
+            reader: Mutex::new(None),
         }
+    }
+
+    /// A reader of the store as the previous steps left it.
+    fn reader(&self, root: &Path) -> Result<StoreReader> {
+        let mut last = self.reader.lock().unwrap_or_else(|e| e.into_inner());
+        let r = match last.as_ref() {
+            Some(r) => r.reopen()?,
+            None => StoreReader::open(root)?,
+        };
+        *last = Some(r.clone());
+        Ok(r)
     }
 }
 
@@ -729,8 +743,8 @@ fn run_step(
     writer.set_threads(threads);
     let step_start = Instant::now();
     writer.ensure_level(step.layer, step.out)?;
-    // a fresh reader per step sees the levels the previous steps wrote
-    let reader = StoreReader::open(&root)?;
+    // a fresh reader per step sees the levels and shards the previous steps wrote
+    let reader = seen.reader(&root)?;
     let manifest = ManifestFile::open(&root, step.layer, step.out, &settings_hash(plan), task)?;
     let stored_src = |level: u32| -> Vec<u32> {
         reader

@@ -40,7 +40,7 @@ struct Inner {
 }
 
 pub(crate) struct LevelReader {
-    pub(crate) array: Array<FilesystemStore>,
+    pub(crate) array: Arc<Array<FilesystemStore>>,
     pub(crate) cache: ArrayShardedReadableExtCache,
 }
 
@@ -97,6 +97,17 @@ pub(crate) fn read_meta(root: &Path) -> Result<(Arc<FilesystemStore>, StoreMeta)
 impl StoreReader {
     /// Opens a store for reading. Refuses non-stores and newer major versions.
     pub fn open(root: &Path) -> Result<Self> {
+        Self::open_reusing(root, None)
+    }
+
+    /// The store as it is on disk now (levels and shards written since this reader was opened),
+    /// taking the level arrays this reader has checked and opened already as they are: a writer
+    /// holding the store reads its own levels again after each step. Shard indexes are read anew.
+    pub fn reopen(&self) -> Result<Self> {
+        Self::open_reusing(&self.inner.root, Some(self))
+    }
+
+    fn open_reusing(root: &Path, known: Option<&Self>) -> Result<Self> {
         let (fs, meta) = read_meta(root)?;
         // a committed store lists every array it has (an incomplete one may hold an array a
         // killed writer made and had not listed yet)
@@ -115,6 +126,12 @@ impl StoreReader {
         let mut levels = HashMap::new();
         for (&kind, layer) in &meta.layers {
             for lm in layer.levels.values() {
+                if let Some(lr) = known.and_then(|k| k.inner.levels.get(&(kind, lm.level))) {
+                    let cache = ArrayShardedReadableExtCache::new(&lr.array);
+                    let array = lr.array.clone();
+                    levels.insert((kind, lm.level), LevelReader { array, cache });
+                    continue;
+                }
                 let path = crate::layout::data_array_path(meta.format_major(), kind, lm.level);
                 let damaged = |what: String| StoreError::Format {
                     what: format!("damaged store: {kind} level {}: {what}", lm.level.key()),
@@ -126,6 +143,7 @@ impl StoreReader {
                     path: root.join(path.trim_start_matches('/')),
                 })?;
                 let cache = ArrayShardedReadableExtCache::new(&array);
+                let array = Arc::new(array);
                 levels.insert((kind, lm.level), LevelReader { array, cache });
             }
         }

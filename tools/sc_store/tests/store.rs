@@ -628,3 +628,50 @@ fn shards_are_the_bytes_zarrs_sharding_makes() {
     want[t..2 * t].fill(f32::NAN);
     assert!(same_bits(&buf, &want));
 }
+
+/// A reader reopened sees the levels and shards written since it was opened (a build reopens its
+/// reader after each step, keeping the level arrays it checked already).
+#[test]
+fn a_reopened_reader_sees_what_was_written_since() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let root = dir.path().join("s.zarr");
+    let t = 32;
+    let w = StoreWriter::create(&root, config()).expect("create");
+    let l2 = LevelId::iso(2).expect("valid");
+    let a = TileId {
+        level: l2,
+        x: 0,
+        y: 0,
+    };
+    let mut sw = w.shard_writer::<f32>(a.shard(2)).expect("claim");
+    sw.put_tile(a, &height_tile(a, t)).expect("put");
+    sw.finish().expect("finish");
+    let first = StoreReader::open(&root).expect("open");
+    let b = TileId {
+        level: l2,
+        x: 1,
+        y: 0,
+    };
+    assert!(!first.has_tile(LayerKind::Height, b).expect("has"));
+    // a tile in the shard the reader has looked at, and a level made after it was opened
+    let mut sw = w.shard_writer::<f32>(b.shard(2)).expect("claim");
+    sw.put_tile(a, &height_tile(a, t)).expect("put");
+    sw.put_tile(b, &height_tile(b, t)).expect("put");
+    sw.finish().expect("finish");
+    let l1 = LevelId::iso(1).expect("valid");
+    let c = TileId {
+        level: l1,
+        x: 1,
+        y: 0,
+    };
+    write_level::<f32>(&w, l1, |tile| height_tile(tile, t));
+    let again = first.reopen().expect("reopen");
+    let mut buf = vec![0f32; t * t];
+    assert!(again.has_tile(LayerKind::Height, b).expect("has"));
+    again.read_tile(b, &mut buf).expect("read");
+    assert!(same_bits(&buf, &height_tile(b, t)));
+    again.read_tile(c, &mut buf).expect("read the new level");
+    assert!(same_bits(&buf, &height_tile(c, t)));
+    // the first reader keeps what it saw
+    assert!(!first.has_tile(LayerKind::Height, b).expect("has"));
+}
