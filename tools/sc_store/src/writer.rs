@@ -627,12 +627,6 @@ impl StoreWriter {
                 self.root.display()
             )));
         }
-        // tiles encoded on several threads are still placed in index order, so that a shard's
-        // bytes do not depend on the threads (zarrs' default places them as they complete)
-        let in_order = zarrs::array::CodecSpecificOptions::default().with_option(
-            zarrs::array::codec::ShardingCodecOptions::default()
-                .with_subchunk_write_order(zarrs::array::codec::SubchunkWriteOrder::C),
-        );
         let write = if exists {
             let meta = self.meta();
             crate::layout::check_file(&self.root, kind, level, &meta).map_err(&zerr)?;
@@ -664,8 +658,7 @@ impl StoreWriter {
                 .map_err(|e| zerr(e.to_string()))?;
             array.store_metadata().map_err(|e| zerr(e.to_string()))?;
             array
-        }
-        .with_codec_specific_options(&in_order);
+        };
         let tiles = TileCodecs::of(&write).map_err(&zerr)?;
         let read = Array::open(self.fs.clone(), &path).map_err(|e| zerr(e.to_string()))?;
         let mut listed = true;
