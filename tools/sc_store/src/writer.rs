@@ -52,6 +52,9 @@ impl Default for StoreConfig {
 
 type LevelKey = (LayerKind, LevelId);
 
+/// Threads that make a store's new levels at once (each writes a few small files durably).
+pub const LEVEL_MAKERS: usize = 8;
+
 /// The one writer of a store in this process; share `&StoreWriter` between worker threads.
 #[derive(Debug)]
 pub struct StoreWriter {
@@ -579,40 +582,109 @@ impl StoreWriter {
     }
 
     /// [`Self::ensure_level`] for several levels, listing the new ones in the store's metadata
-    /// once (a build makes all the levels of its plan before the first step).
+    /// once (a build makes all the levels of its plan before the first step). The new levels are
+    /// made side by side, on up to [`LEVEL_MAKERS`] threads: each writes its few files durably,
+    /// which is waiting on the disk, not work.
     pub fn ensure_levels(&self, levels: &[(LayerKind, LevelId)]) -> Result<()> {
         // the metadata written under the lock, as each level's was
         let mut arrays = self.arrays.lock().unwrap_or_else(PoisonError::into_inner);
-        let mut listed = false;
-        for &(kind, level) in levels {
-            listed |= self.open_level(&mut arrays, kind, level)?.1;
+        let mut new: Vec<LevelKey> = Vec::new();
+        for &key in levels {
+            if !arrays.contains_key(&key) && !new.contains(&key) {
+                new.push(key);
+            }
         }
+        if new.is_empty() {
+            return Ok(());
+        }
+        // the layers' groups first, so that the threads making new levels find them
+        for &(kind, level) in &new {
+            if !self.level_on_disk(kind, level) {
+                self.ensure_layer_group(kind)?;
+            }
+        }
+        let next = std::sync::atomic::AtomicUsize::new(0);
+        let made: Vec<Result<Vec<(LevelKey, LevelArrays)>>> = std::thread::scope(|s| {
+            let makers: Vec<_> = (0..new.len().min(LEVEL_MAKERS))
+                .map(|_| {
+                    s.spawn(|| {
+                        let mut made = Vec::new();
+                        loop {
+                            let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                            let Some(&key) = new.get(k) else {
+                                return Ok(made);
+                            };
+                            made.push((key, self.make_level(key.0, key.1)?));
+                        }
+                    })
+                })
+                .collect();
+            makers
+                .into_iter()
+                .map(|m| {
+                    m.join().unwrap_or_else(|_| {
+                        Err(StoreError::Usage(format!(
+                            "a thread making the levels of {} panicked",
+                            self.root.display()
+                        )))
+                    })
+                })
+                .collect()
+        });
+        let mut listed = false;
+        let mut first_error = None;
+        for m in made {
+            match m {
+                Ok(levels) => {
+                    for (key, a) in levels {
+                        listed |= self.register_level(&mut arrays, key, a).1;
+                    }
+                }
+                Err(e) => first_error = first_error.or(Some(e)),
+            }
+        }
+        // the levels made before an error are listed all the same: their files are written
         if listed {
             self.write_group_meta()?;
         }
-        Ok(())
+        first_error.map_or(Ok(()), Err)
     }
 
     fn level_arrays(&self, kind: LayerKind, level: LevelId) -> Result<Arc<LevelArrays>> {
         let mut arrays = self.arrays.lock().unwrap_or_else(PoisonError::into_inner);
-        let (a, listed) = self.open_level(&mut arrays, kind, level)?;
+        if let Some(a) = arrays.get(&(kind, level)) {
+            return Ok(a.clone());
+        }
+        let made = self.make_level(kind, level)?;
+        let (a, listed) = self.register_level(&mut arrays, (kind, level), made);
         if listed {
             self.write_group_meta()?;
         }
         Ok(a)
     }
 
-    /// The arrays of a level, made if the store has none; whether the level was newly listed in
-    /// the metadata (which the caller then writes).
-    fn open_level(
-        &self,
-        arrays: &mut HashMap<LevelKey, Arc<LevelArrays>>,
-        kind: LayerKind,
-        level: LevelId,
-    ) -> Result<(Arc<LevelArrays>, bool)> {
-        if let Some(a) = arrays.get(&(kind, level)) {
-            return Ok((a.clone(), false));
+    /// The group of layer `kind`, made if the store has none (Zarr v3 has no implicit groups).
+    fn ensure_layer_group(&self, kind: LayerKind) -> Result<()> {
+        let layer_meta = self.root.join(kind.name()).join("zarr.json");
+        if !layer_meta.exists() {
+            crate::geozarr::write_group(&layer_meta, serde_json::Map::new(), None)
+                .map_err(io_err(&layer_meta))?;
         }
+        Ok(())
+    }
+
+    /// Whether the store holds the data array of a level.
+    fn level_on_disk(&self, kind: LayerKind, level: LevelId) -> bool {
+        let major = self.lock_meta().format_major();
+        let path = crate::layout::data_array_path(major, kind, level);
+        self.root
+            .join(path.trim_start_matches('/'))
+            .join("zarr.json")
+            .exists()
+    }
+
+    /// The arrays of a level, made if the store has none.
+    fn make_level(&self, kind: LayerKind, level: LevelId) -> Result<LevelArrays> {
         let (grid, shard_tiles, radius_m, major) = {
             let m = self.lock_meta();
             (m.grid, m.shard_tiles, m.radius_m, m.format_major())
@@ -637,13 +709,9 @@ impl StoreWriter {
             let builder =
                 crate::layout::builder(kind, level, grid, shard_tiles, self.height_codec, major)
                     .map_err(&zerr)?;
-            // the groups first (Zarr v3 has no implicit groups): the layer's, then the level's
-            // with its coordinates and grid mapping, then the data array
-            let layer_meta = self.root.join(kind.name()).join("zarr.json");
-            if !layer_meta.exists() {
-                crate::geozarr::write_group(&layer_meta, serde_json::Map::new(), None)
-                    .map_err(io_err(&layer_meta))?;
-            }
+            // the groups first: the layer's, then the level's with its coordinates and grid
+            // mapping, then the data array
+            self.ensure_layer_group(kind)?;
             crate::geozarr::write_level_group(
                 &self.durable,
                 &self.root,
@@ -661,6 +729,17 @@ impl StoreWriter {
         };
         let tiles = TileCodecs::of(&write).map_err(&zerr)?;
         let read = Array::open(self.fs.clone(), &path).map_err(|e| zerr(e.to_string()))?;
+        Ok(LevelArrays { write, read, tiles })
+    }
+
+    /// Takes the arrays of a level made by [`Self::make_level`] into the writer and the
+    /// store's metadata; whether the level was newly listed there (the caller then writes it).
+    fn register_level(
+        &self,
+        arrays: &mut HashMap<LevelKey, Arc<LevelArrays>>,
+        (kind, level): LevelKey,
+        made: LevelArrays,
+    ) -> (Arc<LevelArrays>, bool) {
         let mut listed = true;
         {
             let mut m = self.lock_meta();
@@ -680,10 +759,10 @@ impl StoreWriter {
                 listed = false;
             }
         }
-        let a = Arc::new(LevelArrays { write, read, tiles });
+        let a = Arc::new(made);
         arrays.insert((kind, level), a.clone());
         // an array a killed writer made but never listed is listed too
-        Ok((a, !listed))
+        (a, !listed)
     }
 
     /// Claims `shard` of layer `T::KIND` and returns its writer, holding what the shard already

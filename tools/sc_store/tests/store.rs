@@ -675,3 +675,65 @@ fn a_reopened_reader_sees_what_was_written_since() {
     // the first reader keeps what it saw
     assert!(!first.has_tile(LayerKind::Height, b).expect("has"));
 }
+
+/// Every file under `root` (paths relative to it) with its bytes.
+fn files_of(root: &Path) -> std::collections::BTreeMap<String, Vec<u8>> {
+    let mut out = std::collections::BTreeMap::new();
+    let mut todo = vec![root.to_path_buf()];
+    while let Some(d) = todo.pop() {
+        for e in std::fs::read_dir(&d).expect("read_dir") {
+            let p = e.expect("entry").path();
+            if p.is_dir() {
+                todo.push(p);
+            } else {
+                let rel = p.strip_prefix(root).expect("under root");
+                out.insert(
+                    rel.to_string_lossy().into_owned(),
+                    std::fs::read(&p).expect("read"),
+                );
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn levels_made_at_once_are_the_levels_made_one_by_one() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (a, b) = (dir.path().join("a.zarr"), dir.path().join("b.zarr"));
+    let mut levels = Vec::new();
+    for level in 0..4 {
+        for kind in [LayerKind::Height, LayerKind::Color] {
+            levels.push((kind, LevelId::iso(level).expect("valid")));
+            levels.extend(LevelId::aniso_levels_of(level).map(|l| (kind, l)));
+        }
+    }
+    assert!(
+        levels.len() > sc_store::LEVEL_MAKERS,
+        "more levels than threads"
+    );
+    let wa = StoreWriter::create(&a, config()).expect("create");
+    wa.ensure_levels(&levels).expect("at once");
+    // asked again, and with a level listed twice: nothing changes
+    let before = files_of(&a);
+    wa.ensure_levels(&[levels[3], levels[3]]).expect("again");
+    assert_eq!(files_of(&a), before);
+    let wb = StoreWriter::create(&b, config()).expect("create");
+    for &(kind, level) in &levels {
+        wb.ensure_level(kind, level).expect("one by one");
+    }
+    let (fa, fb) = (files_of(&a), files_of(&b));
+    assert_eq!(fa.keys().collect::<Vec<_>>(), fb.keys().collect::<Vec<_>>());
+    for (path, bytes) in &fa {
+        assert!(bytes == &fb[path], "{path} differs");
+    }
+    // and the levels made at once take tiles and read back
+    let t = 32;
+    let l3 = LevelId::iso(3).expect("valid");
+    let written = write_level::<f32>(&wa, l3, |tile| height_tile(tile, t));
+    wa.commit(None).expect("commit");
+    let r = StoreReader::open(&a).expect("open");
+    let mut buf = vec![0f32; t * t];
+    r.read_tile(written[5], &mut buf).expect("read");
+    assert!(same_bits(&buf, &height_tile(written[5], t)));
+}
