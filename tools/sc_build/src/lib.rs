@@ -552,8 +552,11 @@ impl Fingerprints {
         {
             return Ok(f.clone());
         }
-        let f = match std::fs::read(path) {
-            Ok(bytes) => fingerprint(Some(&bytes)),
+        // streamed through the hasher: a shard's bytes are never all in memory at once
+        let hashed = std::fs::File::open(path)
+            .and_then(|file| Ok(hex16(blake3::Hasher::new().update_reader(file)?.finalize())));
+        let f = match hashed {
+            Ok(f) => f,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => "-".to_string(),
             Err(source) => {
                 return Err(BuildError::Io {
@@ -581,12 +584,17 @@ impl Fingerprints {
 /// The fingerprint of a shard file's bytes (`None`: no file).
 fn fingerprint(bytes: Option<&[u8]>) -> String {
     match bytes {
-        Some(b) => blake3::hash(b).as_bytes()[..16]
-            .iter()
-            .map(|b| format!("{b:02x}"))
-            .collect(),
+        Some(b) => hex16(blake3::hash(b)),
         None => "-".to_string(),
     }
+}
+
+/// The first 128 bits of a hash, in hex.
+fn hex16(hash: blake3::Hash) -> String {
+    hash.as_bytes()[..16]
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
 }
 
 /// Fingerprint of an output shard as it is now (not memoised: the build rewrites it).
