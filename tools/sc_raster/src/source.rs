@@ -997,24 +997,39 @@ impl RasterSource {
             )));
         }
         let memory = self.reserve(w, h, rw, rh)?;
-        let raw = self.read_cached(cmin, rmin, rw, rh)?;
         let own_columns = info
             .lon_period_px
             .is_none_or(|p| ((c0 + w as i64 - 1) as f64) < p);
-        if direct && own_columns && raw.len() == nplanes {
-            // every row and column of the window is the source's own, in order (a wrapping
-            // source's columns below one period map to themselves): the pixels read are the
-            // window
-            return Ok(Window {
-                c0,
-                r0,
-                w,
-                h,
-                step: 1,
-                planes: raw,
-                memory: Some(memory),
-            });
-        }
+        // a window that wraps or crosses a pole is gathered from the decoded source where there
+        // is one, not from a copy of the rectangle it spans (whole source rows at the
+        // antimeridian and over a pole)
+        let whole = if direct && own_columns {
+            None
+        } else {
+            self.decoded()?.filter(|d| d.planes.len() == nplanes)
+        };
+        let read;
+        let (raw, rmin, cmin, rw): (&[Vec<f32>], i64, i64, usize) = match &whole {
+            Some(d) => (&d.planes, 0, 0, info.width),
+            None => {
+                read = self.read_cached(cmin, rmin, rw, rh)?;
+                if direct && own_columns && read.len() == nplanes {
+                    // every row and column of the window is the source's own, in order (a
+                    // wrapping source's columns below one period map to themselves): the pixels
+                    // read are the window
+                    return Ok(Window {
+                        c0,
+                        r0,
+                        w,
+                        h,
+                        step: 1,
+                        planes: read,
+                        memory: Some(memory),
+                    });
+                }
+                (&read, rmin, cmin, rw)
+            }
+        };
         let mut planes = vec![vec![f32::NAN; w * h]; nplanes];
         // the source column of each window column (index into a row of `raw`), once per side
         // of the pole rather than once per row
@@ -1022,7 +1037,7 @@ impl RasterSource {
             (0..w as i64)
                 .map(|j| {
                     map_col(c0 + j, flipped)
-                        .filter(|sc| (cmin..=cmax).contains(sc))
+                        .filter(|sc| (cmin..=cmin + rw as i64 - 1).contains(sc))
                         .map(|sc| (sc - cmin) as usize)
                 })
                 .collect()
@@ -1076,38 +1091,8 @@ impl RasterSource {
     /// gzipped NetCDF is decompressed once instead of re-seeked per tile).
     fn read_cached(&self, c0: i64, r0: i64, w: usize, h: usize) -> Result<Vec<Vec<f32>>> {
         let info = &self.info;
-        let total = info.width as u64 * info.height as u64 * info.bands.len() as u64;
-        if total > MAX_CACHED_SAMPLES {
+        let Some(all) = self.decoded()? else {
             return self.read_raw(c0, r0, w, h);
-        }
-        let all = {
-            // the first worker reads while the others wait for it
-            let mut slot = self.cache.lock().unwrap_or_else(|e| e.into_inner());
-            match &*slot {
-                Some(a) => a.clone(),
-                None => {
-                    // decoded sources together stay within their budget; beyond it, windows
-                    // are read from the file
-                    let bytes = total * 4;
-                    let fits = CACHED_BYTES
-                        .fetch_update(Ordering::SeqCst, Ordering::SeqCst, |used| {
-                            (used + bytes <= CACHE_BUDGET_BYTES).then_some(used + bytes)
-                        })
-                        .is_ok();
-                    if !fits {
-                        drop(slot);
-                        return self.read_raw(c0, r0, w, h);
-                    }
-                    let planes =
-                        self.read_raw(0, 0, info.width, info.height)
-                            .inspect_err(|_| {
-                                CACHED_BYTES.fetch_sub(bytes, Ordering::SeqCst);
-                            })?;
-                    let a = std::sync::Arc::new(Decoded { planes, bytes });
-                    *slot = Some(a.clone());
-                    a
-                }
-            }
         };
         Ok(all
             .planes
@@ -1121,6 +1106,40 @@ impl RasterSource {
                 v
             })
             .collect())
+    }
+
+    /// The whole source decoded, when it has at most [`MAX_CACHED_SAMPLES`] samples and fits the
+    /// budget of decoded sources (read on first use; the first worker reads while the others wait
+    /// for it); `None` otherwise.
+    fn decoded(&self) -> Result<Option<std::sync::Arc<Decoded>>> {
+        let info = &self.info;
+        let total = info.width as u64 * info.height as u64 * info.bands.len() as u64;
+        if total > MAX_CACHED_SAMPLES {
+            return Ok(None);
+        }
+        let mut slot = self.cache.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(a) = &*slot {
+            return Ok(Some(a.clone()));
+        }
+        // decoded sources together stay within their budget; beyond it, windows are read from
+        // the file
+        let bytes = total * 4;
+        let fits = CACHED_BYTES
+            .fetch_update(Ordering::SeqCst, Ordering::SeqCst, |used| {
+                (used + bytes <= CACHE_BUDGET_BYTES).then_some(used + bytes)
+            })
+            .is_ok();
+        if !fits {
+            return Ok(None);
+        }
+        let planes = self
+            .read_raw(0, 0, info.width, info.height)
+            .inspect_err(|_| {
+                CACHED_BYTES.fetch_sub(bytes, Ordering::SeqCst);
+            })?;
+        let a = std::sync::Arc::new(Decoded { planes, bytes });
+        *slot = Some(a.clone());
+        Ok(Some(a))
     }
 
     /// The bands of a rectangle inside the raster as bytes, when every band used is 8-bit

@@ -1,6 +1,7 @@
 //! Windows read from real sources against GDAL's own read of the same pixels: inside the raster
 //! (the pixels read are the window), at its edge (columns and rows outside are no data) and, for
-//! a global source, across the antimeridian (columns taken modulo the period).
+//! a global source, across the antimeridian (columns taken modulo the period) and over a pole
+//! (rows mirrored about it, on the opposite meridian).
 
 use std::path::{Path, PathBuf};
 
@@ -79,6 +80,24 @@ fn windows_of_a_global_source_wrap_round_the_antimeridian() {
     for (c0, what) in [(200, "inside"), (period - 40, "across the antimeridian")] {
         let win = src.read_region(c0, rows, 80, 30).expect("read");
         assert_window(&win, at, what);
+    }
+    // over the north pole: a row r above it is the row mirrored about the pole, on the opposite
+    // meridian (half a period round)
+    let pole = info.north_pole_y.expect("ETOPO20 reaches the north pole");
+    let over = |c: i64, r: i64| -> Option<f64> {
+        if r >= 0 {
+            return at(c, r);
+        }
+        let mirrored = (2.0 * pole - r as f64 - 1.0).round() as i64;
+        let c = ((c as f64 + period as f64 / 2.0).rem_euclid(period as f64)).floor() as i64;
+        at(c, mirrored)
+    };
+    for (c0, what) in [
+        (300, "over the north pole"),
+        (period - 30, "over the north pole, across the antimeridian"),
+    ] {
+        let win = src.read_region(c0, -12, 70, 30).expect("read");
+        assert_window(&win, over, what);
     }
 }
 
