@@ -597,9 +597,10 @@ impl StoreWriter {
         if new.is_empty() {
             return Ok(());
         }
-        // the layers' groups first, so that the threads making new levels find them
+        // the layers' groups first, so that the threads making new levels find them (a task
+        // makes none: its levels are refused below, before anything is written)
         for &(kind, level) in &new {
-            if !self.level_on_disk(kind, level) {
+            if self.access != Access::Task && !self.level_on_disk(kind, level) {
                 self.ensure_layer_group(kind)?;
             }
         }

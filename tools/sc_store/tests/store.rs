@@ -737,3 +737,31 @@ fn levels_made_at_once_are_the_levels_made_one_by_one() {
     r.read_tile(written[5], &mut buf).expect("read");
     assert!(same_bits(&buf, &height_tile(written[5], t)));
 }
+
+#[test]
+fn a_task_makes_no_levels_and_writes_nothing_when_asked_to() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let root = dir.path().join("s.zarr");
+    {
+        let w = StoreWriter::create(&root, config()).expect("create");
+        w.ensure_level(LayerKind::Height, LevelId::iso(2).expect("valid"))
+            .expect("a height level");
+        w.commit(None).expect("commit");
+    }
+    {
+        let planner = StoreWriter::open_planning(&root, None).expect("planning");
+        planner.mark_plan_open("a plan").expect("open the plan");
+    }
+    let before = files_of(&root);
+    let task = StoreWriter::open_task(&root).expect("a task");
+    // a colour level: the store has no colour layer, so not even its group may appear
+    let err = task
+        .ensure_levels(&[(LayerKind::Color, LevelId::iso(1).expect("valid"))])
+        .expect_err("a task makes no levels");
+    assert!(err.to_string().contains("makes no levels"), "{err}");
+    drop(task);
+    assert_eq!(
+        files_of(&root).keys().collect::<Vec<_>>(),
+        before.keys().collect::<Vec<_>>()
+    );
+}
