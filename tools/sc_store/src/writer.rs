@@ -600,55 +600,39 @@ impl StoreWriter {
         // the layers' groups first, so that the threads making new levels find them (a task
         // makes none: its levels are refused below, before anything is written)
         for &(kind, level) in &new {
-            if self.access != Access::Task && !self.level_on_disk(kind, level) {
+            if self.access != Access::Task && !self.data_array(kind, level).1.exists() {
                 self.ensure_layer_group(kind)?;
             }
         }
-        let next = std::sync::atomic::AtomicUsize::new(0);
-        let made: Vec<Result<Vec<(LevelKey, LevelArrays)>>> = std::thread::scope(|s| {
-            let makers: Vec<_> = (0..new.len().min(LEVEL_MAKERS))
-                .map(|_| {
-                    s.spawn(|| {
-                        let mut made = Vec::new();
-                        loop {
-                            let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                            let Some(&key) = new.get(k) else {
-                                return Ok(made);
-                            };
-                            made.push((key, self.make_level(key.0, key.1)?));
-                        }
-                    })
-                })
-                .collect();
-            makers
-                .into_iter()
-                .map(|m| {
-                    m.join().unwrap_or_else(|_| {
-                        Err(StoreError::Usage(format!(
-                            "a thread making the levels of {} panicked",
-                            self.root.display()
-                        )))
-                    })
-                })
-                .collect()
-        });
+        let made = Mutex::new(Vec::with_capacity(new.len()));
+        let run = sc_core::workers::run(
+            new.len(),
+            LEVEL_MAKERS,
+            || Ok(()),
+            |_, k| {
+                let (kind, level) = new[k];
+                let a = self.make_level(kind, level)?;
+                made.lock()
+                    .unwrap_or_else(PoisonError::into_inner)
+                    .push((new[k], a));
+                Ok(())
+            },
+        );
         let mut listed = false;
-        let mut first_error = None;
-        for m in made {
-            match m {
-                Ok(levels) => {
-                    for (key, a) in levels {
-                        listed |= self.register_level(&mut arrays, key, a).1;
-                    }
-                }
-                Err(e) => first_error = first_error.or(Some(e)),
-            }
+        for (key, a) in made.into_inner().unwrap_or_else(PoisonError::into_inner) {
+            listed |= self.register_level(&mut arrays, key, a).1;
         }
         // the levels made before an error are listed all the same: their files are written
         if listed {
             self.write_group_meta()?;
         }
-        first_error.map_or(Ok(()), Err)
+        run.map_err(|e| match e {
+            sc_core::workers::Stopped::Failed(e) => e,
+            sc_core::workers::Stopped::Panicked => StoreError::Usage(format!(
+                "a thread making the levels of {} panicked",
+                self.root.display()
+            )),
+        })
     }
 
     fn level_arrays(&self, kind: LayerKind, level: LevelId) -> Result<Arc<LevelArrays>> {
@@ -674,14 +658,15 @@ impl StoreWriter {
         Ok(())
     }
 
-    /// Whether the store holds the data array of a level.
-    fn level_on_disk(&self, kind: LayerKind, level: LevelId) -> bool {
+    /// The data array of a level: its path in the store, and its metadata file on disk.
+    fn data_array(&self, kind: LayerKind, level: LevelId) -> (String, PathBuf) {
         let major = self.lock_meta().format_major();
         let path = crate::layout::data_array_path(major, kind, level);
-        self.root
+        let file = self
+            .root
             .join(path.trim_start_matches('/'))
-            .join("zarr.json")
-            .exists()
+            .join("zarr.json");
+        (path, file)
     }
 
     /// The arrays of a level, made if the store has none.
@@ -690,10 +675,9 @@ impl StoreWriter {
             let m = self.lock_meta();
             (m.grid, m.shard_tiles, m.radius_m, m.format_major())
         };
-        let path = crate::layout::data_array_path(major, kind, level);
-        let fs_path = self.root.join(path.trim_start_matches('/'));
-        let zerr = zarr_err(&fs_path);
-        let exists = fs_path.join("zarr.json").exists();
+        let (path, file) = self.data_array(kind, level);
+        let zerr = zarr_err(crate::fault::folder_of(&file));
+        let exists = file.exists();
         if !exists && self.access == Access::Task {
             return Err(StoreError::Usage(format!(
                 "{kind} level {level} is not in the store, and a task of a plan makes no levels (the plan makes them all first; make the plan again): {}",
