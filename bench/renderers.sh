@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
-# The two renderers side by side on one store, same views, same size, one run: triangles, frame
+# The three renderers side by side on one store, same views, same size, one run: triangles, frame
 # and CPU time per frame of the complete view (median of FRAMES), leaves and culling, GPU memory.
-# Usage: bench/renderers.sh STORE [WxH] [FRAMES]; RENDERERS="clipmap cdlod cdlod:8:16" picks the
-# renderers (cdlod:PATCH:PIXELS sets CDLOD's options).
+# Usage: bench/renderers.sh STORE [WxH] [FRAMES]; RENDERERS="clipmap cdlod cdlod:8:16 warp warp:256"
+# picks the renderers (cdlod:PATCH:PIXELS sets CDLOD's options, warp:MESH the warped mesh's size).
 set -euo pipefail
 store=${1:?usage: bench/renderers.sh STORE [WxH] [FRAMES]}
 size=${2:-640x360}
@@ -20,10 +20,14 @@ views=(
 printf '| view | renderer | triangles | frame ms | CPU ms | leaves (culled frustum / horizon) | geometry MiB |\n|---|---|---|---|---|---|---|\n'
 for v in "${views[@]}"; do
   name=${v%% *}; cam=${v#* }
-  for r in ${RENDERERS:-clipmap cdlod cdlod:8:16}; do
+  for r in ${RENDERERS:-clipmap cdlod cdlod:8:16 warp warp:256}; do
     IFS=: read -r kind patch pixels <<<"$r"
     opts=(--renderer "$kind")
-    [ -n "${patch:-}" ] && opts+=(--cdlod-patch "$patch" --cdlod-pixels "$pixels")
+    if [ "$kind" = warp ]; then
+      [ -n "${patch:-}" ] && opts+=(--warp-mesh "$patch")
+    elif [ -n "${patch:-}" ]; then
+      opts+=(--cdlod-patch "$patch" --cdlod-pixels "$pixels")
+    fi
     log=$("$bin" render "$store" --camera="$cam" --size "$size" --frames "$frames" \
       "${opts[@]}" --out "$out/$name-$kind.png" 2>&1)
     tri=$(sed -n 's/.* \([0-9]*\) triangles,.*/\1/p' <<<"$log")

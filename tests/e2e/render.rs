@@ -593,12 +593,11 @@ fn difference(a: &image::RgbaImage, b: &image::RgbaImage) -> (f64, f64) {
     (sum / n as f64, off as f64 / n as f64)
 }
 
-#[test]
-fn cdlod_draws_the_clipmaps_data_and_refuses_bad_options() {
+/// The same stored colour, unlit, through the clipmaps and through `renderer`: on flat
+/// heights they differ only where the meshes' chords cut the sphere differently (the limb).
+fn draws_the_clipmaps_data(renderer: &str) {
     let store = crate::util::flat_blue_marble();
     let dir = tempfile::tempdir().expect("tempdir");
-    // the same stored colour, unlit, through both geometries: on flat heights they differ only
-    // where the two meshes' chords cut the sphere differently (the limb)
     for (name, cam) in [
         ("space", "20,10,8000000,0,-90,40"),
         ("north pole", "89.5,0,50000,0,-30,60"),
@@ -607,25 +606,29 @@ fn cdlod_draws_the_clipmaps_data_and_refuses_bad_options() {
         let a = dir.path().join("a.png");
         let b = dir.path().join("b.png");
         let clip = crate::util::render_png(&store, &a, cam, "320x180", &["--shading", "none"]);
-        let cd = crate::util::render_png(
+        let other = crate::util::render_png(
             &store,
             &b,
             cam,
             "320x180",
-            &["--shading", "none", "--renderer", "cdlod"],
+            &["--shading", "none", "--renderer", renderer],
         );
-        let (mean, off) = difference(&clip, &cd);
+        let (mean, off) = difference(&clip, &other);
         assert!(
             mean <= 1.0 && off <= 0.005,
-            "{name}: CDLOD differs from the clipmaps by {mean:.2}/255 on average, {:.2} % of pixels by > 30",
+            "{name}: {renderer} differs from the clipmaps by {mean:.2}/255 on average, {:.2} % of pixels by > 30",
             off * 100.0
         );
     }
+}
+
+/// `render --renderer renderer` with each of `bad`'s options fails in one line naming the
+/// allowed values.
+fn refuses_bad_options(renderer: &str, bad: &[([&str; 2], &str)]) {
+    let store = crate::util::flat_blue_marble();
+    let dir = tempfile::tempdir().expect("tempdir");
     let png = dir.path().join("x.png");
-    for (extra, want) in [
-        (["--cdlod-patch", "3"], "2, 4, 8 or 16"),
-        (["--cdlod-pixels", "0"], "0.5..64"),
-    ] {
+    for (extra, want) in bad {
         let mut args = vec![
             "render",
             s(&store),
@@ -634,13 +637,38 @@ fn cdlod_draws_the_clipmaps_data_and_refuses_bad_options() {
             "--out",
             s(&png),
             "--renderer",
-            "cdlod",
+            renderer,
         ];
-        args.extend_from_slice(&extra);
+        args.extend_from_slice(extra);
         let o = run(&args);
         assert!(!o.status.success(), "{args:?}");
         let e = text(&o.stderr);
         assert_eq!(e.trim().lines().count(), 1, "{e}");
         assert!(e.contains(want), "{args:?}: {e}");
+        assert!(!png.exists(), "{args:?}: a picture was written");
     }
+}
+
+#[test]
+fn cdlod_draws_the_clipmaps_data_and_refuses_bad_options() {
+    draws_the_clipmaps_data("cdlod");
+    refuses_bad_options(
+        "cdlod",
+        &[
+            (["--cdlod-patch", "3"], "2, 4, 8 or 16"),
+            (["--cdlod-pixels", "0"], "0.5..64"),
+        ],
+    );
+}
+
+#[test]
+fn the_warped_mesh_draws_the_clipmaps_data_and_refuses_bad_options() {
+    draws_the_clipmaps_data("warp");
+    refuses_bad_options(
+        "warp",
+        &[
+            (["--warp-mesh", "8"], "16..=2048"),
+            (["--warp-importance", "4"], "8..=512"),
+        ],
+    );
 }

@@ -1,4 +1,4 @@
-//! The two renderers side by side over the same views, one run, on the first adapter found:
+//! The three renderers side by side over the same views, one run, on the first adapter found:
 //! triangles drawn, frame time and CPU time per frame (median of FRAMES), the drawn surface's
 //! vertical error against an f64 evaluation of the heights (median and p99 pixels), the pop
 //! metric along a slow flight from the view (largest move of the surface in a frame, pixels),
@@ -13,6 +13,7 @@ use sc_view_gpu::render::Renderer;
 use sc_view_plan::camera::Camera;
 use sc_view_plan::cdlod::CdlodSpec;
 use sc_view_plan::frame::{DrawOptions, Geometry};
+use sc_view_plan::warp::WarpSpec;
 
 const R: f64 = 6_371_008.8;
 
@@ -45,6 +46,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             Geometry::Cdlod(CdlodSpec {
                 patch: 8,
                 pixel_error: 16.0,
+            }),
+        ),
+        ("warp 512²", Geometry::Warp(WarpSpec::default())),
+        (
+            "warp 256²",
+            Geometry::Warp(WarpSpec {
+                mesh: 256,
+                importance: 64,
             }),
         ),
     ];
@@ -110,6 +119,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             );
         }
     }
-    println!("\n{w}x{h} on {adapter}; clipmaps 52.0 MiB of GPU memory for both renderers");
+    println!("\n{w}x{h} on {adapter}; clipmaps 52.0 MiB of GPU memory for every renderer");
     Ok(())
 }

@@ -365,8 +365,9 @@ pub struct LookArgs {
     /// default on the store's heights and colours); off: the clipmaps show the data alone.
     #[arg(long, value_enum, default_value_t = OnOff::On)]
     pub detail: OnOff,
-    /// The geometry: spherical clipmaps (the hemisphere around the viewer) or icosahedral
-    /// triangular CDLOD; both read the same clipmaps, so they show the same data.
+    /// The geometry: spherical clipmaps (the hemisphere around the viewer), icosahedral
+    /// triangular CDLOD, or one mesh warped every frame to where the view needs vertices
+    /// (geometry-image warping); all read the same clipmaps, so they show the same data.
     #[arg(long, value_enum, default_value_t = RendererKind::Clipmap)]
     pub renderer: RendererKind,
     /// CDLOD: segments of a patch side (2, 4, 8 or 16).
@@ -375,6 +376,12 @@ pub struct LookArgs {
     /// CDLOD: the largest size of a patch triangle on screen, pixels.
     #[arg(long, default_value_t = 8.0)]
     pub cdlod_pixels: f64,
+    /// Warp: cells a side of the warped mesh (16..=2048).
+    #[arg(long, default_value_t = 512)]
+    pub warp_mesh: u32,
+    /// Warp: nodes a side of the importance map that drives it (8..=512).
+    #[arg(long, default_value_t = 128)]
+    pub warp_importance: u32,
 }
 
 /// `--renderer`.
@@ -384,6 +391,8 @@ pub enum RendererKind {
     Clipmap,
     /// Icosahedral triangular CDLOD.
     Cdlod,
+    /// Geometry-image warping: one mesh, warped every frame.
+    Warp,
 }
 
 /// A switch.

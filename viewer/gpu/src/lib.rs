@@ -1,5 +1,5 @@
 //! The GPU side of the spherical-clipmap viewer, on wgpu and without a window: the clipmap pass
-//! that uploads and draws the frames `sc_view_plan` plans (with spherical clipmaps or CDLOD),
+//! that uploads and draws the frames `sc_view_plan` plans (with spherical clipmaps, CDLOD or a warped mesh),
 //! the headless renderer and its read-back, device setup, the map-transform and CDLOD probes,
 //! measurements of drawn geometry from depth, and the WGSL of `shaders/`.
 
@@ -24,6 +24,15 @@ pub const CDLOD_WGSL: &str = concat!(
     include_str!("../../../shaders/clipmap.wgsl"),
     include_str!("../../../shaders/cdlod_geometry.wgsl"),
     include_str!("../../../shaders/cdlod.wgsl")
+);
+
+/// The WGSL of the geometry-image warping renderer: the clipmap renderer's and the warped
+/// mesh's vertex stage.
+pub const WARP_WGSL: &str = concat!(
+    include_str!("../../../shaders/map_transform.wgsl"),
+    include_str!("../../../shaders/atmosphere_model.wgsl"),
+    include_str!("../../../shaders/clipmap.wgsl"),
+    include_str!("../../../shaders/warp.wgsl")
 );
 
 /// The WGSL of the CDLOD geometry probe (a compute pass over patch vertices).

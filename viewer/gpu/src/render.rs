@@ -17,6 +17,7 @@ use sc_view_plan::frame::{
 };
 use sc_view_plan::geometry::HemisphereSpec;
 use sc_view_plan::stream::Streamer;
+use sc_view_plan::warp::{WarpFrame, mesh_indices};
 use wgpu::util::DeviceExt;
 
 use crate::atmosphere::AtmospherePasses;
@@ -72,6 +73,8 @@ pub struct ClipmapPass {
     bind: wgpu::BindGroup,
     /// The CDLOD renderer's resources (its pipelines share the layout, group 2 its own).
     cdlod: CdlodResources,
+    /// The warped mesh's resources (group 2 its own).
+    warp: WarpResources,
     /// The CPU side: what each level holds, the streaming requests, the frame plans.
     planner: FramePlanner,
     /// What the last uploaded plan draws.
@@ -134,6 +137,72 @@ impl CdlodResources {
             queue.write_buffer(buf, 0, bytes);
         }
         self.leaves = Some(frame.leaves.len() as u32);
+    }
+}
+
+/// The warped mesh's pipelines, its index buffer (made for the mesh size asked for), and the
+/// rings and azimuths of the last frame.
+#[derive(Debug)]
+struct WarpResources {
+    pipeline: wgpu::RenderPipeline,
+    wire: Option<wgpu::RenderPipeline>,
+    layout: wgpu::BindGroupLayout,
+    uniform: wgpu::Buffer,
+    /// (cells along a line of azimuth and along a ring, indices, index count).
+    indices: Option<((u32, u32), wgpu::Buffer, u32)>,
+    /// The lines' buffer (as allocated) and the bind group over it.
+    lines: Option<(wgpu::Buffer, u64, wgpu::BindGroup)>,
+    /// Whether the last frame uploaded drew the warped mesh.
+    drawn: bool,
+}
+
+impl WarpResources {
+    /// Writes a frame's mesh size and lines (buffers made or grown as needed).
+    fn upload(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, frame: &WarpFrame) {
+        if self.indices.as_ref().map(|p| p.0) != Some(frame.cells) {
+            let i = mesh_indices(frame.cells);
+            let ib = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("warp mesh indices"),
+                contents: bytemuck::cast_slice(&i),
+                usage: wgpu::BufferUsages::INDEX,
+            });
+            self.indices = Some((frame.cells, ib, i.len() as u32));
+        }
+        let (rings, around) = frame.cells;
+        queue.write_buffer(
+            &self.uniform,
+            0,
+            bytemuck::cast_slice(&[around, rings, 0, 0]),
+        );
+        let bytes: &[u8] = bytemuck::cast_slice(&frame.lines);
+        let need = (bytes.len() as u64).max(64).next_power_of_two();
+        if self.lines.as_ref().is_none_or(|b| b.1 < need) {
+            let buf = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("warp lines"),
+                size: need,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("warp"),
+                layout: &self.layout,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: self.uniform.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: buf.as_entire_binding(),
+                    },
+                ],
+            });
+            self.lines = Some((buf, need, bind));
+        }
+        if let Some((buf, _, _)) = &self.lines {
+            queue.write_buffer(buf, 0, bytes);
+        }
+        self.drawn = true;
     }
 }
 
@@ -395,6 +464,46 @@ impl ClipmapPass {
                 resource: cdlod_uniform.as_entire_binding(),
             }],
         });
+        let warp_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("warp"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::VERTEX,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::VERTEX,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Storage { read_only: true },
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+            ],
+        });
+        let warp_uniform = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("warp"),
+            size: 16,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let warp_pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("warp"),
+            bind_group_layouts: &[Some(&layout), Some(&air_layout), Some(&warp_layout)],
+            ..Default::default()
+        });
+        let warp_shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("warp.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(crate::WARP_WGSL.into()),
+        });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("clipmap"),
             bind_group_layouts: &[Some(&layout), Some(&air_layout)],
@@ -441,6 +550,13 @@ impl ClipmapPass {
             vertex_entry: "cdlod_vs",
             buffers: &patch_buffers,
         };
+        let warp_stage = TerrainStage {
+            label: "warp",
+            layout: &warp_pipeline_layout,
+            module: &warp_shader,
+            vertex_entry: "warp_vs",
+            buffers: &[],
+        };
         let line_mode = device
             .features()
             .contains(wgpu::Features::POLYGON_MODE_LINE);
@@ -456,6 +572,15 @@ impl ClipmapPass {
             patch: None,
             instances: None,
             leaves: None,
+        };
+        let warp = WarpResources {
+            pipeline: make(&warp_stage, wgpu::PolygonMode::Fill),
+            wire: line_mode.then(|| make(&warp_stage, wgpu::PolygonMode::Line)),
+            layout: warp_layout,
+            uniform: warp_uniform,
+            indices: None,
+            lines: None,
+            drawn: false,
         };
         // the sky: a screen-filling triangle where the terrain left the far plane
         let sky = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
@@ -503,6 +628,7 @@ impl ClipmapPass {
             level_buf,
             bind,
             cdlod,
+            warp,
             planner,
             last: FrameStats::default(),
             last_frame: FrameUniform::zeroed(),
@@ -529,8 +655,13 @@ impl ClipmapPass {
     }
 
     /// GPU memory of the geometry the last frame drew, bytes: the static hemisphere's vertex and
-    /// index buffers, or CDLOD's patch, leaf instances (the buffer as allocated) and uniform.
+    /// index buffers, CDLOD's patch, leaf instances (the buffer as allocated) and uniform, or the
+    /// warped mesh's indices, lines and uniform.
     pub fn geometry_bytes(&self) -> u64 {
+        let w = &self.warp;
+        if let (true, Some((_, i, _)), Some((_, n, _))) = (w.drawn, &w.indices, &w.lines) {
+            return i.size() + n + w.uniform.size();
+        }
         let c = &self.cdlod;
         match (c.leaves, &c.patch) {
             (Some(_), Some((_, v, i, _))) => {
@@ -592,6 +723,10 @@ impl ClipmapPass {
         match &plan.cdlod {
             Some(f) => self.cdlod.upload(&self.device, &self.queue, f),
             None => self.cdlod.leaves = None,
+        }
+        match &plan.warp {
+            Some(f) => self.warp.upload(&self.device, &self.queue, f),
+            None => self.warp.drawn = false,
         }
         match self.options.atmosphere {
             Some(a) => {
@@ -657,7 +792,17 @@ impl ClipmapPass {
         pass.set_bind_group(0, &self.bind, &[]);
         pass.set_bind_group(1, &self.atmosphere_bind, &[]);
         let c = &self.cdlod;
-        if let (Some(leaves), Some((_, pv, pi, count)), Some((inst, _))) =
+        let w = &self.warp;
+        if let (true, Some((_, wi, count)), Some((_, _, bind))) = (w.drawn, &w.indices, &w.lines) {
+            let pipeline = match (&w.wire, self.options.wireframe) {
+                (Some(p), true) => p,
+                _ => &w.pipeline,
+            };
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(2, bind, &[]);
+            pass.set_index_buffer(wi.slice(..), wgpu::IndexFormat::Uint32);
+            pass.draw_indexed(0..*count, 0, 0..1);
+        } else if let (Some(leaves), Some((_, pv, pi, count)), Some((inst, _))) =
             (c.leaves, &c.patch, &c.instances)
         {
             let pipeline = match (&c.wire, self.options.wireframe) {

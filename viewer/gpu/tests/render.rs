@@ -8,6 +8,7 @@ use sc_view_plan::cdlod::CdlodSpec;
 use sc_view_plan::clipmap::{ColorSource, HeightSource, LevelWindow};
 use sc_view_plan::frame::{DrawOptions, Geometry, view_projection};
 use sc_view_plan::transform::Viewer;
+use sc_view_plan::warp::WarpSpec;
 
 const R: f64 = sc_core::EARTH_RADIUS_M;
 
@@ -108,6 +109,14 @@ fn no_cracks_below_the_horizon_with_cdlod() {
     no_cracks(Geometry::Cdlod(CdlodSpec {
         patch: 2,
         pixel_error: 2.0,
+    }));
+}
+
+#[test]
+fn no_cracks_below_the_horizon_with_the_warped_mesh() {
+    no_cracks(Geometry::Warp(WarpSpec {
+        mesh: 256,
+        importance: 64,
     }));
 }
 

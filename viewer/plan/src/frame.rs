@@ -23,6 +23,7 @@ use crate::geometry::{Hemisphere, HemisphereSpec, level_outer};
 use crate::stream::{Focus, GridId, Streamer, Task, Tile, TileData, TileKey};
 use crate::sun::Sun;
 use crate::transform::{Viewer, finest_level_in_view, visible_levels};
+use crate::warp::{WarpFrame, WarpSpec};
 
 /// The frame uniform of `shaders/clipmap.wgsl`, as plain numbers (its layout is checked against
 /// the WGSL by the GPU crate's tests).
@@ -131,6 +132,8 @@ pub enum Geometry {
     Clipmap,
     /// Icosahedral triangular CDLOD (`crate::cdlod`).
     Cdlod(CdlodSpec),
+    /// One mesh warped every frame to where the view needs vertices (`crate::warp`).
+    Warp(WarpSpec),
 }
 
 /// How to draw: shading, vertical scale, the sun, and the viewer's debug toggles.
@@ -233,6 +236,8 @@ pub struct FramePlan {
     pub ground: f64,
     /// With [`Geometry::Cdlod`]: the leaves to draw and their uniform.
     pub cdlod: Option<CdlodFrame>,
+    /// With [`Geometry::Warp`]: the warped mesh's rings and azimuths.
+    pub warp: Option<WarpFrame>,
 }
 
 /// The CPU side of the clipmap renderer: what each clipmap level holds, what was asked of the
@@ -263,6 +268,8 @@ pub struct FramePlanner {
     fades: Vec<f32>,
     /// CDLOD's tree, while it draws.
     cdlod: Option<CdlodPlanner>,
+    /// The warped mesh's split between rings and azimuths last frame, while it draws.
+    warp_split: Option<i32>,
     /// Per level, the lowest and highest height its clipmap holds (as drawn, not scaled).
     ranges: Vec<Option<(f32, f32)>>,
 }
@@ -285,6 +292,7 @@ impl FramePlanner {
             options: DrawOptions::default(),
             fades: vec![0.0; levels],
             cdlod: None,
+            warp_split: None,
             ranges: vec![None; levels],
         }
     }
@@ -453,6 +461,7 @@ impl FramePlanner {
         };
         let frame = self.frame_uniform(&viewer, camera, (w, h), ground, colors.is_some(), stats);
         let cdlod = self.plan_cdlod(camera, (w, h), &frame, &mut stats);
+        let warp = self.plan_warp(camera, (w, h), &frame, &mut stats);
         FramePlan {
             uploads,
             tasks: Vec::new(),
@@ -461,6 +470,7 @@ impl FramePlanner {
             stats,
             ground,
             cdlod,
+            warp,
         }
     }
 
@@ -502,6 +512,53 @@ impl FramePlanner {
         stats.leaves = f.stats.leaves;
         stats.culled_horizon = f.stats.culled_horizon;
         stats.culled_frustum = f.stats.culled_frustum;
+        Some(f)
+    }
+
+    /// With [`Geometry::Warp`], the mesh warped for this frame (its triangles into `stats`).
+    /// Its importance is bounded (the paper's I_s) by the texels of the clipmap level whose
+    /// heights the mesh carries at each arc (as `mesh_height` picks it): vertices closer than
+    /// those texels add nothing.
+    fn plan_warp(
+        &mut self,
+        camera: &Camera,
+        size: (u32, u32),
+        frame: &FrameUniform,
+        stats: &mut FrameStats,
+    ) -> Option<WarpFrame> {
+        let Geometry::Warp(spec) = self.options.geometry else {
+            self.warp_split = None;
+            return None;
+        };
+        let k = self.options.exaggeration;
+        let (lo, hi) = (stats.level_lo, stats.level_hi);
+        let ground = f64::from(frame.cam_height) - camera.alt;
+        let (low, high) = (lo..=hi)
+            .filter_map(|i| self.ranges[i as usize])
+            .fold((ground, ground), |(a, b), (l, h)| {
+                (a.min(f64::from(l) * k), b.max(f64::from(h) * k))
+            });
+        let texels = |theta: f64| {
+            let ring = (std::f64::consts::FRAC_PI_2 / theta.max(1e-30))
+                .log2()
+                .floor()
+                .clamp(0.0, 25.0) as u32;
+            let lv = ring.clamp(lo, hi).max(lo + 1) - 1;
+            f64::from(self.level_uniforms[lv as usize].texels_per_rad[1])
+        };
+        let f = crate::warp::plan(
+            spec,
+            camera,
+            size,
+            self.radius,
+            f64::from(frame.cam_height),
+            ground,
+            (low, high),
+            texels,
+            self.warp_split,
+        );
+        self.warp_split = Some(f.mesh.split);
+        stats.triangles = f.triangles();
         Some(f)
     }
 
@@ -814,6 +871,7 @@ impl FramePlanner {
             stats,
         );
         let cdlod = self.plan_cdlod(camera, (w, h), &frame, &mut stats);
+        let warp = self.plan_warp(camera, (w, h), &frame, &mut stats);
         FramePlan {
             uploads,
             tasks: self.last_tasks.clone(),
@@ -822,6 +880,7 @@ impl FramePlanner {
             stats,
             ground,
             cdlod,
+            warp,
         }
     }
 }

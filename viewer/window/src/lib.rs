@@ -24,6 +24,7 @@ use sc_view_plan::frame::{DrawOptions, FrameStats, Geometry, StreamSources};
 use sc_view_plan::graph::{FilterHandle, FilterParams};
 use sc_view_plan::stream::Streamer;
 use sc_view_plan::sun::Sun;
+use sc_view_plan::warp::WarpSpec;
 
 /// How long a frame may spend updating clipmap levels before it draws what it has (Alg. 1).
 const UPDATE_BUDGET: std::time::Duration = std::time::Duration::from_millis(12);
@@ -391,11 +392,24 @@ impl App<'_> {
                     ui.horizontal(|ui| {
                         let cdlod = match options.geometry {
                             Geometry::Cdlod(spec) => spec,
-                            Geometry::Clipmap => CdlodSpec::default(),
+                            _ => CdlodSpec::default(),
+                        };
+                        let warp = match options.geometry {
+                            Geometry::Warp(spec) => spec,
+                            _ => WarpSpec::default(),
                         };
                         ui.radio_value(&mut options.geometry, Geometry::Clipmap, "clipmaps");
                         ui.radio_value(&mut options.geometry, Geometry::Cdlod(cdlod), "CDLOD");
+                        ui.radio_value(&mut options.geometry, Geometry::Warp(warp), "warp");
                     });
+                    if let Geometry::Warp(spec) = &mut options.geometry {
+                        let old = spec.mesh.ilog2();
+                        let mut bits = old;
+                        ui.add(egui::Slider::new(&mut bits, 6..=10).text("mesh: 2^n cells a side"));
+                        if bits != old {
+                            spec.mesh = 1 << bits;
+                        }
+                    }
                     if let Geometry::Cdlod(spec) = &mut options.geometry {
                         let mut bits = spec.bits();
                         ui.add(egui::Slider::new(&mut bits, 1..=4).text("patch: 2^n segments"));

@@ -139,7 +139,7 @@ pub fn clipmap_sources(
     }
 }
 
-/// The geometry `--renderer` (and CDLOD's options) ask for.
+/// The geometry `--renderer` (and CDLOD's or the warp's options) ask for.
 pub fn geometry(look: &crate::cli::LookArgs) -> Result<sc_view_plan::frame::Geometry> {
     Ok(match look.renderer {
         crate::cli::RendererKind::Clipmap => sc_view_plan::frame::Geometry::Clipmap,
@@ -151,6 +151,15 @@ pub fn geometry(look: &crate::cli::LookArgs) -> Result<sc_view_plan::frame::Geom
             spec.check()
                 .map_err(|e| anyhow::anyhow!("--cdlod-patch/--cdlod-pixels: {e}"))?;
             sc_view_plan::frame::Geometry::Cdlod(spec)
+        }
+        crate::cli::RendererKind::Warp => {
+            let spec = sc_view_plan::warp::WarpSpec {
+                mesh: look.warp_mesh,
+                importance: look.warp_importance,
+            }
+            .validate()
+            .map_err(|e| anyhow::anyhow!("--warp-mesh/--warp-importance: {e}"))?;
+            sc_view_plan::frame::Geometry::Warp(spec)
         }
     })
 }
