@@ -1,6 +1,6 @@
 //! The GPU side of the spherical-clipmap viewer, on wgpu and without a window: the clipmap pass
 //! that uploads and draws the frames `sc_view_plan` plans (with spherical clipmaps, CDLOD or a warped mesh),
-//! the headless renderer and its read-back, device setup, the map-transform and CDLOD probes,
+//! the headless renderer and its read-back, device setup, the map-transform, CDLOD and warp probes,
 //! measurements of drawn geometry from depth, and the WGSL of `shaders/`.
 
 pub mod atmosphere;
@@ -32,7 +32,14 @@ pub const WARP_WGSL: &str = concat!(
     include_str!("../../../shaders/map_transform.wgsl"),
     include_str!("../../../shaders/atmosphere_model.wgsl"),
     include_str!("../../../shaders/clipmap.wgsl"),
+    include_str!("../../../shaders/warp_geometry.wgsl"),
     include_str!("../../../shaders/warp.wgsl")
+);
+
+/// The WGSL of the warped mesh's geometry probe (a compute pass over its vertices).
+pub const WARP_PROBE_WGSL: &str = concat!(
+    include_str!("../../../shaders/warp_geometry.wgsl"),
+    include_str!("../../../shaders/warp_probe.wgsl")
 );
 
 /// The WGSL of the CDLOD geometry probe (a compute pass over patch vertices).

@@ -1,12 +1,14 @@
-//! Runs the shaders' map transform (`shaders/map_transform.wgsl`) and CDLOD's vertex placement
-//! (`shaders/cdlod_geometry.wgsl`) on the GPU over a list of vertices and reads the results
-//! back: what the precision tests compare with the twins.
+//! Runs the shaders' map transform (`shaders/map_transform.wgsl`), CDLOD's vertex placement
+//! (`shaders/cdlod_geometry.wgsl`) and the warped mesh's (`shaders/warp_geometry.wgsl`) on the
+//! GPU over a list of vertices and reads the results back: what the precision tests compare
+//! with the twins.
 
 use wgpu::util::DeviceExt;
 
 use crate::render::{RenderError, gpu_device, read_back};
 use sc_view_plan::cdlod::{CdlodUniform, LeafInstance};
 use sc_view_plan::transform::TransformUniforms;
+use sc_view_plan::warp::WarpFrame;
 
 /// A compute pass `probe` of one WGSL module on a device of its own: its inputs bound at 0..k
 /// in order, its output at k.
@@ -203,5 +205,48 @@ impl CdlodProbe {
         )?;
         let out: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&bytes);
         Ok(out.into_iter().map(|p| [p[0], p[1], p[2]]).collect())
+    }
+}
+
+/// A device with the warped mesh's geometry probe (`shaders/warp_probe.wgsl`): every vertex of a
+/// frame's mesh placed by the WGSL of the vertex stage, read back.
+#[derive(Debug)]
+pub struct WarpProbe {
+    probe: ComputeProbe,
+}
+
+impl WarpProbe {
+    /// Compiles the probe on the first adapter found.
+    pub fn new() -> Result<Self, RenderError> {
+        let probe = ComputeProbe::new("warp_probe.wgsl", crate::WARP_PROBE_WGSL)?;
+        Ok(Self { probe })
+    }
+
+    /// The adapter, in words.
+    pub fn adapter(&self) -> &str {
+        &self.probe.adapter
+    }
+
+    /// The attributes (px, py, 1 − cos θ̃) and seam flag of every vertex of `frame`'s mesh, in
+    /// the vertex stage's order (ring-major), computed by the GPU.
+    pub fn vertices(&self, frame: &WarpFrame) -> Result<Vec<[f32; 4]>, RenderError> {
+        let (rings, around) = frame.cells;
+        let n = (rings as usize + 1) * (around as usize + 1);
+        let groups = (n as u32).div_ceil(64);
+        let bytes = self.probe.run(
+            &[
+                (
+                    bytemuck::cast_slice(&[around, rings, 0, 0]),
+                    wgpu::BufferUsages::UNIFORM,
+                ),
+                (
+                    bytemuck::cast_slice(&frame.lines),
+                    wgpu::BufferUsages::STORAGE,
+                ),
+            ],
+            (n * 16) as u64,
+            (groups.min(65535), groups.div_ceil(65535)),
+        )?;
+        Ok(bytemuck::pod_collect_to_vec(&bytes))
     }
 }

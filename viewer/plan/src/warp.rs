@@ -18,8 +18,9 @@
 //! which cannot fold (both lines are strictly increasing). The paper warps every row by its own
 //! importance; on a planar square map (this module's first form) that folded cells on a low
 //! oblique view, because adjacent columns then blend different rows. The m² pass of §3.4 — the
-//! warp at the mesh's resolution — is the vertex stage (`shaders/warp.wgsl`): it forms each
-//! vertex from its ring and its azimuth; [`WarpFrame::vertex`] is its CPU twin.
+//! warp at the mesh's resolution — is the vertex stage (`shaders/warp_geometry.wgsl`, drawn by
+//! `shaders/warp.wgsl`): it forms each vertex from its ring and its azimuth;
+//! [`WarpFrame::vertex`] is its CPU twin.
 
 use glam::DVec3;
 
@@ -420,7 +421,7 @@ pub struct WarpFrame {
 impl WarpFrame {
     /// The vertex stage's point of vertex (ring i, azimuth j): the attributes (sin θ̃ cos ψ,
     /// sin θ̃ sin ψ, 1 − cos θ̃) and the seam flag, in f32, operation for operation as
-    /// `warp_vs`.
+    /// `warp_point` (the GPU gives the same bits: `viewer/gpu/tests/warp.rs`).
     pub fn vertex(&self, i: usize, j: usize) -> ([f32; 3], f32) {
         let ring = self.lines[i];
         let col = self.lines[self.cells.0 as usize + 1 + j];
