@@ -41,10 +41,12 @@ fn atmosphere_wgsl_validates() {
 }
 
 #[test]
-fn cdlod_wgsl_validates() {
+fn cdlod_and_warp_wgsl_validate() {
     for (src, entries) in [
         (sc_view_gpu::CDLOD_WGSL, &["cdlod_vs", "fs_main"][..]),
         (sc_view_gpu::CDLOD_PROBE_WGSL, &["probe"][..]),
+        (sc_view_gpu::WARP_WGSL, &["warp_vs", "fs_main"][..]),
+        (sc_view_gpu::WARP_PROBE_WGSL, &["probe"][..]),
     ] {
         let module = naga::front::wgsl::parse_str(src)
             .unwrap_or_else(|e| panic!("{}", e.emit_to_string(src)));
