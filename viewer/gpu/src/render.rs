@@ -121,15 +121,15 @@ impl CdlodResources {
         }
         queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&frame.uniform));
         let bytes: &[u8] = bytemuck::cast_slice(&frame.leaves);
-        let need = (bytes.len() as u64).max(64).next_power_of_two();
-        if self.instances.as_ref().is_none_or(|b| b.1 < need) {
-            let buf = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("cdlod leaves"),
-                size: need,
-                usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
-            self.instances = Some((buf, need));
+        let held = self.instances.as_ref().map(|b| b.1);
+        if let Some(b) = grown(
+            device,
+            held,
+            bytes.len(),
+            "cdlod leaves",
+            wgpu::BufferUsages::VERTEX,
+        ) {
+            self.instances = Some(b);
         }
         if let Some((buf, _)) = &self.instances
             && !bytes.is_empty()
@@ -138,6 +138,41 @@ impl CdlodResources {
         }
         self.leaves = Some(frame.leaves.len() as u32);
     }
+}
+
+/// A buffer the vertex stage reads at `binding`.
+fn vertex_buffer_entry(binding: u32, ty: wgpu::BufferBindingType) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::VERTEX,
+        ty: wgpu::BindingType::Buffer {
+            ty,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+/// A new buffer for `usage` and writes when one of `held` bytes cannot take `len` (its size a
+/// power of two, at least 64 bytes, so that a growing list is reallocated rarely), with its size.
+fn grown(
+    device: &wgpu::Device,
+    held: Option<u64>,
+    len: usize,
+    label: &str,
+    usage: wgpu::BufferUsages,
+) -> Option<(wgpu::Buffer, u64)> {
+    let size = (len as u64).max(64).next_power_of_two();
+    held.is_none_or(|h| h < size).then(|| {
+        let buf = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size,
+            usage: usage | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        (buf, size)
+    })
 }
 
 /// The warped mesh's pipelines, its index buffer (made for the mesh size asked for), and the
@@ -175,14 +210,14 @@ impl WarpResources {
             bytemuck::cast_slice(&[around, rings, 0, 0]),
         );
         let bytes: &[u8] = bytemuck::cast_slice(&frame.lines);
-        let need = (bytes.len() as u64).max(64).next_power_of_two();
-        if self.lines.as_ref().is_none_or(|b| b.1 < need) {
-            let buf = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("warp lines"),
-                size: need,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
+        let held = self.lines.as_ref().map(|b| b.1);
+        if let Some((buf, size)) = grown(
+            device,
+            held,
+            bytes.len(),
+            "warp lines",
+            wgpu::BufferUsages::STORAGE,
+        ) {
             let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("warp"),
                 layout: &self.layout,
@@ -197,7 +232,7 @@ impl WarpResources {
                     },
                 ],
             });
-            self.lines = Some((buf, need, bind));
+            self.lines = Some((buf, size, bind));
         }
         if let Some((buf, _, _)) = &self.lines {
             queue.write_buffer(buf, 0, bytes);
@@ -439,16 +474,7 @@ impl ClipmapPass {
         atmosphere.disable(queue);
         let cdlod_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("cdlod"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::VERTEX,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                count: None,
-            }],
+            entries: &[vertex_buffer_entry(0, wgpu::BufferBindingType::Uniform)],
         });
         let cdlod_uniform = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("cdlod"),
@@ -467,26 +493,8 @@ impl ClipmapPass {
         let warp_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("warp"),
             entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::VERTEX,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 1,
-                    visibility: wgpu::ShaderStages::VERTEX,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Storage { read_only: true },
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
+                vertex_buffer_entry(0, wgpu::BufferBindingType::Uniform),
+                vertex_buffer_entry(1, wgpu::BufferBindingType::Storage { read_only: true }),
             ],
         });
         let warp_uniform = device.create_buffer(&wgpu::BufferDescriptor {

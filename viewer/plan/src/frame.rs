@@ -490,14 +490,8 @@ impl FramePlanner {
             Some(p) if p.spec == spec => p,
             slot => slot.insert(CdlodPlanner::new(spec)),
         };
-        let k = self.options.exaggeration;
         let (lo, hi) = (stats.level_lo, stats.level_hi);
-        let bounds: Vec<Option<(f64, f64)>> = (0..self.ranges.len() as u32)
-            .map(|i| {
-                let r = self.ranges[i as usize].filter(|_| (lo..=hi).contains(&i))?;
-                Some((f64::from(r.0) * k, f64::from(r.1) * k))
-            })
-            .collect();
+        let bounds = drawn_ranges(&self.ranges, (lo, hi), self.options.exaggeration);
         let f = planner.plan(
             camera,
             size,
@@ -530,14 +524,12 @@ impl FramePlanner {
             self.warp_split = None;
             return None;
         };
-        let k = self.options.exaggeration;
         let (lo, hi) = (stats.level_lo, stats.level_hi);
         let ground = f64::from(frame.cam_height) - camera.alt;
-        let (low, high) = (lo..=hi)
-            .filter_map(|i| self.ranges[i as usize])
-            .fold((ground, ground), |(a, b), (l, h)| {
-                (a.min(f64::from(l) * k), b.max(f64::from(h) * k))
-            });
+        let (low, high) = drawn_ranges(&self.ranges, (lo, hi), self.options.exaggeration)
+            .into_iter()
+            .flatten()
+            .fold((ground, ground), |(a, b), (l, h)| (a.min(l), b.max(h)));
         let texels = |theta: f64| {
             let ring = (std::f64::consts::FRAC_PI_2 / theta.max(1e-30))
                 .log2()
@@ -883,6 +875,21 @@ impl FramePlanner {
             warp,
         }
     }
+}
+
+/// Per level, the lowest and highest height its clipmap holds, scaled by `k`, for the levels
+/// `lo..=hi` drawn (None for the others and for levels holding nothing yet).
+fn drawn_ranges(
+    ranges: &[Option<(f32, f32)>],
+    (lo, hi): (u32, u32),
+    k: f64,
+) -> Vec<Option<(f64, f64)>> {
+    (0..ranges.len() as u32)
+        .map(|i| {
+            let r = ranges[i as usize].filter(|_| (lo..=hi).contains(&i))?;
+            Some((f64::from(r.0) * k, f64::from(r.1) * k))
+        })
+        .collect()
 }
 
 /// Which of [`FramePlanner`]'s `held` lists a layer's clipmap is.
