@@ -793,8 +793,9 @@ impl ClipmapPass {
         );
     }
 
-    /// Records the draw of the last prepared frame into `pass`: the rings of the visible levels,
-    /// then the fill disc closing the finest one.
+    /// Records the draw of the last prepared frame into `pass`: the fill disc closing the finest
+    /// visible level, then the rings of the visible levels from the finest outwards (near ground
+    /// first, so that the depth test spares the shading of far ground it hides).
     pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>) {
         let (lo, hi) = (self.last.level_lo as usize, self.last.level_hi as usize);
         pass.set_bind_group(0, &self.bind, &[]);
@@ -833,13 +834,14 @@ impl ClipmapPass {
             pass.set_pipeline(pipeline);
             pass.set_vertex_buffer(0, self.vertices.slice(..));
             pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
+            // nearest first: the fill disc, then the rings from the finest level outwards
+            let hemi = self.planner.hemisphere();
+            pass.draw_indexed(hemi.fill_ranges[hi].clone(), 0, 0..1);
             pass.draw_indexed(
-                self.planner.hemisphere().level_ranges[lo].start
-                    ..self.planner.hemisphere().level_ranges[hi].end,
+                hemi.level_ranges[hi].start..hemi.level_ranges[lo].end,
                 0,
                 0..1,
             );
-            pass.draw_indexed(self.planner.hemisphere().fill_ranges[hi].clone(), 0, 0..1);
         }
         if self.options.atmosphere.is_some() {
             pass.set_pipeline(&self.sky);

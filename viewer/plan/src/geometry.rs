@@ -108,9 +108,11 @@ impl Hemisphere {
         // the viewer's own point, centre of the fill disc
         let centre = vertices.len() as u32;
         vertices.push(vertex(0.0, 0.0, 0.0, levels - 1));
-        // band r (between rings r and r+1) belongs to level r / m
+        // band r (between rings r and r+1) belongs to level r / m; bands are laid out from the
+        // innermost outwards, so that a draw of the finest levels first runs front to back
+        // (the depth test then spares the far ground's fragments that nearer ground hides)
         let mut indices = Vec::new();
-        for r in 0..rings.len() as u32 - 1 {
+        for r in (0..rings.len() as u32 - 1).rev() {
             for c in 0..n {
                 let a = r * cols + c;
                 let (b, d) = (a + 1, a + cols);
@@ -119,7 +121,7 @@ impl Hemisphere {
         }
         let per_level = m * n * 6;
         let level_ranges = (0..levels)
-            .map(|i| i * per_level..(i + 1) * per_level)
+            .map(|i| (levels - 1 - i) * per_level..(levels - i) * per_level)
             .collect();
         // per level, a fill disc: a fan from its inner ring (ring (i+1)·m) to the centre
         let mut fill_ranges = Vec::new();
@@ -182,9 +184,10 @@ mod tests {
         });
         assert_eq!(h.level_ranges.len(), 5);
         assert_eq!(h.fill_ranges.len(), 5);
-        // ranges tile the index buffer in order: the rings, then one fill disc per level
+        // ranges tile the index buffer in order: the rings from the finest level outwards, then
+        // one fill disc per level
         let mut at = 0;
-        for r in h.level_ranges.iter().chain(&h.fill_ranges) {
+        for r in h.level_ranges.iter().rev().chain(&h.fill_ranges) {
             assert_eq!(r.start, at);
             assert!(r.end > r.start);
             at = r.end;
@@ -197,6 +200,10 @@ mod tests {
             // the fan of level i closes the ring at its inner edge
             let ring = h.indices[h.fill_ranges[i].start as usize] as usize / 17;
             assert_eq!(ring, (i + 1) * 4);
+            // a level's first band is its innermost: drawn front to back
+            let band = |k: u32| h.indices[k as usize] as usize / 17;
+            assert_eq!(band(h.level_ranges[i].start), (i + 1) * 4 - 1, "level {i}");
+            assert_eq!(band(h.level_ranges[i].end - 6), i * 4, "level {i}");
         }
         // seam columns are the same point, flagged −1 and +1
         let cols = 17;
