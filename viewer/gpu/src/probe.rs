@@ -230,7 +230,7 @@ impl WarpProbe {
     /// The attributes (px, py, 1 − cos θ̃) and seam flag of every vertex of `frame`'s mesh, in
     /// the vertex stage's order (ring-major), computed by the GPU.
     pub fn vertices(&self, frame: &WarpFrame) -> Result<Vec<[f32; 4]>, RenderError> {
-        let (rings, around) = frame.cells;
+        let (rings, around) = frame.cells();
         let n = (rings as usize + 1) * (around as usize + 1);
         let groups = (n as u32).div_ceil(64);
         let bytes = self.probe.run(

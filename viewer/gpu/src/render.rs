@@ -194,16 +194,16 @@ struct WarpResources {
 impl WarpResources {
     /// Writes a frame's mesh size and lines (buffers made or grown as needed).
     fn upload(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, frame: &WarpFrame) {
-        if self.indices.as_ref().map(|p| p.0) != Some(frame.cells) {
-            let i = mesh_indices(frame.cells);
+        if self.indices.as_ref().map(|p| p.0) != Some(frame.cells()) {
+            let i = mesh_indices(frame.cells());
             let ib = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("warp mesh indices"),
                 contents: bytemuck::cast_slice(&i),
                 usage: wgpu::BufferUsages::INDEX,
             });
-            self.indices = Some((frame.cells, ib, i.len() as u32));
+            self.indices = Some((frame.cells(), ib, i.len() as u32));
         }
-        let (rings, around) = frame.cells;
+        let (rings, around) = frame.cells();
         queue.write_buffer(
             &self.uniform,
             0,
@@ -241,8 +241,8 @@ impl WarpResources {
     }
 }
 
-/// What distinguishes the two terrain pipelines (the hemisphere's and CDLOD's): both draw
-/// into the same targets with the same depth test and the clipmap fragment stage.
+/// What distinguishes the terrain pipelines (the hemisphere's, CDLOD's and the warped mesh's):
+/// all draw into the same targets with the same depth test and the clipmap fragment stage.
 struct TerrainStage<'a> {
     label: &'static str,
     layout: &'a wgpu::PipelineLayout,
@@ -793,6 +793,18 @@ impl ClipmapPass {
         );
     }
 
+    /// A geometry's wireframe pipeline when wireframes are asked for and drawn, else its fill.
+    fn pipeline_of<'a>(
+        &self,
+        fill: &'a wgpu::RenderPipeline,
+        wire: &'a Option<wgpu::RenderPipeline>,
+    ) -> &'a wgpu::RenderPipeline {
+        match (wire, self.options.wireframe) {
+            (Some(w), true) => w,
+            _ => fill,
+        }
+    }
+
     /// Records the draw of the last prepared frame into `pass`: the fill disc closing the finest
     /// visible level, then the rings of the visible levels from the finest outwards (near ground
     /// first, so that the depth test spares the shading of far ground it hides).
@@ -803,22 +815,14 @@ impl ClipmapPass {
         let c = &self.cdlod;
         let w = &self.warp;
         if let (true, Some((_, wi, count)), Some((_, _, bind))) = (w.drawn, &w.indices, &w.lines) {
-            let pipeline = match (&w.wire, self.options.wireframe) {
-                (Some(p), true) => p,
-                _ => &w.pipeline,
-            };
-            pass.set_pipeline(pipeline);
+            pass.set_pipeline(self.pipeline_of(&w.pipeline, &w.wire));
             pass.set_bind_group(2, bind, &[]);
             pass.set_index_buffer(wi.slice(..), wgpu::IndexFormat::Uint32);
             pass.draw_indexed(0..*count, 0, 0..1);
         } else if let (Some(leaves), Some((_, pv, pi, count)), Some((inst, _))) =
             (c.leaves, &c.patch, &c.instances)
         {
-            let pipeline = match (&c.wire, self.options.wireframe) {
-                (Some(w), true) => w,
-                _ => &c.pipeline,
-            };
-            pass.set_pipeline(pipeline);
+            pass.set_pipeline(self.pipeline_of(&c.pipeline, &c.wire));
             pass.set_bind_group(2, &c.bind, &[]);
             pass.set_vertex_buffer(0, pv.slice(..));
             pass.set_vertex_buffer(1, inst.slice(..));
@@ -827,11 +831,7 @@ impl ClipmapPass {
                 pass.draw_indexed(0..*count, 0, 0..leaves);
             }
         } else {
-            let pipeline = match (&self.wire, self.options.wireframe) {
-                (Some(w), true) => w,
-                _ => &self.pipeline,
-            };
-            pass.set_pipeline(pipeline);
+            pass.set_pipeline(self.pipeline_of(&self.pipeline, &self.wire));
             pass.set_vertex_buffer(0, self.vertices.slice(..));
             pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
             // nearest first: the fill disc, then the rings from the finest level outwards

@@ -56,7 +56,7 @@ fn the_gpu_places_every_vertex_where_the_twin_does() {
             None,
         );
         let gpu = probe.vertices(&f).expect("probe");
-        let (rings, around) = (f.cells.0 as usize, f.cells.1 as usize);
+        let (rings, around) = f.mesh.cells();
         assert_eq!(gpu.len(), (rings + 1) * (around + 1), "{cam}");
         for i in 0..=rings {
             for j in 0..=around {

@@ -410,11 +410,9 @@ impl WarpMesh {
 /// The warped mesh of one frame as the GPU takes it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct WarpFrame {
-    /// Cells along a line of azimuth and along a ring.
-    pub cells: (u32, u32),
     /// [`WarpMesh::lines`].
     pub lines: Vec<[f32; 4]>,
-    /// The mesh (for measurements).
+    /// The mesh the lines were made from (its size, and for measurements).
     pub mesh: WarpMesh,
 }
 
@@ -424,13 +422,20 @@ impl WarpFrame {
     /// `warp_point` (the GPU gives the same bits: `viewer/gpu/tests/warp.rs`).
     pub fn vertex(&self, i: usize, j: usize) -> ([f32; 3], f32) {
         let ring = self.lines[i];
-        let col = self.lines[self.cells.0 as usize + 1 + j];
+        let col = self.lines[self.mesh.rings.len() + j];
         ([ring[0] * col[0], ring[0] * col[1], ring[1]], col[2])
     }
 
     /// Triangles drawn.
     pub fn triangles(&self) -> u32 {
-        2 * self.cells.0 * self.cells.1
+        let (r, a) = self.cells();
+        2 * r * a
+    }
+
+    /// Cells along a line of azimuth and along a ring.
+    pub fn cells(&self) -> (u32, u32) {
+        let (r, a) = self.mesh.cells();
+        (r as u32, a as u32)
     }
 }
 
@@ -482,9 +487,7 @@ pub fn plan(
     let n = spec.importance as usize;
     let imp = importance(&map, n, &view, texels);
     let mesh = warp(&map, n, &imp, spec.mesh as usize, params.floor, prev);
-    let (r, a) = mesh.cells();
     WarpFrame {
-        cells: (r as u32, a as u32),
         lines: mesh.lines(),
         mesh,
     }
