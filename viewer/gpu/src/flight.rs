@@ -66,6 +66,9 @@ pub struct Stats {
     pub altitudes: Vec<Altitude>,
 }
 
+/// Longest wait for a run's start view to fill before the run flies anyway.
+const SETTLE: Duration = Duration::from_secs(20);
+
 fn pcts(v: &[f64]) -> [f64; 3] {
     [percentile(v, 0.5), percentile(v, 0.95), percentile(v, 0.99)]
 }
@@ -91,8 +94,10 @@ pub fn fly(
         camera.alt = alt;
         let mut runs = Vec::new();
         for &speed in &flight.speeds {
-            // settle at the run's start (not counted): the run measures keeping up, not filling
-            for _ in 0..200 {
+            // settle at the run's start (not counted): the run measures keeping up, not filling.
+            // Bounded in time, not frames: a GPU draws 200 frames while a tile is made
+            let settle = Instant::now();
+            while settle.elapsed() < SETTLE {
                 let (_, s, _) = r.render_streamed(streamer, sources, &camera, None)?;
                 if s.level_hi == s.level_wanted && streamer.idle() {
                     break;

@@ -13,7 +13,8 @@ use sc_view_plan::camera::Camera;
 use sc_view_plan::cdlod::{CdlodFrame, CdlodUniform, LeafInstance, patch_mesh};
 use sc_view_plan::clipmap::{CLIPMAP_N, COLOR_N, ColorSource, HeightSource, Region};
 use sc_view_plan::frame::{
-    DrawOptions, FramePlan, FramePlanner, FrameStats, FrameUniform, LevelUniform, StreamSources,
+    DrawOptions, FrameClock, FramePlan, FramePlanner, FrameStats, FrameUniform, LevelUniform,
+    StreamSources,
 };
 use sc_view_plan::geometry::HemisphereSpec;
 use sc_view_plan::stream::Streamer;
@@ -704,13 +705,13 @@ impl ClipmapPass {
         sources: StreamSources,
         camera: &Camera,
         size: (u32, u32),
-        deadline: Option<Instant>,
+        clock: FrameClock,
         wait: Duration,
     ) -> (f64, FrameStats) {
         self.planner.options = self.options;
         let plan = self
             .planner
-            .plan_streamed(streamer, sources, camera, size, deadline, wait);
+            .plan_streamed(streamer, sources, camera, size, clock, wait);
         self.size = size;
         self.upload(&plan);
         (plan.ground, plan.stats)
@@ -1156,7 +1157,10 @@ impl Renderer {
             sources,
             camera,
             self.size,
-            deadline,
+            FrameClock {
+                now: start,
+                deadline,
+            },
             Duration::from_secs(10),
         );
         self.ground = ground;

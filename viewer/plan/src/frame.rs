@@ -174,12 +174,40 @@ impl Default for DrawOptions {
     }
 }
 
-/// Levels finer than those drawn are prefetched only while the camera takes at least this many
-/// frames to cross their window.
-const PREFETCH_FINER_FRAMES: f64 = 10.0;
+/// Levels finer than those drawn are prefetched only while the camera takes at least this long
+/// to cross their window, seconds.
+const PREFETCH_FINER_S: f64 = 0.5;
 
-/// How far ahead along its motion the viewer's path is prefetched, frames.
-const LOOKAHEAD_FRAMES: f64 = 30.0;
+/// How far ahead along its motion the viewer's path is prefetched, seconds. In seconds, not
+/// frames: a tile takes the same time to make however fast the adapter draws (30 frames were
+/// 1.5 s ahead on the CPU adapter but 30 ms on a GPU drawing 1000 frames a second, too late
+/// for any tile).
+const LOOKAHEAD_S: f64 = 2.0;
+
+/// Seconds as whole milliseconds (rounded up): how soon a prefetched tile is needed.
+fn ms(seconds: f64) -> u32 {
+    (seconds * 1e3).ceil() as u32
+}
+
+/// When a streamed frame is planned: the viewer's motion is measured per second between frames
+/// (the path ahead is prefetched by time), and no level is updated past the deadline.
+#[derive(Debug, Clone, Copy)]
+pub struct FrameClock {
+    /// The moment the frame's camera stands for.
+    pub now: Instant,
+    /// No level is updated after this (Alg. 1's update budget); `None`: every ready level is.
+    pub deadline: Option<Instant>,
+}
+
+impl FrameClock {
+    /// Now, with no deadline.
+    pub fn now() -> Self {
+        Self {
+            now: Instant::now(),
+            deadline: None,
+        }
+    }
+}
 
 /// Most quads prefetched along the path per level (at half-window steps: four windows ahead).
 const LOOKAHEAD_QUADS: u32 = 8;
@@ -255,8 +283,8 @@ pub struct FramePlanner {
     radius: f64,
     /// The tasks last posted to a streamer (posted again only when they change).
     last_tasks: Vec<Task>,
-    /// Where the viewer was last frame (to prefetch along its motion).
-    prev_viewer: Option<Viewer>,
+    /// Where the viewer was last frame, and when (to prefetch along its motion).
+    prev_viewer: Option<(Viewer, Instant)>,
     /// The ground under the camera last frame, metres.
     ground_prev: f64,
     /// Per height tile seen lately, its highest height and largest step between neighbouring
@@ -591,7 +619,7 @@ impl FramePlanner {
     /// threads: posts the tiles of the visible levels' quads (and, as prefetch, of the next finer
     /// level) when the focus moved, prunes the cache, then goes through the levels coarse to
     /// fine, updating each from its quad; a level whose tiles are not ready (or failed) is not
-    /// waited for — the previous level is drawn as a full disc — and past `deadline` no further
+    /// waited for — the previous level is drawn as a full disc — and past `clock`'s deadline no further
     /// level is updated. Only the coarsest visible level is waited for (up to `wait`), so that
     /// something shows. Returns the ground height under the camera and what the frame draws.
     pub fn plan_streamed(
@@ -600,7 +628,7 @@ impl FramePlanner {
         sources: StreamSources,
         camera: &Camera,
         (w, h): (u32, u32),
-        deadline: Option<Instant>,
+        clock: FrameClock,
         wait: Duration,
     ) -> FramePlan {
         let n = CLIPMAP_N;
@@ -644,27 +672,34 @@ impl FramePlanner {
             (lo, sharpest),
             |i| rises[(i - lo) as usize],
         );
-        // the motion since the last frame (radians of longitude and colatitude, and of arc)
-        let motion = self.prev_viewer.map(|prev| {
+        // the motion since the last frame, per second (radians of longitude and colatitude,
+        // and of arc)
+        let motion = self.prev_viewer.map(|(prev, then)| {
+            let dt = clock
+                .now
+                .saturating_duration_since(then)
+                .as_secs_f64()
+                .max(1e-3);
             let dlon = (viewer.lon_rad - prev.lon_rad + PI).rem_euclid(2.0 * PI) - PI;
             let dcolat = viewer.colat_rad - prev.colat_rad;
-            (dlon, dcolat, dcolat.hypot(dlon * viewer.colat_rad.sin()))
+            let arc = dcolat.hypot(dlon * viewer.colat_rad.sin());
+            (dlon / dt, dcolat / dt, arc / dt)
         });
         // 1. the tasks of this focus: the visible levels; as prefetch, the level just out of
         // view (terrain ahead may lift its ground into view any frame), and the finer ones (out
         // of view, or the next finer) whose window the camera does not cross within
-        // `PREFETCH_FINER_FRAMES` frames (tiles a fast camera would leave before tilting down
-        // to them would only delay the visible ones)
+        // `PREFETCH_FINER_S` (tiles a fast camera would leave before tilting down to them would
+        // only delay the visible ones)
         let mut tasks = Vec::new();
         let mut focus = Focus::new();
-        let step = motion.map_or(0.0, |m| m.2);
+        let speed = motion.map_or(0.0, |m| m.2);
         let edge = if wanted < sharpest {
             wanted + 1
         } else {
             wanted
         };
         for (k, &(i, ..)) in windows.iter().enumerate() {
-            let crossed_slowly = step * PREFETCH_FINER_FRAMES < 2.0 * level_outer(i);
+            let crossed_slowly = speed * PREFETCH_FINER_S < 2.0 * level_outer(i);
             for &(layer, src) in &layers {
                 let (p, grid) = placed(k, layer);
                 let quad = window_keys(src, grid, &p);
@@ -676,31 +711,31 @@ impl FramePlanner {
                     // needed only when the camera tilts down or descends
                     tasks.extend(
                         quad.iter()
-                            .map(|&k| Task::prefetch(k, PREFETCH_FINER_FRAMES as u32)),
+                            .map(|&k| Task::prefetch(k, ms(PREFETCH_FINER_S))),
                     );
                 }
                 focus.insert((src, grid), (quad[0].x, quad[0].y));
             }
         }
         // prefetch along the motion: the quads where the viewer will be if it keeps going, every
-        // half window up to `LOOKAHEAD_FRAMES` ahead (so every quad a level's window passes
-        // through is made before it gets there), and the one at the horizon
-        if let Some((dlon, dcolat, step)) = motion
-            && step > 0.0
+        // half window up to `LOOKAHEAD_S` ahead (so every quad a level's window passes through
+        // is made before it gets there), and the one at the horizon
+        if let Some((dlon, dcolat, speed)) = motion
+            && speed > 0.0
         {
             for i in lo..=edge {
-                let spacing = level_outer(i) / step; // frames per half window
-                let mut frames: Vec<f64> = (1..=LOOKAHEAD_QUADS)
+                let spacing = level_outer(i) / speed; // seconds per half window
+                let mut times: Vec<f64> = (1..=LOOKAHEAD_QUADS)
                     .map(|k| f64::from(k) * spacing)
-                    .take_while(|&f| f < LOOKAHEAD_FRAMES)
+                    .take_while(|&t| t < LOOKAHEAD_S)
                     .collect();
-                if frames.len() < LOOKAHEAD_QUADS as usize {
-                    frames.push(LOOKAHEAD_FRAMES);
+                if times.len() < LOOKAHEAD_QUADS as usize {
+                    times.push(LOOKAHEAD_S);
                 }
-                for f in frames {
+                for t in times {
                     let ahead = Viewer {
-                        lon_rad: viewer.lon_rad + dlon * f,
-                        colat_rad: (viewer.colat_rad + dcolat * f).clamp(1e-9, PI - 1e-9),
+                        lon_rad: viewer.lon_rad + dlon * t,
+                        colat_rad: (viewer.colat_rad + dcolat * t).clamp(1e-9, PI - 1e-9),
                     };
                     for &(layer, src) in &layers {
                         let (p, grid) = match layer {
@@ -708,13 +743,13 @@ impl FramePlanner {
                             LayerKind::Color => color_window(i, &ahead, self.color_n, lo),
                         };
                         for key in window_keys(src, grid, &p) {
-                            tasks.push(Task::prefetch(key, f.ceil() as u32));
+                            tasks.push(Task::prefetch(key, ms(t).max(2)));
                         }
                     }
                 }
             }
         }
-        self.prev_viewer = Some(viewer);
+        self.prev_viewer = Some((viewer, clock.now));
         if tasks != self.last_tasks {
             streamer.request(tasks.clone());
             self.last_tasks = tasks;
@@ -776,7 +811,7 @@ impl FramePlanner {
             }
             self.ranges[i as usize] = range.filter(|r| r.0 <= r.1);
             drawn = Some((i, p, quad));
-            if deadline.is_some_and(|d| Instant::now() >= d) {
+            if clock.deadline.is_some_and(|d| Instant::now() >= d) {
                 break;
             }
         }

@@ -671,7 +671,8 @@ pub struct Task {
     pub key: TileKey,
     /// False: a level being drawn needs it.
     pub prefetch: bool,
-    /// Frames until the viewer is expected to need it (0: now).
+    /// Milliseconds until the viewer is expected to need it (0: now; 1: the level just out of
+    /// view, which terrain may lift into view any frame).
     pub ahead: u32,
 }
 
@@ -685,7 +686,7 @@ impl Task {
         }
     }
 
-    /// A tile expected to be needed in `ahead` frames.
+    /// A tile expected to be needed in `ahead` milliseconds.
     pub fn prefetch(key: TileKey, ahead: u32) -> Self {
         Self {
             key,

@@ -3,13 +3,14 @@
 //! next finer as prefetch, the path ahead of a moving camera; every region of a level once and
 //! nothing again while the camera stands still; the coarser level kept when a finer one fails.
 
-use std::time::Duration;
+use std::collections::BTreeMap;
+use std::time::{Duration, Instant};
 
 use sc_store::LayerKind;
 use sc_view_plan::camera::Camera;
 use sc_view_plan::clipmap::{CLIPMAP_N, COLOR_N};
-use sc_view_plan::frame::{FramePlan, FramePlanner, StreamSources};
-use sc_view_plan::stream::{FnColorTiles, FnHeightTiles, Streamer, Task, TileSource};
+use sc_view_plan::frame::{FrameClock, FramePlan, FramePlanner, StreamSources};
+use sc_view_plan::stream::{FnColorTiles, FnHeightTiles, GridId, Streamer, Task, TileSource};
 
 mod support;
 use support::FailsBelow;
@@ -60,7 +61,15 @@ fn settle(s: &Streamer, f: &FramePlan) {
 }
 
 fn plan(p: &mut FramePlanner, s: &Streamer, camera: &Camera) -> FramePlan {
-    p.plan_streamed(s, SOURCES, camera, SIZE, None, Duration::from_secs(20))
+    plan_at(p, s, camera, Instant::now())
+}
+
+fn plan_at(p: &mut FramePlanner, s: &Streamer, camera: &Camera, now: Instant) -> FramePlan {
+    let clock = FrameClock {
+        now,
+        deadline: None,
+    };
+    p.plan_streamed(s, SOURCES, camera, SIZE, clock, Duration::from_secs(20))
 }
 
 /// Frames until the plan draws every level it wants and the workers are idle.
@@ -199,10 +208,12 @@ fn a_moving_camera_prefetches_its_path_and_refills_only_what_moved() {
     let mut p = FramePlanner::new(R);
     let mut camera = Camera::parse("10,20,20000,90,-30,60").expect("camera");
     let first = converge(&mut p, &s, &camera);
-    // east by 2 km a frame
+    // east by 2 km in a frame of 1/15 s (30 km/s: 60 km within the 2 s looked ahead)
+    let then = Instant::now();
+    plan_at(&mut p, &s, &camera, then);
     camera.lon_deg +=
         2000.0 / (R * camera.lat_deg.to_radians().cos()) * 180.0 / std::f64::consts::PI;
-    let f = plan(&mut p, &s, &camera);
+    let f = plan_at(&mut p, &s, &camera, then + Duration::from_secs(1) / 15);
     let path: Vec<&Task> = f.tasks.iter().filter(|t| t.ahead > 1).collect();
     assert!(!path.is_empty(), "no prefetch along the path");
     // ahead: further east in the tiles of each level than the quads drawn now
@@ -224,6 +235,55 @@ fn a_moving_camera_prefetches_its_path_and_refills_only_what_moved() {
         "{area}"
     );
     assert_eq!(first.stats.level_lo, f.stats.level_lo);
+}
+
+/// Per source and grid, the easternmost tile column a frame asks for (of all its tasks, and of
+/// those drawn now), when the camera of `a_moving_camera…` flies east at 30 km/s and this frame
+/// comes `dt` after the last.
+type Easternmost = BTreeMap<(u32, GridId), i64>;
+
+fn easternmost_at_30_km_s(dt: Duration) -> (Easternmost, Easternmost) {
+    let s = streamer(Box::new(FnHeightTiles(mountains)));
+    let mut p = FramePlanner::new(R);
+    let mut camera = Camera::parse("10,20,20000,90,-30,60").expect("camera");
+    converge(&mut p, &s, &camera);
+    let then = Instant::now();
+    plan_at(&mut p, &s, &camera, then);
+    camera.lon_deg += 30_000.0 * dt.as_secs_f64() / (R * camera.lat_deg.to_radians().cos()) * 180.0
+        / std::f64::consts::PI;
+    let f = plan_at(&mut p, &s, &camera, then + dt);
+    let (mut all, mut now) = (BTreeMap::new(), BTreeMap::new());
+    for t in &f.tasks {
+        let east = |m: &mut Easternmost| {
+            let x = m.entry((t.key.source, t.key.grid)).or_insert(t.key.x);
+            *x = (*x).max(t.key.x);
+        };
+        east(&mut all);
+        if !t.prefetch {
+            east(&mut now);
+        }
+    }
+    (all, now)
+}
+
+#[test]
+fn the_path_ahead_is_prefetched_by_time_not_frames() {
+    // a tile takes as long to make whatever the frame rate: drawn at 1000 or at 20 frames a
+    // second, the same flight asks for the same path ahead (to within a tile: the cameras stand
+    // 1.5 km apart)
+    let (fast, fast_now) = easternmost_at_30_km_s(Duration::from_millis(1));
+    let (slow, _) = easternmost_at_30_km_s(Duration::from_millis(50));
+    assert_eq!(
+        fast.keys().collect::<Vec<_>>(),
+        slow.keys().collect::<Vec<_>>()
+    );
+    for (g, x) in &fast {
+        assert!((x - slow[g]).abs() <= 1, "{g:?}: {x} against {}", slow[g]);
+    }
+    // and at 1000 frames a second that path runs east of the tiles drawn now (30 frames ahead
+    // were 900 m, inside the windows drawn)
+    let beyond = fast_now.iter().filter(|&(g, x)| fast[g] > *x).count();
+    assert!(beyond >= 2, "{fast:?}\n{fast_now:?}");
 }
 
 #[test]

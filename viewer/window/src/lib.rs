@@ -20,7 +20,7 @@ use sc_view_gpu::render::{
 };
 use sc_view_plan::camera::{Camera, CameraScript, Controller, Input, Mode};
 use sc_view_plan::cdlod::CdlodSpec;
-use sc_view_plan::frame::{DrawOptions, FrameStats, Geometry, StreamSources};
+use sc_view_plan::frame::{DrawOptions, FrameClock, FrameStats, Geometry, StreamSources};
 use sc_view_plan::graph::{FilterHandle, FilterParams};
 use sc_view_plan::stream::Streamer;
 use sc_view_plan::sun::Sun;
@@ -310,7 +310,10 @@ impl App<'_> {
             self.sources,
             &camera,
             (w, h),
-            Some(cpu_start + UPDATE_BUDGET),
+            FrameClock {
+                now: cpu_start,
+                deadline: Some(cpu_start + UPDATE_BUDGET),
+            },
             std::time::Duration::from_secs(10),
         );
         self.report.last = stats;
