@@ -318,6 +318,11 @@ pub struct RenderArgs {
     /// With --flight: where to write the statistics (JSON).
     #[arg(long, requires = "flight")]
     pub stats: Option<std::path::PathBuf>,
+    /// With --flight: plan each frame and upload its tiles but draw nothing — the tile
+    /// streaming alone, as with a GPU that draws in no time (the CPU adapter otherwise takes
+    /// the cores the tile workers need).
+    #[arg(long, requires = "flight")]
+    pub no_draw: bool,
     /// Clear colour as R,G,B in 0..1 (e.g. 1,0,1 to see cracks).
     #[arg(long)]
     pub clear: Option<String>,

@@ -60,6 +60,8 @@ pub struct Stats {
     pub adapter: String,
     /// Image size.
     pub size: [u32; 2],
+    /// False: frames were planned and their tiles uploaded but not drawn (`--no-draw`).
+    pub drawn: bool,
     /// Worker threads making tiles.
     pub workers: usize,
     /// Per altitude.
@@ -116,8 +118,14 @@ pub fn fly(
                 prev = now;
                 let heading = camera.heading;
                 move_along(&mut camera, heading, v * dt, radius);
-                let (_, s, cpu) =
-                    r.render_streamed(streamer, sources, &camera, Some(now + budget))?;
+                let (s, cpu) = if flight.draw {
+                    let (_, s, cpu) =
+                        r.render_streamed(streamer, sources, &camera, Some(now + budget))?;
+                    (s, cpu)
+                } else {
+                    let s = r.stream_only(streamer, sources, &camera, Some(now + budget));
+                    (s, now.elapsed().as_secs_f64())
+                };
                 frame_ms.push(now.elapsed().as_secs_f64() * 1e3);
                 cpu_ms.push(cpu * 1e3);
                 finest += usize::from(s.level_hi == s.level_wanted);
@@ -158,6 +166,7 @@ pub fn fly(
         store: store.to_string(),
         adapter: r.adapter.clone(),
         size: [w, h],
+        drawn: flight.draw,
         workers,
         altitudes,
     })

@@ -1167,6 +1167,30 @@ impl Renderer {
         self.draw_and_read(stats, start)
     }
 
+    /// Plans a streamed frame from `camera` and writes its uploads to the clipmaps, but draws
+    /// nothing: the streaming alone, as with an adapter that draws in no time. Returns what the
+    /// frame would draw.
+    pub fn stream_only(
+        &mut self,
+        streamer: &Streamer,
+        sources: StreamSources,
+        camera: &Camera,
+        deadline: Option<Instant>,
+    ) -> FrameStats {
+        let now = Instant::now();
+        let (ground, stats) = self.pass.prepare_streamed(
+            streamer,
+            sources,
+            camera,
+            self.size,
+            FrameClock { now, deadline },
+            Duration::from_secs(10),
+        );
+        self.ground = ground;
+        self.queue.submit([]);
+        stats
+    }
+
     fn draw_and_read(
         &mut self,
         stats: FrameStats,

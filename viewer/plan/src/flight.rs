@@ -35,6 +35,10 @@ pub struct Flight {
     /// Milliseconds a frame may spend updating clipmap levels (Alg. 1's time limit).
     #[serde(default = "default_budget")]
     pub update_budget_ms: f64,
+    /// False: each frame is planned and its tiles uploaded but nothing is drawn — the streaming
+    /// alone, as with an adapter that draws in no time (`render --flight … --no-draw`).
+    #[serde(default = "default_draw")]
+    pub draw: bool,
 }
 
 fn default_heading() -> f64 {
@@ -51,6 +55,9 @@ fn default_seconds() -> f64 {
 }
 fn default_budget() -> f64 {
     12.0
+}
+fn default_draw() -> bool {
+    true
 }
 
 /// Reads and checks a flight file.

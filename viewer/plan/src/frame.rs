@@ -189,6 +189,12 @@ fn ms(seconds: f64) -> u32 {
     (seconds * 1e3).ceil() as u32
 }
 
+/// Rank of speculative prefetch (the level just out of view, which only rising terrain brings
+/// into view, and its path; then the finer levels, which only tilting down or descending does):
+/// after every tile the levels drawn need within `LOOKAHEAD_S`, so that a saturated worker makes
+/// what will certainly be drawn first, milliseconds.
+const SPECULATIVE_MS: u32 = (LOOKAHEAD_S * 1e3) as u32 + 1;
+
 /// When a streamed frame is planned: the viewer's motion is measured per second between frames
 /// (the path ahead is prefetched by time), and no level is updated past the deadline.
 #[derive(Debug, Clone, Copy)]
@@ -706,13 +712,10 @@ impl FramePlanner {
                 if i <= wanted {
                     tasks.extend(quad.iter().copied().map(Task::visible));
                 } else if i == edge {
-                    tasks.extend(quad.iter().map(|&k| Task::prefetch(k, 1)));
+                    tasks.extend(quad.iter().map(|&k| Task::prefetch(k, SPECULATIVE_MS)));
                 } else if crossed_slowly {
                     // needed only when the camera tilts down or descends
-                    tasks.extend(
-                        quad.iter()
-                            .map(|&k| Task::prefetch(k, ms(PREFETCH_FINER_S))),
-                    );
+                    tasks.extend(quad.iter().map(|&k| Task::prefetch(k, 3 * SPECULATIVE_MS)));
                 }
                 focus.insert((src, grid), (quad[0].x, quad[0].y));
             }
@@ -724,6 +727,7 @@ impl FramePlanner {
             && speed > 0.0
         {
             for i in lo..=edge {
+                let rank = if i > wanted { SPECULATIVE_MS } else { 0 };
                 let spacing = level_outer(i) / speed; // seconds per half window
                 let mut times: Vec<f64> = (1..=LOOKAHEAD_QUADS)
                     .map(|k| f64::from(k) * spacing)
@@ -743,7 +747,7 @@ impl FramePlanner {
                             LayerKind::Color => color_window(i, &ahead, self.color_n, lo),
                         };
                         for key in window_keys(src, grid, &p) {
-                            tasks.push(Task::prefetch(key, ms(t).max(2)));
+                            tasks.push(Task::prefetch(key, rank + ms(t).max(1)));
                         }
                     }
                 }

@@ -671,8 +671,8 @@ pub struct Task {
     pub key: TileKey,
     /// False: a level being drawn needs it.
     pub prefetch: bool,
-    /// Milliseconds until the viewer is expected to need it (0: now; 1: the level just out of
-    /// view, which terrain may lift into view any frame).
+    /// How soon it is needed, milliseconds: 0 now; a tile on the path of a level drawn, the
+    /// time until the viewer gets there; speculative tiles (levels not drawn) rank after those.
     pub ahead: u32,
 }
 
@@ -1020,9 +1020,23 @@ fn worker(shared: &Shared, rx: &Mutex<Receiver<Task>>) {
                     .unwrap_or_else(|| "unknown".into());
                 Err(TileError::Panicked(what))
             });
+        let took = start.elapsed();
         shared
             .busy_ns
-            .fetch_add(start.elapsed().as_nanos() as u64, Ordering::Relaxed);
+            .fetch_add(took.as_nanos() as u64, Ordering::Relaxed);
+        tracing::debug!(
+            "tile source {} level {} ({}, {}) in {:.1} ms{}",
+            key.source,
+            key.grid.level,
+            key.x,
+            key.y,
+            took.as_secs_f64() * 1e3,
+            if task.prefetch {
+                format!(", prefetch {} ms ahead", task.ahead)
+            } else {
+                String::new()
+            }
+        );
         match made {
             Ok(tile) => shared.cache.insert(key, tile),
             Err(e) => {

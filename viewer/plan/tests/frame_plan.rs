@@ -159,7 +159,16 @@ fn a_first_frame_asks_for_its_levels_now_and_prefetches_the_finer_ones() {
     let count = |src| edge.iter().filter(|t| t.key.source == src).count();
     assert_eq!(count(0), 4, "the level just out of view, heights");
     assert!((4..=9).contains(&count(1)), "and its colour: {}", count(1));
-    assert!(edge.iter().all(|t| t.prefetch && t.ahead == 1), "{edge:?}");
+    assert!(edge.iter().all(|t| t.prefetch), "{edge:?}");
+    // and ranked before the finer levels, which only tilting down or descending brings in
+    let finer = f
+        .tasks
+        .iter()
+        .filter(|t| level(t) > st.level_wanted + 1)
+        .map(|t| t.ahead);
+    if let Some(first) = finer.min() {
+        assert!(edge.iter().all(|t| t.ahead < first), "{edge:?}");
+    }
 }
 
 #[test]
@@ -226,6 +235,25 @@ fn a_moving_camera_prefetches_its_path_and_refills_only_what_moved() {
     assert!(
         east_of_now,
         "the path prefetch names only tiles already wanted"
+    );
+    // a saturated worker makes first what will certainly be drawn: the drawn levels' path
+    // ranks before every level not drawn (the one just out of view, the finer ones)
+    let wanted = f.stats.level_wanted;
+    let drawn_last = f
+        .tasks
+        .iter()
+        .filter(|t| level(t) <= wanted)
+        .map(|t| t.ahead)
+        .max();
+    let speculative_first = f
+        .tasks
+        .iter()
+        .filter(|t| level(t) > wanted)
+        .map(|t| t.ahead)
+        .min();
+    assert!(
+        drawn_last < speculative_first,
+        "{drawn_last:?} {speculative_first:?}"
     );
     // the finest levels' windows moved by texels: only their changed strips are uploaded
     let area: u32 = f.uploads.iter().map(|u| u.region.w * u.region.h).sum();

@@ -12,15 +12,18 @@ use super::streamer_for;
 use crate::cli::LookArgs;
 
 /// Flies the flight file `flight_path` over `store` headless at `size`; writes the statistics
-/// (JSON) to `out` and returns them.
+/// (JSON) to `out` and returns them; `no_draw`: frames are planned and uploaded, not drawn.
 pub fn run(
     store: &Path,
     flight_path: &Path,
     (w, h): (u32, u32),
-    out: &Path,
+    (out, no_draw): (&Path, bool),
     look: &LookArgs,
 ) -> Result<Stats> {
-    let flight = sc_view_plan::flight::parse(flight_path)?;
+    let mut flight = sc_view_plan::flight::parse(flight_path)?;
+    if no_draw {
+        flight.draw = false;
+    }
     super::check_output_file(out, "--stats")?;
     let s = streamer_for(store, None)?;
     let sources = super::clipmap_sources(look, s.sources, s.without_detail);

@@ -16,7 +16,7 @@ use crate::cli::RenderArgs;
 pub fn run(a: &RenderArgs) -> Result<ExitCode> {
     let (w, h) = parse_size(&a.size)?;
     if let (Some(flight), Some(stats)) = (&a.flight, &a.stats) {
-        let s = super::flight::run(&a.store, flight, (w, h), stats, &a.look)?;
+        let s = super::flight::run(&a.store, flight, (w, h), (stats, a.no_draw), &a.look)?;
         for alt in &s.altitudes {
             crate::outln!(
                 "{:>10}: best {} altitudes/s",
