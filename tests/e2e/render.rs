@@ -507,6 +507,64 @@ color = "grey"
 }
 
 #[test]
+fn a_flight_writes_its_statistics_drawn_or_not() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let store = color_store(dir.path());
+    let flight = dir.path().join("flight.toml");
+    std::fs::write(
+        &flight,
+        "start = [46.5, 8.0]\naltitudes = [20000, 2000]\nspeeds = [1, 4]\nseconds = 0.3\n",
+    )
+    .expect("write");
+    for no_draw in [false, true] {
+        let stats = dir.path().join(format!("stats-{no_draw}.json"));
+        let mut args = vec![
+            "render",
+            s(&store),
+            "--flight",
+            s(&flight),
+            "--stats",
+            s(&stats),
+            "--size",
+            "64x36",
+        ];
+        if no_draw {
+            args.push("--no-draw");
+        }
+        let o = run(&args);
+        assert!(o.status.success(), "{}", text(&o.stderr));
+        let out = text(&o.stdout);
+        assert_eq!(out.matches("altitudes/s").count(), 2, "{out}");
+        let v: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(&stats).expect("stats")).expect("json");
+        assert_eq!(v["drawn"], serde_json::Value::Bool(!no_draw), "{v}");
+        let altitudes = v["altitudes"].as_array().expect("altitudes");
+        assert_eq!(altitudes.len(), 2);
+        for a in altitudes {
+            let runs = a["runs"].as_array().expect("runs");
+            assert_eq!(runs.len(), 2, "{a}");
+            for r in runs {
+                assert!(r["frames"].as_u64().expect("frames") > 0, "{r}");
+                let share = r["finest_share"].as_f64().expect("share");
+                assert!((0.0..=1.0).contains(&share), "{r}");
+            }
+        }
+    }
+    // --no-draw belongs to a flight
+    let o = run(&[
+        "render",
+        s(&store),
+        "--camera",
+        "0,0,8000000",
+        "--out",
+        s(&dir.path().join("x.png")),
+        "--no-draw",
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o.stderr));
+    assert!(!dir.path().join("x.png").exists());
+}
+
+#[test]
 fn bad_flight_files_get_one_line_errors() {
     let dir = tempfile::tempdir().expect("tempdir");
     let flight = dir.path().join("flight.toml");
