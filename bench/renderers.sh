@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The three renderers side by side on one store, same views, same size, one run: triangles, frame
-# and CPU time per frame of the complete view (median of FRAMES), leaves and culling, GPU memory.
+# time, the render pass on the GPU's clock and CPU time per frame of the complete view (median of
+# FRAMES), leaves and culling, GPU memory.
 # Usage: bench/renderers.sh STORE [WxH] [FRAMES]; RENDERERS="clipmap cdlod cdlod:8:16 warp warp:256"
 # picks the renderers (cdlod:PATCH:PIXELS sets CDLOD's options, warp:MESH the warped mesh's size).
 set -euo pipefail
@@ -17,7 +18,7 @@ views=(
   "antimeridian 10,179.999,3000,90,-12,60"
   "south-pole -89.95,45,100,180,-6,70"
 )
-printf '| view | renderer | triangles | frame ms | CPU ms | leaves (culled frustum / horizon) | geometry MiB |\n|---|---|---|---|---|---|---|\n'
+printf '| view | renderer | triangles | frame ms | GPU pass ms | CPU ms | leaves (culled frustum / horizon) | geometry MiB |\n|---|---|---|---|---|---|---|---|\n'
 for v in "${views[@]}"; do
   name=${v%% *}; cam=${v#* }
   for r in ${RENDERERS:-clipmap cdlod cdlod:8:16 warp warp:256}; do
@@ -33,8 +34,9 @@ for v in "${views[@]}"; do
     tri=$(sed -n 's/.* \([0-9]*\) triangles,.*/\1/p' <<<"$log")
     fr=$(sed -n 's/.*frame median \([0-9.]*\) ms.*/\1/p' <<<"$log")
     cpu=$(sed -n 's/.*CPU median \([0-9.]*\) ms.*/\1/p' <<<"$log")
+    gpu=$(sed -n "s/.*GPU's clock: median \([0-9.]*\) ms.*/\1/p" <<<"$log")
     geo=$(sed -n 's/.*geometry \([0-9.]*\) MiB.*/\1/p' <<<"$log")
     leaves=$(sed -n 's/^CDLOD: \([0-9]*\) leaves drawn, \([0-9]*\) nodes culled by the frustum, \([0-9]*\) beyond.*/\1 (\2 \/ \3)/p' <<<"$log")
-    printf '| %s | %s | %s | %s | %s | %s | %s |\n' "$name" "$r" "$tri" "$fr" "$cpu" "${leaves:--}" "$geo"
+    printf '| %s | %s | %s | %s | %s | %s | %s | %s |\n' "$name" "$r" "$tri" "$fr" "${gpu:--}" "$cpu" "${leaves:--}" "$geo"
   done
 done

@@ -1,5 +1,6 @@
 //! The three renderers side by side over the same views, one run, on the first adapter found:
-//! triangles drawn, frame time and CPU time per frame (median of FRAMES), the drawn surface's
+//! triangles drawn, frame time, the render pass's time on the GPU's clock (where the adapter has
+//! timestamp queries) and CPU time per frame (median of FRAMES), the drawn surface's
 //! vertical error against an f64 evaluation of the heights (median and p99 pixels), the pop
 //! metric along a slow flight from the view (largest move of the surface in a frame, pixels),
 //! CDLOD's leaves and culling, and GPU memory of the geometry — over rough synthetic mountains
@@ -58,9 +59,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ),
     ];
     println!(
-        "| view | renderer | triangles | frame ms | CPU ms | error median / p99 px | pop max px | leaves (culled frustum / horizon) | geometry MiB |"
+        "| view | renderer | triangles | frame ms | GPU pass ms | CPU ms | error median / p99 px | pop max px | leaves (culled frustum / horizon) | geometry MiB |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
     let mut adapter = String::new();
     for (view, cam) in views {
         let cam = Camera::parse(cam)?;
@@ -72,17 +73,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 fade_in: false,
                 ..Default::default()
             });
-            let (mut frame_ms, mut cpu_ms) = (Vec::new(), Vec::new());
+            let (mut frame_ms, mut cpu_ms, mut gpu_ms) = (Vec::new(), Vec::new(), Vec::new());
             let mut stats = Default::default();
             for _ in 0..frames {
                 let t = Instant::now();
                 let (_, s, cpu) = r.render_timed(&mut heights.clone(), None, &cam)?;
                 frame_ms.push(t.elapsed().as_secs_f64() * 1e3);
                 cpu_ms.push(cpu * 1e3);
+                gpu_ms.push(r.gpu_ms);
                 stats = s;
             }
             // the first frame fills every clipmap level: not a steady frame
             let (frame_ms, cpu_ms) = (&mut frame_ms[1..], &mut cpu_ms[1..]);
+            let mut gpu_ms: Vec<f64> = gpu_ms[1..].iter().flatten().copied().collect();
+            let gpu = if gpu_ms.is_empty() {
+                "-".to_string()
+            } else {
+                format!("{:.2}", quantile(&mut gpu_ms, 0.5))
+            };
             let f = DepthFrame::render(&mut r, &mut heights.clone(), &cam, R)?;
             let mut err = f.vertical_error(|u| heights.at(u));
             // twelve frames flying on at half a pixel's ground distance a frame
@@ -108,7 +116,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 "-".into()
             };
             println!(
-                "| {view} | {name} | {} | {:.1} | {:.2} | {:.3} / {:.3} | {:.3} | {leaves} | {:.2} |",
+                "| {view} | {name} | {} | {:.1} | {gpu} | {:.2} | {:.3} / {:.3} | {:.3} | {leaves} | {:.2} |",
                 stats.triangles,
                 quantile(frame_ms, 0.5),
                 quantile(cpu_ms, 0.5),

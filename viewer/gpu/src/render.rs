@@ -887,6 +887,17 @@ pub fn begin_pass<'a>(
     depth: &wgpu::TextureView,
     clear: [f64; 4],
 ) -> wgpu::RenderPass<'a> {
+    begin_timed_pass(enc, color, depth, clear, None)
+}
+
+/// [`begin_pass`], writing the GPU's clock to `timer`'s queries as the pass begins and ends.
+fn begin_timed_pass<'a>(
+    enc: &'a mut wgpu::CommandEncoder,
+    color: &wgpu::TextureView,
+    depth: &wgpu::TextureView,
+    clear: [f64; 4],
+    timer: Option<&PassTimer>,
+) -> wgpu::RenderPass<'a> {
     enc.begin_render_pass(&wgpu::RenderPassDescriptor {
         label: Some("clipmap"),
         color_attachments: &[Some(wgpu::RenderPassColorAttachment {
@@ -911,7 +922,11 @@ pub fn begin_pass<'a>(
             }),
             stencil_ops: None,
         }),
-        timestamp_writes: None,
+        timestamp_writes: timer.map(|t| wgpu::RenderPassTimestampWrites {
+            query_set: &t.queries,
+            beginning_of_pass_write_index: Some(0),
+            end_of_pass_write_index: Some(1),
+        }),
         occlusion_query_set: None,
         multiview_mask: None,
     })
@@ -999,6 +1014,62 @@ impl ImageReadback {
     }
 }
 
+/// The GPU's own time for a render pass: two timestamp queries, resolved and read back with
+/// the frame (where the adapter has timestamp queries).
+#[derive(Debug)]
+struct PassTimer {
+    queries: wgpu::QuerySet,
+    resolved: wgpu::Buffer,
+    readback: wgpu::Buffer,
+    /// Nanoseconds a timestamp tick.
+    period_ns: f64,
+}
+
+impl PassTimer {
+    fn new(device: &wgpu::Device, queue: &wgpu::Queue) -> Option<Self> {
+        if !device.features().contains(wgpu::Features::TIMESTAMP_QUERY) {
+            return None;
+        }
+        let buffer = |label, usage| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: 16,
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        Some(Self {
+            queries: device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("pass timer"),
+                ty: wgpu::QueryType::Timestamp,
+                count: 2,
+            }),
+            resolved: buffer(
+                "pass timer resolved",
+                wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+            ),
+            readback: buffer(
+                "pass timer readback",
+                wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            ),
+            period_ns: f64::from(queue.get_timestamp_period()),
+        })
+    }
+
+    /// Records the copy of the pass's two timestamps to where [`Self::read`] finds them.
+    fn record(&self, enc: &mut wgpu::CommandEncoder) {
+        enc.resolve_query_set(&self.queries, 0..2, &self.resolved, 0);
+        enc.copy_buffer_to_buffer(&self.resolved, 0, &self.readback, 0, 16);
+    }
+
+    /// The pass's GPU time, milliseconds (after the frame's work is submitted).
+    fn read(&self, device: &wgpu::Device) -> Result<f64, RenderError> {
+        let bytes = read_back(device, &self.readback)?;
+        let t: Vec<u64> = bytemuck::pod_collect_to_vec(&bytes);
+        Ok(t[1].saturating_sub(t[0]) as f64 * self.period_ns / 1e6)
+    }
+}
+
 /// A headless renderer of one size: the clipmap pass into an offscreen image.
 #[derive(Debug)]
 pub struct Renderer {
@@ -1018,6 +1089,10 @@ pub struct Renderer {
     pub clear: [f64; 4],
     /// The height of the ground under the camera in the last streamed frame, metres.
     pub ground: f64,
+    timer: Option<PassTimer>,
+    /// The GPU's time for the last frame's render pass, milliseconds, where the adapter has
+    /// timestamp queries (the frame's wall time also holds the read-back of the picture).
+    pub gpu_ms: Option<f64>,
 }
 
 const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
@@ -1082,13 +1157,15 @@ impl Renderer {
             depth_texture: depth_tex,
             keep_depth: false,
             depth_values: Vec::new(),
-            device,
-            queue,
             color,
             size: (width, height),
             adapter,
             clear: SPACE,
             ground: 0.0,
+            timer: PassTimer::new(&device, &queue),
+            gpu_ms: None,
+            device,
+            queue,
         })
     }
 
@@ -1187,6 +1264,7 @@ impl Renderer {
             Duration::from_secs(10),
         );
         self.ground = ground;
+        self.gpu_ms = None;
         self.queue.submit([]);
         stats
     }
@@ -1202,8 +1280,17 @@ impl Renderer {
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
         {
-            let mut pass = begin_pass(&mut enc, &color_view, &self.depth, self.clear);
+            let mut pass = begin_timed_pass(
+                &mut enc,
+                &color_view,
+                &self.depth,
+                self.clear,
+                self.timer.as_ref(),
+            );
             self.pass.draw(&mut pass);
+        }
+        if let Some(t) = &self.timer {
+            t.record(&mut enc);
         }
         let readback = ImageReadback::record(&self.device, &mut enc, &self.color, (w, h));
         let depth = self.keep_depth.then(|| {
@@ -1240,6 +1327,11 @@ impl Renderer {
         self.queue.submit([enc.finish()]);
         let cpu = start.elapsed().as_secs_f64();
         let img = readback.image(&self.device, false)?;
+        self.gpu_ms = self
+            .timer
+            .as_ref()
+            .map(|t| t.read(&self.device))
+            .transpose()?;
         if let Some((buffer, row)) = depth {
             let bytes = read_back(&self.device, &buffer)?;
             self.depth_values.clear();
@@ -1279,7 +1371,9 @@ pub fn device_for(
         adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("sphereclip"),
             // wireframe where the adapter has it (lavapipe does)
-            required_features: adapter.features() & wgpu::Features::POLYGON_MODE_LINE,
+            // and the GPU's clock for timing the render pass where it has one
+            required_features: adapter.features()
+                & (wgpu::Features::POLYGON_MODE_LINE | wgpu::Features::TIMESTAMP_QUERY),
             required_limits: wgpu::Limits {
                 max_texture_array_layers: levels.max(256),
                 // the clipmap levels and the atmosphere's six tables in the fragment stage

@@ -273,3 +273,29 @@ fn partial_clipmap_updates_draw_the_same_as_a_fresh_fill() {
         .expect("render");
     assert_eq!(stats.levels_filled, 0);
 }
+
+#[test]
+fn the_render_pass_is_timed_on_the_gpus_clock_within_the_frame() {
+    let mut r = renderer(160, 90);
+    let cam = Camera::parse("20,10,8000000,0,-90,40").expect("camera");
+    r.render(&mut Mountains, Some(&mut ByLongitude), &cam)
+        .expect("render");
+    let start = std::time::Instant::now();
+    r.render(&mut Mountains, Some(&mut ByLongitude), &cam)
+        .expect("render");
+    let wall_ms = start.elapsed().as_secs_f64() * 1e3;
+    // lavapipe has timestamp queries; an adapter without them reports none
+    let Some(gpu) = r.gpu_ms else {
+        assert!(
+            !r.adapter.contains("llvmpipe"),
+            "no GPU time on {}",
+            r.adapter
+        );
+        return;
+    };
+    // the pass draws something, and is part of the frame: not zero, not longer than it
+    assert!(
+        gpu > 0.0 && gpu <= wall_ms,
+        "pass {gpu} ms, frame {wall_ms} ms"
+    );
+}

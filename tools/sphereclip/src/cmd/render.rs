@@ -104,12 +104,13 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
     for e in streamer.errors() {
         eprintln!("warning: {e}");
     }
-    let (mut frame_ms, mut cpu_ms) = (Vec::new(), Vec::new());
+    let (mut frame_ms, mut cpu_ms, mut gpu_ms) = (Vec::new(), Vec::new(), Vec::new());
     for _ in 1..a.frames {
         let t = Instant::now();
         let (i, s, cpu) = r.render_streamed(&streamer, sources, &camera, None)?;
         frame_ms.push(t.elapsed().as_secs_f64() * 1e3);
         cpu_ms.push(cpu * 1e3);
+        gpu_ms.extend(r.gpu_ms);
         (img, stats) = (i, s);
     }
     write_png(&img, out)?;
@@ -144,6 +145,13 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
             median(&cpu_ms),
             percentile(&cpu_ms, 0.95),
         );
+        if !gpu_ms.is_empty() {
+            crate::outln!(
+                "the render pass on the GPU's clock: median {:.2} ms (p95 {:.2})",
+                median(&gpu_ms),
+                percentile(&gpu_ms, 0.95),
+            );
+        }
     }
     Ok(ExitCode::SUCCESS)
 }
