@@ -547,6 +547,8 @@ fn a_flight_writes_its_statistics_drawn_or_not() {
                 assert!(r["frames"].as_u64().expect("frames") > 0, "{r}");
                 let share = r["finest_share"].as_f64().expect("share");
                 assert!((0.0..=1.0).contains(&share), "{r}");
+                // lavapipe times the render pass; nothing is drawn with --no-draw
+                assert_eq!(r["gpu_ms"].is_null(), no_draw, "{r}");
             }
         }
     }

@@ -30,6 +30,9 @@ pub struct Run {
     pub frame_ms: [f64; 3],
     /// CPU time per frame percentiles (50, 95, 99), milliseconds.
     pub cpu_ms: [f64; 3],
+    /// The render pass on the GPU's clock, percentiles (50, 95, 99), milliseconds, where the
+    /// adapter has timestamp queries and frames were drawn.
+    pub gpu_ms: Option<[f64; 3]>,
     /// Levels at the end: the coarsest, the finest in view (the one counted) and the finest
     /// whose triangles cover a pixel (finer than the one in view while the ground under the
     /// camera is out of view).
@@ -108,6 +111,7 @@ pub fn fly(
             }
             let v = speed * alt;
             let (mut frame_ms, mut cpu_ms, mut finest) = (Vec::new(), Vec::new(), 0usize);
+            let mut gpu_ms = Vec::new();
             let mut last = None;
             let (made0, busy0) = streamer.work();
             let start = Instant::now();
@@ -121,6 +125,7 @@ pub fn fly(
                 let (s, cpu) = if flight.draw {
                     let (_, s, cpu) =
                         r.render_streamed(streamer, sources, &camera, Some(now + budget))?;
+                    gpu_ms.extend(r.gpu_ms);
                     (s, cpu)
                 } else {
                     let s = r.stream_only(streamer, sources, &camera, Some(now + budget));
@@ -144,6 +149,7 @@ pub fn fly(
                 finest_share: share,
                 frame_ms: pcts(&frame_ms),
                 cpu_ms: pcts(&cpu_ms),
+                gpu_ms: (!gpu_ms.is_empty()).then(|| pcts(&gpu_ms)),
                 levels,
                 tiles_per_s,
                 workers_busy,
