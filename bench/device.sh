@@ -2,8 +2,8 @@
 # The renderers and the flight on a lent GPU machine (which has no Rust, no GDAL and no network):
 #   bash bench/device.sh prepare   here: release binaries, a library standing in for GDAL (render
 #                                  and the renderers bench never call it), a store small enough to
-#                                  travel, all under .dev/ (add /.dev/ and /.gl/ to .git/info/exclude;
-#                                  .gl/ holds the Vulkan loader's .deb files, see the device README)
+#                                  travel, all under .dev/ (ignored, like .gl/, which holds the Vulkan
+#                                  loader's .deb files: see the device tool's README)
 #   bash bench/device.sh run [renderers]
 #                                  there (carry .dev and .gl): the flight with detail at 320x180
 #                                  (all workers, then one; ~6 min), or the two renderer benches at
