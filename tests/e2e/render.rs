@@ -590,6 +590,11 @@ fn bad_flight_files_get_one_line_errors() {
             Some("start = [46.5, 8.0]\naltitudes = [50]\nspeeds = [1]\nwarp = 9\n"),
             "warp",
         ),
+        // drawing or not is the command's choice (`--no-draw`), not the file's
+        (
+            Some("start = [46.5, 8.0]\naltitudes = [50]\nspeeds = [1]\ndraw = false\n"),
+            "draw",
+        ),
     ] {
         match toml {
             Some(t) => std::fs::write(&flight, t).expect("write"),

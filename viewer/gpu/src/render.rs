@@ -1228,19 +1228,15 @@ impl Renderer {
         deadline: Option<Instant>,
     ) -> Result<(image::RgbaImage, FrameStats, f64), RenderError> {
         let start = Instant::now();
-        self.pass.space = self.clear;
-        let (ground, stats) = self.pass.prepare_streamed(
+        let stats = self.prepare_streamed(
             streamer,
             sources,
             camera,
-            self.size,
             FrameClock {
                 now: start,
                 deadline,
             },
-            Duration::from_secs(10),
         );
-        self.ground = ground;
         self.draw_and_read(stats, start)
     }
 
@@ -1255,17 +1251,30 @@ impl Renderer {
         deadline: Option<Instant>,
     ) -> FrameStats {
         let now = Instant::now();
+        let stats = self.prepare_streamed(streamer, sources, camera, FrameClock { now, deadline });
+        self.gpu_ms = None;
+        self.queue.submit([]);
+        stats
+    }
+
+    /// The streamed frame's plan and uploads ([`ClipmapPass::prepare_streamed`]), its ground kept.
+    fn prepare_streamed(
+        &mut self,
+        streamer: &Streamer,
+        sources: StreamSources,
+        camera: &Camera,
+        clock: FrameClock,
+    ) -> FrameStats {
+        self.pass.space = self.clear;
         let (ground, stats) = self.pass.prepare_streamed(
             streamer,
             sources,
             camera,
             self.size,
-            FrameClock { now, deadline },
+            clock,
             Duration::from_secs(10),
         );
         self.ground = ground;
-        self.gpu_ms = None;
-        self.queue.submit([]);
         stats
     }
 

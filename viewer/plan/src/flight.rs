@@ -36,8 +36,9 @@ pub struct Flight {
     #[serde(default = "default_budget")]
     pub update_budget_ms: f64,
     /// False: each frame is planned and its tiles uploaded but nothing is drawn — the streaming
-    /// alone, as with an adapter that draws in no time (`render --flight … --no-draw`).
-    #[serde(default = "default_draw")]
+    /// alone, as with an adapter that draws in no time. Not part of the file: `render --flight …
+    /// --no-draw` sets it (a window always draws).
+    #[serde(skip_deserializing, default = "default_draw")]
     pub draw: bool,
 }
 

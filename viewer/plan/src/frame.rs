@@ -205,16 +205,6 @@ pub struct FrameClock {
     pub deadline: Option<Instant>,
 }
 
-impl FrameClock {
-    /// Now, with no deadline.
-    pub fn now() -> Self {
-        Self {
-            now: Instant::now(),
-            deadline: None,
-        }
-    }
-}
-
 /// Most quads prefetched along the path per level (at half-window steps: four windows ahead).
 const LOOKAHEAD_QUADS: u32 = 8;
 
@@ -625,9 +615,9 @@ impl FramePlanner {
     /// threads: posts the tiles of the visible levels' quads (and, as prefetch, of the next finer
     /// level) when the focus moved, prunes the cache, then goes through the levels coarse to
     /// fine, updating each from its quad; a level whose tiles are not ready (or failed) is not
-    /// waited for — the previous level is drawn as a full disc — and past `clock`'s deadline no further
-    /// level is updated. Only the coarsest visible level is waited for (up to `wait`), so that
-    /// something shows. Returns the ground height under the camera and what the frame draws.
+    /// waited for — the previous level is drawn as a full disc — and past `clock`'s deadline no
+    /// further level is updated. Only the coarsest visible level is waited for (up to `wait`), so
+    /// that something shows. Returns the ground height under the camera and what the frame draws.
     pub fn plan_streamed(
         &mut self,
         streamer: &Streamer,
