@@ -534,7 +534,7 @@ fn a_flight_writes_its_statistics_drawn_or_not() {
         let o = run(&args);
         assert!(o.status.success(), "{}", text(&o.stderr));
         let out = text(&o.stdout);
-        assert_eq!(out.matches("altitudes/s").count(), 2, "{out}");
+        assert_eq!(out.matches(": best ").count(), 2, "{out}");
         let v: serde_json::Value =
             serde_json::from_slice(&std::fs::read(&stats).expect("stats")).expect("json");
         assert_eq!(v["drawn"], serde_json::Value::Bool(!no_draw), "{v}");

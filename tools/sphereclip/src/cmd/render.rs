@@ -19,11 +19,11 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
         let s = super::flight::run(&a.store, flight, (w, h), (stats, a.no_draw), &a.look)?;
         for alt in &s.altitudes {
             crate::outln!(
-                "{:>10}: best {} altitudes/s",
+                "{:>10}: best {}",
                 crate::cmd::human_metres(alt.altitude_m),
                 alt.best_speed_alt_per_s.map_or(
-                    "— (finest level < 95 % of frames at every speed)".into(),
-                    |v| format!("{v}")
+                    "none (the finest level in < 95 % of frames at every speed)".into(),
+                    |v| format!("{v} altitudes/s")
                 )
             );
         }
