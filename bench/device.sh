@@ -6,8 +6,10 @@
 #                                  loader's .deb files: see the device tool's README)
 #   bash bench/device.sh run [renderers]
 #                                  there (carry .dev and .gl): the flight with detail at 320x180
-#                                  (all workers, then one; ~6 min), or the two renderer benches at
-#                                  1280x720 (~7 min); results under $OUT
+#                                  with all workers (~2.5 min on an H200), then the streamed
+#                                  renderers at 1280x720 (~2 min); with `renderers`, the synthetic
+#                                  renderers bench too (~4 min). Each step is cut off so that the
+#                                  whole stays under BUDGET seconds (default 450); results under $OUT
 set -uo pipefail
 case ${1:-} in
 prepare)
@@ -46,16 +48,16 @@ run)
   export SPHERECLIP=.dev/sphereclip
   out=${OUT:?}
   nvidia-smi -L
+  t0=$(date +%s)
+  # seconds left of the budget, at least 1 (`timeout 0` would mean no limit)
+  left() { local l=$((${BUDGET:-450} - ($(date +%s) - t0))); echo $((l > 1 ? l : 1)); }
   $SPHERECLIP render .dev/planet.zarr --camera=46.5,8.0,1.7,30,-4,60 --size 1280x720 \
     --frames 11 --out "$out/ground.png" || exit 3
+  timeout "$(left)" $SPHERECLIP render .dev/planet.zarr --flight bench/flight.toml \
+    --stats "$out/flight.json" --size 320x180 2>&1 | cut -c1-200 | tee "$out/flight.txt"
+  timeout "$(left)" bash bench/renderers.sh .dev/planet.zarr 1280x720 11 | tee "$out/streamed.txt"
   if [ "${2:-}" = renderers ]; then
-    bash bench/renderers.sh .dev/planet.zarr 1280x720 11 | tee "$out/streamed.txt"
-    .dev/renderers 1280x720 11 | tee "$out/renderers.txt"
-  else
-    $SPHERECLIP render .dev/planet.zarr --flight bench/flight.toml --stats "$out/flight.json" \
-      --size 320x180 2>&1 | cut -c1-160
-    SPHERECLIP_WORKERS=1 $SPHERECLIP render .dev/planet.zarr --flight bench/flight.toml \
-      --stats "$out/flight-1w.json" --size 320x180 2>&1 | cut -c1-160
+    timeout "$(left)" .dev/renderers 1280x720 11 | tee "$out/renderers.txt"
   fi
   ;;
 *)
