@@ -201,14 +201,26 @@ pub fn noise_lanes(q: &[[f64; 3]; LANES], seed: u64) -> [f64; LANES] {
     if let Some(n) = wide::noise_lanes(q, seed) {
         return n;
     }
-    std::array::from_fn(|l| gradient_noise(q[l], seed))
+    lanes(q, seed)
+}
+
+/// [`gradient_noise`] at each of the lanes: a plain loop, inlined into each caller with the
+/// caller's target features (a closure, as in `array::from_fn`, is compiled once without them
+/// and called lane by lane).
+#[inline(always)]
+fn lanes(q: &[[f64; 3]; LANES], seed: u64) -> [f64; LANES] {
+    let mut n = [0.0; LANES];
+    for (n, q) in n.iter_mut().zip(q) {
+        *n = gradient_noise(*q, seed);
+    }
+    n
 }
 
 /// [`noise_lanes`] compiled for AVX-512 and for AVX2, each called only where the CPU has it.
 #[cfg(target_arch = "x86_64")]
 #[allow(unsafe_code)]
 mod wide {
-    use super::{LANES, gradient_noise};
+    use super::{LANES, lanes};
 
     /// The lanes in the widest vectors the CPU has; None where it has neither.
     pub(super) fn noise_lanes(q: &[[f64; 3]; LANES], seed: u64) -> Option<[f64; LANES]> {
@@ -222,17 +234,6 @@ mod wide {
             return Some(unsafe { avx2(q, seed) });
         }
         None
-    }
-
-    /// A plain loop, inlined into each caller with the caller's features (a closure, as in
-    /// `array::from_fn`, is compiled once without them and called lane by lane).
-    #[inline(always)]
-    fn lanes(q: &[[f64; 3]; LANES], seed: u64) -> [f64; LANES] {
-        let mut n = [0.0; LANES];
-        for (n, q) in n.iter_mut().zip(q) {
-            *n = gradient_noise(*q, seed);
-        }
-        n
     }
 
     #[target_feature(enable = "avx512f,avx512dq,avx512vl,avx2")]
