@@ -1307,13 +1307,13 @@ fn build_shard<T: Texel>(
                     TileId::new(grid, out, tx, ty).map_err(|e| BuildError::Usage(e.to_string()))?;
                 // over what the level holds (nodata where it holds nothing)
                 sw.get_tile(id, &mut tile_buf)?;
+                let tu = t as usize;
                 for (r, row) in rows.iter().enumerate() {
-                    for i in 0..t as usize {
-                        let k = x0 + i;
-                        let px =
-                            &mut tile_buf[(r * t as usize + i) * sc..(r * t as usize + i + 1) * sc];
-                        T::merge(&row.v[k * ch..(k + 1) * ch], row.c[k], px);
-                    }
+                    T::merge_run(
+                        &row.v[x0 * ch..(x0 + tu) * ch],
+                        &row.c[x0..x0 + tu],
+                        &mut tile_buf[r * tu * sc..(r + 1) * tu * sc],
+                    );
                 }
                 if let Some((lo, hi)) = T::value_range(&tile_buf) {
                     range = Some(range.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));

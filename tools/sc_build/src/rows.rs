@@ -21,6 +21,28 @@ pub(crate) trait Texel: TileSample + DefaultFill {
     /// the level held, e.g. a coarser ingest) stays. Idempotent: a rebuild from unchanged data
     /// writes the same texels.
     fn merge(v: &[f64], c: f64, out: &mut [Self]);
+
+    /// [`Self::decode`] for consecutive stored texels, appending their channels to `v` and their
+    /// coverage to `c`; whether every one is covered.
+    fn decode_run(px: &[Self], v: &mut Vec<f64>, c: &mut Vec<f64>) -> bool {
+        let mut full = true;
+        for p in px.chunks_exact(Self::KIND.channels()) {
+            let at = v.len();
+            v.resize(at + Self::CH, 0.0);
+            let cov = Self::decode(p, &mut v[at..]);
+            c.push(cov);
+            full &= cov == 1.0;
+        }
+        full
+    }
+
+    /// [`Self::merge`] for consecutive texels.
+    fn merge_run(v: &[f64], c: &[f64], out: &mut [Self]) {
+        let texels = v.chunks_exact(Self::CH).zip(c);
+        for ((v, &c), px) in texels.zip(out.chunks_exact_mut(Self::KIND.channels())) {
+            Self::merge(v, c, px);
+        }
+    }
 }
 
 impl Texel for f32 {
@@ -47,6 +69,25 @@ impl Texel for f32 {
     fn merge(v: &[f64], c: f64, out: &mut [f32]) {
         if c >= MIN_COVERAGE {
             Self::encode(v, c, out);
+        }
+    }
+
+    // the same as texel by texel, in loops the compiler vectorises
+    fn decode_run(px: &[f32], v: &mut Vec<f64>, c: &mut Vec<f64>) -> bool {
+        v.extend(
+            px.iter()
+                .map(|&x| if x.is_nan() { 0.0 } else { f64::from(x) }),
+        );
+        c.extend(px.iter().map(|&x| if x.is_nan() { 0.0 } else { 1.0 }));
+        // without stopping at the first: a loop that vectorises
+        !px.iter().fold(false, |nan, x| nan | x.is_nan())
+    }
+
+    fn merge_run(v: &[f64], c: &[f64], out: &mut [f32]) {
+        for ((&v, &c), o) in v.iter().zip(c).zip(out) {
+            if c >= MIN_COVERAGE {
+                *o = (v / c) as f32;
+            }
         }
     }
 }
@@ -119,11 +160,35 @@ impl TileCache {
         any.downcast::<Vec<T>>().ok()
     }
 
-    /// Keeps `tile` (it replaces what was kept of it) if the budget has room.
+    /// Keeps `tile` (it replaces what was kept of it) if the budget has room, making room by
+    /// dropping tiles of finer levels: a step reads the finer level once, row by row, while the
+    /// level it writes is read again by the next two steps. The finer tiles of the rows furthest
+    /// north go first (a shard's rows are filtered from north to south).
     pub(crate) fn put<T: Texel>(&self, id: TileId, tile: &Arc<Vec<T>>) {
         let size = std::mem::size_of_val(tile.as_slice());
         let mut c = self.lock();
         let old = c.tiles.get(&(T::KIND, id)).map_or(0, |t| t.1);
+        if c.bytes - old + size > self.budget {
+            let mut finer: Vec<(u64, u64, LevelId, usize)> = c
+                .tiles
+                .iter()
+                .filter(|((layer, t), _)| *layer == T::KIND && t.level.level > id.level.level)
+                .map(|((_, t), (_, n))| (t.y, t.x, t.level, *n))
+                .collect();
+            let need = c.bytes - old + size - self.budget;
+            if finer.iter().map(|f| f.3).sum::<usize>() >= need {
+                finer.sort_unstable_by_key(|&(y, x, level, _)| (y, x, level.aniso));
+                let mut freed = 0;
+                for (y, x, level, n) in finer {
+                    if freed >= need {
+                        break;
+                    }
+                    c.tiles.remove(&(T::KIND, TileId { level, x, y }));
+                    freed += n;
+                }
+                c.bytes -= freed;
+            }
+        }
         if c.bytes - old + size > self.budget {
             if let Some((_, n)) = c.tiles.remove(&(T::KIND, id)) {
                 c.bytes -= n;
@@ -240,7 +305,9 @@ impl<T: Texel> StoredRows for StoreRows<'_, T> {
         let ch = T::CH;
         let sc = T::KIND.channels();
         let len = (m1 - m0).max(0) as usize;
-        let mut out = RowWindow::empty(n, m0, len, ch);
+        // filled run by run (no zeroing first: most of a window is read from tiles)
+        let mut v = Vec::with_capacity(len * ch);
+        let mut c = Vec::with_capacity(len);
         let mut full = true;
         let (ty, ry) = (j / t, (j % t) as usize);
         let mut k = 0usize;
@@ -252,20 +319,25 @@ impl<T: Texel> StoredRows for StoreRows<'_, T> {
                 TileId::new(self.grid, id, tx, ty).map_err(|e| StoreError::Usage(e.to_string()))?;
             match self.tile(tile)? {
                 Some(data) => {
-                    let row = &data[ry * t as usize * sc..(ry + 1) * t as usize * sc];
-                    for r in 0..run {
-                        let px = &row[(cx + r) * sc..(cx + r + 1) * sc];
-                        let c = T::decode(px, &mut out.v[(k + r) * ch..(k + r + 1) * ch]);
-                        out.c[k + r] = c;
-                        full &= c == 1.0;
-                    }
+                    let at = (ry * t as usize + cx) * sc;
+                    full &= T::decode_run(&data[at..at + run * sc], &mut v, &mut c);
                 }
-                None => full = false,
+                None => {
+                    v.resize(v.len() + run * ch, 0.0);
+                    c.resize(c.len() + run, 0.0);
+                    full = false;
+                }
             }
             k += run;
         }
-        out.full = full;
-        Ok(out)
+        Ok(RowWindow {
+            n,
+            first: m0,
+            ch,
+            v,
+            c,
+            full,
+        })
     }
 }
 
@@ -295,37 +367,72 @@ mod tests {
     use super::*;
 
     fn tile(level: u32, x: u64) -> TileId {
+        tile_at(level, x, 0)
+    }
+
+    fn tile_at(level: u32, x: u64, y: u64) -> TileId {
         TileId {
             level: iso(level),
             x,
-            y: 0,
+            y,
         }
+    }
+
+    #[test]
+    fn runs_of_heights_decode_and_merge_as_texel_by_texel() {
+        let px = [1.5f32, f32::NAN, -3.25, 0.0, f32::NAN, 7.0, 2.0];
+        for run in [&px[..], &px[2..4], &px[..0]] {
+            let (mut v, mut c) = (vec![9.0], vec![9.0]);
+            let full = f32::decode_run(run, &mut v, &mut c);
+            let (mut v1, mut c1) = (vec![9.0], vec![9.0]);
+            for p in run {
+                let mut x = [0.0];
+                c1.push(f32::decode(std::slice::from_ref(p), &mut x));
+                v1.push(x[0]);
+            }
+            assert_eq!((&v, &c), (&v1, &c1));
+            assert_eq!(full, c1[1..].iter().all(|&c| c == 1.0));
+        }
+        let v = [2.0, 1.0, -4.0, 3.0, 0.0];
+        let c = [1.0, 0.5, 0.0, MIN_COVERAGE, MIN_COVERAGE / 2.0];
+        let mut out = [10.0f32, 11.0, 12.0, 13.0, 14.0];
+        let mut one = out;
+        f32::merge_run(&v, &c, &mut out);
+        for k in 0..v.len() {
+            f32::merge(&v[k..k + 1], c[k], &mut one[k..k + 1]);
+        }
+        assert_eq!(out.map(f32::to_bits), one.map(f32::to_bits));
     }
 
     #[test]
     fn the_tile_cache_keeps_within_its_budget_and_drops_what_no_step_reads() {
         let t = |v: f32| Arc::new(vec![v; 256]);
         let cache = TileCache::new(3 * 1024);
-        cache.put(tile(4, 0), &t(1.0));
-        cache.put(tile(4, 1), &t(2.0));
+        cache.put(tile_at(4, 0, 1), &t(1.0));
+        cache.put(tile_at(4, 1, 0), &t(2.0));
         cache.put(tile(3, 0), &t(3.0));
-        // over budget: not kept
-        cache.put(tile(3, 1), &t(4.0));
-        assert_eq!(cache.get::<f32>(tile(4, 1)).expect("kept")[0], 2.0);
-        assert!(cache.get::<f32>(tile(3, 1)).is_none());
+        // over budget, and nothing finer to make room: not kept
+        cache.put(tile_at(4, 2, 0), &t(4.0));
+        assert!(cache.get::<f32>(tile_at(4, 2, 0)).is_none());
+        assert_eq!(cache.get::<f32>(tile(3, 0)).expect("kept")[0], 3.0);
+        // a coarser tile over budget takes the place of the finer one furthest north
+        cache.put(tile(3, 1), &t(5.0));
+        assert_eq!(cache.get::<f32>(tile(3, 1)).expect("kept")[0], 5.0);
+        assert!(cache.get::<f32>(tile_at(4, 1, 0)).is_none());
+        assert_eq!(cache.get::<f32>(tile_at(4, 0, 1)).expect("kept")[0], 1.0);
         // another sample type of the same tile is another layer's tile
-        assert!(cache.get::<u8>(tile(4, 0)).is_none());
+        assert!(cache.get::<u8>(tile(3, 0)).is_none());
         // replacing a tile keeps the newest
-        cache.put(tile(4, 0), &t(5.0));
-        assert_eq!(cache.get::<f32>(tile(4, 0)).expect("kept")[0], 5.0);
+        cache.put(tile(3, 0), &t(6.0));
+        assert_eq!(cache.get::<f32>(tile(3, 0)).expect("kept")[0], 6.0);
         // dropping level 4 makes room again
         cache.keep(|_, l| l.level == 3);
-        assert!(cache.get::<f32>(tile(4, 0)).is_none());
-        cache.put(tile(3, 1), &t(6.0));
-        assert_eq!(cache.get::<f32>(tile(3, 1)).expect("kept")[0], 6.0);
-        assert_eq!(cache.get::<f32>(tile(3, 0)).expect("kept")[0], 3.0);
+        assert!(cache.get::<f32>(tile_at(4, 0, 1)).is_none());
+        cache.put(tile(3, 2), &t(7.0));
+        assert_eq!(cache.get::<f32>(tile(3, 2)).expect("kept")[0], 7.0);
+        assert_eq!(cache.get::<f32>(tile(3, 0)).expect("kept")[0], 6.0);
         // a new version of a tile that does not fit is not served in its old version
-        cache.put(tile(3, 0), &Arc::new(vec![7.0; 2048]));
+        cache.put(tile(3, 0), &Arc::new(vec![8.0; 2048]));
         assert!(cache.get::<f32>(tile(3, 0)).is_none());
         // no budget: nothing kept
         let none = TileCache::new(0);

@@ -178,9 +178,13 @@ impl SourceRow {
             return s.clone();
         }
         let comps = |x: &[f64]| -> Vec<Vec<f64>> {
-            (0..qs)
-                .map(|r| x.iter().skip(r).step_by(qs).copied().collect())
-                .collect()
+            match qs {
+                2 => deinterleave::<2>(x),
+                4 => deinterleave::<4>(x),
+                _ => (0..qs)
+                    .map(|r| x.iter().skip(r).step_by(qs).copied().collect())
+                    .collect(),
+            }
         };
         let s = Rc::new(Split {
             v: comps(&self.win.v),
@@ -193,6 +197,20 @@ impl SourceRow {
         self.split.borrow_mut().push((qs, s.clone()));
         s
     }
+}
+
+/// The `Q` polyphase components of `x`: component r holds `x[r]`, `x[r + Q]`, … (in loops over
+/// fixed-size chunks, which the compiler vectorises; `step_by` goes element by element).
+fn deinterleave<const Q: usize>(x: &[f64]) -> Vec<Vec<f64>> {
+    let (whole, rest) = x.as_chunks::<Q>();
+    (0..Q)
+        .map(|r| {
+            let mut comp = Vec::with_capacity(whole.len() + 1);
+            comp.extend(whole.iter().map(|p| p[r]));
+            comp.extend(rest.get(r));
+            comp
+        })
+        .collect()
 }
 
 /// Lanczos3 at half-integer offsets, scaled ×2: the halving filter, normalised.
@@ -1062,6 +1080,20 @@ mod tests {
         }
         // out of reach
         assert!(PairTaps::new(&lut, rho, (0.0, 128), (0.5, 256), 1.0).is_none());
+    }
+
+    #[test]
+    fn polyphase_components_take_every_qth_sample() {
+        for len in 0..11 {
+            let x: Vec<f64> = (0..len).map(|i| i as f64 * 1.5 - 2.0).collect();
+            let by_step = |q: usize| -> Vec<Vec<f64>> {
+                (0..q)
+                    .map(|r| x.iter().skip(r).step_by(q).copied().collect())
+                    .collect()
+            };
+            assert_eq!(deinterleave::<2>(&x), by_step(2), "{len} samples");
+            assert_eq!(deinterleave::<4>(&x), by_step(4), "{len} samples");
+        }
     }
 
     #[test]
