@@ -1234,6 +1234,12 @@ impl TileRowJob<'_> {
     }
 }
 
+/// The tiles one thread made of a shard, encoded, and their value range.
+struct Made<T> {
+    tiles: Vec<sc_store::EncodedTile<T>>,
+    range: Option<(f64, f64)>,
+}
+
 /// What building one shard did: texels computed, their value range, with a repair the damaged
 /// tiles whose ingested data is lost (empty when the level is derived only), and the fingerprint
 /// of the shard written.
@@ -1297,67 +1303,77 @@ fn build_shard<T: Texel>(
         }
         Err(e) => return Err(e.into()),
     };
-    let mut texels = 0;
-    let mut range: Option<(f64, f64)> = None;
-    let mut merge = |ty: u64, spans: TileRowSpans| -> Result<()> {
-        for (tx0, tx1, rows) in spans {
-            for tx in tx0..tx1 {
-                let x0 = ((tx - tx0) * t) as usize;
-                let id =
-                    TileId::new(grid, out, tx, ty).map_err(|e| BuildError::Usage(e.to_string()))?;
-                // over what the level holds (nodata where it holds nothing)
-                sw.get_tile(id, &mut tile_buf)?;
-                let tu = t as usize;
-                for (r, row) in rows.iter().enumerate() {
-                    T::merge_run(
-                        &row.v[x0 * ch..(x0 + tu) * ch],
-                        &row.c[x0..x0 + tu],
-                        &mut tile_buf[r * tu * sc..(r + 1) * tu * sc],
-                    );
+    // each thread merges the tiles of the rows it filtered over what the level holds (nodata
+    // where it holds nothing), keeps them for the next steps and encodes them: no thread waits
+    // for another before the shard is written
+    let tile_len = tile_buf.len();
+    let sw_made = &sw;
+    let make = |part: &[u64]| -> Result<Made<T>> {
+        let mut made = Made {
+            tiles: Vec::new(),
+            range: None,
+        };
+        let mut merge = |ty: u64, spans: TileRowSpans| -> Result<()> {
+            let tu = t as usize;
+            for (tx0, tx1, rows) in spans {
+                for tx in tx0..tx1 {
+                    let x0 = ((tx - tx0) * t) as usize;
+                    let id = TileId::new(grid, out, tx, ty)
+                        .map_err(|e| BuildError::Usage(e.to_string()))?;
+                    let mut tile = vec![T::default_fill(); tile_len];
+                    sw_made.get_tile(id, &mut tile)?;
+                    for (r, row) in rows.iter().enumerate() {
+                        T::merge_run(
+                            &row.v[x0 * ch..(x0 + tu) * ch],
+                            &row.c[x0..x0 + tu],
+                            &mut tile[r * tu * sc..(r + 1) * tu * sc],
+                        );
+                    }
+                    if let Some((lo, hi)) = T::value_range(&tile) {
+                        made.range =
+                            Some(made.range.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
+                    }
+                    // the next steps read the tile as written
+                    cache.put(id, &std::sync::Arc::new(tile.clone()));
+                    made.tiles.push(sw_made.encode(id, tile)?);
                 }
-                if let Some((lo, hi)) = T::value_range(&tile_buf) {
-                    range = Some(range.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
-                }
-                sw.put_tile(id, &tile_buf)?;
-                // the next steps read the tile as written
-                cache.put(id, &std::sync::Arc::new(tile_buf.clone()));
-                texels += t * t;
             }
-        }
-        Ok(())
+            Ok(())
+        };
+        job.run::<T>(part, &mut merge)?;
+        Ok(made)
     };
     let tys: Vec<u64> = (shard.y * s..((shard.y + 1) * s).min(grid.tiles_y(out)))
         .filter(|&ty| grid.level_has_tile_row(out, ty))
         .collect();
     let inner = inner.clamp(1, tys.len().max(1));
-    if inner == 1 {
-        job.run::<T>(&tys, &mut merge)?;
+    let made: Vec<Made<T>> = if inner == 1 {
+        vec![make(&tys)?]
     } else {
-        // contiguous runs of tile rows per thread (their source rows overlap least); results are
-        // merged here as they come, through a bounded channel
+        // contiguous runs of tile rows per thread (their source rows overlap least)
         let chunk = tys.len().div_ceil(inner);
-        std::thread::scope(|scope| -> Result<()> {
-            let (tx, rx) = std::sync::mpsc::sync_channel::<Result<(u64, TileRowSpans)>>(1);
-            let job = &job;
-            for part in tys.chunks(chunk) {
-                let tx = tx.clone();
-                scope.spawn(move || {
-                    let mut send = |ty, spans| {
-                        tx.send(Ok((ty, spans)))
-                            .map_err(|_| BuildError::Usage("build stopped".into()))
-                    };
-                    if let Err(e) = job.run::<T>(part, &mut send) {
-                        let _ = tx.send(Err(e));
-                    }
-                });
-            }
-            drop(tx);
-            for msg in rx {
-                let (ty, spans) = msg?;
-                merge(ty, spans)?;
-            }
-            Ok(())
-        })?;
+        std::thread::scope(|scope| {
+            let make = &make;
+            let parts: Vec<_> = tys
+                .chunks(chunk)
+                .map(|part| scope.spawn(move || make(part)))
+                .collect();
+            parts
+                .into_iter()
+                .map(|p| p.join().map_err(|_| BuildError::WorkerPanicked)?)
+                .collect::<Result<Vec<_>>>()
+        })?
+    };
+    let mut texels = 0;
+    let mut range: Option<(f64, f64)> = None;
+    for m in made {
+        if let Some((lo, hi)) = m.range {
+            range = Some(range.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
+        }
+        for tile in m.tiles {
+            sw.put_encoded(tile);
+            texels += t * t;
+        }
     }
     let mut written = String::new();
     sw.finish_with(|bytes| written = fingerprint(bytes))?;

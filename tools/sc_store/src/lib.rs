@@ -29,8 +29,8 @@ pub use reader::{StoreReader, TileRead};
 pub use sample::{LayerKind, TileSample};
 pub use verify::{LevelStats, Problem, VerifyReport};
 pub use writer::{
-    HeightCodec, LEVEL_MAKERS, ShardWriter, StoreConfig, StoreWriter, UpgradeReport, open_plan,
-    upgrade,
+    EncodedTile, HeightCodec, LEVEL_MAKERS, ShardWriter, StoreConfig, StoreWriter, UpgradeReport,
+    open_plan, upgrade,
 };
 
 /// Errors of the store. Messages are one line, lowercase, with the path last.

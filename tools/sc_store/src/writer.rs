@@ -795,6 +795,7 @@ impl StoreWriter {
             grid,
             shard_tiles,
             tiles: vec![None; (t * t) as usize],
+            encoded: vec![None; (t * t) as usize],
             range: None,
             path: shard_path,
         };
@@ -1157,8 +1158,20 @@ pub struct ShardWriter<'w, T: TileSample> {
     shard_tiles: u64,
     /// the shard's tiles, row-major; `None`: nodata
     tiles: Vec<Option<Vec<T>>>,
+    /// tiles encoded as they were put ([`EncodedTile`]); `Some(None)`: all fill
+    encoded: Vec<Option<Option<Vec<u8>>>>,
     range: Option<(f64, f64)>,
     path: PathBuf,
+}
+
+/// A tile's samples and their bytes as a shard stores them ([`ShardWriter::encode`]).
+#[derive(Debug)]
+pub struct EncodedTile<T> {
+    /// index of the tile in its shard
+    k: usize,
+    samples: Vec<T>,
+    /// `None`: every sample is the fill value (not stored)
+    bytes: Option<Vec<u8>>,
 }
 
 impl<T: TileSample> std::fmt::Debug for ShardWriter<'_, T> {
@@ -1235,13 +1248,54 @@ impl<T: TileSample> ShardWriter<'_, T> {
             Some(v) => v.copy_from_slice(samples),
             slot => *slot = Some(samples.to_vec()),
         }
+        self.encoded[k] = None;
+        self.note_range(samples);
+        Ok(())
+    }
+
+    fn note_range(&mut self, samples: &[T]) {
         if let Some((lo, hi)) = T::value_range(samples) {
             self.range = Some(match self.range {
                 Some((a, b)) => (a.min(lo), b.max(hi)),
                 None => (lo, hi),
             });
         }
-        Ok(())
+    }
+
+    /// A tile's samples encoded as this shard stores them, on the calling thread: tiles encoded
+    /// on the threads that make them, while the shard is still being made, and put with
+    /// [`Self::put_encoded`], are not encoded again when it is finished.
+    pub fn encode(&self, tile: TileId, samples: Vec<T>) -> Result<EncodedTile<T>> {
+        let k = self.tile_index(tile)?;
+        if samples.len() != self.tile_samples() {
+            return Err(StoreError::Usage(format!(
+                "expected {} samples for {tile}, found {}",
+                self.tile_samples(),
+                samples.len()
+            )));
+        }
+        let bytes = if is_fill(&samples) {
+            None
+        } else {
+            Some(
+                self.arrays
+                    .tiles
+                    .encode(T::as_bytes(&samples))
+                    .map_err(|e| StoreError::Format {
+                        what: format!("encoding {tile}: {e}"),
+                        path: self.path.clone(),
+                    })?,
+            )
+        };
+        Ok(EncodedTile { k, samples, bytes })
+    }
+
+    /// Replaces one tile with samples [`Self::encode`] encoded.
+    pub fn put_encoded(&mut self, tile: EncodedTile<T>) {
+        let EncodedTile { k, samples, bytes } = tile;
+        self.note_range(&samples);
+        self.tiles[k] = Some(samples);
+        self.encoded[k] = Some(bytes);
     }
 
     /// Copies one tile of the shard as it stands into `out`.
@@ -1272,21 +1326,28 @@ impl<T: TileSample> ShardWriter<'_, T> {
 
     /// [`Self::finish`], handing `written` the shard's bytes before they are written (`None`:
     /// the shard holds no data and its file is removed).
-    pub fn finish_with(self, written: impl FnOnce(Option<&[u8]>)) -> Result<()> {
+    pub fn finish_with(mut self, written: impl FnOnce(Option<&[u8]>)) -> Result<()> {
         let indices = T::KIND.chunk_indices(self.shard.x, self.shard.y);
         self.writer.save_undo(T::KIND, self.shard, &self.path)?;
         let format_err = |e: String| StoreError::Format {
             what: format!("writing {} {}: {e}", T::KIND, self.shard),
             path: self.path.clone(),
         };
-        let present: Vec<(usize, &[T])> = self
-            .tiles
-            .iter()
-            .enumerate()
-            .filter_map(|(k, t)| t.as_deref().map(|t| (k, t)))
-            .filter(|(_, t)| !is_fill(t))
-            .collect();
-        if present.is_empty() {
+        // the tiles encoded when they were put, and those to encode now
+        let mut ready: Vec<(usize, Vec<u8>)> = Vec::new();
+        let mut present: Vec<(usize, &[T])> = Vec::new();
+        for (k, (t, e)) in self.tiles.iter().zip(&mut self.encoded).enumerate() {
+            match e.take() {
+                Some(Some(bytes)) => ready.push((k, bytes)),
+                Some(None) => {}
+                None => {
+                    if let Some(t) = t.as_deref().filter(|t| !is_fill(t)) {
+                        present.push((k, t));
+                    }
+                }
+            }
+        }
+        if present.is_empty() && ready.is_empty() {
             written(None);
             self.arrays
                 .write
@@ -1294,8 +1355,8 @@ impl<T: TileSample> ShardWriter<'_, T> {
                 .map_err(|e| format_err(e.to_string()))?;
         } else {
             let codecs = &self.arrays.tiles;
-            let threads = self.writer.encode_threads().min(present.len());
-            let per = present.len().div_ceil(threads);
+            let threads = self.writer.encode_threads().min(present.len()).max(1);
+            let per = present.len().div_ceil(threads).max(1);
             let encoded = std::thread::scope(|scope| {
                 let parts: Vec<_> = present
                     .chunks(per)
@@ -1307,7 +1368,7 @@ impl<T: TileSample> ShardWriter<'_, T> {
                         })
                     })
                     .collect();
-                let mut all = Vec::with_capacity(present.len());
+                let mut all = ready;
                 for p in parts {
                     all.extend(
                         p.join()
@@ -1317,6 +1378,8 @@ impl<T: TileSample> ShardWriter<'_, T> {
                 Ok::<_, String>(all)
             })
             .map_err(format_err)?;
+            let mut encoded = encoded;
+            encoded.sort_unstable_by_key(|&(k, _)| k);
             let bytes = crate::shard_index::ShardIndex::assemble(self.tiles.len(), encoded);
             written(Some(&bytes));
             let key = self.arrays.write.chunk_key(&indices);

@@ -361,6 +361,78 @@ fn the_same_tiles_give_the_same_bytes() {
     }
 }
 
+/// Tiles encoded by the threads that make them ([`sc_store::ShardWriter::encode`]) give the
+/// shards, value ranges and metadata of tiles encoded when the shard is finished; a tile put again
+/// either way is stored as last put, and one of nodata only is not stored.
+#[test]
+fn tiles_encoded_as_they_are_made_give_the_same_store() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let t = 32;
+    let level = LevelId::iso(2).expect("valid");
+    let nodata = vec![f32::NAN; t * t];
+    let write = |root: &Path, early: bool| {
+        let w = StoreWriter::create(root, config()).expect("create");
+        let m = w.meta();
+        let (sx, sy) = ShardId::counts(m.grid, level, m.shard_tiles);
+        for y in 0..sy {
+            for x in 0..sx {
+                let mut sw = w
+                    .shard_writer::<f32>(ShardId { level, x, y })
+                    .expect("claim");
+                let tiles: Vec<TileId> = sw.tiles().collect();
+                for (i, &tile) in tiles.iter().enumerate() {
+                    let data = if i == 1 {
+                        nodata.clone()
+                    } else {
+                        height_tile(tile, t)
+                    };
+                    if !early {
+                        sw.put_tile(tile, &data).expect("put");
+                        continue;
+                    }
+                    match i {
+                        // put, then encoded early over it
+                        0 => {
+                            sw.put_tile(tile, &nodata).expect("put");
+                            let e = sw.encode(tile, data).expect("encode");
+                            sw.put_encoded(e);
+                        }
+                        // encoded early, then put over
+                        2 => {
+                            let other: Vec<f32> = data.iter().map(|v| v + 1.0).collect();
+                            let e = sw.encode(tile, other).expect("encode");
+                            sw.put_encoded(e);
+                            sw.put_tile(tile, &data).expect("put");
+                        }
+                        _ => {
+                            let e = sw.encode(tile, data).expect("encode");
+                            sw.put_encoded(e);
+                        }
+                    }
+                }
+                sw.finish().expect("finish");
+            }
+        }
+        w.commit(None).expect("commit");
+    };
+    let (a, b) = (dir.path().join("a.zarr"), dir.path().join("b.zarr"));
+    write(&a, false);
+    write(&b, true);
+    let (fa, fb) = (files_of(&a), files_of(&b));
+    assert!(fa.keys().filter(|k| k.contains("/c/")).count() >= 4);
+    assert_eq!(fa.keys().collect::<Vec<_>>(), fb.keys().collect::<Vec<_>>());
+    for (k, bytes) in &fa {
+        assert!(fb[k] == *bytes, "{k} differs");
+    }
+    let r = StoreReader::open(&b).expect("open");
+    let mut out = vec![0.0f32; t * t];
+    let tile = TileId { level, x: 1, y: 0 };
+    assert_eq!(
+        r.read_tile(tile, &mut out).expect("read"),
+        TileRead::Missing
+    );
+}
+
 /// pcodec's encoder settings are the writer's choice: a level written with others reads and
 /// takes new shards; another codec is damage.
 #[test]
