@@ -42,6 +42,9 @@ struct Inner {
 pub(crate) struct LevelReader {
     pub(crate) array: Arc<Array<FilesystemStore>>,
     pub(crate) cache: ArrayShardedReadableExtCache,
+    /// the codecs of a tile inside a shard: a tile's bytes, read once to check their crc32c,
+    /// are decoded with them (zarrs would read them again)
+    tiles: Option<Arc<crate::writer::TileCodecs>>,
 }
 
 impl std::fmt::Debug for LevelReader {
@@ -129,7 +132,15 @@ impl StoreReader {
                 if let Some(lr) = known.and_then(|k| k.inner.levels.get(&(kind, lm.level))) {
                     let cache = ArrayShardedReadableExtCache::new(&lr.array);
                     let array = lr.array.clone();
-                    levels.insert((kind, lm.level), LevelReader { array, cache });
+                    let tiles = lr.tiles.clone();
+                    levels.insert(
+                        (kind, lm.level),
+                        LevelReader {
+                            array,
+                            cache,
+                            tiles,
+                        },
+                    );
                     continue;
                 }
                 let path = crate::layout::data_array_path(meta.format_major(), kind, lm.level);
@@ -143,8 +154,16 @@ impl StoreReader {
                     path: root.join(path.trim_start_matches('/')),
                 })?;
                 let cache = ArrayShardedReadableExtCache::new(&array);
+                let tiles = crate::writer::TileCodecs::of(&array).ok().map(Arc::new);
                 let array = Arc::new(array);
-                levels.insert((kind, lm.level), LevelReader { array, cache });
+                levels.insert(
+                    (kind, lm.level),
+                    LevelReader {
+                        array,
+                        cache,
+                        tiles,
+                    },
+                );
             }
         }
         Ok(Self {
@@ -270,10 +289,16 @@ impl StoreReader {
             return Ok(TileRead::Missing);
         };
         let what = || Some(format!("{kind} {tile}"));
-        index
-            .check_tile(&self.shard_path(kind, tile)?, local_tile_number(tile, s))
+        let bytes = index
+            .tile_bytes(&self.shard_path(kind, tile)?, local_tile_number(tile, s))
             .map_err(|d| self.corrupt(kind, tile, what(), &d))?;
         let lr = self.level(kind, tile.level)?;
+        if let Some(codecs) = &lr.tiles {
+            codecs
+                .decode_into(&bytes, T::as_bytes_mut(out))
+                .map_err(|d| self.corrupt(kind, tile, what(), &d))?;
+            return Ok(TileRead::Present);
+        }
         let v: Vec<T> = lr
             .array
             .retrieve_subchunk_opt(

@@ -96,6 +96,8 @@ pub trait TileSample: ElementOwned + Copy + Send + Sync + 'static {
     fn value_range(samples: &[Self]) -> Option<(f64, f64)>;
     /// The samples' bytes in memory (little-endian on the machines we build for, as stored).
     fn as_bytes(samples: &[Self]) -> &[u8];
+    /// The samples' bytes in memory, to write.
+    fn as_bytes_mut(samples: &mut [Self]) -> &mut [u8];
 }
 
 impl TileSample for f32 {
@@ -113,6 +115,9 @@ impl TileSample for f32 {
     fn as_bytes(samples: &[Self]) -> &[u8] {
         bytemuck::cast_slice(samples)
     }
+    fn as_bytes_mut(samples: &mut [Self]) -> &mut [u8] {
+        bytemuck::cast_slice_mut(samples)
+    }
 }
 
 impl TileSample for u8 {
@@ -122,6 +127,9 @@ impl TileSample for u8 {
         None
     }
     fn as_bytes(samples: &[Self]) -> &[u8] {
+        samples
+    }
+    fn as_bytes_mut(samples: &mut [Self]) -> &mut [u8] {
         samples
     }
 }

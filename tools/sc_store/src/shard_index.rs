@@ -89,6 +89,11 @@ impl ShardIndex {
 
     /// Reads tile number `i`'s encoded bytes from `path` and checks their trailing crc32c.
     pub(crate) fn check_tile(&self, path: &Path, i: usize) -> Result<(), String> {
+        self.tile_bytes(path, i).map(|_| ())
+    }
+
+    /// Tile number `i`'s encoded bytes read from `path`, their trailing crc32c checked.
+    pub(crate) fn tile_bytes(&self, path: &Path, i: usize) -> Result<Vec<u8>, String> {
         use std::os::unix::fs::FileExt;
         let Some(&(offset, nbytes)) = self.entries.get(i) else {
             return Err(format!("tile {i} is not in the shard index"));
@@ -107,7 +112,7 @@ impl ShardIndex {
         if crc32c::crc32c(body) != stored {
             return Err("tile checksum mismatch (damaged bytes)".into());
         }
-        Ok(())
+        Ok(buf)
     }
 
     /// Whether tile number `i` (row-major within the shard) is stored.

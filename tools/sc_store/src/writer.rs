@@ -111,7 +111,7 @@ struct LevelArrays {
 /// shape, data type and fill value: [`ShardWriter::finish`] encodes tiles with them and lays out
 /// the shard itself (tiles in index order, then the index, as zarrs' sharding codec with
 /// `SubchunkWriteOrder::C` does), so that a shard with few tiles costs only what those tiles do.
-struct TileCodecs {
+pub(crate) struct TileCodecs {
     chain: zarrs::array::CodecChain,
     shape: Vec<std::num::NonZeroU64>,
     data_type: zarrs::array::DataType,
@@ -121,7 +121,7 @@ struct TileCodecs {
 impl TileCodecs {
     /// From the metadata of a level array: sharding with the index at the end (what
     /// [`crate::layout::builder`] writes and `layout::check` requires).
-    fn of(array: &Array<DurableFs>) -> std::result::Result<Self, String> {
+    pub(crate) fn of<S: ?Sized>(array: &Array<S>) -> std::result::Result<Self, String> {
         use zarrs::array::codec::{ShardingCodecConfiguration, ShardingIndexLocation};
         let zarrs::array::ArrayMetadata::V3(m) = array.metadata() else {
             return Err("not a Zarr v3 array".into());
@@ -145,6 +145,38 @@ impl TileCodecs {
             data_type: array.data_type().clone(),
             fill: array.fill_value().clone(),
         })
+    }
+
+    /// Decodes one tile's encoded bytes into `out` (the samples' bytes); the length of what
+    /// they decode to is checked.
+    pub(crate) fn decode_into(
+        &self,
+        bytes: &[u8],
+        out: &mut [u8],
+    ) -> std::result::Result<(), String> {
+        use zarrs::array::codec::api::ArrayToBytesCodecTraits;
+        let options = zarrs::array::codec::api::CodecOptions::default();
+        let decoded = self
+            .chain
+            .decode(
+                std::borrow::Cow::Borrowed(bytes),
+                &self.shape,
+                &self.data_type,
+                &self.fill,
+                &options,
+            )
+            .map_err(|e| e.to_string())?
+            .into_fixed()
+            .map_err(|e| e.to_string())?;
+        if decoded.len() != out.len() {
+            return Err(format!(
+                "decoded {} bytes, expected {}",
+                decoded.len(),
+                out.len()
+            ));
+        }
+        out.copy_from_slice(&decoded);
+        Ok(())
     }
 
     /// One tile's encoded bytes.
