@@ -662,23 +662,40 @@ fn run_steps(
     on_shard(0, total);
     // only the shards finer data can reach are visited; the others count as without data
     let work = plan.work(writer.root())?;
-    // every level the steps write, listed in the store's metadata at once
-    writer.ensure_levels(&plan.work_shapes())?;
-    for (step, w) in plan.steps.iter().zip(&work) {
-        let unreached = (step.shards.len() - w.shards.len()) as u64;
-        summary.shards_empty += unreached;
-        progress.skip(unreached);
-        run_step(
-            writer,
-            plan,
-            step,
-            &w.shards,
-            None,
-            &seen,
-            &progress,
-            &mut summary,
-        )?;
+    // every level the steps write, listed in the store's metadata at once; the first step's
+    // level first, the others while that step runs (writing their files durably is waiting on
+    // the disk, not work)
+    let shapes = plan.work_shapes();
+    if let Some(&(layer, level)) = shapes.first() {
+        writer.ensure_level(layer, level)?;
     }
+    std::thread::scope(|scope| -> Result<()> {
+        let mut making = Some(scope.spawn(|| writer.ensure_levels(&shapes)));
+        for (k, (step, w)) in plan.steps.iter().zip(&work).enumerate() {
+            if k == 1
+                && let Some(m) = making.take()
+            {
+                m.join().map_err(|_| BuildError::WorkerPanicked)??;
+            }
+            let unreached = (step.shards.len() - w.shards.len()) as u64;
+            summary.shards_empty += unreached;
+            progress.skip(unreached);
+            run_step(
+                writer,
+                plan,
+                step,
+                &w.shards,
+                None,
+                &seen,
+                &progress,
+                &mut summary,
+            )?;
+        }
+        if let Some(m) = making {
+            m.join().map_err(|_| BuildError::WorkerPanicked)??;
+        }
+        Ok(())
+    })?;
     writer.commit(Some(build_record(plan, &summary, sc_store::unix_now())))?;
     summary.seconds = start.elapsed().as_secs_f64();
     Ok(summary)
