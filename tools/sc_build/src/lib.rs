@@ -1323,7 +1323,6 @@ fn build_shard<T: Texel>(
     // each thread merges the tiles of the rows it filtered over what the level holds (nodata
     // where it holds nothing), keeps them for the next steps and encodes them: no thread waits
     // for another before the shard is written
-    let tile_len = tile_buf.len();
     let sw_made = &sw;
     let make = |part: &[u64]| -> Result<Made<T>> {
         let mut made = Made {
@@ -1337,8 +1336,7 @@ fn build_shard<T: Texel>(
                     let x0 = ((tx - tx0) * t) as usize;
                     let id = TileId::new(grid, out, tx, ty)
                         .map_err(|e| BuildError::Usage(e.to_string()))?;
-                    let mut tile = vec![T::default_fill(); tile_len];
-                    sw_made.get_tile(id, &mut tile)?;
+                    let mut tile = sw_made.tile(id)?;
                     for (r, row) in rows.iter().enumerate() {
                         T::merge_run(
                             &row.v[x0 * ch..(x0 + tu) * ch],

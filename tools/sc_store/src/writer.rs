@@ -1330,6 +1330,15 @@ impl<T: TileSample> ShardWriter<'_, T> {
         self.encoded[k] = Some(bytes);
     }
 
+    /// One tile of the shard as it stands (nodata where it holds nothing), as a new buffer.
+    pub fn tile(&self, tile: TileId) -> Result<Vec<T>> {
+        let k = self.tile_index(tile)?;
+        Ok(match &self.tiles[k] {
+            Some(v) => v.clone(),
+            None => vec![T::FILL; self.tile_samples()],
+        })
+    }
+
     /// Copies one tile of the shard as it stands into `out`.
     pub fn get_tile(&self, tile: TileId, out: &mut [T]) -> Result<()> {
         let k = self.tile_index(tile)?;
