@@ -1344,13 +1344,14 @@ fn build_shard<T: Texel>(
                             &mut tile[r * tu * sc..(r + 1) * tu * sc],
                         );
                     }
-                    if let Some((lo, hi)) = T::value_range(&tile) {
+                    // the next steps read the tile as written
+                    cache.put(id, &std::sync::Arc::new(tile.clone()));
+                    let encoded = sw_made.encode(id, tile)?;
+                    if let Some((lo, hi)) = encoded.range() {
                         made.range =
                             Some(made.range.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
                     }
-                    // the next steps read the tile as written
-                    cache.put(id, &std::sync::Arc::new(tile.clone()));
-                    made.tiles.push(sw_made.encode(id, tile)?);
+                    made.tiles.push(encoded);
                 }
             }
             Ok(())

@@ -104,11 +104,12 @@ impl TileSample for f32 {
     const KIND: LayerKind = LayerKind::Height;
     const FILL: Self = f32::NAN;
     fn value_range(samples: &[Self]) -> Option<(f64, f64)> {
-        // `min`/`max` pass NaN over, so nodata needs no branch
+        // a comparison with NaN is false, so nodata is passed over; as selects, the loop
+        // vectorises (`f32::min` does not)
         let (lo, hi) = samples
             .iter()
             .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
-                (lo.min(v), hi.max(v))
+                (if v < lo { v } else { lo }, if v > hi { v } else { hi })
             });
         (lo <= hi).then(|| (f64::from(lo), f64::from(hi)))
     }
@@ -131,5 +132,29 @@ impl TileSample for u8 {
     }
     fn as_bytes_mut(samples: &mut [Self]) -> &mut [u8] {
         samples
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn height_ranges_pass_nodata_over() {
+        let nan = f32::NAN;
+        assert_eq!(
+            f32::value_range(&[nan, 3.5, -2.0, nan, 7.25, 0.0]),
+            Some((-2.0, 7.25))
+        );
+        assert_eq!(f32::value_range(&[nan, -4.0, nan]), Some((-4.0, -4.0)));
+        assert_eq!(f32::value_range(&[nan; 40]), None);
+        assert_eq!(f32::value_range(&[]), None);
+        // long enough for the vector loop and its remainder, extremes at either end
+        let mut v: Vec<f32> = (0..37).map(|i| i as f32).collect();
+        v[0] = 1e9;
+        v[36] = -1e9;
+        v[5] = nan;
+        assert_eq!(f32::value_range(&v), Some((-1e9, 1e9)));
+        assert_eq!(u8::value_range(&[1, 2, 3]), None);
     }
 }

@@ -1204,6 +1204,14 @@ pub struct EncodedTile<T> {
     samples: Vec<T>,
     /// `None`: every sample is the fill value (not stored)
     bytes: Option<Vec<u8>>,
+    range: Option<(f64, f64)>,
+}
+
+impl<T> EncodedTile<T> {
+    /// The range of the tile's valid values, if it has any and its layer tracks ranges.
+    pub fn range(&self) -> Option<(f64, f64)> {
+        self.range
+    }
 }
 
 impl<T: TileSample> std::fmt::Debug for ShardWriter<'_, T> {
@@ -1319,13 +1327,26 @@ impl<T: TileSample> ShardWriter<'_, T> {
                     })?,
             )
         };
-        Ok(EncodedTile { k, samples, bytes })
+        let range = T::value_range(&samples);
+        Ok(EncodedTile {
+            k,
+            samples,
+            bytes,
+            range,
+        })
     }
 
     /// Replaces one tile with samples [`Self::encode`] encoded.
     pub fn put_encoded(&mut self, tile: EncodedTile<T>) {
-        let EncodedTile { k, samples, bytes } = tile;
-        self.note_range(&samples);
+        let EncodedTile {
+            k,
+            samples,
+            bytes,
+            range,
+        } = tile;
+        if let Some((lo, hi)) = range {
+            self.range = Some(self.range.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
+        }
         self.tiles[k] = Some(samples);
         self.encoded[k] = Some(bytes);
     }
