@@ -129,33 +129,28 @@ impl StoreReader {
         let mut levels = HashMap::new();
         for (&kind, layer) in &meta.layers {
             for lm in layer.levels.values() {
-                if let Some(lr) = known.and_then(|k| k.inner.levels.get(&(kind, lm.level))) {
-                    let cache = ArrayShardedReadableExtCache::new(&lr.array);
-                    let array = lr.array.clone();
-                    let tiles = lr.tiles.clone();
-                    levels.insert(
-                        (kind, lm.level),
-                        LevelReader {
-                            array,
-                            cache,
-                            tiles,
-                        },
-                    );
-                    continue;
-                }
-                let path = crate::layout::data_array_path(meta.format_major(), kind, lm.level);
-                let damaged = |what: String| StoreError::Format {
-                    what: format!("damaged store: {kind} level {}: {what}", lm.level.key()),
-                    path: root.join(path.trim_start_matches('/')).join("zarr.json"),
+                // the arrays a known reader checked and opened are taken as they are
+                let (array, tiles) = match known.and_then(|k| k.inner.levels.get(&(kind, lm.level)))
+                {
+                    Some(lr) => (lr.array.clone(), lr.tiles.clone()),
+                    None => {
+                        let path =
+                            crate::layout::data_array_path(meta.format_major(), kind, lm.level);
+                        let damaged = |what: String| StoreError::Format {
+                            what: format!("damaged store: {kind} level {}: {what}", lm.level.key()),
+                            path: root.join(path.trim_start_matches('/')).join("zarr.json"),
+                        };
+                        crate::layout::check_file(root, kind, lm.level, &meta).map_err(damaged)?;
+                        let array =
+                            Array::open(fs.clone(), &path).map_err(|e| StoreError::Format {
+                                what: format!("cannot open {kind} level {}: {e}", lm.level),
+                                path: root.join(path.trim_start_matches('/')),
+                            })?;
+                        let tiles = crate::writer::TileCodecs::of(&array).ok().map(Arc::new);
+                        (Arc::new(array), tiles)
+                    }
                 };
-                crate::layout::check_file(root, kind, lm.level, &meta).map_err(damaged)?;
-                let array = Array::open(fs.clone(), &path).map_err(|e| StoreError::Format {
-                    what: format!("cannot open {kind} level {}: {e}", lm.level),
-                    path: root.join(path.trim_start_matches('/')),
-                })?;
                 let cache = ArrayShardedReadableExtCache::new(&array);
-                let tiles = crate::writer::TileCodecs::of(&array).ok().map(Arc::new);
-                let array = Arc::new(array);
                 levels.insert(
                     (kind, lm.level),
                     LevelReader {
