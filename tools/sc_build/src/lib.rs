@@ -1347,10 +1347,7 @@ fn build_shard<T: Texel>(
                     // the next steps read the tile as written
                     cache.put(id, &std::sync::Arc::new(tile.clone()));
                     let encoded = sw_made.encode(id, tile)?;
-                    if let Some((lo, hi)) = encoded.range() {
-                        made.range =
-                            Some(made.range.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
-                    }
+                    made.range = sc_store::range_union(made.range, encoded.range());
                     made.tiles.push(encoded);
                 }
             }
@@ -1383,9 +1380,7 @@ fn build_shard<T: Texel>(
     let mut texels = 0;
     let mut range: Option<(f64, f64)> = None;
     for m in made {
-        if let Some((lo, hi)) = m.range {
-            range = Some(range.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
-        }
+        range = sc_store::range_union(range, m.range);
         for tile in m.tiles {
             sw.put_encoded(tile);
             texels += t * t;

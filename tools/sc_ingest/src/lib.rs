@@ -864,7 +864,7 @@ fn commit_records(
     for r in records {
         if let Some((kind, level, (lo, hi))) = r.range {
             writer.note_range(kind, level, lo, hi);
-            range = Some(range.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
+            range = sc_store::range_union(range, Some((lo, hi)));
         }
         for (&i, c) in &r.inputs {
             if let Some(t) = totals.get_mut(i) {
@@ -1001,9 +1001,7 @@ impl ShardStats {
     /// Adds what `other` counted (the same whatever the order).
     fn merge(&mut self, other: ShardStats) {
         self.tiles += other.tiles;
-        if let Some((lo, hi)) = other.range {
-            self.range = Some(self.range.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
-        }
+        self.range = sc_store::range_union(self.range, other.range);
         for (i, c) in other.inputs {
             self.inputs.entry(i).or_default().merge(&c);
         }

@@ -26,7 +26,7 @@ pub use meta::{
     BuildRecord, FORMAT_MAJOR, FORMAT_MINOR, InputRecord, LayerMeta, LevelMeta, StoreMeta, unix_now,
 };
 pub use reader::{StoreReader, TileRead};
-pub use sample::{LayerKind, TileSample};
+pub use sample::{LayerKind, TileSample, range_union};
 pub use verify::{LevelStats, Problem, VerifyReport};
 pub use writer::{
     EncodedTile, HeightCodec, LEVEL_MAKERS, ShardWriter, StoreConfig, StoreWriter, UpgradeReport,

@@ -100,6 +100,14 @@ pub trait TileSample: ElementOwned + Copy + Send + Sync + 'static {
     fn as_bytes_mut(samples: &mut [Self]) -> &mut [u8];
 }
 
+/// The smallest range holding both value ranges (`None`: no valid value).
+pub fn range_union(a: Option<(f64, f64)>, b: Option<(f64, f64)>) -> Option<(f64, f64)> {
+    match (a, b) {
+        (Some((a0, a1)), Some((b0, b1))) => Some((a0.min(b0), a1.max(b1))),
+        (r, None) | (None, r) => r,
+    }
+}
+
 impl TileSample for f32 {
     const KIND: LayerKind = LayerKind::Height;
     const FILL: Self = f32::NAN;
@@ -156,5 +164,16 @@ mod tests {
         v[5] = nan;
         assert_eq!(f32::value_range(&v), Some((-1e9, 1e9)));
         assert_eq!(u8::value_range(&[1, 2, 3]), None);
+    }
+
+    #[test]
+    fn range_unions_hold_both_ranges() {
+        assert_eq!(
+            range_union(Some((-2.0, 3.0)), Some((1.0, 5.0))),
+            Some((-2.0, 5.0))
+        );
+        assert_eq!(range_union(None, Some((1.0, 5.0))), Some((1.0, 5.0)));
+        assert_eq!(range_union(Some((1.0, 5.0)), None), Some((1.0, 5.0)));
+        assert_eq!(range_union(None, None), None);
     }
 }

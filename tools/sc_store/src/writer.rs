@@ -1133,10 +1133,7 @@ impl StoreWriter {
                     .get_mut(&kind)
                     .and_then(|l| l.levels.get_mut(&level.key()))
                 {
-                    lm.value_range = Some(match lm.value_range {
-                        Some((a, b)) => (a.min(lo), b.max(hi)),
-                        None => (lo, hi),
-                    });
+                    lm.value_range = crate::sample::range_union(lm.value_range, Some((lo, hi)));
                 }
             }
             // a record equal to the last one is the same step committed again by a resumed run
@@ -1272,9 +1269,8 @@ impl<T: TileSample> ShardWriter<'_, T> {
         }
     }
 
-    /// Replaces one tile: `T×T×channels` samples, row-major from the north-west corner.
-    pub fn put_tile(&mut self, tile: TileId, samples: &[T]) -> Result<()> {
-        let k = self.tile_index(tile)?;
+    /// `samples` as one whole tile's: `T×T×channels` of them.
+    fn check_samples(&self, tile: TileId, samples: &[T]) -> Result<()> {
         let n = self.tile_samples();
         if samples.len() != n {
             let t = self.grid.tile_size();
@@ -1284,22 +1280,20 @@ impl<T: TileSample> ShardWriter<'_, T> {
                 samples.len()
             )));
         }
+        Ok(())
+    }
+
+    /// Replaces one tile: `T×T×channels` samples, row-major from the north-west corner.
+    pub fn put_tile(&mut self, tile: TileId, samples: &[T]) -> Result<()> {
+        let k = self.tile_index(tile)?;
+        self.check_samples(tile, samples)?;
         match &mut self.tiles[k] {
             Some(v) => v.copy_from_slice(samples),
             slot => *slot = Some(samples.to_vec()),
         }
         self.encoded[k] = None;
-        self.note_range(samples);
+        self.range = crate::sample::range_union(self.range, T::value_range(samples));
         Ok(())
-    }
-
-    fn note_range(&mut self, samples: &[T]) {
-        if let Some((lo, hi)) = T::value_range(samples) {
-            self.range = Some(match self.range {
-                Some((a, b)) => (a.min(lo), b.max(hi)),
-                None => (lo, hi),
-            });
-        }
     }
 
     /// A tile's samples encoded as this shard stores them, on the calling thread: tiles encoded
@@ -1307,13 +1301,7 @@ impl<T: TileSample> ShardWriter<'_, T> {
     /// [`Self::put_encoded`], are not encoded again when it is finished.
     pub fn encode(&self, tile: TileId, samples: Vec<T>) -> Result<EncodedTile<T>> {
         let k = self.tile_index(tile)?;
-        if samples.len() != self.tile_samples() {
-            return Err(StoreError::Usage(format!(
-                "expected {} samples for {tile}, found {}",
-                self.tile_samples(),
-                samples.len()
-            )));
-        }
+        self.check_samples(tile, &samples)?;
         let bytes = if is_fill(&samples) {
             None
         } else {
@@ -1344,9 +1332,7 @@ impl<T: TileSample> ShardWriter<'_, T> {
             bytes,
             range,
         } = tile;
-        if let Some((lo, hi)) = range {
-            self.range = Some(self.range.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
-        }
+        self.range = crate::sample::range_union(self.range, range);
         self.tiles[k] = Some(samples);
         self.encoded[k] = Some(bytes);
     }
@@ -1419,7 +1405,7 @@ impl<T: TileSample> ShardWriter<'_, T> {
             let codecs = &self.arrays.tiles;
             let threads = self.writer.encode_threads().min(present.len()).max(1);
             let per = present.len().div_ceil(threads).max(1);
-            let encoded = std::thread::scope(|scope| {
+            let mut encoded = std::thread::scope(|scope| {
                 let parts: Vec<_> = present
                     .chunks(per)
                     .map(|part| {
@@ -1440,7 +1426,6 @@ impl<T: TileSample> ShardWriter<'_, T> {
                 Ok::<_, String>(all)
             })
             .map_err(format_err)?;
-            let mut encoded = encoded;
             encoded.sort_unstable_by_key(|&(k, _)| k);
             let bytes = crate::shard_index::ShardIndex::assemble(self.tiles.len(), encoded);
             written(Some(&bytes));
@@ -1454,15 +1439,7 @@ impl<T: TileSample> ShardWriter<'_, T> {
         }
         tracing::debug!(layer = %T::KIND, shard = %self.shard, path = %self.path.display(), "store: shard written");
         if let Some((lo, hi)) = self.range {
-            let mut ranges = self
-                .writer
-                .ranges
-                .lock()
-                .unwrap_or_else(PoisonError::into_inner);
-            let e = ranges
-                .entry((T::KIND, self.shard.level))
-                .or_insert((lo, hi));
-            *e = (e.0.min(lo), e.1.max(hi));
+            self.writer.note_range(T::KIND, self.shard.level, lo, hi);
         }
         Ok(())
     }
