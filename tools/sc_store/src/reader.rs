@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, PoisonError, RwLock};
 
 use sc_core::{LevelId, ShardId, TileId};
-use zarrs::array::{Array, ArrayShardedReadableExt, ArrayShardedReadableExtCache};
+use zarrs::array::Array;
 use zarrs::filesystem::FilesystemStore;
 use zarrs::group::Group;
 
@@ -41,10 +41,9 @@ struct Inner {
 
 pub(crate) struct LevelReader {
     pub(crate) array: Arc<Array<FilesystemStore>>,
-    pub(crate) cache: ArrayShardedReadableExtCache,
     /// the codecs of a tile inside a shard: a tile's bytes, read once to check their crc32c,
-    /// are decoded with them (zarrs would read them again)
-    tiles: Option<Arc<crate::writer::TileCodecs>>,
+    /// are decoded with them
+    tiles: Arc<crate::writer::TileCodecs>,
 }
 
 impl std::fmt::Debug for LevelReader {
@@ -140,25 +139,17 @@ impl StoreReader {
                             what: format!("damaged store: {kind} level {}: {what}", lm.level.key()),
                             path: root.join(path.trim_start_matches('/')).join("zarr.json"),
                         };
-                        crate::layout::check_file(root, kind, lm.level, &meta).map_err(damaged)?;
+                        crate::layout::check_file(root, kind, lm.level, &meta).map_err(&damaged)?;
                         let array =
                             Array::open(fs.clone(), &path).map_err(|e| StoreError::Format {
                                 what: format!("cannot open {kind} level {}: {e}", lm.level),
                                 path: root.join(path.trim_start_matches('/')),
                             })?;
-                        let tiles = crate::writer::TileCodecs::of(&array).ok().map(Arc::new);
-                        (Arc::new(array), tiles)
+                        let tiles = crate::writer::TileCodecs::of(&array).map_err(&damaged)?;
+                        (Arc::new(array), Arc::new(tiles))
                     }
                 };
-                let cache = ArrayShardedReadableExtCache::new(&array);
-                levels.insert(
-                    (kind, lm.level),
-                    LevelReader {
-                        array,
-                        cache,
-                        tiles,
-                    },
-                );
+                levels.insert((kind, lm.level), LevelReader { array, tiles });
             }
         }
         Ok(Self {
@@ -288,29 +279,9 @@ impl StoreReader {
             .tile_bytes(&self.shard_path(kind, tile)?, local_tile_number(tile, s))
             .map_err(|d| self.corrupt(kind, tile, what(), &d))?;
         let lr = self.level(kind, tile.level)?;
-        if let Some(codecs) = &lr.tiles {
-            codecs
-                .decode_into(&bytes, T::as_bytes_mut(out))
-                .map_err(|d| self.corrupt(kind, tile, what(), &d))?;
-            return Ok(TileRead::Present);
-        }
-        let v: Vec<T> = lr
-            .array
-            .retrieve_subchunk_opt(
-                &lr.cache,
-                &Self::tile_indices(kind, tile),
-                &Default::default(),
-            )
-            .map_err(|e| self.corrupt(kind, tile, what(), &e.to_string()))?;
-        if v.len() != n {
-            return Err(self.corrupt(
-                kind,
-                tile,
-                None,
-                &format!("decoded {} samples, expected {n}", v.len()),
-            ));
-        }
-        out.copy_from_slice(&v);
+        lr.tiles
+            .decode_into(&bytes, T::as_bytes_mut(out))
+            .map_err(|d| self.corrupt(kind, tile, what(), &d))?;
         Ok(TileRead::Present)
     }
 }
