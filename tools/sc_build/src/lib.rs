@@ -1292,7 +1292,6 @@ fn build_shard<T: Texel>(
     };
     let sc = T::KIND.channels();
     let ch = T::CH;
-    let mut tile_buf = vec![T::default_fill(); (t * t) as usize * sc];
     let derived = !ingested(reader.meta(), step.layer, out);
     // with a repair: the damaged tiles of a level that also holds ingested data
     let mut repaired: Option<Vec<TileId>> = None;
@@ -1304,6 +1303,7 @@ fn build_shard<T: Texel>(
         Err(StoreError::Corrupt { .. }) => {
             // keep every tile that still reads; the others are made again below where they can be
             let mut sw = writer.empty_shard_writer::<T>(shard)?;
+            let mut tile_buf = vec![T::default_fill(); (t * t) as usize * sc];
             let mut damaged = Vec::new();
             for id in sw.tiles().collect::<Vec<_>>() {
                 match reader.read_tile(id, &mut tile_buf) {

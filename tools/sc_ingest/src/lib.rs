@@ -787,13 +787,7 @@ fn write_shards(
                 // its items: one per tile, or the one that writes a shard without tiles
                 let items = shard_tiles.len().max(1);
                 tracing::debug!(layer = %settings.layer, %shard, tiles = shard_tiles.len(), "ingest: resampling shard");
-                *slot = Some(OpenShard::claim(
-                    writer,
-                    plan.grid,
-                    settings.layer,
-                    shard,
-                    items,
-                )?);
+                *slot = Some(OpenShard::claim(writer, settings.layer, shard, items)?);
             }
             let open = slot.as_mut().expect("just made");
             match t {
@@ -1013,8 +1007,6 @@ struct OpenShard<'w> {
     writer: LayerWriter<'w>,
     stats: ShardStats,
     left: usize,
-    /// Texels of a tile.
-    texels: usize,
 }
 
 /// A shard writer of the layer being ingested.
@@ -1032,12 +1024,10 @@ enum TileBuf {
 impl<'w> OpenShard<'w> {
     fn claim(
         writer: &'w StoreWriter,
-        grid: GridSpec,
         layer: LayerKind,
         shard: ShardId,
         left: usize,
     ) -> Result<Self> {
-        let t = grid.tile_size() as usize;
         let writer = match layer {
             LayerKind::Height => LayerWriter::Height(writer.shard_writer::<f32>(shard)?),
             LayerKind::Color => LayerWriter::Color(writer.shard_writer::<u8>(shard)?),
@@ -1046,24 +1036,14 @@ impl<'w> OpenShard<'w> {
             writer,
             stats: ShardStats::default(),
             left,
-            texels: t * t,
         })
     }
 
     /// The tile as the shard holds it now.
     fn get_tile(&self, tile: TileId) -> Result<TileBuf> {
-        let n = self.texels;
         Ok(match &self.writer {
-            LayerWriter::Height(sw) => {
-                let mut v = vec![f32::NAN; n];
-                sw.get_tile(tile, &mut v)?;
-                TileBuf::Height(v)
-            }
-            LayerWriter::Color(sw) => {
-                let mut v = vec![0u8; n * 4];
-                sw.get_tile(tile, &mut v)?;
-                TileBuf::Color(v)
-            }
+            LayerWriter::Height(sw) => TileBuf::Height(sw.tile(tile)?),
+            LayerWriter::Color(sw) => TileBuf::Color(sw.tile(tile)?),
         })
     }
 

@@ -1346,23 +1346,6 @@ impl<T: TileSample> ShardWriter<'_, T> {
         })
     }
 
-    /// Copies one tile of the shard as it stands into `out`.
-    pub fn get_tile(&self, tile: TileId, out: &mut [T]) -> Result<()> {
-        let k = self.tile_index(tile)?;
-        let n = self.tile_samples();
-        if out.len() != n {
-            return Err(StoreError::Usage(format!(
-                "expected a buffer of {n} samples, found {}",
-                out.len()
-            )));
-        }
-        match &self.tiles[k] {
-            Some(v) => out.copy_from_slice(v),
-            None => out.fill(T::FILL),
-        }
-        Ok(())
-    }
-
     /// Encodes the shard and replaces its file atomically and durably (removes it when no tile
     /// holds data). The bytes are those of zarrs' sharding codec with the tiles in index order:
     /// each tile that is not all fill encoded by the level's inner codecs, one after the other,
