@@ -5,8 +5,8 @@ use std::path::Path;
 use rand::{Rng, SeedableRng, rngs::StdRng};
 use sc_core::{GridSpec, LevelId, ShardId, TileId};
 use sc_store::{
-    FORMAT_MAJOR, FORMAT_MINOR, LayerKind, StoreConfig, StoreError, StoreReader, StoreWriter,
-    TileRead, TileSample,
+    FORMAT_MAJOR, FORMAT_MINOR, LayerKind, ShardWriter, StoreConfig, StoreError, StoreReader,
+    StoreWriter, TileRead, TileSample,
 };
 
 fn config() -> StoreConfig {
@@ -36,26 +36,38 @@ fn color_tile(tile: TileId, t: usize) -> Vec<u8> {
     (0..t * t * 4).map(|_| rng.random()).collect()
 }
 
+/// Writes every shard of `level` for layer T: `fill` puts the tiles of each (numbered in the
+/// shard's order), which is then finished.
+fn write_shards<T: TileSample>(
+    w: &StoreWriter,
+    level: LevelId,
+    mut fill: impl FnMut(&mut ShardWriter<'_, T>, usize, TileId),
+) {
+    let m = w.meta();
+    let (sx, sy) = ShardId::counts(m.grid, level, m.shard_tiles);
+    for y in 0..sy {
+        for x in 0..sx {
+            let mut sw = w.shard_writer::<T>(ShardId { level, x, y }).expect("claim");
+            let tiles: Vec<TileId> = sw.tiles().collect();
+            for (i, t) in tiles.into_iter().enumerate() {
+                fill(&mut sw, i, t);
+            }
+            sw.finish().expect("finish");
+        }
+    }
+}
+
 /// Writes every tile of `level` for layer T, shard by shard, returning the tiles written.
 fn write_level<T: TileSample>(
     w: &StoreWriter,
     level: LevelId,
     make: impl Fn(TileId) -> Vec<T>,
 ) -> Vec<TileId> {
-    let m = w.meta();
-    let (sx, sy) = ShardId::counts(m.grid, level, m.shard_tiles);
     let mut all = Vec::new();
-    for y in 0..sy {
-        for x in 0..sx {
-            let mut sw = w.shard_writer::<T>(ShardId { level, x, y }).expect("claim");
-            let tiles: Vec<TileId> = sw.tiles().collect();
-            for t in tiles {
-                sw.put_tile(t, &make(t)).expect("put");
-                all.push(t);
-            }
-            sw.finish().expect("finish");
-        }
-    }
+    write_shards(w, level, |sw, _, t| {
+        sw.put_tile(t, &make(t)).expect("put");
+        all.push(t);
+    });
     all
 }
 
@@ -372,47 +384,36 @@ fn tiles_encoded_as_they_are_made_give_the_same_store() {
     let nodata = vec![f32::NAN; t * t];
     let write = |root: &Path, early: bool| {
         let w = StoreWriter::create(root, config()).expect("create");
-        let m = w.meta();
-        let (sx, sy) = ShardId::counts(m.grid, level, m.shard_tiles);
-        for y in 0..sy {
-            for x in 0..sx {
-                let mut sw = w
-                    .shard_writer::<f32>(ShardId { level, x, y })
-                    .expect("claim");
-                let tiles: Vec<TileId> = sw.tiles().collect();
-                for (i, &tile) in tiles.iter().enumerate() {
-                    let data = if i == 1 {
-                        nodata.clone()
-                    } else {
-                        height_tile(tile, t)
-                    };
-                    if !early {
-                        sw.put_tile(tile, &data).expect("put");
-                        continue;
-                    }
-                    match i {
-                        // put, then encoded early over it
-                        0 => {
-                            sw.put_tile(tile, &nodata).expect("put");
-                            let e = sw.encode(tile, data).expect("encode");
-                            sw.put_encoded(e);
-                        }
-                        // encoded early, then put over
-                        2 => {
-                            let other: Vec<f32> = data.iter().map(|v| v + 1.0).collect();
-                            let e = sw.encode(tile, other).expect("encode");
-                            sw.put_encoded(e);
-                            sw.put_tile(tile, &data).expect("put");
-                        }
-                        _ => {
-                            let e = sw.encode(tile, data).expect("encode");
-                            sw.put_encoded(e);
-                        }
-                    }
-                }
-                sw.finish().expect("finish");
+        write_shards::<f32>(&w, level, |sw, i, tile| {
+            let data = if i == 1 {
+                nodata.clone()
+            } else {
+                height_tile(tile, t)
+            };
+            if !early {
+                sw.put_tile(tile, &data).expect("put");
+                return;
             }
-        }
+            match i {
+                // put, then encoded early over it
+                0 => {
+                    sw.put_tile(tile, &nodata).expect("put");
+                    let e = sw.encode(tile, data).expect("encode");
+                    sw.put_encoded(e);
+                }
+                // encoded early, then put over
+                2 => {
+                    let other: Vec<f32> = data.iter().map(|v| v + 1.0).collect();
+                    let e = sw.encode(tile, other).expect("encode");
+                    sw.put_encoded(e);
+                    sw.put_tile(tile, &data).expect("put");
+                }
+                _ => {
+                    let e = sw.encode(tile, data).expect("encode");
+                    sw.put_encoded(e);
+                }
+            }
+        });
         w.commit(None).expect("commit");
     };
     let (a, b) = (dir.path().join("a.zarr"), dir.path().join("b.zarr"));
