@@ -22,24 +22,39 @@ pub fn srgb_byte_to_linear(b: u8) -> f32 {
 }
 
 /// Linear light 0..1 → sRGB 8-bit: the byte [`linear_to_srgb_exact`] gives, without a `powf`
-/// per sample (ingest and build encode every colour texel they write). The 255 values at which
-/// the byte steps up are found once from the formula; a table over the float's exponent and top
-/// mantissa bits gives the byte at the start of the value's bucket, and the thresholds inside the
-/// bucket (at most one) are stepped over.
+/// per sample (ingest and build encode every colour texel they write). Loops over many texels
+/// take the tables once with [`srgb_encoder`].
 pub fn linear_to_srgb(v: f32) -> u8 {
-    /// Buckets start at 2^-13 (below the first threshold, ≈ 1.5e-4) and split each binade in 128.
-    const LOW_BITS: u32 = 0x3900_0000;
-    const SHIFT: u32 = 16;
-    struct Tables {
-        thresholds: [f32; 255],
-        bucket: Vec<u8>,
-    }
-    static TABLES: std::sync::OnceLock<Tables> = std::sync::OnceLock::new();
-    let t = TABLES.get_or_init(|| {
+    srgb_encoder().encode(v)
+}
+
+/// The tables behind [`linear_to_srgb`]: the 255 values at which the byte steps up, found once
+/// from the formula, and a table over the float's exponent and top mantissa bits giving the byte
+/// at the start of the value's bucket. A bucket is narrower than any step of the encoding, so it
+/// holds at most one threshold: one comparison finishes the byte, without a branch.
+#[derive(Debug)]
+pub struct SrgbEncoder {
+    /// `thresholds[k]`: the smallest value encoding to byte k + 1; `thresholds[255]` is infinite.
+    thresholds: [f32; 256],
+    bucket: Vec<u8>,
+}
+
+/// Buckets start at 2^-13 (below the first threshold, ≈ 1.5e-4) and split each binade in 128.
+const LOW_BITS: u32 = 0x3900_0000;
+const SHIFT: u32 = 16;
+const ONE_BITS: u32 = 0x3f80_0000;
+
+/// The sRGB encoding tables, made on first use.
+pub fn srgb_encoder() -> &'static SrgbEncoder {
+    static TABLES: std::sync::OnceLock<SrgbEncoder> = std::sync::OnceLock::new();
+    TABLES.get_or_init(|| {
         // the smallest f32 of 0..=1 at which the exact encoding reaches byte k + 1: a binary search
         // over the bit patterns (ordered like the values for non-negative floats)
-        let thresholds: [f32; 255] = std::array::from_fn(|k| {
-            let (mut lo, mut hi) = (0u32, 1f32.to_bits());
+        let thresholds: [f32; 256] = std::array::from_fn(|k| {
+            if k == 255 {
+                return f32::INFINITY;
+            }
+            let (mut lo, mut hi) = (0u32, ONE_BITS);
             while lo < hi {
                 let mid = lo + (hi - lo) / 2;
                 if linear_to_srgb_exact(f32::from_bits(mid)) as usize > k {
@@ -50,31 +65,33 @@ pub fn linear_to_srgb(v: f32) -> u8 {
             }
             f32::from_bits(lo)
         });
-        let buckets = (1f32.to_bits() - LOW_BITS) >> SHIFT;
+        let buckets = (ONE_BITS - LOW_BITS) >> SHIFT;
         let bucket = (0..buckets)
             .map(|i| {
                 let start = f32::from_bits(LOW_BITS + (i << SHIFT));
                 thresholds.partition_point(|&x| x <= start) as u8
             })
             .collect();
-        Tables { thresholds, bucket }
-    });
-    if v.is_nan() {
-        return linear_to_srgb_exact(v);
+        SrgbEncoder { thresholds, bucket }
+    })
+}
+
+impl SrgbEncoder {
+    /// Linear light → sRGB byte, as [`linear_to_srgb_exact`]; NaN and values below 2^-13 give 0,
+    /// 1 and above 255.
+    #[inline]
+    pub fn encode(&self, v: f32) -> u8 {
+        let bits = v.to_bits();
+        // NaN, negative values (the sign bit set) and values of 1 or more
+        if bits >= ONE_BITS {
+            return if v >= 1.0 { 255 } else { 0 };
+        }
+        if bits < LOW_BITS {
+            return 0;
+        }
+        let b = self.bucket[((bits - LOW_BITS) >> SHIFT) as usize];
+        b + u8::from(v >= self.thresholds[usize::from(b)])
     }
-    if v >= 1.0 {
-        return 255;
-    }
-    let bits = v.to_bits();
-    // negative values have the sign bit set: they and the tiny ones encode to 0
-    if !(LOW_BITS..1f32.to_bits()).contains(&bits) {
-        return 0;
-    }
-    let mut b = t.bucket[((bits - LOW_BITS) >> SHIFT) as usize];
-    while b < 255 && v >= t.thresholds[b as usize] {
-        b += 1;
-    }
-    b
 }
 
 /// Linear light 0..1 → sRGB 8-bit by the formula (IEC 61966-2-1), rounded to the nearest byte.
@@ -132,5 +149,18 @@ mod tests {
             assert_eq!(linear_to_srgb(v), linear_to_srgb_exact(v), "{v:e}");
         }
         assert!(checked > 10_000_000);
+    }
+
+    #[test]
+    fn no_bucket_holds_two_thresholds() {
+        let e = srgb_encoder();
+        for (i, &b) in e.bucket.iter().enumerate() {
+            let next = f32::from_bits(LOW_BITS + ((i as u32 + 1) << SHIFT));
+            let inside = e.thresholds[usize::from(b)..255]
+                .iter()
+                .take_while(|&&x| x < next)
+                .count();
+            assert!(inside <= 1, "bucket {i} holds {inside} thresholds");
+        }
     }
 }

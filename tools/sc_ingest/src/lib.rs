@@ -16,9 +16,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use sc_core::{GridSpec, Kernel, LevelId, ShardId, TileId};
-use sc_raster::{
-    LonLatBox, RasterError, RasterSource, SampleRole, SourceInfo, SourceOptions, linear_to_srgb,
-};
+use sc_raster::{LonLatBox, RasterError, RasterSource, SampleRole, SourceInfo, SourceOptions};
 use sc_store::{
     BuildRecord, InputRecord, LayerKind, StoreConfig, StoreError, StoreWriter, TileSample,
 };
@@ -932,7 +930,8 @@ fn commit_records(
 /// two-pass chamfer distance inside the tile; beyond the tile's edges counts as valid, so tiles
 /// never feather along their own borders). All ones when `width` is 0.
 fn feather_weights(plane0: &[f32], t: usize, width: u32) -> Vec<f32> {
-    if width == 0 {
+    // nothing to feather from: every distance stays beyond the width
+    if width == 0 || !plane0.iter().any(|v| v.is_nan()) {
         return vec![1.0; plane0.len()];
     }
     const FAR: f32 = 1e9;
@@ -1138,33 +1137,35 @@ fn heights_over(cur: &mut [f32], planes: &[Vec<f32>], fw: &[f32]) -> bool {
 /// a tile of sRGB bytes with their alpha: non-premultiplied "over" in linear light, its alpha
 /// scaled by `fw`; returns whether any texel took a value.
 fn colour_over(cur: &mut [u8], planes: &[Vec<f32>], fw: &[f32]) -> bool {
+    let srgb = sc_core::color::srgb_encoder();
+    let [r, g, b, alpha] = planes else {
+        unreachable!("colour is resampled in four planes")
+    };
     let mut changed = false;
-    for (k, px) in cur.chunks_exact_mut(4).enumerate() {
-        if planes[0][k].is_nan() {
+    let texels = r.iter().zip(g).zip(b).zip(alpha).zip(fw);
+    for (px, ((((&r, &g), &b), &alpha), &w)) in cur.chunks_exact_mut(4).zip(texels) {
+        if r.is_nan() {
             continue;
         }
-        let a = planes[3][k].clamp(0.0, 1.0) * fw[k];
+        let a = alpha.clamp(0.0, 1.0) * w;
         changed = true;
         if a == 1.0 {
             // what the compositing below gives for an opaque texel, exactly (out_a = 1, the old
             // colour weighted by 0)
-            for c in 0..3 {
-                px[c] = linear_to_srgb(planes[c][k]);
-            }
-            px[3] = 255;
+            px.copy_from_slice(&[srgb.encode(r), srgb.encode(g), srgb.encode(b), 255]);
             continue;
         }
         let old_a = f32::from(px[3]) / 255.0;
         let out_a = a + old_a * (1.0 - a);
-        for c in 0..3 {
+        for (c, new) in [r, g, b].into_iter().enumerate() {
             // (over nothing, the old colour counts for nothing)
             let old = if px[3] == 0 {
                 0.0
             } else {
                 sc_core::color::srgb_byte_to_linear(px[c])
             };
-            let lin = (planes[c][k] * a + old * old_a * (1.0 - a)) / out_a.max(1e-6);
-            px[c] = linear_to_srgb(lin);
+            let lin = (new * a + old * old_a * (1.0 - a)) / out_a.max(1e-6);
+            px[c] = srgb.encode(lin);
         }
         px[3] = ((out_a * 255.0).round() as u8).max(1);
     }

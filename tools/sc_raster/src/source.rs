@@ -1042,17 +1042,17 @@ impl RasterSource {
                 })
                 .collect()
         };
-        let mut cols: [Option<Vec<Option<usize>>>; 2] = [None, None];
+        let mut runs: [Option<Vec<ColumnRun>>; 2] = [None, None];
         for (k, row) in rows.iter().enumerate() {
             let Some((sr, flipped)) = *row else { continue };
-            let cols = cols[usize::from(flipped)].get_or_insert_with(|| col_map(flipped));
+            let runs =
+                runs[usize::from(flipped)].get_or_insert_with(|| column_runs(&col_map(flipped)));
             let base = (sr - rmin) as usize * rw;
             for (p, plane) in planes.iter_mut().enumerate() {
                 let (out, src) = (&mut plane[k * w..(k + 1) * w], &raw[p][base..base + rw]);
-                for (o, c) in out.iter_mut().zip(cols.iter()) {
-                    if let Some(c) = c {
-                        *o = src[*c];
-                    }
+                for run in runs.iter() {
+                    out[run.out..run.out + run.len]
+                        .copy_from_slice(&src[run.src..run.src + run.len]);
                 }
             }
         }
@@ -1516,6 +1516,28 @@ pub struct Window {
     pub memory: Option<Reservation>,
 }
 
+/// Window columns `out..out + len` taken from source columns `src..src + len` of a row.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct ColumnRun {
+    out: usize,
+    src: usize,
+    len: usize,
+}
+
+/// The runs of a column map (each window column's source column, or none): consecutive window
+/// columns from consecutive source columns make one run, copied at once.
+fn column_runs(map: &[Option<usize>]) -> Vec<ColumnRun> {
+    let mut runs: Vec<ColumnRun> = Vec::new();
+    for (out, src) in map.iter().enumerate() {
+        let Some(src) = *src else { continue };
+        match runs.last_mut() {
+            Some(r) if r.out + r.len == out && r.src + r.len == src => r.len += 1,
+            _ => runs.push(ColumnRun { out, src, len: 1 }),
+        }
+    }
+    runs
+}
+
 /// Drivers whose underlying library is not thread-safe (libnetcdf, libhdf5 as Debian builds
 /// them): every read and close on their datasets, and every open, holds [`SERIAL_DRIVERS_LOCK`].
 const SERIAL_DRIVERS: [&str; 4] = ["netCDF", "HDF5", "HDF5Image", "HDF4"];
@@ -1851,4 +1873,42 @@ fn snap_geographic(info: &mut SourceInfo) {
     let h = info.height as f64;
     info.north_pole_y = (-0.01..=0.51).contains(&yn).then_some(yn);
     info.south_pole_y = ((h - 0.51)..=(h + 0.01)).contains(&ys).then_some(ys);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn column_runs_copy_what_the_map_names() {
+        // across the antimeridian of a 10-column source, a gap, then columns going backwards
+        let map = [
+            Some(8),
+            Some(9),
+            Some(0),
+            Some(1),
+            None,
+            Some(5),
+            Some(4),
+            Some(5),
+        ];
+        let runs = column_runs(&map);
+        let run = |out, src, len| ColumnRun { out, src, len };
+        assert_eq!(
+            runs,
+            [run(0, 8, 2), run(2, 0, 2), run(5, 5, 1), run(6, 4, 2)]
+        );
+        let src: Vec<f32> = (0..10).map(|c| c as f32).collect();
+        let mut out = vec![f32::NAN; map.len()];
+        for r in &runs {
+            out[r.out..r.out + r.len].copy_from_slice(&src[r.src..r.src + r.len]);
+        }
+        for (o, m) in out.iter().zip(map) {
+            match m {
+                Some(c) => assert_eq!(*o, c as f32),
+                None => assert!(o.is_nan()),
+            }
+        }
+        assert!(column_runs(&[None, None]).is_empty());
+    }
 }
