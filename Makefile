@@ -13,7 +13,7 @@ deps:
 	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 0700 $(XDG_RUNTIME_DIR)
 
 build: deps
-	$(CARGO) build --locked --bin sphereclip
+	$(CARGO) build --locked --bin sphereclip --bin sphereclip-gdal
 
 demo: build
 	./target/debug/sphereclip demo --samples samples --out out

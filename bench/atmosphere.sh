@@ -9,7 +9,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 store=$1
 reps=${2:-3}
-cargo build --locked -q --bin sphereclip -p sphereclip
+cargo build --locked -q --bin sphereclip --bin sphereclip-gdal -p sphereclip
 cargo build --locked -q --release --bin atmosphere_tables -p sc_bench
 bin=./target/debug/sphereclip
 out=$(mktemp -d)

@@ -6,7 +6,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 out=${1:-bench/out}
 mkdir -p "$out"
-cargo build --release --quiet --bin sphereclip -p sphereclip
+cargo build --release --quiet --bin sphereclip --bin sphereclip-gdal -p sphereclip
 sc=${SPHERECLIP:-target/release/sphereclip}
 now() { date +%s.%N; }
 secs() { echo "$2 - $1" | bc -l; }

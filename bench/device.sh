@@ -15,7 +15,7 @@ case ${1:-} in
 prepare)
   set -e
   mkdir -p .dev/lib
-  cargo build --release -p sphereclip -p sc_bench --bin sphereclip --bin renderers
+  cargo build --release -p sphereclip -p sc_bench --bin sphereclip --bin sphereclip-gdal --bin renderers
   tmp=$(mktemp -d)
   trap 'rm -rf "$tmp"' EXIT
   cp target/release/sphereclip target/release/renderers "$tmp/"

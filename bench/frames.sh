@@ -9,7 +9,7 @@ cd "$(dirname "$0")/.."
 before=$1
 store=$2
 reps=${3:-3}
-cargo build --locked -q --bin sphereclip -p sphereclip
+cargo build --locked -q --bin sphereclip --bin sphereclip-gdal -p sphereclip
 after=./target/debug/sphereclip
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT

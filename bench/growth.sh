@@ -10,7 +10,7 @@ out=${1:-bench/out}
 levels=${2:-3 4 5 6}
 mkdir -p "$out"
 if [ -z "${SPHERECLIP:-}" ]; then
-  cargo build --release --quiet --bin sphereclip -p sphereclip
+  cargo build --release --quiet --bin sphereclip --bin sphereclip-gdal -p sphereclip
 fi
 sc=${SPHERECLIP:-target/release/sphereclip}
 src="$out/etopo5.cdf"

@@ -12,7 +12,7 @@ out=${2:-/tmp/sphereclip-bench}
 mkdir -p "$out"
 export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp/sphereclip-xdg}
 mkdir -p "$XDG_RUNTIME_DIR" && chmod 0700 "$XDG_RUNTIME_DIR"
-cargo build --locked -q --bin sphereclip -p sphereclip
+cargo build --locked -q --bin sphereclip --bin sphereclip-gdal -p sphereclip
 cargo build --locked -q --bin big_store -p sc_bench
 if [ ! -e "$store/zarr.json" ]; then ./target/debug/big_store "$store" --level 6; fi
 echo "store: $store ($(du -sh "$store" | cut -f1))"

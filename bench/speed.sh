@@ -11,7 +11,7 @@ out=${1:-bench/out}
 reps=${2:-3}
 mkdir -p "$out"
 if [ -z "${SPHERECLIP:-}" ]; then
-  cargo build --release --quiet --bin sphereclip -p sphereclip
+  cargo build --release --quiet --bin sphereclip --bin sphereclip-gdal -p sphereclip
 fi
 sc=${SPHERECLIP:-target/release/sphereclip}
 threads=${THREADS:-2}

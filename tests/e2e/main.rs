@@ -4,6 +4,7 @@
 mod build;
 mod cluster;
 mod detail;
+mod executables;
 mod fidelity;
 mod golden;
 mod ingest;

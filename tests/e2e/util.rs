@@ -167,22 +167,30 @@ pub fn read_level(r: &StoreReader, id: LevelId) -> (usize, usize, Vec<f32>) {
     (w, h, out)
 }
 
-/// A folder made by `make` once per build of the binary and shared by every test of a run (the
-/// other test processes too, when a runner starts one per test): kept under cargo's target
-/// tmpdir, keyed by the binary's size and time, made under a file lock into a `.part` folder and
-/// renamed when complete. Treat it as read-only: copy it before changing anything.
+/// A folder made by `make` once per build of the executables and shared by every test of a run
+/// (the other test processes too, when a runner starts one per test): kept under cargo's target
+/// tmpdir, keyed by both executables' sizes and times, made under a file lock into a `.part`
+/// folder and renamed when complete. Treat it as read-only: copy it before changing anything.
 pub fn fixture(name: &str, make: impl FnOnce(&Path)) -> PathBuf {
-    let exe = std::fs::metadata(env!("CARGO_BIN_EXE_sphereclip")).expect("the binary");
-    let time = exe
-        .modified()
-        .ok()
-        .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
-        .map_or(0, |d| d.as_nanos());
+    let key = [
+        env!("CARGO_BIN_EXE_sphereclip"),
+        env!("CARGO_BIN_EXE_sphereclip-gdal"),
+    ]
+    .map(|exe| {
+        let m = std::fs::metadata(exe).expect("the executable");
+        let time = m
+            .modified()
+            .ok()
+            .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
+            .map_or(0, |d| d.as_nanos());
+        format!("{}-{time}", m.len())
+    })
+    .join("-");
     let root = Path::new(env!("CARGO_TARGET_TMPDIR")).join("fixtures");
     std::fs::create_dir_all(&root).expect("mkdir");
     let lock = std::fs::File::create(root.join(format!("{name}.lock"))).expect("lock file");
     lock.lock().expect("lock");
-    let dir = root.join(format!("{name}-{}-{time}", exe.len()));
+    let dir = root.join(format!("{name}-{key}"));
     if !dir.is_dir() {
         // fixtures of earlier builds and a half-made one (all made here) go
         for e in std::fs::read_dir(&root).expect("read_dir").flatten() {
@@ -191,7 +199,7 @@ pub fn fixture(name: &str, make: impl FnOnce(&Path)) -> PathBuf {
                 std::fs::remove_dir_all(e.path()).expect("remove an old fixture");
             }
         }
-        let part = root.join(format!("{name}-{}-{time}.part", exe.len()));
+        let part = root.join(format!("{name}-{key}.part"));
         std::fs::create_dir_all(&part).expect("mkdir");
         make(&part);
         std::fs::rename(&part, &dir).expect("rename");

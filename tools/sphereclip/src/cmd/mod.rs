@@ -18,21 +18,30 @@ use anyhow::{Context, Result, bail};
 
 use crate::cli::{Cli, Command};
 
-/// Runs the parsed command line.
+/// Runs the parsed command line (`sphereclip-gdal`: every command).
 pub fn run(cli: Cli) -> Result<ExitCode> {
     match cli.command {
-        Command::Info(a) => info::run(&a),
         Command::Export(a) => export::run(&a),
         Command::Demo(a) => demo::run(&a),
         Command::Ingest(a) => ingest::run(&a),
-        Command::Build(a) => build::run(&a),
         Command::Inspect(a) => inspect::run(&a),
-        Command::View(a) => view::run(&a),
-        Command::Render(a) => render::run(&a),
-        Command::Upgrade(a) => upgrade::run(&a),
         Command::Plan(a) => plan::make(&a),
         Command::RunTask(a) => plan::run_task(&a),
         Command::Commit(a) => plan::commit(&a),
+        _ => run_without_gdal(cli),
+    }
+}
+
+/// Runs the commands that never open a raster through GDAL and hands the others, which read
+/// rasters, write GeoTIFFs or plan and run ingests, to `sphereclip-gdal` (`sphereclip`). Nothing
+/// reached from here calls GDAL, so an executable whose `main` passes only this does not link it.
+pub fn run_without_gdal(cli: Cli) -> Result<ExitCode> {
+    match cli.command {
+        Command::Info(a) => info::run(&a),
+        Command::Build(a) => build::run(&a),
+        Command::View(a) => view::run(&a),
+        Command::Render(a) => render::run(&a),
+        Command::Upgrade(a) => upgrade::run(&a),
         Command::Completions(a) => {
             let mut cmd = <Cli as clap::CommandFactory>::command();
             let mut out = Vec::new();
@@ -40,6 +49,13 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
             crate::outln!("{}", String::from_utf8_lossy(&out).trim_end());
             Ok(ExitCode::SUCCESS)
         }
+        Command::Ingest(_)
+        | Command::Export(_)
+        | Command::Demo(_)
+        | Command::Inspect(_)
+        | Command::Plan(_)
+        | Command::RunTask(_)
+        | Command::Commit(_) => crate::hand_over(),
     }
 }
 

@@ -303,7 +303,7 @@ pub fn make(a: &PlanArgs) -> Result<ExitCode> {
     let mut how = String::new();
     if let Some(emit) = opts.emit {
         let script = script_path(opts, &out, emit)?;
-        let exe = std::env::current_exe().context("cannot find the sphereclip binary")?;
+        let exe = crate::user_exe()?;
         let text = match emit {
             Emit::Slurm => slurm_script(&plan, &out, &exe),
             Emit::K8s => k8s_manifests(&plan, &out, opts),
