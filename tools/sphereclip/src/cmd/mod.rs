@@ -32,9 +32,10 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
     }
 }
 
-/// Runs the commands that never open a raster through GDAL and hands the others, which read
-/// rasters, write GeoTIFFs or plan and run ingests, to `sphereclip-gdal` (`sphereclip`). Nothing
-/// reached from here calls GDAL, so an executable whose `main` passes only this does not link it.
+/// Runs the parsed command line in `sphereclip`: the commands that never open a raster through
+/// GDAL here, the others (they read rasters, write GeoTIFFs, or plan and run ingests) handed to
+/// `sphereclip-gdal`. Nothing reached from here calls GDAL, so an executable whose `main` passes
+/// only this does not link it.
 pub fn run_without_gdal(cli: Cli) -> Result<ExitCode> {
     match cli.command {
         Command::Info(a) => info::run(&a),
