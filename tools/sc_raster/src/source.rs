@@ -1051,8 +1051,7 @@ impl RasterSource {
             for (p, plane) in planes.iter_mut().enumerate() {
                 let (out, src) = (&mut plane[k * w..(k + 1) * w], &raw[p][base..base + rw]);
                 for run in runs.iter() {
-                    out[run.out..run.out + run.len]
-                        .copy_from_slice(&src[run.src..run.src + run.len]);
+                    run.copy(out, src);
                 }
             }
         }
@@ -1524,6 +1523,13 @@ struct ColumnRun {
     len: usize,
 }
 
+impl ColumnRun {
+    /// Copies the run's source columns of `src` into its window columns of `out`.
+    fn copy<T: Copy>(&self, out: &mut [T], src: &[T]) {
+        out[self.out..self.out + self.len].copy_from_slice(&src[self.src..self.src + self.len]);
+    }
+}
+
 /// The runs of a column map (each window column's source column, or none): consecutive window
 /// columns from consecutive source columns make one run, copied at once.
 fn column_runs(map: &[Option<usize>]) -> Vec<ColumnRun> {
@@ -1901,7 +1907,7 @@ mod tests {
         let src: Vec<f32> = (0..10).map(|c| c as f32).collect();
         let mut out = vec![f32::NAN; map.len()];
         for r in &runs {
-            out[r.out..r.out + r.len].copy_from_slice(&src[r.src..r.src + r.len]);
+            r.copy(&mut out, &src);
         }
         for (o, m) in out.iter().zip(map) {
             match m {
