@@ -12,6 +12,7 @@ mod ingest_edges;
 mod input_fuzz;
 mod inspect;
 mod interop;
+mod plan_safety;
 mod render;
 mod safety;
 mod shading;

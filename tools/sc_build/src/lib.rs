@@ -553,7 +553,7 @@ impl Fingerprints {
             return Ok(f.clone());
         }
         // streamed through the hasher: a shard's bytes are never all in memory at once
-        let hashed = std::fs::File::open(path)
+        let hashed = sc_store::files::open_regular(path)
             .and_then(|file| Ok(hex16(blake3::Hasher::new().update_reader(file)?.finalize())));
         let f = match hashed {
             Ok(f) => f,
@@ -1001,6 +1001,12 @@ impl Plan {
     /// Each step's layer and output level, in order.
     pub fn work_shapes(&self) -> Vec<(LayerKind, LevelId)> {
         self.steps.iter().map(|s| (s.layer, s.out)).collect()
+    }
+
+    /// Every output shard of step `k` (index into [`Self::work_shapes`]); empty for a
+    /// step the build does not have.
+    pub fn step_shards(&self, k: usize) -> &[ShardId] {
+        self.steps.get(k).map_or(&[], |s| &s.shards)
     }
 
     /// A hash of what determines the build's output besides the store's data (builder version,

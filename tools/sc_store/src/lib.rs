@@ -11,6 +11,7 @@
 
 mod durable;
 pub mod fault;
+pub mod files;
 pub mod geozarr;
 mod layout;
 mod meta;

@@ -9,7 +9,6 @@
 //! `sharding_indexed` spec with the index at the end, encoded `bytes(little)` + `crc32c`, exactly
 //! as the writer configures it.
 
-use std::fs::File;
 use std::io::{Read, Seek, SeekFrom};
 use std::path::Path;
 
@@ -46,7 +45,7 @@ impl ShardIndex {
     /// Reads the index of the shard file at `path` holding `tiles` tiles. `Ok(None)`: no file.
     /// `Err(detail)`: truncated, checksum mismatch or byte ranges outside the file.
     pub(crate) fn read(path: &Path, tiles: usize) -> Result<Option<Self>, String> {
-        let mut f = match File::open(path) {
+        let mut f = match crate::files::open_regular(path) {
             Ok(f) => f,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
             Err(e) => return Err(e.to_string()),
@@ -104,7 +103,7 @@ impl ShardIndex {
             ));
         }
         let mut buf = vec![0u8; nbytes as usize];
-        File::open(path)
+        crate::files::open_regular(path)
             .and_then(|f| f.read_exact_at(&mut buf, offset))
             .map_err(|e| e.to_string())?;
         let (body, crc) = buf.split_at(buf.len() - 4);

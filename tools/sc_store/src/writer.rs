@@ -2,7 +2,7 @@
 //! commit that marks the store complete only after everything it wrote is durable.
 
 use std::collections::{HashMap, HashSet};
-use std::fs::{self, File, OpenOptions};
+use std::fs::{self, File};
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, PoisonError};
 
@@ -206,12 +206,7 @@ impl std::fmt::Debug for LevelArrays {
 
 fn lock_store(root: &Path, shared: bool) -> Result<File> {
     let path = root.join(".lock");
-    let f = OpenOptions::new()
-        .create(true)
-        .truncate(false)
-        .write(true)
-        .open(&path)
-        .map_err(io_err(&path))?;
+    let f = crate::files::open_lock(&path).map_err(io_err(&path))?;
     let locked = if shared {
         f.try_lock_shared()
     } else {

@@ -8,7 +8,6 @@
 //! file; `commit` merges them.
 
 use std::fmt::Write as _;
-use std::fs::File;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
@@ -197,8 +196,16 @@ fn script_path(opts: &PlanOptions, out: &Path, emit: Emit) -> Result<PathBuf> {
     })
 }
 
+/// The largest plan file read (a planet-wide SRTM1 plan is a few MB).
+const PLAN_MAX_BYTES: u64 = 256 << 20;
+
+/// The largest number of tasks and stages a plan may have (Slurm's largest array is 4 M).
+const PLAN_MAX_TASKS: usize = 1 << 22;
+
+/// Reads a plan file: untrusted data, checked whole before any of it names a path.
 fn read_plan(path: &Path) -> Result<PlanFile> {
-    let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let bytes = sc_store::files::read_regular(path, PLAN_MAX_BYTES)
+        .with_context(|| format!("cannot read {}", path.display()))?;
     let plan: PlanFile = serde_json::from_slice(&bytes)
         .map_err(|e| anyhow::anyhow!("not a sphereclip plan ({e}): {}", path.display()))?;
     if plan.sphereclip_plan != PLAN_FORMAT {
@@ -208,7 +215,195 @@ fn read_plan(path: &Path) -> Result<PlanFile> {
             path.display()
         );
     }
+    check_plan(&plan).map_err(|e| {
+        anyhow::anyhow!(
+            "not a valid sphereclip plan ({e}; make it again with `sphereclip plan`): {}",
+            path.display()
+        )
+    })?;
     Ok(plan)
+}
+
+/// Whether `s` is a plan hash: 64 lowercase hex digits (SHA-256).
+fn is_hash(s: &str) -> bool {
+    s.len() == 64
+        && s.bytes()
+            .all(|b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b))
+}
+
+/// Whether `p` is absolute with nothing but plain names after the root (no `.`, `..`), and not
+/// the root itself.
+fn is_plain_absolute(p: &Path) -> bool {
+    use std::path::Component;
+    let mut c = p.components();
+    c.next() == Some(Component::RootDir)
+        && p.components().count() > 1
+        && c.all(|c| matches!(c, Component::Normal(_)))
+}
+
+/// The checks a plan passes before anything is done with it: what it names are plain absolute
+/// paths, its hash is a hash, its stages number its tasks in order without gaps, every number is
+/// in range. (Its shards are checked against the step made again, [`check_work`].)
+fn check_plan(plan: &PlanFile) -> std::result::Result<(), String> {
+    if plan.kind != "ingest" && plan.kind != "build" {
+        return Err(format!("kind {:?} is neither ingest nor build", plan.kind));
+    }
+    if !is_hash(&plan.hash) {
+        return Err("its hash is not 64 hex digits".into());
+    }
+    if !is_plain_absolute(&plan.store) {
+        return Err(format!(
+            "its store {:?} is not a plain absolute path",
+            plan.store
+        ));
+    }
+    if !is_plain_absolute(&plan.cwd) && plan.cwd != Path::new("/") {
+        return Err(format!(
+            "its folder {:?} is not a plain absolute path",
+            plan.cwd
+        ));
+    }
+    if plan.cpus_per_task == 0 || plan.cpus_per_task > 65536 {
+        return Err(format!(
+            "cpus_per_task {} is out of range",
+            plan.cpus_per_task
+        ));
+    }
+    if plan.tasks.is_empty() || plan.stages.is_empty() {
+        return Err("it has no tasks".into());
+    }
+    if plan.tasks.len() > PLAN_MAX_TASKS || plan.stages.len() > PLAN_MAX_TASKS {
+        return Err(format!("it has more than {PLAN_MAX_TASKS} tasks"));
+    }
+    let mut next = 0u64;
+    for (k, st) in plan.stages.iter().enumerate() {
+        if u64::from(st.first_task) != next || st.tasks == 0 {
+            return Err(format!(
+                "stage {k} does not start where stage {} ends or has no task",
+                k.saturating_sub(1)
+            ));
+        }
+        if st.name.chars().any(char::is_control) || st.name.len() > 4096 {
+            return Err(format!("stage {k}'s name is not one line of text"));
+        }
+        let end = next + u64::from(st.tasks);
+        if end > plan.tasks.len() as u64 {
+            return Err(format!("stage {k} lists tasks the plan does not have"));
+        }
+        for t in next..end {
+            if plan.tasks[t as usize].stage as usize != k {
+                return Err(format!("task {t} is not in stage {k}"));
+            }
+        }
+        next = end;
+    }
+    if next != plan.tasks.len() as u64 {
+        return Err(format!(
+            "its stages hold {next} tasks, not the {} it lists",
+            plan.tasks.len()
+        ));
+    }
+    for (i, t) in plan.tasks.iter().enumerate() {
+        if t.work.is_empty() {
+            return Err(format!("task {i} has no work"));
+        }
+        for w in &t.work {
+            if LevelId::from_key(&w.level).is_none() {
+                return Err(format!("task {i} names an unknown level {:?}", w.level));
+            }
+            if w.shards.is_empty() {
+                return Err(format!("task {i} has a step without shards"));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Checks that every shard the plan gives its tasks is one the step made again from its
+/// arguments writes: a plan edited to name other shards, levels or steps is refused.
+fn check_work(plan: &PlanFile, step: &Step) -> Result<()> {
+    use std::collections::HashSet;
+    let bad = |what: String| anyhow::anyhow!("the plan's tasks name {what}; make the plan again");
+    match step {
+        Step::Ingest(p) => {
+            let layer = p.settings.layer.name();
+            for w in plan.tasks.iter().flat_map(|t| &t.work) {
+                if w.step != 0 || w.layer != layer {
+                    return Err(bad(format!(
+                        "a step the ingest does not have ({} {})",
+                        w.layer, w.step
+                    )));
+                }
+                if let Some(s) = w
+                    .shard_ids()?
+                    .into_iter()
+                    .find(|s| !p.shards.contains_key(s))
+                {
+                    return Err(bad(format!("shard {s}, which the ingest does not write")));
+                }
+            }
+        }
+        Step::Build(p) => {
+            let shapes = p.work_shapes();
+            let mut sets: Vec<Option<HashSet<ShardId>>> = vec![None; shapes.len()];
+            for w in plan.tasks.iter().flat_map(|t| &t.work) {
+                let Some((layer, level)) = shapes.get(w.step) else {
+                    return Err(bad(format!("a step {} the build does not have", w.step)));
+                };
+                if w.layer != layer.name() || w.level != level.key() {
+                    return Err(bad(format!(
+                        "{} {} as step {}, which makes {layer} {level}",
+                        w.layer, w.level, w.step
+                    )));
+                }
+                let set = sets[w.step]
+                    .get_or_insert_with(|| p.step_shards(w.step).iter().copied().collect());
+                if let Some(s) = w.shard_ids()?.into_iter().find(|s| !set.contains(s)) {
+                    return Err(bad(format!("shard {s}, which the build does not write")));
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Refuses a plan that is not the one open on its store, before any path is made from it.
+fn check_open(plan: &PlanFile) -> Result<()> {
+    check_store_folders(&plan.store)?;
+    if !open_marker(plan) {
+        bail!(
+            "this plan is not open on {} (committed already, abandoned, or another plan was made since)",
+            plan.store.display()
+        );
+    }
+    Ok(())
+}
+
+/// Whether the store's open-plan marker names this plan.
+fn open_marker(plan: &PlanFile) -> bool {
+    sc_store::open_plan(&plan.store)
+        .is_some_and(|m| m.split_once(' ').is_some_and(|(hash, _)| hash == plan.hash))
+}
+
+/// Refuses a folder that is not a sphereclip store, or whose bookkeeping folders are symlinks
+/// (a task's files would be made where they lead).
+fn check_store_folders(store: &Path) -> Result<()> {
+    sc_store::files::check_regular_or_missing(&store.join("zarr.json"))
+        .with_context(|| format!("not a sphereclip store: {}", store.display()))?;
+    if !store.join("zarr.json").is_file() {
+        bail!("not a sphereclip store (no zarr.json): {}", store.display());
+    }
+    for dir in [store.join(".sphereclip"), store.join(".sphereclip/tasks")] {
+        match std::fs::symlink_metadata(&dir) {
+            Ok(m) if !m.is_dir() => bail!(
+                "{} is {}, not a folder; the store is damaged",
+                dir.display(),
+                sc_store::files::kind_of(&m.file_type())
+            ),
+            _ => {}
+        }
+    }
+    Ok(())
 }
 
 /// The folder of the plan's task journals and locks in its store.
@@ -306,7 +501,7 @@ pub fn make(a: &PlanArgs) -> Result<ExitCode> {
         let exe = crate::user_exe()?;
         let text = match emit {
             Emit::Slurm => slurm_script(&plan, &out, &exe),
-            Emit::K8s => k8s_manifests(&plan, &out, opts),
+            Emit::K8s => k8s_manifests(&plan, &out, opts)?,
         };
         write_ours(&script, &text, is_script)?;
         how = match emit {
@@ -483,6 +678,7 @@ fn remake(plan: &PlanFile, threads: Option<usize>) -> Result<Step> {
     let what = parse_recorded(&plan.args)?;
     let step = match what {
         PlanWhat::Ingest { ingest, .. } => {
+            same_store(plan, &ingest.store)?;
             let p = super::ingest::make_plan_trusting(&ingest, &plan.inputs)?;
             if p.hash != plan.step_hash {
                 bail!(
@@ -493,6 +689,7 @@ fn remake(plan: &PlanFile, threads: Option<usize>) -> Result<Step> {
             Step::Ingest(Box::new(p))
         }
         PlanWhat::Build { mut build, .. } => {
+            same_store(plan, &build.store)?;
             if let Some(t) = threads {
                 build.threads = t;
             }
@@ -514,6 +711,18 @@ fn remake(plan: &PlanFile, threads: Option<usize>) -> Result<Step> {
         bail!("the plan says {} but its arguments make {kind}", plan.kind);
     }
     Ok(step)
+}
+
+/// Refuses a plan whose recorded arguments name another store than the plan does.
+fn same_store(plan: &PlanFile, store: &Path) -> Result<()> {
+    if absolute(store)? != plan.store {
+        bail!(
+            "the plan's arguments name the store {}, not {}; make the plan again",
+            store.display(),
+            plan.store.display()
+        );
+    }
+    Ok(())
 }
 
 /// The task number a run-task is given: --task, else the scheduler's index.
@@ -590,6 +799,7 @@ fn wait_for(plan: &PlanFile, step: &Step, stage: Option<u32>, wait: u64) -> Resu
 pub fn run_task(a: &RunTaskArgs) -> Result<ExitCode> {
     let plan_path = absolute(&a.plan)?;
     let plan = read_plan(&plan_path)?;
+    check_open(&plan)?;
     std::env::set_current_dir(&plan.cwd)
         .with_context(|| format!("cannot enter the plan's folder {}", plan.cwd.display()))?;
     let index = task_index(a)?;
@@ -605,7 +815,10 @@ pub fn run_task(a: &RunTaskArgs) -> Result<ExitCode> {
                     index + 1
                 );
             }
-            stage.first_task + index
+            stage
+                .first_task
+                .checked_add(index)
+                .context("the plan's stage numbers its tasks past the largest task number")?
         }
         None => index,
     };
@@ -623,11 +836,12 @@ pub fn run_task(a: &RunTaskArgs) -> Result<ExitCode> {
             .and_then(|v| v.parse().ok())
     });
     let step = remake(&plan, threads)?;
+    check_work(&plan, &step)?;
     let dir = tasks_dir(&plan);
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     // one run of a task at a time: a second one waits, then finds the work done
     let lock_path = dir.join(format!("task-{i}.lock"));
-    let lock = File::create(&lock_path)
+    let lock = sc_store::files::open_lock(&lock_path)
         .with_context(|| format!("cannot create {}", lock_path.display()))?;
     lock.lock()
         .with_context(|| format!("cannot lock {}", lock_path.display()))?;
@@ -692,6 +906,7 @@ pub fn run_task(a: &RunTaskArgs) -> Result<ExitCode> {
 pub fn commit(a: &CommitArgs) -> Result<ExitCode> {
     let plan_path = absolute(&a.plan)?;
     let plan = read_plan(&plan_path)?;
+    check_open(&plan)?;
     std::env::set_current_dir(&plan.cwd)
         .with_context(|| format!("cannot enter the plan's folder {}", plan.cwd.display()))?;
     let journals: Vec<PathBuf> = (0..plan.tasks.len() as u32)
@@ -721,13 +936,8 @@ pub fn commit(a: &CommitArgs) -> Result<ExitCode> {
         );
         return Ok(ExitCode::SUCCESS);
     }
-    if sc_store::open_plan(&plan.store).is_none_or(|m| !m.starts_with(&plan.hash)) {
-        bail!(
-            "this plan is not open on {} (committed already, abandoned, or another plan was made since)",
-            plan.store.display()
-        );
-    }
     let step = remake(&plan, None)?;
+    check_work(&plan, &step)?;
     let left = wait_for(&plan, &step, None, a.wait)?;
     if !left.is_empty() {
         bail!(
@@ -804,14 +1014,28 @@ fn remove_dir(dir: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Quotes a string for bash (single quotes).
+/// Quotes a string for bash or a POSIX sh (single quotes; a newline inside them is literal).
 fn sh(s: &str) -> String {
     format!("'{}'", s.replace('\'', r"'\''"))
 }
 
+/// A value as text that stays on one comment line: control characters (newlines) escaped.
+fn one_line(s: &str) -> String {
+    s.chars()
+        .map(|c| {
+            if c.is_control() {
+                c.escape_default().to_string()
+            } else {
+                c.to_string()
+            }
+        })
+        .collect()
+}
+
 /// A bash script that submits the plan: one sbatch array job per stage, each waiting for the
 /// one before (`afterok`; a failed task cancels the rest), then the commit. Submitting it again
-/// resumes: finished tasks find their work done and exit at once.
+/// resumes: finished tasks find their work done and exit at once. Every value is single-quoted
+/// where the script sets it, and quoted again (`q`) for the `sh` that runs a job's `--wrap`.
 fn slurm_script(plan: &PlanFile, plan_path: &Path, exe: &Path) -> String {
     const HEAD: &str = r#"#!/usr/bin/env bash
 # @MARK@ (Slurm): @KIND@ into @STORE@, @TASKS@ task(s) in @STAGES@ stage(s).
@@ -823,12 +1047,16 @@ set -euo pipefail
 SPHERECLIP=${SPHERECLIP:-@EXE@}
 PLAN=@PLAN@
 LOGS=${LOGS:-@LOGS@}
-mkdir -p "$LOGS"
+mkdir -p -- "$LOGS"
 dep=()
+# VALUE: VALUE single-quoted for the sh that runs a job's --wrap
+q() { local s=${1//\'/\'\\\'\'}; printf "'%s'" "$s"; }
+# Slurm expands % in --output: a literal one is %%
+logs=${LOGS//%/%%}
 # NAME ARRAY COMMAND: submits one job (an array job when ARRAY is set) after the previous one
 submit() {
-  local id out="$LOGS/%x-%j.out"
-  [ -n "$2" ] && out="$LOGS/%x-%A_%a.out"
+  local id out="$logs/%x-%j.out"
+  [ -n "$2" ] && out="$logs/%x-%A_%a.out"
   # shellcheck disable=SC2086
   id=$(sbatch --parsable --job-name="$1" ${2:+--array=$2} --cpus-per-task=@CPUS@ --chdir=@CWD@ \
     --output="$out" --kill-on-invalid-dep=yes "${dep[@]}" ${SBATCH_EXTRA:-} --wrap="$3")
@@ -836,11 +1064,13 @@ submit() {
   dep=(--dependency=afterok:"$id")
   echo "$1: job $id"
 }
+task="exec $(q "$SPHERECLIP") run-task $(q "$PLAN") --task \"\$SLURM_ARRAY_TASK_ID\""
+commit="exec $(q "$SPHERECLIP") commit $(q "$PLAN")"
 "#;
     let mut s = HEAD
         .replace("@MARK@", SCRIPT_MARK)
         .replace("@KIND@", &plan.kind)
-        .replace("@STORE@", &plan.store.to_string_lossy())
+        .replace("@STORE@", &one_line(&plan.store.to_string_lossy()))
         .replace("@TASKS@", &plan.tasks.len().to_string())
         .replace("@STAGES@", &plan.stages.len().to_string())
         .replace("@EXE@", &sh(&exe.to_string_lossy()))
@@ -852,56 +1082,63 @@ submit() {
         .replace("@CPUS@", &plan.cpus_per_task.to_string())
         .replace("@CWD@", &sh(&plan.cwd.to_string_lossy()));
     let tag = &plan.hash[..8];
-    let run = r#""exec \"$SPHERECLIP\" run-task \"$PLAN\" --task \$SLURM_ARRAY_TASK_ID""#;
     for (k, st) in plan.stages.iter().enumerate() {
         let _ = writeln!(
             s,
-            "# stage {k}: {}\nsubmit sc-{tag}-{k} {}-{} {run}",
-            st.name,
+            "# stage {k}: {}\nsubmit sc-{tag}-{k} {}-{} \"$task\"",
+            one_line(&st.name),
             st.first_task,
             st.first_task + st.tasks - 1
         );
     }
-    let _ = writeln!(
-        s,
-        r#"submit sc-{tag}-commit "" "exec \"$SPHERECLIP\" commit \"$PLAN\"""#
-    );
+    let _ = writeln!(s, r#"submit sc-{tag}-commit "" "$commit""#);
     s
 }
 
 /// Kubernetes manifests: one Indexed Job per stage and one that commits, all applied at once;
 /// each task waits for the earlier stages itself (`run-task --wait`), as Jobs have no
-/// dependencies. Every pod mounts the claim at the folder the plan was made in.
-fn k8s_manifests(plan: &PlanFile, plan_path: &Path, opts: &PlanOptions) -> String {
+/// dependencies. Every pod mounts the claim at the folder the plan was made in. Each object is
+/// written by a YAML serializer (no value can add a key or an object).
+fn k8s_manifests(plan: &PlanFile, plan_path: &Path, opts: &PlanOptions) -> Result<String> {
     let tag = &plan.hash[..8];
-    let cwd = plan.cwd.to_string_lossy();
-    let q = |s: &str| serde_json::to_string(s).unwrap_or_default();
-    let job = |name: &str, n: u32, command: Vec<String>| -> String {
-        let cmd: Vec<String> = command.iter().map(|c| q(c)).collect();
-        format!(
-            "---\napiVersion: batch/v1\nkind: Job\nmetadata:\n  name: {name}\n  labels:\n    app: sphereclip\n    sphereclip/plan: \"{tag}\"\nspec:\n  completionMode: Indexed\n  completions: {n}\n  parallelism: {n}\n  backoffLimit: {}\n  template:\n    spec:\n      restartPolicy: Never\n      containers:\n        - name: sphereclip\n          image: {}\n          workingDir: {}\n          command: [{}]\n          resources:\n            requests:\n              cpu: \"{}\"\n          volumeMounts:\n            - name: data\n              mountPath: {}\n      volumes:\n        - name: data\n          persistentVolumeClaim:\n            claimName: {}\n",
-            3 * n,
-            q(&opts.image),
-            q(&cwd),
-            cmd.join(", "),
-            plan.cpus_per_task,
-            q(&cwd),
-            q(&opts.claim),
-        )
+    let cwd = plan.cwd.to_string_lossy().into_owned();
+    let job = |name: String, n: u32, command: Vec<String>| {
+        serde_json::json!({
+            "apiVersion": "batch/v1",
+            "kind": "Job",
+            "metadata": {
+                "name": name,
+                "labels": { "app": "sphereclip", "sphereclip/plan": tag },
+            },
+            "spec": {
+                "completionMode": "Indexed",
+                "completions": n,
+                "parallelism": n,
+                "backoffLimit": 3 * u64::from(n),
+                "template": { "spec": {
+                    "restartPolicy": "Never",
+                    "containers": [{
+                        "name": "sphereclip",
+                        "image": opts.image,
+                        "workingDir": cwd,
+                        "command": command,
+                        "resources": { "requests": { "cpu": plan.cpus_per_task.to_string() } },
+                        "volumeMounts": [{ "name": "data", "mountPath": cwd }],
+                    }],
+                    "volumes": [{
+                        "name": "data",
+                        "persistentVolumeClaim": { "claimName": opts.claim },
+                    }],
+                }},
+            },
+        })
     };
     let plan_s = plan_path.to_string_lossy().into_owned();
     let wait = "86400".to_string();
-    let mut s = format!(
-        "# {SCRIPT_MARK} (Kubernetes): {} into {}, {} task(s) in {} stage(s).\n# Apply with `kubectl apply -f` this file. Every pod mounts the claim {} at {cwd}, which must hold the\n# inputs, the store and the plan at the paths they had when the plan was made. Each stage's tasks\n# wait for the stage before (up to a day); the last Job commits.\n",
-        plan.kind,
-        plan.store.display(),
-        plan.tasks.len(),
-        plan.stages.len(),
-        opts.claim
-    );
+    let mut jobs = Vec::new();
     for (k, st) in plan.stages.iter().enumerate() {
-        s += &job(
-            &format!("sc-{tag}-stage-{k}"),
+        jobs.push(job(
+            format!("sc-{tag}-stage-{k}"),
             st.tasks,
             vec![
                 "sphereclip".into(),
@@ -912,10 +1149,10 @@ fn k8s_manifests(plan: &PlanFile, plan_path: &Path, opts: &PlanOptions) -> Strin
                 "--wait".into(),
                 wait.clone(),
             ],
-        );
+        ));
     }
-    s += &job(
-        &format!("sc-{tag}-commit"),
+    jobs.push(job(
+        format!("sc-{tag}-commit"),
         1,
         vec![
             "sphereclip".into(),
@@ -924,6 +1161,19 @@ fn k8s_manifests(plan: &PlanFile, plan_path: &Path, opts: &PlanOptions) -> Strin
             "--wait".into(),
             wait,
         ],
+    ));
+    let mut s = format!(
+        "# {SCRIPT_MARK} (Kubernetes): {} into {}, {} task(s) in {} stage(s).\n# Apply with `kubectl apply -f` this file. Every pod mounts the claim {} at {}, which must hold the\n# inputs, the store and the plan at the paths they had when the plan was made. Each stage's tasks\n# wait for the stage before (up to a day); the last Job commits.\n",
+        plan.kind,
+        one_line(&plan.store.to_string_lossy()),
+        plan.tasks.len(),
+        plan.stages.len(),
+        one_line(&opts.claim),
+        one_line(&cwd),
     );
-    s
+    for j in &jobs {
+        s += "---\n";
+        s += &yaml_serde::to_string(j).context("cannot write the Kubernetes manifests")?;
+    }
+    Ok(s)
 }

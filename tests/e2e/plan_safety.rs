@@ -1,0 +1,592 @@
+//! Plan files, the scripts `plan --emit` writes and the store's lock as untrusted input (README,
+//! "Safety"): hostile bytes in a path stay data in the emitted Slurm script and Kubernetes YAML,
+//! a tampered plan never makes, writes or deletes anything outside its store nor panics (a seeded
+//! fuzz of every field of an ingest and a build plan), and a symlinked or FIFO `.lock` is refused.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::time::Duration;
+
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+
+use crate::util::*;
+
+/// ETOPO20 at level 4 with 32² tiles: an ingest of 8 shards, a build of several stages.
+fn base() -> PathBuf {
+    fixture("plan-safety-base", |d| {
+        ok(&run(&[
+            "ingest",
+            s(&d.join("s.zarr")),
+            s(&sample("etopo20.cdf")),
+            "--tile-size",
+            "32",
+            "--level",
+            "4",
+        ]));
+    })
+    .join("s.zarr")
+}
+
+fn run_in(dir: &Path, args: &[&str]) -> Output {
+    let mut c = bin();
+    c.current_dir(dir).args(args);
+    run_within(c, Duration::from_secs(120))
+}
+
+/// Every file and folder below `root` (symlinks not followed) with its bytes or target.
+fn tree(root: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
+    fn walk(dir: &Path, root: &Path, out: &mut BTreeMap<PathBuf, Vec<u8>>) {
+        let Ok(rd) = std::fs::read_dir(dir) else {
+            return;
+        };
+        for e in rd.flatten() {
+            let p = e.path();
+            let rel = p.strip_prefix(root).expect("inside").to_path_buf();
+            let t = e.file_type().expect("file type");
+            if t.is_symlink() {
+                let target = std::fs::read_link(&p).expect("read_link");
+                out.insert(rel, format!("-> {}", target.display()).into_bytes());
+            } else if t.is_dir() {
+                out.insert(rel.clone(), b"/".to_vec());
+                walk(&p, root, out);
+            } else {
+                out.insert(rel, std::fs::read(&p).unwrap_or_default());
+            }
+        }
+    }
+    let mut out = BTreeMap::new();
+    walk(root, root, &mut out);
+    out
+}
+
+/// A sentinel folder: files and a subfolder whose bytes are checked after every hostile run.
+fn sentinel(dir: &Path) -> PathBuf {
+    let d = dir.join("sentinel");
+    std::fs::create_dir_all(d.join("inner")).expect("mkdir");
+    std::fs::write(d.join("keep.txt"), b"keep me\n").expect("write");
+    std::fs::write(d.join("inner/also.txt"), b"and me\n").expect("write");
+    d
+}
+
+/// Fails unless `o` is a success or a one-line failure (no panic, no signal).
+fn clean_exit(o: &Output, what: &str) {
+    if o.status.success() {
+        return;
+    }
+    one_line_failure(o, what);
+}
+
+/// A stand-in for sbatch: runs each job's `--wrap` at once with `sh` in its `--chdir`, once per
+/// index of `--array`, and prints a job number.
+const STUB_SBATCH: &str = r#"#!/usr/bin/env bash
+set -u
+wrap= array= chdir=.
+for a in "$@"; do
+  case "$a" in
+    --wrap=*) wrap=${a#--wrap=} ;;
+    --array=*) array=${a#--array=} ;;
+    --chdir=*) chdir=${a#--chdir=} ;;
+  esac
+done
+n=$(( $(cat "$STUB_DIR/count" 2>/dev/null || echo 0) + 1 ))
+echo "$n" > "$STUB_DIR/count"
+printf '%s' "$wrap" > "$STUB_DIR/wrap-$n"
+cd "$chdir" || exit 1
+if [ -n "$array" ]; then
+  for ((i = ${array%-*}; i <= ${array#*-}; i++)); do
+    SLURM_ARRAY_TASK_ID=$i sh -c "$wrap" >> "$STUB_DIR/log" 2>&1 || { cat "$STUB_DIR/log" >&2; exit 1; }
+  done
+else
+  sh -c "$wrap" >> "$STUB_DIR/log" 2>&1 || { cat "$STUB_DIR/log" >&2; exit 1; }
+fi
+echo "$n"
+"#;
+
+/// Runs a script `plan --emit slurm` wrote with the stub sbatch, from the empty folder `cwd`.
+fn submit_with_stub(script: &Path, stub: &Path, cwd: &Path) -> Output {
+    std::fs::create_dir_all(stub).expect("mkdir");
+    let sbatch = stub.join("sbatch");
+    std::fs::write(&sbatch, STUB_SBATCH).expect("write");
+    let ok = Command::new("chmod")
+        .arg("+x")
+        .arg(&sbatch)
+        .status()
+        .expect("chmod");
+    assert!(ok.success());
+    let path = format!(
+        "{}:{}",
+        stub.display(),
+        std::env::var("PATH").unwrap_or_default()
+    );
+    let mut c = Command::new("bash");
+    c.arg(script)
+        .current_dir(cwd)
+        .env("PATH", path)
+        .env("STUB_DIR", stub)
+        .env("SOURCE_DATE_EPOCH", "1790000000")
+        .env_remove("SPHERECLIP_FAULT_AFTER")
+        .env_remove("SPHERECLIP_PAUSE")
+        .env_remove("SPHERECLIP")
+        .env_remove("SBATCH_EXTRA")
+        .env_remove("LOGS");
+    run_within(c, Duration::from_secs(300))
+}
+
+/// Folder names a user may well have, or an attacker may choose: command substitutions, quotes,
+/// a newline with a command after it, Slurm's `%` patterns.
+const HOSTILE: [&str; 3] = [
+    "job $(touch X) `touch Y` \"q\" 'a' $HOME \\",
+    "line\ntouch Z\n#",
+    "50% %j done",
+];
+
+#[test]
+fn a_slurm_script_keeps_every_hostile_path_as_data_and_runs_the_plan() {
+    let base = base();
+    let top = tempfile::tempdir().expect("tmp");
+    let sentinel = sentinel(top.path());
+    let before = tree(&sentinel);
+    for (k, name) in HOSTILE.iter().enumerate() {
+        let dir = top.path().join(name);
+        std::fs::create_dir_all(&dir).expect("mkdir");
+        let store = dir.join(format!("s{k}.zarr"));
+        copy_dir(&base, &store);
+        let plan = dir.join("p.json");
+        ok(&run_in(
+            &dir,
+            &[
+                "plan",
+                "build",
+                s(&store),
+                "--tasks",
+                "3",
+                "--out",
+                s(&plan),
+                "--cpus-per-task",
+                "1",
+                "--emit",
+                "slurm",
+            ],
+        ));
+        let script = plan.with_extension("sbatch.sh");
+        let text = std::fs::read_to_string(&script).expect("script");
+        let runner = top.path().join(format!("runner-{k}"));
+        std::fs::create_dir_all(&runner).expect("mkdir");
+        let o = submit_with_stub(&script, &top.path().join(format!("stub-{k}")), &runner);
+        ok(&o);
+        // the jobs ran the plan: its tasks and its commit
+        assert!(
+            sc_store::open_plan(&store).is_none(),
+            "the commit job ran: {}",
+            text
+        );
+        assert!(!store.join(".sphereclip/tasks").exists());
+        let info = run(&["info", s(&store), "--verify"]);
+        ok(&info);
+        for f in ["X", "Y", "Z"] {
+            for d in [&runner, &dir, top.path()] {
+                assert!(!d.join(f).exists(), "{f} was created in {}", d.display());
+            }
+        }
+        assert!(
+            std::fs::read_dir(&runner)
+                .expect("read_dir")
+                .next()
+                .is_none(),
+            "the submission wrote into the folder it ran in"
+        );
+        let logs = plan.with_extension("logs");
+        assert!(logs.is_dir(), "the log folder is the one the plan names");
+    }
+    assert_eq!(before, tree(&sentinel), "the sentinel folder changed");
+}
+
+#[test]
+fn kubernetes_manifests_are_exactly_the_jobs_whatever_the_claim_image_or_path() {
+    use serde::Deserialize;
+    let base = base();
+    let top = tempfile::tempdir().expect("tmp");
+    let dir = top.path().join("a\n---\nkind: Pod\n#");
+    std::fs::create_dir_all(&dir).expect("mkdir");
+    let store = dir.join("s.zarr");
+    copy_dir(&base, &store);
+    let plan = dir.join("p.json");
+    let claim = "data\n---\napiVersion: v1\nkind: Pod\nmetadata:\n  name: evil\n";
+    let image = "img\"x' # {not: a map}\n  evil: true";
+    ok(&run_in(
+        &dir,
+        &[
+            "plan",
+            "build",
+            s(&store),
+            "--tasks",
+            "2",
+            "--out",
+            s(&plan),
+            "--emit",
+            "k8s",
+            "--claim",
+            claim,
+            "--image",
+            image,
+        ],
+    ));
+    let yaml = std::fs::read_to_string(plan.with_extension("k8s.yaml")).expect("yaml");
+    let v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&plan).expect("plan")).expect("json");
+    let stages = v["stages"].as_array().expect("stages").len();
+    let mut docs = Vec::new();
+    for d in yaml_serde::Deserializer::from_str(&yaml) {
+        docs.push(yaml_serde::Value::deserialize(d).expect("a YAML document"));
+    }
+    assert_eq!(
+        docs.len(),
+        stages + 1,
+        "one Job a stage and the commit:\n{yaml}"
+    );
+    let cwd = dir.to_str().expect("utf-8");
+    for (k, d) in docs.iter().enumerate() {
+        let j: serde_json::Value = serde_json::to_value(d).expect("as JSON");
+        assert_eq!(j["kind"], "Job", "{j}");
+        let top_keys: Vec<&String> = j.as_object().expect("map").keys().collect();
+        assert_eq!(top_keys, ["apiVersion", "kind", "metadata", "spec"], "{j}");
+        let pod = &j["spec"]["template"]["spec"];
+        assert_eq!(
+            pod["volumes"][0]["persistentVolumeClaim"]["claimName"],
+            claim
+        );
+        let c = &pod["containers"][0];
+        assert_eq!(c["image"], image);
+        assert_eq!(c["workingDir"], cwd);
+        assert_eq!(c["volumeMounts"][0]["mountPath"], cwd);
+        assert_eq!(c["command"][2], s(&plan), "the plan path, whole");
+        let name = j["metadata"]["name"].as_str().expect("name");
+        if k < stages {
+            assert!(name.ends_with(&format!("-stage-{k}")), "{name}");
+        } else {
+            assert!(name.ends_with("-commit"), "{name}");
+        }
+    }
+    for line in yaml.lines().filter(|l| l.starts_with('#')) {
+        assert!(
+            !line.contains("kind: Pod") || line.contains("\\n"),
+            "{line:?}"
+        );
+    }
+}
+
+/// A copy of the base store with a build plan open on it, in `dir`: (store, plan).
+fn open_build_plan(dir: &Path) -> (PathBuf, PathBuf) {
+    let store = dir.join("s.zarr");
+    copy_dir(&base(), &store);
+    let plan = dir.join("p.json");
+    ok(&run_in(
+        dir,
+        &[
+            "plan",
+            "build",
+            s(&store),
+            "--tasks",
+            "3",
+            "--out",
+            s(&plan),
+        ],
+    ));
+    (store, plan)
+}
+
+fn edit_plan(plan: &Path, f: impl FnOnce(&mut serde_json::Value)) {
+    let mut v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(plan).expect("plan")).expect("json");
+    f(&mut v);
+    std::fs::write(plan, serde_json::to_vec_pretty(&v).expect("json")).expect("write");
+}
+
+#[test]
+fn a_plan_hash_or_store_that_names_another_folder_is_refused_before_anything_is_touched() {
+    let top = tempfile::tempdir().expect("tmp");
+    let sentinel = sentinel(top.path());
+    let before = tree(top.path());
+    // an absolute folder of exactly 16 bytes, which `hash[..16]` took as the task folder
+    let victim = PathBuf::from(format!("/tmp/{:0>11}", std::process::id()));
+    assert_eq!(victim.as_os_str().len(), 16);
+    std::fs::create_dir_all(&victim).expect("mkdir");
+    std::fs::write(victim.join("precious"), b"x").expect("write");
+    let work = top.path().join("work");
+    std::fs::create_dir_all(&work).expect("mkdir");
+    let (store, plan) = open_build_plan(&work);
+    let store_before = tree(&store);
+    let cases: Vec<(&str, serde_json::Value)> = vec![
+        (
+            "hash",
+            format!("{}{}", victim.display(), "0".repeat(48)).into(),
+        ),
+        ("hash", format!("../../../../..{}", "0".repeat(51)).into()),
+        ("hash", "abc".into()),
+        (
+            "hash",
+            format!("{}é{}", "a".repeat(15), "b".repeat(47)).into(),
+        ),
+        ("store", "/".into()),
+        ("store", s(&sentinel).into()),
+        ("store", format!("{}/../sentinel", s(&store)).into()),
+    ];
+    for (field, value) in cases {
+        let p = work.join("tampered.json");
+        std::fs::copy(&plan, &p).expect("copy");
+        edit_plan(&p, |v| v[field] = value.clone());
+        for args in [
+            vec!["commit", s(&p), "--abandon"],
+            vec!["run-task", s(&p), "--task", "0"],
+            vec!["commit", s(&p)],
+        ] {
+            let o = run_in(&work, &args);
+            one_line_failure(&o, &format!("{args:?} with {field} = {value}"));
+        }
+        assert!(victim.join("precious").exists(), "{field} = {value}");
+        assert!(!Path::new("/.sphereclip").exists());
+        assert!(!sentinel.join(".sphereclip").exists());
+        assert_eq!(
+            store_before,
+            tree(&store),
+            "{field} = {value}: the store changed"
+        );
+    }
+    let mut after = tree(top.path());
+    after.retain(|k, _| !k.starts_with("work"));
+    let mut before = before;
+    before.retain(|k, _| !k.starts_with("work"));
+    assert_eq!(before, after);
+    std::fs::remove_dir_all(&victim).expect("clean up");
+}
+
+#[test]
+fn plan_fields_that_panicked_are_one_line_errors() {
+    let top = tempfile::tempdir().expect("tmp");
+    type Edit = fn(&mut serde_json::Value);
+    let edits: [(&str, Edit); 6] = [
+        ("a short hash", |v| v["hash"] = "abc".into()),
+        ("a multibyte hash", |v| {
+            v["hash"] = format!("{}é{}", "a".repeat(15), "b".repeat(47)).into()
+        }),
+        ("a shard at u64::MAX", |v| {
+            v["tasks"][0]["work"][0]["shards"][0] = serde_json::json!([u64::MAX, u64::MAX])
+        }),
+        ("first_task 2^32-1", |v| {
+            v["stages"][0]["first_task"] = u32::MAX.into()
+        }),
+        ("no tasks", |v| v["tasks"] = serde_json::json!([])),
+        ("a stage past the tasks", |v| {
+            v["stages"][0]["tasks"] = u32::MAX.into()
+        }),
+    ];
+    for (k, (what, edit)) in edits.into_iter().enumerate() {
+        let dir = top.path().join(k.to_string());
+        std::fs::create_dir_all(&dir).expect("mkdir");
+        let (_, p) = open_build_plan(&dir);
+        edit_plan(&p, edit);
+        for args in [
+            vec!["run-task", s(&p), "--task", "0"],
+            vec!["run-task", s(&p), "--stage", "0", "--task", "0"],
+            vec!["commit", s(&p)],
+        ] {
+            one_line_failure(&run_in(&dir, &args), &format!("{what}: {args:?}"));
+        }
+        // abandoning needs only the plan's hash and store: it may go through, without a panic
+        clean_exit(&run_in(&dir, &["commit", s(&p), "--abandon"]), what);
+    }
+}
+
+#[test]
+fn a_symlinked_or_fifo_lock_is_refused_and_nothing_is_made_where_it_points() {
+    let top = tempfile::tempdir().expect("tmp");
+    let store = top.path().join("s.zarr");
+    copy_dir(&base(), &store);
+    let target = top.path().join("made-through-the-link");
+    let _ = std::fs::remove_file(store.join(".lock"));
+    std::os::unix::fs::symlink(&target, store.join(".lock")).expect("symlink");
+    let e = one_line_failure(&run(&["build", s(&store)]), "a symlinked lock");
+    assert!(e.contains("symbolic link"), "{e}");
+    assert!(!target.exists(), "the lock's target was created");
+    std::fs::remove_file(store.join(".lock")).expect("rm");
+    let ok_fifo = Command::new("mkfifo")
+        .arg(store.join(".lock"))
+        .status()
+        .expect("mkfifo");
+    assert!(ok_fifo.success());
+    // a FIFO blocked the open for good; run() fails the test after its limit
+    let e = one_line_failure(&run(&["build", s(&store)]), "a FIFO lock");
+    assert!(e.contains("not a regular file"), "{e}");
+}
+
+/// Hostile replacements for a plan's values, by JSON type.
+fn hostile_value(rng: &mut StdRng, old: &serde_json::Value, outside: &Path) -> serde_json::Value {
+    use serde_json::json;
+    let strings = [
+        json!("$(touch PWNED)"),
+        json!("`touch PWNED`"),
+        json!("\"; touch PWNED; \""),
+        json!("a'b"),
+        json!("line\ntouch PWNED\n"),
+        json!("../../../../.."),
+        json!("/"),
+        json!(s(outside)),
+        json!(format!("{}/../../x", s(outside))),
+        json!(""),
+        json!("é".repeat(40)),
+        json!("0".repeat(100_000)),
+        json!(format!("{:0<64}", s(outside))),
+    ];
+    let numbers = [
+        json!(0),
+        json!(-1),
+        json!(u32::MAX),
+        json!(u64::MAX),
+        json!(1e308),
+        json!(-1e308),
+        json!(9_007_199_254_740_993u64),
+        json!(0.5),
+    ];
+    let pick =
+        |rng: &mut StdRng, set: &[serde_json::Value]| set[rng.random_range(0..set.len())].clone();
+    match old {
+        serde_json::Value::String(_) => pick(rng, &strings),
+        serde_json::Value::Number(_) => pick(rng, &numbers),
+        serde_json::Value::Array(a) => match rng.random_range(0..3) {
+            0 => json!([]),
+            1 => {
+                let mut a = a.clone();
+                if let Some(x) = a.first().cloned() {
+                    a.push(x);
+                }
+                serde_json::Value::Array(a)
+            }
+            _ => json!(["$(touch PWNED)", -1, null]),
+        },
+        serde_json::Value::Bool(b) => json!(!b),
+        serde_json::Value::Null => pick(rng, &strings),
+        serde_json::Value::Object(_) => json!({}),
+    }
+}
+
+/// Every JSON pointer into `v` (leaves and containers).
+fn pointers(v: &serde_json::Value, at: String, out: &mut Vec<String>) {
+    match v {
+        serde_json::Value::Object(m) => {
+            for (k, x) in m {
+                pointers(x, format!("{at}/{k}"), out);
+            }
+        }
+        serde_json::Value::Array(a) => {
+            for (i, x) in a.iter().enumerate().take(4) {
+                pointers(x, format!("{at}/{i}"), out);
+            }
+        }
+        _ => {}
+    }
+    if !at.is_empty() {
+        out.push(at);
+    }
+}
+
+#[test]
+fn tampered_plans_never_panic_nor_touch_anything_outside_their_store() {
+    let top = tempfile::tempdir().expect("tmp");
+    let sentinel = sentinel(top.path());
+    let before = tree(&sentinel);
+    let seeds: u64 = std::env::var("SPHERECLIP_PLAN_FUZZ_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(48);
+    let work = top.path().join("work");
+    let mut refused = 0;
+    for seed in 0..seeds {
+        let mut rng = StdRng::seed_from_u64(seed);
+        // a fresh store with the plan open on it, every case
+        let _ = std::fs::remove_dir_all(&work);
+        std::fs::create_dir_all(&work).expect("mkdir");
+        let name = if seed % 2 == 0 {
+            copy_dir(&base(), &work.join("s.zarr"));
+            ok(&run_in(
+                &work,
+                &[
+                    "plan",
+                    "build",
+                    "s.zarr",
+                    "--tasks",
+                    "3",
+                    "--out",
+                    "build.json",
+                ],
+            ));
+            "build.json"
+        } else {
+            ok(&run_in(
+                &work,
+                &[
+                    "plan",
+                    "ingest",
+                    "i.zarr",
+                    s(&sample("etopo20.cdf")),
+                    "--tile-size",
+                    "32",
+                    "--level",
+                    "3",
+                    "--tasks",
+                    "3",
+                    "--out",
+                    "ingest.json",
+                ],
+            ));
+            "ingest.json"
+        };
+        let plan = work.join(name);
+        let mut v: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(&plan).expect("plan")).expect("json");
+        let mut ptrs = Vec::new();
+        pointers(&v, String::new(), &mut ptrs);
+        let n = 1 + rng.random_range(0..3);
+        let mut changed = Vec::new();
+        for _ in 0..n {
+            let p = &ptrs[rng.random_range(0..ptrs.len())];
+            if let Some(x) = v.pointer_mut(p) {
+                let new = hostile_value(&mut rng, x, &sentinel);
+                changed.push(format!(
+                    "{p} = {}",
+                    &new.to_string()[..new.to_string().len().min(80)]
+                ));
+                *x = new;
+            }
+        }
+        std::fs::write(&plan, serde_json::to_vec(&v).expect("json")).expect("write");
+        let what = format!("seed {seed} ({name}): {changed:?}");
+        let listing = |d: &Path| -> Vec<String> { file_names(d) };
+        let top_before = listing(top.path());
+        for args in [
+            vec!["run-task", s(&plan), "--task", "0"],
+            vec!["run-task", s(&plan), "--stage", "1", "--task", "0"],
+            vec!["commit", s(&plan)],
+            vec!["commit", s(&plan), "--abandon"],
+        ] {
+            let o = run_in(&work, &args);
+            clean_exit(&o, &format!("{what} {args:?}"));
+            refused += usize::from(!o.status.success());
+            assert_eq!(
+                before,
+                tree(&sentinel),
+                "{what} {args:?}: the sentinel changed"
+            );
+            assert_eq!(
+                top_before,
+                listing(top.path()),
+                "{what} {args:?}: made something beside the store"
+            );
+            for d in [&work, top.path()] {
+                assert!(!d.join("PWNED").exists(), "{what}");
+            }
+        }
+    }
+    assert!(refused > 0);
+}

@@ -1,0 +1,166 @@
+//! Opening the files a store (or a plan) names as untrusted: only regular files, never through a
+//! symbolic link at the last component, never blocking on a FIFO or a device, reads bounded in
+//! size. A damaged or hostile store then gives an error instead of a hang, a spin on `/dev/zero`
+//! or a write outside the store.
+
+use std::fs::{File, OpenOptions};
+use std::io::{self, Read};
+use std::os::unix::fs::OpenOptionsExt;
+use std::path::Path;
+
+/// Flags of every open here: the last component is not followed if it is a symlink (`ELOOP`),
+/// and opening a FIFO or a device does not wait for a peer.
+const FLAGS: i32 = libc::O_NOFOLLOW | libc::O_NONBLOCK | libc::O_CLOEXEC;
+
+/// Turns the errors of a refused open into ones that say why.
+fn explain(e: io::Error) -> io::Error {
+    if e.raw_os_error() == Some(libc::ELOOP) {
+        return io::Error::new(
+            io::ErrorKind::InvalidData,
+            "a symbolic link, which is never followed",
+        );
+    }
+    if e.raw_os_error() == Some(libc::ENXIO) {
+        return io::Error::new(io::ErrorKind::InvalidData, "not a regular file");
+    }
+    e
+}
+
+/// Refuses an opened file that is not a regular file (a FIFO, a device, a socket, a folder).
+fn regular(f: File) -> io::Result<File> {
+    let m = f.metadata()?;
+    if m.is_file() {
+        Ok(f)
+    } else {
+        Err(io::Error::new(
+            io::ErrorKind::InvalidData,
+            format!("not a regular file but {}", kind_of(&m.file_type())),
+        ))
+    }
+}
+
+/// A word for a file type, for messages.
+pub fn kind_of(t: &std::fs::FileType) -> &'static str {
+    use std::os::unix::fs::FileTypeExt;
+    if t.is_symlink() {
+        "a symbolic link"
+    } else if t.is_dir() {
+        "a folder"
+    } else if t.is_fifo() {
+        "a FIFO"
+    } else if t.is_char_device() || t.is_block_device() {
+        "a device"
+    } else if t.is_socket() {
+        "a socket"
+    } else {
+        "a file"
+    }
+}
+
+/// Opens `path` for reading: a regular file, not a symlink, without blocking.
+pub fn open_regular(path: &Path) -> io::Result<File> {
+    let f = OpenOptions::new()
+        .read(true)
+        .custom_flags(FLAGS)
+        .open(path)
+        .map_err(explain)?;
+    regular(f)
+}
+
+/// Reads all of the regular file `path` (see [`open_regular`]), refusing one larger than `limit`
+/// bytes before reading it.
+pub fn read_regular(path: &Path, limit: u64) -> io::Result<Vec<u8>> {
+    let f = open_regular(path)?;
+    let len = f.metadata()?.len();
+    if len > limit {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidData,
+            format!("{len} bytes, more than the {limit} a file of this kind may have"),
+        ));
+    }
+    let mut out = Vec::with_capacity(len as usize);
+    // a file growing while it is read stops at the limit too
+    f.take(limit + 1).read_to_end(&mut out)?;
+    if out.len() as u64 > limit {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidData,
+            format!("grew past {limit} bytes while read"),
+        ));
+    }
+    Ok(out)
+}
+
+/// Reads `path` as text like [`read_regular`].
+pub fn read_regular_string(path: &Path, limit: u64) -> io::Result<String> {
+    String::from_utf8(read_regular(path, limit)?)
+        .map_err(|_| io::Error::new(io::ErrorKind::InvalidData, "not UTF-8 text"))
+}
+
+/// Opens (creating it if missing) a lock file for writing: a regular file, never a symlink's
+/// target, never a FIFO (which would block).
+pub fn open_lock(path: &Path) -> io::Result<File> {
+    let f = OpenOptions::new()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .custom_flags(FLAGS)
+        .mode(0o644)
+        .open(path)
+        .map_err(explain)?;
+    regular(f)
+}
+
+/// `Ok` when `path` is missing or a regular file that is not a symlink; the error says what it is
+/// instead. For files another library opens (it would follow links and wait on FIFOs).
+pub fn check_regular_or_missing(path: &Path) -> io::Result<()> {
+    match std::fs::symlink_metadata(path) {
+        Err(e) if e.kind() == io::ErrorKind::NotFound => Ok(()),
+        Err(e) => Err(e),
+        Ok(m) if m.file_type().is_file() => Ok(()),
+        Ok(m) => Err(io::Error::new(
+            io::ErrorKind::InvalidData,
+            format!("not a regular file but {}", kind_of(&m.file_type())),
+        )),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn links_fifos_devices_and_folders_are_refused_without_blocking() {
+        let d = tempfile::tempdir().expect("tmp");
+        let file = d.path().join("f");
+        std::fs::write(&file, b"abc").expect("write");
+        assert_eq!(read_regular(&file, 3).expect("read"), b"abc");
+        assert!(read_regular(&file, 2).is_err(), "over the limit");
+
+        let link = d.path().join("l");
+        std::os::unix::fs::symlink(&file, &link).expect("symlink");
+        let e = read_regular(&link, 10).expect_err("a symlink");
+        assert!(e.to_string().contains("symbolic link"), "{e}");
+
+        let dangling = d.path().join("dangling");
+        let target = d.path().join("made-by-the-link");
+        std::os::unix::fs::symlink(&target, &dangling).expect("symlink");
+        assert!(open_lock(&dangling).is_err());
+        assert!(!target.exists(), "the link's target was created");
+
+        let fifo = d.path().join("fifo");
+        let ok = std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .expect("mkfifo runs");
+        assert!(ok.success());
+        let e = read_regular(&fifo, 10).expect_err("a FIFO");
+        assert!(e.to_string().contains("not a regular file"), "{e}");
+        assert!(open_lock(&fifo).is_err());
+        assert!(check_regular_or_missing(&fifo).is_err());
+
+        assert!(read_regular(Path::new("/dev/zero"), 10).is_err());
+        assert!(read_regular(d.path(), 10).is_err());
+        assert!(check_regular_or_missing(&d.path().join("missing")).is_ok());
+        assert!(check_regular_or_missing(&link).is_err());
+    }
+}
