@@ -17,6 +17,7 @@ mod render;
 mod safety;
 mod shading;
 mod store;
+mod store_damage;
 mod tidy;
 mod util;
 mod view_data;

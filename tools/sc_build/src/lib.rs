@@ -62,6 +62,20 @@ pub enum BuildError {
     WorkerPanicked,
 }
 
+impl BuildError {
+    /// Whether running the same build again can get past this error: the file system failed
+    /// (a full disk, an I/O error). Damage in the store, a bad request or malformed metadata
+    /// fail the same way every time.
+    pub fn is_resumable(&self) -> bool {
+        let os = |e: &std::io::Error| e.kind() != std::io::ErrorKind::InvalidData;
+        match self {
+            BuildError::Io { source, .. } => os(source),
+            BuildError::Store(StoreError::Io { source, .. }) => os(source),
+            _ => false,
+        }
+    }
+}
+
 /// Result of the builder.
 pub type Result<T, E = BuildError> = std::result::Result<T, E>;
 
@@ -614,11 +628,9 @@ pub fn run(
 ) -> Result<Summary> {
     let result = run_steps(writer, plan, on_shard);
     if let Err(e) = &result {
-        let damage = matches!(
-            e,
-            BuildError::DamagedOutput { .. } | BuildError::Store(StoreError::Corrupt { .. })
-        );
-        if damage && writer.was_complete() {
+        // a failure a rerun cannot get past leaves a complete store complete: what the build
+        // wrote before it is what the finer levels give, the bytes a finished build writes
+        if !e.is_resumable() && writer.was_complete() {
             writer.commit(None)?;
         }
     }

@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
 use sc_build::Settings;
-use sc_store::StoreWriter;
+use sc_store::{StoreReader, StoreWriter};
 
 use crate::cli::BuildArgs;
 use crate::cmd::parse_layer;
@@ -16,18 +16,18 @@ pub fn build(store: &Path, settings: Settings, json: bool) -> Result<sc_build::S
     if !store.join("zarr.json").is_file() {
         bail!("not a sphereclip store (no zarr.json): {}", store.display());
     }
+    // a request that does not fit the store, or metadata that cannot be read, is refused
+    // before the writer marks the store incomplete
+    let reader = StoreReader::open(store).context("cannot read store")?;
+    sc_build::plan(reader.meta(), store, settings.clone())?;
+    drop(reader);
     let writer = StoreWriter::open(store).context("cannot open store for writing")?;
     let plan = sc_build::plan(&writer.meta(), store, settings)?;
     let progress = Progress::new("build", plan.shard_count());
     let summary = sc_build::run(&writer, &plan, &|d, _| progress.set(d)).map_err(|e| {
-        use sc_build::BuildError;
-        use sc_store::StoreError;
-        // only a failure a rerun can overcome (a full disk, an I/O error) gets the resume hint
-        let hint = if matches!(
-            e,
-            BuildError::Io { .. }
-                | BuildError::Store(StoreError::Io { .. } | StoreError::Format { .. })
-        ) {
+        // only a failure a rerun can overcome (a full disk, an I/O error) gets the resume hint;
+        // after any other the store is as complete as it was
+        let hint = if e.is_resumable() {
             " (the store is incomplete: rerun the same command to resume)"
         } else {
             ""
