@@ -187,3 +187,50 @@ fn a_build_that_cannot_run_leaves_a_complete_store_complete_and_says_why() {
         }
     }
 }
+
+#[test]
+fn verify_says_a_store_is_being_written_or_incomplete_instead_of_passing_or_finding_damage() {
+    let top = tempfile::tempdir().expect("tmp");
+    let store = top.path().join("s.zarr");
+    copy_dir(&built(), &store);
+    // an ingest holds the store, stopped after its first durable shard until `go` exists
+    let go = top.path().join("go");
+    let mut c = bin();
+    c.args([
+        "ingest",
+        s(&store),
+        s(&sample("n07_w006_3arc_v2.tif")),
+        "--level",
+        "4",
+    ])
+    .env("SPHERECLIP_PAUSE", format!("shard-durable:{}", s(&go)))
+    .stdout(std::process::Stdio::null())
+    .stderr(std::process::Stdio::null());
+    let mut writer = c.spawn().expect("spawn");
+    let waiting = top.path().join("go.waiting");
+    let start = std::time::Instant::now();
+    while !waiting.exists() {
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "the ingest did not pause"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let e = one_line_failure(&run60(&["info", s(&store), "--verify"]), "during a write");
+    assert!(e.contains("being written by another process"), "{e}");
+    std::fs::write(&go, b"").expect("go");
+    assert!(writer.wait().expect("wait").success());
+    ok(&run60(&["info", s(&store), "--verify"]));
+
+    // a build killed after its second durable step (the metadata marked incomplete) leaves the store incomplete: verify fails
+    let mut c = bin();
+    c.args(["build", s(&store)])
+        .env("SPHERECLIP_FAULT_AFTER", "2");
+    let o = run_within(c, Duration::from_secs(60));
+    assert_eq!(o.status.code(), Some(sc_store::fault::FAULT_EXIT));
+    assert!(!complete(&store));
+    let e = one_line_failure(&run60(&["info", s(&store), "--verify"]), "incomplete");
+    assert!(e.contains("INCOMPLETE"), "{e}");
+    ok(&run60(&["build", s(&store)]));
+    ok(&run60(&["info", s(&store), "--verify"]));
+}

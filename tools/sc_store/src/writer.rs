@@ -94,10 +94,23 @@ fn plan_marker(root: &Path) -> PathBuf {
     root.join(".sphereclip").join("plan-open.json")
 }
 
+/// Whether a process holds the store's write lock now (a writer, or the tasks of a plan). Reads
+/// only: the lock file is not created, a symlink or FIFO in its place counts as no writer.
+pub fn being_written(root: &Path) -> bool {
+    let Ok(f) = crate::files::open_regular(&root.join(".lock")) else {
+        return false;
+    };
+    match f.try_lock_shared() {
+        Ok(()) => false,
+        Err(std::fs::TryLockError::WouldBlock) => true,
+        Err(std::fs::TryLockError::Error(_)) => false,
+    }
+}
+
 /// What the open plan's marker holds (the text [`StoreWriter::open_plan_marker`] was given), or
 /// `None` when no plan is open.
 pub fn open_plan(root: &Path) -> Option<String> {
-    fs::read_to_string(plan_marker(root)).ok()
+    crate::files::read_regular_string(&plan_marker(root), 64 << 10).ok()
 }
 
 struct LevelArrays {

@@ -2,7 +2,7 @@
 
 use std::process::ExitCode;
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use sc_core::LevelId;
 use sc_store::{LayerKind, LevelStats, StoreReader, VerifyReport};
 
@@ -53,10 +53,34 @@ fn data_box(reader: &StoreReader, kind: LayerKind, level: LevelId) -> Option<[f6
 pub fn run(a: &InfoArgs) -> Result<ExitCode> {
     let reader = StoreReader::open(&a.store).context("cannot read store")?;
     let stats = reader.level_stats().context("cannot read store")?;
+    let written = || {
+        sc_store::being_written(&a.store).then(|| {
+            anyhow::anyhow!(
+                "the store is being written by another process: verify it when that is done: {}",
+                a.store.display()
+            )
+        })
+    };
     let report = if a.verify {
+        if let Some(e) = written() {
+            return Err(e);
+        }
+        let before = std::fs::read(a.store.join("zarr.json")).ok();
         let p = Progress::new("verify", reader.shard_count()?);
         let r = reader.verify(&|| p.inc())?;
         p.finish();
+        // what a writer did meanwhile is no damage
+        if !r.problems.is_empty() {
+            if let Some(e) = written() {
+                return Err(e);
+            }
+            if std::fs::read(a.store.join("zarr.json")).ok() != before {
+                bail!(
+                    "the store was written while it was verified: verify it again: {}",
+                    a.store.display()
+                );
+            }
+        }
         Some(r)
     } else {
         None
@@ -83,6 +107,17 @@ pub fn run(a: &InfoArgs) -> Result<ExitCode> {
                     p.path.display()
                 );
             }
+            ExitCode::FAILURE
+        }
+        Some(_) if !reader.meta().complete => {
+            eprintln!(
+                "error: the store is INCOMPLETE: its checksums hold, but a writer did not commit ({}): {}",
+                match sc_store::open_plan(&a.store) {
+                    Some(_) => "a plan run by many processes is open",
+                    None => "rerun the command that was writing it",
+                },
+                a.store.display()
+            );
             ExitCode::FAILURE
         }
         _ => ExitCode::SUCCESS,
