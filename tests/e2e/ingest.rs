@@ -238,3 +238,25 @@ fn the_thread_count_does_not_change_the_bytes() {
         "ingest with 1 and 3 threads",
     );
 }
+
+#[test]
+fn a_gzip_bomb_is_refused_within_the_memory_bound_for_refused_inputs() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    // 1.5 GiB of zeros in 1.5 MB: 24 gzip members of 64 MiB each
+    let bomb = dir.path().join("bomb.tif.gz");
+    let o = std::process::Command::new("bash")
+        .arg("-c")
+        .arg(r#"set -e; head -c 64M /dev/zero | gzip -1 > "$1.m"; for i in $(seq 24); do cat "$1.m"; done > "$1"; rm "$1.m""#)
+        .arg("bash")
+        .arg(&bomb)
+        .output()
+        .expect("bash runs");
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let store = dir.path().join("s.zarr");
+    let (ok, peak_kib, err) = run_measured(&["ingest", s(&store), s(&bomb), "--level", "3"]);
+    assert!(!ok, "a bomb is no raster: {err}");
+    assert!(err.contains("not a raster"), "{err}");
+    // README, "Safety": a refused input within 100 MB
+    assert!(peak_kib < 100 * 1024, "peak {peak_kib} KiB");
+    assert!(!store.exists(), "nothing is made for a refused input");
+}

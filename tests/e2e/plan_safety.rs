@@ -555,7 +555,7 @@ fn tampered_plans_never_panic_nor_touch_anything_outside_their_store() {
                 let new = hostile_value(&mut rng, x, &sentinel);
                 changed.push(format!(
                     "{p} = {}",
-                    &new.to_string()[..new.to_string().len().min(80)]
+                    new.to_string().chars().take(80).collect::<String>()
                 ));
                 *x = new;
             }
@@ -589,4 +589,132 @@ fn tampered_plans_never_panic_nor_touch_anything_outside_their_store() {
         }
     }
     assert!(refused > 0);
+}
+
+#[test]
+fn an_input_rewritten_after_the_plan_is_refused_by_its_tasks_and_its_commit() {
+    let top = tempfile::tempdir().expect("tmp");
+    let dir = top.path();
+    let input = dir.join("in.cdf");
+    std::fs::copy(sample("etopo20.cdf"), &input).expect("copy");
+    let plan = dir.join("p.json");
+    ok(&run_in(
+        dir,
+        &[
+            "plan",
+            "ingest",
+            "s.zarr",
+            "in.cdf",
+            "--tile-size",
+            "32",
+            "--level",
+            "3",
+            "--tasks",
+            "2",
+            "--out",
+            "p.json",
+        ],
+    ));
+    ok(&run_in(dir, &["run-task", s(&plan), "--task", "0"]));
+    // rewritten at the same size: one height changed
+    let mtime = std::fs::metadata(&input)
+        .expect("meta")
+        .modified()
+        .expect("mtime");
+    let mut b = std::fs::read(&input).expect("read");
+    let at = b.len() - 1000;
+    b[at] ^= 0x01;
+    std::fs::write(&input, &b).expect("write");
+    let e = one_line_failure(
+        &run_in(dir, &["run-task", s(&plan), "--task", "1"]),
+        "a task after the input changed",
+    );
+    assert!(e.contains("changed since the plan was made"), "{e}");
+    // the same size and time as when planned: the task trusts it, the commit reads it again
+    std::fs::File::options()
+        .write(true)
+        .open(&input)
+        .expect("open")
+        .set_modified(mtime)
+        .expect("set mtime");
+    ok(&run_in(dir, &["run-task", s(&plan), "--task", "1"]));
+    let e = one_line_failure(&run_in(dir, &["commit", s(&plan)]), "commit");
+    assert!(e.contains("changed since the plan was made"), "{e}");
+    assert!(
+        sc_store::open_plan(&dir.join("s.zarr")).is_some(),
+        "the plan stays open"
+    );
+    ok(&run_in(dir, &["commit", s(&plan), "--abandon"]));
+}
+
+#[test]
+fn a_commit_killed_at_any_durable_step_finishes_when_run_again() {
+    let top = tempfile::tempdir().expect("tmp");
+    let state = top.path().join("state");
+    let saved = top.path().join("saved");
+    std::fs::create_dir_all(&state).expect("mkdir");
+    let (store, plan) = open_build_plan(&state);
+    let v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&plan).expect("plan")).expect("json");
+    for i in 0..v["tasks"].as_array().expect("tasks").len() {
+        ok(&run_in(
+            &state,
+            &["run-task", s(&plan), "--task", &i.to_string()],
+        ));
+    }
+    copy_dir(&state, &saved);
+    let mut reference = None;
+    let mut closed_then_killed = 0;
+    for n in 1.. {
+        let _ = std::fs::remove_dir_all(&state);
+        copy_dir(&saved, &state);
+        let mut c = bin();
+        c.current_dir(&state)
+            .args(["commit", s(&plan)])
+            .env("SPHERECLIP_FAULT_AFTER", n.to_string());
+        let o = run_within(c, Duration::from_secs(60));
+        if o.status.success() {
+            assert!(n > 1);
+            reference = Some(snapshot(&store));
+            break;
+        }
+        assert_eq!(
+            o.status.code(),
+            Some(sc_store::fault::FAULT_EXIT),
+            "{}",
+            text(&o.stderr)
+        );
+        if sc_store::open_plan(&store).is_none() && store.join(".sphereclip/tasks").exists() {
+            closed_then_killed += 1;
+        }
+        let o = run_in(&state, &["commit", s(&plan)]);
+        ok(&o);
+        assert!(!store.join(".sphereclip/tasks").exists(), "step {n}");
+        assert!(sc_store::open_plan(&store).is_none(), "step {n}");
+        if let Some(r) = &reference {
+            same_files(r, &snapshot(&store), &format!("killed after step {n}"));
+        }
+        assert!(n < 500, "the commit never finished");
+    }
+    assert!(
+        closed_then_killed > 0,
+        "no kill fell between closing and cleaning up"
+    );
+    // each resumed commit ends with the bytes of the uninterrupted one
+    let reference = reference.expect("a commit finished");
+    for n in 1..4 {
+        let _ = std::fs::remove_dir_all(&state);
+        copy_dir(&saved, &state);
+        let mut c = bin();
+        c.current_dir(&state)
+            .args(["commit", s(&plan)])
+            .env("SPHERECLIP_FAULT_AFTER", n.to_string());
+        run_within(c, Duration::from_secs(60));
+        ok(&run_in(&state, &["commit", s(&plan)]));
+        same_files(
+            &reference,
+            &snapshot(&store),
+            &format!("resumed after step {n}"),
+        );
+    }
 }

@@ -234,3 +234,165 @@ fn verify_says_a_store_is_being_written_or_incomplete_instead_of_passing_or_find
     ok(&run60(&["build", s(&store)]));
     ok(&run60(&["info", s(&store), "--verify"]));
 }
+
+fn edit_json(path: &Path, f: impl FnOnce(&mut serde_json::Value)) {
+    let mut v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(path).expect("read")).expect("json");
+    f(&mut v);
+    std::fs::write(path, serde_json::to_vec_pretty(&v).expect("json")).expect("write");
+}
+
+#[test]
+fn verify_names_a_deleted_shard_disagreeing_consolidated_metadata_and_damaged_coordinates() {
+    let top = tempfile::tempdir().expect("tmp");
+    let store = top.path().join("s.zarr");
+    let fresh = || {
+        let _ = std::fs::remove_dir_all(&store);
+        copy_dir(&built(), &store);
+    };
+    // one error line a problem: a damaged file may show in the groups that list it too
+    let verify_fails = |what: &str, needle: &str| {
+        let o = run60(&["info", s(&store), "--verify"]);
+        assert_eq!(o.status.code(), Some(1), "{what}: {}", text(&o.stderr));
+        let err = text(&o.stderr);
+        assert!(!err.contains("panicked"), "{what}: {err}");
+        assert!(
+            err.lines()
+                .any(|l| l.starts_with("error:") && l.contains(needle)),
+            "{what}: {err}"
+        );
+    };
+
+    // a deleted shard: said by verify, refused by export and build (which would spread the
+    // hole to every coarser level), the store left complete
+    fresh();
+    std::fs::remove_file(store.join("height/L04/height/c/0/0")).expect("rm");
+    verify_fails("a deleted shard", "missing");
+    let o = run60(&[
+        "export",
+        s(&store),
+        "--level",
+        "4",
+        s(&top.path().join("o.tif")),
+    ]);
+    let e = one_line_failure(&o, "export of a level with a deleted shard");
+    assert!(e.contains("missing"), "{e}");
+    let before = snapshot(&store);
+    let e = one_line_failure(&run60(&["build", s(&store)]), "build over a deleted shard");
+    assert!(e.contains("missing"), "{e}");
+    assert!(complete(&store));
+    same_files(&before, &snapshot(&store), "a refused build");
+
+    // consolidated metadata that disagrees with the array it describes
+    fresh();
+    edit_json(&store.join("height/L03/zarr.json"), |v| {
+        v["consolidated_metadata"]["metadata"]["height"]["shape"] = serde_json::json!([64, 128]);
+    });
+    verify_fails("consolidated metadata", "consolidated metadata");
+    // the root's, which zarr-python and xarray read first
+    fresh();
+    edit_json(&store.join("zarr.json"), |v| {
+        v["consolidated_metadata"]["metadata"]["height/L03/height"]["shape"] =
+            serde_json::json!([64, 128]);
+    });
+    verify_fails("the root's consolidated metadata", "consolidated metadata");
+
+    // a latitude byte flipped: its chunk's checksum fails
+    fresh();
+    let lat = store.join("height/L03/lat/c/0");
+    let mut b = std::fs::read(&lat).expect("read");
+    b[16] ^= 0x40;
+    std::fs::write(&lat, b).expect("write");
+    verify_fails("a flipped latitude", "coordinate lat");
+
+    // a coordinate shape no level has
+    fresh();
+    edit_json(&store.join("height/L03/lon/zarr.json"), |v| {
+        v["shape"] = serde_json::json!([1u64 << 60]);
+    });
+    verify_fails("a coordinate shape of 2^60", "shape");
+
+    // a sphere of 1e308 m
+    fresh();
+    edit_json(&store.join("zarr.json"), |v| {
+        v["attributes"]["sphereclip"]["radius_m"] = serde_json::json!(1e308);
+    });
+    for args in [vec!["info", s(&store)], vec!["build", s(&store)]] {
+        let e = one_line_failure(&run60(&args), "radius 1e308");
+        assert!(e.contains("radius"), "{e}");
+    }
+}
+
+#[test]
+fn a_killed_export_leaves_no_temp_file_once_it_is_run_again() {
+    let top = tempfile::tempdir().expect("tmp");
+    let out = top.path().join("o.tif");
+    let go = top.path().join("go");
+    let mut c = bin();
+    c.args(["export", s(&built()), "--level", "4", s(&out)])
+        .env("SPHERECLIP_PAUSE", format!("export-staged:{}", s(&go)))
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null());
+    let mut child = c.spawn().expect("spawn");
+    let waiting = top.path().join("go.waiting");
+    let start = std::time::Instant::now();
+    while !waiting.exists() {
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "export did not pause"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    // what a kill -9 leaves: the staged file and, maybe, the output's temp file
+    child.kill().expect("kill");
+    child.wait().expect("wait");
+    std::fs::remove_file(&waiting).expect("rm");
+    let temps = |d: &Path| -> Vec<String> {
+        file_names(d)
+            .into_iter()
+            .filter(|n| n.contains(".tmp-"))
+            .collect()
+    };
+    assert!(
+        !temps(top.path()).is_empty(),
+        "the kill left the staged file"
+    );
+    // someone's file of a similar name, and a temp file of a live process, stay
+    std::fs::write(top.path().join(".o.tif.tmp-notes"), b"mine").expect("write");
+    let live = format!(".o.tif.tmp-{}", std::process::id());
+    std::fs::write(top.path().join(&live), b"live").expect("write");
+    ok(&run60(&["export", s(&built()), "--level", "4", s(&out)]));
+    let mut left = temps(top.path());
+    left.sort();
+    let mut want = vec![".o.tif.tmp-notes".to_string(), live];
+    want.sort();
+    assert_eq!(left, want, "only the dead export's temp files go");
+}
+
+#[test]
+fn an_interrupted_upgrade_is_named_with_the_command_that_finishes_it() {
+    let top = tempfile::tempdir().expect("tmp");
+    let old = top.path().join("old.zarr");
+    copy_dir(&repo("tests/data/format1.zarr"), &old);
+    // killed after a level was converted: the levels are of two formats
+    let mut c = bin();
+    c.args(["upgrade", s(&old)])
+        .env("SPHERECLIP_FAULT_AFTER", "8");
+    let o = run_within(c, Duration::from_secs(60));
+    assert_eq!(o.status.code(), Some(sc_store::fault::FAULT_EXIT));
+    for args in [
+        vec!["info", s(&old)],
+        vec![
+            "export",
+            s(&old),
+            "--level",
+            "2",
+            s(&top.path().join("o.tif")),
+        ],
+    ] {
+        let e = one_line_failure(&run60(&args), "a store mid-upgrade");
+        assert!(e.contains("sphereclip upgrade"), "{args:?}: {e}");
+    }
+    ok(&run60(&["upgrade", s(&old)]));
+    ok(&run60(&["info", s(&old), "--verify"]));
+}

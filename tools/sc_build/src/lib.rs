@@ -1165,7 +1165,7 @@ pub fn commit_tasks(
         write_atomic(path, &bytes)?;
     }
     writer.commit(Some(build_record(plan, &summary, started_unix)))?;
-    writer.close_plan()?;
+    writer.close_plan_committed()?;
     for t in tasks {
         if t.exists() {
             std::fs::remove_dir_all(t).map_err(|source| BuildError::Io {

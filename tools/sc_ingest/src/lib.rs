@@ -635,7 +635,7 @@ pub fn commit_tasks(
         }
     };
     writer.drop_undo()?;
-    writer.close_plan()?;
+    writer.close_plan_committed()?;
     remove_journals(journals)?;
     summary.shards_written = plan.shards.len() as u64;
     summary.seconds = start.elapsed().as_secs_f64();

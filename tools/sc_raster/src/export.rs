@@ -37,6 +37,36 @@ fn tmp_path(out: &Path) -> PathBuf {
     out.with_file_name(format!(".{name}.tmp-{}", std::process::id()))
 }
 
+/// Removes the temp files of `out` ([`tmp_path`]) that an export killed before it could
+/// clean up left: only regular files named for this output whose process has gone.
+fn remove_stale_temps(out: &Path) {
+    let (Some(dir), Some(name)) = (out.parent(), out.file_name()) else {
+        return;
+    };
+    let dir = if dir.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        dir
+    };
+    let prefix = format!(".{}.tmp-", name.to_string_lossy());
+    let Ok(rd) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for e in rd.flatten() {
+        let n = e.file_name().to_string_lossy().into_owned();
+        let Some(pid) = n.strip_prefix(&prefix) else {
+            continue;
+        };
+        let dead = !pid.is_empty()
+            && pid.bytes().all(|b| b.is_ascii_digit())
+            && pid != std::process::id().to_string()
+            && !Path::new("/proc").join(pid).exists();
+        if dead && e.file_type().is_ok_and(|t| t.is_file()) {
+            let _ = std::fs::remove_file(e.path());
+        }
+    }
+}
+
 fn check_level(reader: &StoreReader, kind: LayerKind, level: LevelId) -> Result<()> {
     if !reader.meta().levels(kind).contains(&level) {
         let have: Vec<String> = reader
@@ -209,6 +239,8 @@ pub fn export_geotiff(
         }
     }
     let stage = tmp_path(&out.with_extension("stage.tif"));
+    remove_stale_temps(out);
+    remove_stale_temps(&out.with_extension("stage.tif"));
     let _guard = TempGuard::new(vec![stage.clone(), tmp_path(out)]);
     let result = (|| {
         let summary = write_staged(reader, kind, region, &stage, out, on_row)?;

@@ -1625,6 +1625,11 @@ static GUNZIPPED: std::sync::Mutex<(Vec<(PathBuf, Gunzipped)>, u64)> =
 /// decompression at each backward seek, and drivers that read rows bottom-up (NetCDF) seek back
 /// at every row: decompressing once is ten times faster for the ETOPO5 sample. `None` when the
 /// contents do not fit in what is left of [`GUNZIP_BUDGET_BYTES`].
+///
+/// A file GDAL cannot open through `/vsigzip/` (which reads only what a driver asks for) is
+/// refused before anything is decompressed, and the decompression stops as soon as the bytes
+/// out pass the budget: a gzip bomb costs no more memory than the budget, and a bomb that is
+/// no raster costs next to none.
 fn gunzipped(path: &Path) -> Result<Option<PathBuf>> {
     use std::io::Read;
     let mut registry = GUNZIPPED.lock().unwrap_or_else(|e| e.into_inner());
@@ -1632,17 +1637,39 @@ fn gunzipped(path: &Path) -> Result<Option<PathBuf>> {
     if let Some((_, known)) = done.iter().find(|(p, _)| p == path) {
         return Ok(known.as_ref().map(|(_, mem)| mem.clone()));
     }
+    let abs = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
+    if Dataset::open(PathBuf::from(format!("/vsigzip/{}", abs.display()))).is_err() {
+        return Err(usage(
+            path,
+            "not a raster GDAL can read (also not after decompressing it)",
+        ));
+    }
     let left = GUNZIP_BUDGET_BYTES.saturating_sub(*used);
     let file = std::fs::File::open(path).map_err(|e| usage(path, format!("cannot open: {e}")))?;
-    let mut data = Vec::new();
-    let read = flate2::read::MultiGzDecoder::new(std::io::BufReader::new(file))
-        .take(left + 1)
-        .read_to_end(&mut data)
-        .map_err(|e| usage(path, format!("damaged gzip data ({e})")))? as u64;
-    if read > left {
-        done.push((path.to_path_buf(), None));
-        return Ok(None);
+    // the last member's size (mod 2^32) is a hint for the first allocation, never trusted further
+    let hint = gzip_size_hint(&file).unwrap_or(0).min(left);
+    let mut data: Vec<u8> = Vec::with_capacity(hint as usize);
+    let mut gz = flate2::read::MultiGzDecoder::new(std::io::BufReader::new(file));
+    let mut chunk = vec![0u8; 1 << 20];
+    loop {
+        let n = gz
+            .read(&mut chunk)
+            .map_err(|e| usage(path, format!("damaged gzip data ({e})")))?;
+        if n == 0 {
+            break;
+        }
+        if (data.len() + n) as u64 > left {
+            done.push((path.to_path_buf(), None));
+            return Ok(None);
+        }
+        if data.len() + n > data.capacity() {
+            // grow by at most a quarter (not doubling), never past the budget
+            let more = (data.capacity() / 4).max(n).min(left as usize - data.len());
+            data.reserve_exact(more);
+        }
+        data.extend_from_slice(&chunk[..n]);
     }
+    let read = data.len() as u64;
     let name = path
         .file_stem()
         .map_or_else(|| "input".into(), |s| s.to_string_lossy().into_owned());
@@ -1652,6 +1679,15 @@ fn gunzipped(path: &Path) -> Result<Option<PathBuf>> {
     *used += read;
     done.push((path.to_path_buf(), Some((file, mem.clone()))));
     Ok(Some(mem))
+}
+
+/// The size a gzip file's trailer gives (its last member's, mod 2^32).
+fn gzip_size_hint(file: &std::fs::File) -> Option<u64> {
+    use std::os::unix::fs::FileExt;
+    let len = file.metadata().ok()?.len();
+    let mut b = [0u8; 4];
+    file.read_exact_at(&mut b, len.checked_sub(4)?).ok()?;
+    Some(u64::from(u32::from_le_bytes(b)))
 }
 
 fn check_size(path: &Path, w: u64, h: u64) -> Result<()> {

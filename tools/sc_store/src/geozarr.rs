@@ -304,8 +304,10 @@ pub(crate) fn consolidated(dir: &Path) -> Result<Value, String> {
         subs.sort();
         for sub in subs {
             let meta = sub.join("zarr.json");
-            let Ok(bytes) = std::fs::read(&meta) else {
-                continue;
+            let bytes = match crate::files::read_regular(&meta, 64 << 20) {
+                Ok(b) => b,
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => continue,
+                Err(e) => return Err(format!("{}: {e}", meta.display())),
             };
             let mut v: Value = serde_json::from_slice(&bytes)
                 .map_err(|e| format!("{}: not JSON: {e}", meta.display()))?;
@@ -396,6 +398,10 @@ pub(crate) fn write_level_group(
         );
         b.dimension_names(Some(vec![name]));
         b.attributes(coord_attrs(name == "lat"));
+        // every chunk carries its checksum, as the data's tiles do
+        b.bytes_to_bytes_codecs(vec![std::sync::Arc::new(
+            zarrs::array::codec::Crc32cCodec::new(),
+        )]);
         let array = b
             .build(durable.clone(), &format!("/{dir}/{name}"))
             .map_err(|e| e.to_string())?;

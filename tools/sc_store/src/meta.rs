@@ -60,6 +60,41 @@ pub struct LevelMeta {
     pub level: LevelId,
     /// Range of valid values written so far (heights only); a bound: rewrites only widen it.
     pub value_range: Option<(f64, f64)>,
+    /// The shards that hold data as of the last commit, as runs `[y, x_first, x_end)` in order;
+    /// `None` in stores committed before this was kept. A committed store missing one of them
+    /// is damaged (a deleted shard would otherwise read as nodata).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shards: Option<Vec<[u64; 3]>>,
+}
+
+impl LevelMeta {
+    /// Whether the last commit listed shard (`x`, `y`); `None` when the store keeps no list.
+    pub fn lists_shard(&self, x: u64, y: u64) -> Option<bool> {
+        let runs = self.shards.as_ref()?;
+        let i = runs.partition_point(|r| (r[0], r[1]) <= (y, x));
+        Some(i > 0 && runs[i - 1][0] == y && x < runs[i - 1][2])
+    }
+
+    /// The listed shards, `(x, y)` in row order; empty when the store keeps no list (runs are
+    /// checked to lie in the level when the metadata is read).
+    pub fn listed_shards(&self) -> impl Iterator<Item = (u64, u64)> + '_ {
+        self.shards
+            .iter()
+            .flatten()
+            .flat_map(|&[y, x0, x1]| (x0..x1).map(move |x| (x, y)))
+    }
+}
+
+/// Runs `[y, x_first, x_end)` of shards given as sorted `(y, x)`.
+pub(crate) fn shard_runs(sorted_yx: &[(u64, u64)]) -> Vec<[u64; 3]> {
+    let mut runs: Vec<[u64; 3]> = Vec::new();
+    for &(y, x) in sorted_yx {
+        match runs.last_mut() {
+            Some(r) if r[0] == y && r[2] == x => r[2] = x + 1,
+            _ => runs.push([y, x, x + 1]),
+        }
+    }
+    runs
 }
 
 /// The time a provenance record carries: `SOURCE_DATE_EPOCH` when set (reproducible stores),
@@ -101,6 +136,10 @@ pub struct InputRecord {
     /// Hex SHA-256 of the contents.
     pub sha256: String,
 }
+
+/// The sphere radii a store may have: from a 1 m ball to ten times the Sun (squares and sums of
+/// radii stay far from overflowing an f64, and an f32 holds them to a part in 10^7).
+pub const RADIUS_RANGE_M: std::ops::RangeInclusive<f64> = 1.0..=7.0e9;
 
 impl StoreMeta {
     /// Fresh metadata for an empty store.
@@ -151,10 +190,7 @@ impl StoreMeta {
         let meta: StoreMeta = serde_json::from_value(v.clone())
             .map_err(|e| format(format!("malformed store metadata: {e}")))?;
         GridSpec::new(meta.grid.tile_size()).map_err(|e| format(e.to_string()))?;
-        if !((1..=64).contains(&meta.shard_tiles)
-            && meta.radius_m > 0.0
-            && meta.radius_m.is_finite())
-        {
+        if !((1..=64).contains(&meta.shard_tiles) && RADIUS_RANGE_M.contains(&meta.radius_m)) {
             return Err(format(format!(
                 "impossible store geometry: shard_tiles {}, radius {} m",
                 meta.shard_tiles, meta.radius_m
@@ -180,6 +216,24 @@ impl StoreMeta {
                     return Err(format(format!(
                         "damaged store metadata: {kind} level {key} has value range {lo} .. {hi}"
                     )));
+                }
+                if let Some(runs) = &lm.shards {
+                    let (sx, sy) = (
+                        meta.grid.tiles_x(lm.level).div_ceil(meta.shard_tiles),
+                        meta.grid.tiles_y(lm.level).div_ceil(meta.shard_tiles),
+                    );
+                    let ordered = runs
+                        .windows(2)
+                        .all(|w| (w[0][0], w[0][2]) <= (w[1][0], w[1][1]));
+                    if !ordered
+                        || runs
+                            .iter()
+                            .any(|&[y, x0, x1]| y >= sy || x0 >= x1 || x1 > sx)
+                    {
+                        return Err(format(format!(
+                            "damaged store metadata: {kind} level {key} lists shards outside its {sx}x{sy} shards or out of order"
+                        )));
+                    }
                 }
             }
         }

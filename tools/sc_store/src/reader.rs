@@ -111,6 +111,13 @@ impl StoreReader {
 
     fn open_reusing(root: &Path, known: Option<&Self>) -> Result<Self> {
         let (fs, meta) = read_meta(root)?;
+        // its levels are of two formats until the upgrade ends
+        if std::fs::symlink_metadata(crate::writer::upgrade_marker(root)).is_ok() {
+            return Err(StoreError::Format {
+                what: "the store is being upgraded, or its upgrade was interrupted: `sphereclip upgrade` finishes it (run it again if it was stopped)".into(),
+                path: root.to_path_buf(),
+            });
+        }
         // a committed store lists every array it has (an incomplete one may hold an array a
         // killed writer made and had not listed yet)
         if meta.complete
@@ -219,16 +226,35 @@ impl StoreReader {
             return Ok(i);
         }
         tracing::trace!(layer = %kind, %shard, "store: reading shard index");
-        let i = Arc::new(
-            ShardIndex::read(&self.shard_path(kind, tile)?, (s * s) as usize)
-                .map_err(|detail| self.corrupt(kind, tile, None, &detail))?,
-        );
+        let index = ShardIndex::read(&self.shard_path(kind, tile)?, (s * s) as usize)
+            .map_err(|detail| self.corrupt(kind, tile, None, &detail))?;
+        if index.is_none() && self.listed_as_present(kind, shard) {
+            return Err(self.corrupt(
+                kind,
+                tile,
+                None,
+                "missing: the store's metadata lists it as holding data (deleted or lost)",
+            ));
+        }
+        let i = Arc::new(index);
         self.inner
             .indexes
             .write()
             .unwrap_or_else(PoisonError::into_inner)
             .insert((kind, shard), i.clone());
         Ok(i)
+    }
+
+    /// Whether the last commit of a complete store listed `shard` as holding data.
+    fn listed_as_present(&self, kind: LayerKind, shard: ShardId) -> bool {
+        let meta = &self.inner.meta;
+        meta.complete
+            && meta
+                .layers
+                .get(&kind)
+                .and_then(|l| l.levels.get(&shard.level.key()))
+                .and_then(|lm| lm.lists_shard(shard.x, shard.y))
+                == Some(true)
     }
 
     fn check_tile(&self, tile: TileId) -> Result<()> {

@@ -3,7 +3,10 @@
 use std::path::{Path, PathBuf};
 
 use sc_core::{LevelId, ShardId, TileId};
-use zarrs::array::{ArrayShardedReadableExt, ArrayShardedReadableExtCache};
+use zarrs::array::{Array, ArrayShardedReadableExt, ArrayShardedReadableExtCache};
+
+/// The largest group or array metadata file read (a consolidated level group is a few kB).
+const METADATA_MAX_BYTES: u64 = 64 << 20;
 
 use crate::reader::{LevelReader, local_tile_number};
 use crate::shard_index::ShardIndex;
@@ -75,29 +78,45 @@ impl StoreReader {
             .join(lr.array.path().as_str().trim_start_matches('/'))
     }
 
+    fn shard_file(&self, lr: &LevelReader, shard: ShardId) -> PathBuf {
+        self.array_dir(lr)
+            .join("c")
+            .join(shard.y.to_string())
+            .join(shard.x.to_string())
+    }
+
     /// The shards of a level that have a file, sorted.
     pub fn shards_on_disk(&self, kind: LayerKind, level: LevelId) -> Result<Vec<ShardId>> {
         let lr = self.level(kind, level)?;
-        let cdir = self.array_dir(lr).join("c");
-        let mut out = Vec::new();
-        let Ok(rows) = std::fs::read_dir(&cdir) else {
-            return Ok(out);
-        };
-        for row in rows.flatten() {
-            let Some(y) = row.file_name().to_str().and_then(|s| s.parse::<u64>().ok()) else {
-                continue;
-            };
-            let Ok(cols) = std::fs::read_dir(row.path()) else {
-                continue;
-            };
-            for col in cols.flatten() {
-                if let Some(x) = col.file_name().to_str().and_then(|s| s.parse::<u64>().ok()) {
-                    out.push(ShardId { level, x, y });
-                }
-            }
-        }
+        let mut out: Vec<ShardId> = shard_files(&self.array_dir(lr).join("c"))
+            .into_iter()
+            .map(|(y, x)| ShardId { level, x, y })
+            .collect();
         out.sort();
         Ok(out)
+    }
+
+    /// Shards the last commit listed for a level that have no file now (deleted or lost);
+    /// none for an incomplete store (a writer may be changing them) or one that keeps no list.
+    pub fn missing_shards(&self, kind: LayerKind, level: LevelId) -> Result<Vec<ShardId>> {
+        let meta = self.meta();
+        let Some(lm) = meta
+            .layers
+            .get(&kind)
+            .and_then(|l| l.levels.get(&level.key()))
+        else {
+            return Ok(Vec::new());
+        };
+        if !meta.complete {
+            return Ok(Vec::new());
+        }
+        let on_disk: std::collections::HashSet<ShardId> =
+            self.shards_on_disk(kind, level)?.into_iter().collect();
+        Ok(lm
+            .listed_shards()
+            .map(|(x, y)| ShardId { level, x, y })
+            .filter(|s| !on_disk.contains(s))
+            .collect())
     }
 
     /// Per-level numbers for every layer and level of the store.
@@ -148,10 +167,34 @@ impl StoreReader {
         let meta = self.meta();
         let mut report = VerifyReport::default();
         self.verify_listing(&mut report);
+        if meta.format_major() >= 2 {
+            self.verify_consolidated(&mut report);
+            self.verify_coordinates(&mut report);
+        }
         for &kind in meta.layers.keys() {
             for level in meta.levels(kind) {
                 let lr = self.level(kind, level)?;
+                for shard in self.missing_shards(kind, level)? {
+                    report.problems.push(Problem {
+                        path: self.shard_file(lr, shard),
+                        what: format!("{kind} {shard}"),
+                        detail: "missing: the store's metadata lists it as holding data (deleted or lost; readers would take it for nodata)".into(),
+                    });
+                }
+                let listed = meta
+                    .layers
+                    .get(&kind)
+                    .and_then(|l| l.levels.get(&level.key()));
                 for shard in self.shards_on_disk(kind, level)? {
+                    if meta.complete
+                        && listed.and_then(|lm| lm.lists_shard(shard.x, shard.y)) == Some(false)
+                    {
+                        report.problems.push(Problem {
+                            path: self.shard_file(lr, shard),
+                            what: format!("{kind} {shard}"),
+                            detail: "on disk but not listed in the store's metadata (not written by the last commit)".into(),
+                        });
+                    }
                     self.verify_shard(kind, lr, shard, &mut report);
                     on_shard();
                 }
@@ -170,6 +213,158 @@ impl StoreReader {
                 what: format!("{kind} array {name}"),
                 detail: "on disk but not listed in the store metadata (its data is invisible to readers)".into(),
             });
+        }
+    }
+
+    /// The consolidated metadata of the root, each layer and each level group must be what the arrays' own
+    /// `zarr.json` say (readers that trust it, like xarray, would get other shapes or codecs).
+    fn verify_consolidated(&self, report: &mut VerifyReport) {
+        let meta = self.meta();
+        let mut groups = vec![self.root().to_path_buf()];
+        for &kind in meta.layers.keys() {
+            groups.push(self.root().join(kind.name()));
+            for level in meta.levels(kind) {
+                groups.push(self.root().join(crate::layout::level_dir(kind, level)));
+            }
+        }
+        for dir in groups {
+            let path = dir.join("zarr.json");
+            let stored = crate::files::read_regular(&path, METADATA_MAX_BYTES)
+                .map_err(|e| e.to_string())
+                .and_then(|b| {
+                    serde_json::from_slice::<serde_json::Value>(&b).map_err(|e| e.to_string())
+                });
+            let stored = match stored {
+                Ok(v) => v.get("consolidated_metadata").cloned(),
+                Err(detail) => {
+                    report.problems.push(Problem {
+                        path,
+                        what: "group metadata".into(),
+                        detail,
+                    });
+                    continue;
+                }
+            };
+            let Some(stored) = stored else { continue };
+            match crate::geozarr::consolidated(&dir) {
+                Ok(now) if now == stored => {}
+                Ok(now) => {
+                    let keys = |v: &serde_json::Value| -> Vec<String> {
+                        v["metadata"]
+                            .as_object()
+                            .map(|m| m.keys().cloned().collect())
+                            .unwrap_or_default()
+                    };
+                    let differ: Vec<String> = keys(&now)
+                        .into_iter()
+                        .chain(keys(&stored))
+                        .filter(|k| now["metadata"].get(k) != stored["metadata"].get(k))
+                        .collect();
+                    report.problems.push(Problem {
+                        path,
+                        what: "consolidated metadata".into(),
+                        detail: format!(
+                            "disagrees with the arrays' own zarr.json ({}): readers that use it get other arrays",
+                            differ.first().map_or("its layout", String::as_str)
+                        ),
+                    });
+                }
+                Err(detail) => report.problems.push(Problem {
+                    path,
+                    what: "consolidated metadata".into(),
+                    detail,
+                }),
+            }
+        }
+    }
+
+    /// Each level's `lat` and `lon` coordinates must have the level's shape and hold the texel
+    /// centres of its grid, value for value (they are what xarray and GDAL place the data by).
+    fn verify_coordinates(&self, report: &mut VerifyReport) {
+        let meta = self.meta();
+        let grid = meta.grid;
+        let Ok(fs) = crate::reader::open_fs(self.root()) else {
+            return;
+        };
+        for &kind in meta.layers.keys() {
+            for level in meta.levels(kind) {
+                let (dx, dy) = grid.texel_deg(level);
+                for (name, n, first, step) in [
+                    ("lat", grid.height(level), 90.0 - dy / 2.0, -dy),
+                    ("lon", grid.width(level), -180.0 + dx / 2.0, dx),
+                ] {
+                    let dir = format!("{}/{name}", crate::layout::level_dir(kind, level));
+                    let at = self.root().join(&dir);
+                    let mut problem = |path: PathBuf, detail: String| {
+                        report.problems.push(Problem {
+                            path,
+                            what: format!("{kind} level {} coordinate {name}", level.key()),
+                            detail,
+                        })
+                    };
+                    let chunk = n.min(crate::geozarr::COORD_CHUNK);
+                    let stored =
+                        crate::files::read_regular(&at.join("zarr.json"), METADATA_MAX_BYTES)
+                            .map_err(|e| e.to_string())
+                            .and_then(|b| {
+                                serde_json::from_slice::<serde_json::Value>(&b)
+                                    .map_err(|e| e.to_string())
+                            });
+                    let v = match stored {
+                        Ok(v) => v,
+                        Err(e) => {
+                            problem(at.join("zarr.json"), e);
+                            continue;
+                        }
+                    };
+                    let shape = &v["shape"];
+                    let chunks = &v["chunk_grid"]["configuration"]["chunk_shape"];
+                    if *shape != serde_json::json!([n]) || *chunks != serde_json::json!([chunk]) {
+                        problem(
+                            at.join("zarr.json"),
+                            format!(
+                                "shape {shape} in chunks of {chunks}, where the level has [{n}] in chunks of [{chunk}]"
+                            ),
+                        );
+                        continue;
+                    }
+                    let array = match Array::open(fs.clone(), &format!("/{dir}")) {
+                        Ok(a) => a,
+                        Err(e) => {
+                            problem(at.join("zarr.json"), e.to_string());
+                            continue;
+                        }
+                    };
+                    for k in 0..n.div_ceil(chunk) {
+                        let file = at.join("c").join(k.to_string());
+                        if let Err(e) = crate::files::open_regular(&file) {
+                            problem(file, e.to_string());
+                            continue;
+                        }
+                        let values = match array.retrieve_chunk::<Vec<f64>>(&[k]) {
+                            Ok(v) => v,
+                            Err(e) => {
+                                problem(file, e.to_string());
+                                continue;
+                            }
+                        };
+                        let bad = values.iter().enumerate().find(|&(i, &got)| {
+                            let j = k * chunk + i as u64;
+                            j < n && got.to_bits() != (first + j as f64 * step).to_bits()
+                        });
+                        if let Some((i, got)) = bad {
+                            let j = k * chunk + i as u64;
+                            problem(
+                                file,
+                                format!(
+                                    "value {j} is {got}, not the texel centre {}",
+                                    first + j as f64 * step
+                                ),
+                            );
+                        }
+                    }
+                }
+            }
         }
     }
 
@@ -245,6 +440,28 @@ impl StoreReader {
             }
         }
     }
+}
+
+/// The `(y, x)` names of the shards under a level array's chunk folder `cdir` (`c/Y/X`), in row
+/// order; entries of every file type count (a reader then says what is wrong with one).
+pub(crate) fn shard_files(cdir: &Path) -> Vec<(u64, u64)> {
+    let mut out = Vec::new();
+    let Ok(rows) = std::fs::read_dir(cdir) else {
+        return out;
+    };
+    let number = |e: &std::fs::DirEntry| e.file_name().to_str().and_then(|s| s.parse::<u64>().ok());
+    for row in rows.flatten() {
+        let Some(y) = number(&row) else { continue };
+        if !row.file_type().is_ok_and(|t| t.is_dir()) {
+            continue;
+        }
+        let Ok(cols) = std::fs::read_dir(row.path()) else {
+            continue;
+        };
+        out.extend(cols.flatten().filter_map(|c| number(&c)).map(|x| (y, x)));
+    }
+    out.sort();
+    out
 }
 
 /// Level arrays on disk that the group metadata does not list: `(layer, key, folder)`.

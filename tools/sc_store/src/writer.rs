@@ -107,6 +107,21 @@ pub fn being_written(root: &Path) -> bool {
     }
 }
 
+/// The note an upgrade keeps while it runs: `STORE/.sphereclip/upgrade.json`.
+pub(crate) fn upgrade_marker(root: &Path) -> PathBuf {
+    root.join(".sphereclip").join("upgrade.json")
+}
+
+/// The record of the last plan committed: `STORE/.sphereclip/plan-committed.json`.
+fn committed_marker(root: &Path) -> PathBuf {
+    root.join(".sphereclip").join("plan-committed.json")
+}
+
+/// What the open-plan marker of the last plan committed on the store held, if any.
+pub fn committed_plan(root: &Path) -> Option<String> {
+    crate::files::read_regular_string(&committed_marker(root), 64 << 10).ok()
+}
+
 /// What the open plan's marker holds (the text [`StoreWriter::open_plan_marker`] was given), or
 /// `None` when no plan is open.
 pub fn open_plan(root: &Path) -> Option<String> {
@@ -780,6 +795,7 @@ impl StoreWriter {
                 e.insert(LevelMeta {
                     level,
                     value_range: None,
+                    shards: None,
                 });
                 listed = false;
             }
@@ -993,6 +1009,17 @@ impl StoreWriter {
         }
     }
 
+    /// Closes the open plan as committed: its marker's text is kept as the last committed plan
+    /// ([`committed_plan`]) before the marker goes, so that a commit killed after this point and
+    /// run again knows its plan is done.
+    pub fn close_plan_committed(&self) -> Result<()> {
+        if let Some(text) = open_plan(&self.root) {
+            let path = committed_marker(&self.root);
+            crate::fault::write_atomic(&path, text.as_bytes()).map_err(io_err(&path))?;
+        }
+        self.close_plan()
+    }
+
     /// Removes the open-plan marker (after the plan was committed or rolled back).
     pub fn close_plan(&self) -> Result<()> {
         let path = plan_marker(&self.root);
@@ -1150,8 +1177,22 @@ impl StoreWriter {
             }
         }
         self.prune_empty_levels()?;
+        self.list_shards();
         self.lock_meta().complete = true;
         self.write_group_meta()
+    }
+
+    /// Records in each level's metadata the shards it holds on disk now.
+    fn list_shards(&self) {
+        let major = self.lock_meta().format_major();
+        let mut m = self.lock_meta();
+        for (&kind, layer) in m.layers.iter_mut() {
+            for lm in layer.levels.values_mut() {
+                let array = crate::layout::data_array_path(major, kind, lm.level);
+                let cdir = self.root.join(array.trim_start_matches('/')).join("c");
+                lm.shards = Some(crate::meta::shard_runs(&crate::verify::shard_files(&cdir)));
+            }
+        }
     }
 }
 
@@ -1488,8 +1529,8 @@ pub fn upgrade(root: &Path, on_level: &dyn Fn(usize, usize)) -> Result<UpgradeRe
     meta = m;
     // whether the store was complete before the upgrade began (a resumed upgrade finds it
     // marked incomplete by the first run, which noted the original state)
-    let marker = root.join(".sphereclip").join("upgrade.json");
-    let was_complete = match fs::read(&marker) {
+    let marker = upgrade_marker(root);
+    let was_complete = match crate::files::read_regular(&marker, 64 << 10) {
         Ok(b) => serde_json::from_slice::<serde_json::Value>(&b)
             .ok()
             .and_then(|v| v.get("complete").and_then(|c| c.as_bool()))

@@ -20,6 +20,18 @@ pub fn build(store: &Path, settings: Settings, json: bool) -> Result<sc_build::S
     // before the writer marks the store incomplete
     let reader = StoreReader::open(store).context("cannot read store")?;
     sc_build::plan(reader.meta(), store, settings.clone())?;
+    if !settings.repair {
+        for (&kind, layer) in &reader.meta().layers {
+            for lm in layer.levels.values() {
+                if let Some(s) = reader.missing_shards(kind, lm.level)?.first() {
+                    bail!(
+                        "damaged store: {kind} {s} is missing though the store lists it (deleted or lost); a build would spread the hole to every coarser level: ingest its data again, or `sphereclip build --repair` where only the build made that level: {}",
+                        store.display()
+                    );
+                }
+            }
+        }
+    }
     drop(reader);
     let writer = StoreWriter::open(store).context("cannot open store for writing")?;
     let plan = sc_build::plan(&writer.meta(), store, settings)?;

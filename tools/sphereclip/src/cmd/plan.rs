@@ -52,6 +52,9 @@ struct PlanFile {
     /// these instead of reading every input again).
     #[serde(default)]
     inputs: Vec<sc_store::InputRecord>,
+    /// The inputs' modification times then (ns since the epoch), in the order of `inputs`.
+    #[serde(default)]
+    input_modified_ns: Vec<u64>,
     stages: Vec<Stage>,
     tasks: Vec<Task>,
 }
@@ -385,6 +388,12 @@ fn open_marker(plan: &PlanFile) -> bool {
         .is_some_and(|m| m.split_once(' ').is_some_and(|(hash, _)| hash == plan.hash))
 }
 
+/// Whether this plan is the last one committed on its store.
+fn committed_marker(plan: &PlanFile) -> bool {
+    sc_store::committed_plan(&plan.store)
+        .is_some_and(|m| m.split_once(' ').is_some_and(|(hash, _)| hash == plan.hash))
+}
+
 /// Refuses a folder that is not a sphereclip store, or whose bookkeeping folders are symlinks
 /// (a task's files would be made where they lead).
 fn check_store_folders(store: &Path) -> Result<()> {
@@ -479,6 +488,11 @@ pub fn make(a: &PlanArgs) -> Result<ExitCode> {
             }];
             let mut plan = new_plan("ingest", store, cwd, args, &p.hash, cpus, stages, tasks);
             plan.inputs = p.inputs.iter().map(|i| i.record.clone()).collect();
+            plan.input_modified_ns = plan
+                .inputs
+                .iter()
+                .map(|r| modified_ns(Path::new(&r.path)))
+                .collect::<Result<_>>()?;
             sc_ingest::open_tasks(&plan.store, &p, &marker(&plan, &out))
                 .with_context(|| format!("cannot prepare {}", plan.store.display()))?;
             plan
@@ -566,6 +580,7 @@ fn new_plan(
         created_unix: sc_store::unix_now(),
         cpus_per_task: cpus,
         inputs: Vec::new(),
+        input_modified_ns: Vec::new(),
         stages,
         tasks,
     }
@@ -674,15 +689,32 @@ enum Step {
     Build(Box<sc_build::Plan>),
 }
 
-fn remake(plan: &PlanFile, threads: Option<usize>) -> Result<Step> {
+/// How a step made again knows its inputs' contents.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Inputs {
+    /// From the plan's records, for inputs whose size and modification time did not change
+    /// (a task: every task reading every input would cost more than the ingest).
+    Stamped,
+    /// Read and hashed again (the commit, once: the provenance records only bytes ingested).
+    Hashed,
+}
+
+fn remake(plan: &PlanFile, threads: Option<usize>, inputs: Inputs) -> Result<Step> {
     let what = parse_recorded(&plan.args)?;
     let step = match what {
         PlanWhat::Ingest { ingest, .. } => {
             same_store(plan, &ingest.store)?;
-            let p = super::ingest::make_plan_trusting(&ingest, &plan.inputs)?;
+            let known = match inputs {
+                Inputs::Stamped => {
+                    check_stamps(plan)?;
+                    plan.inputs.as_slice()
+                }
+                Inputs::Hashed => &[],
+            };
+            let p = super::ingest::make_plan_trusting(&ingest, known)?;
             if p.hash != plan.step_hash {
                 bail!(
-                    "the inputs or settings changed since the plan was made; make the plan again: {}",
+                    "the inputs or settings changed since the plan was made (what its tasks wrote may come from other bytes): abandon it (`sphereclip commit PLAN --abandon`) and make the plan again: {}",
                     plan.store.display()
                 );
             }
@@ -711,6 +743,36 @@ fn remake(plan: &PlanFile, threads: Option<usize>) -> Result<Step> {
         bail!("the plan says {} but its arguments make {kind}", plan.kind);
     }
     Ok(step)
+}
+
+/// An input's modification time, nanoseconds since the epoch (0 where the file system has none).
+fn modified_ns(path: &Path) -> Result<u64> {
+    let m = std::fs::metadata(path).with_context(|| format!("cannot read {}", path.display()))?;
+    Ok(m.modified()
+        .ok()
+        .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
+        .map_or(0, |d| d.as_nanos() as u64))
+}
+
+/// Refuses inputs whose size or modification time changed since the plan was made (a file
+/// rewritten at the same size would otherwise be taken for the one the plan hashed).
+fn check_stamps(plan: &PlanFile) -> Result<()> {
+    if plan.input_modified_ns.len() != plan.inputs.len() {
+        bail!("the plan's input records do not match its inputs; make the plan again");
+    }
+    for (r, &ns) in plan.inputs.iter().zip(&plan.input_modified_ns) {
+        let path = Path::new(&r.path);
+        let len = std::fs::metadata(path)
+            .with_context(|| format!("cannot read the input {}", path.display()))?
+            .len();
+        if len != r.bytes || modified_ns(path)? != ns {
+            bail!(
+                "the input {} changed since the plan was made: abandon it (`sphereclip commit PLAN --abandon`) and make the plan again",
+                path.display()
+            );
+        }
+    }
+    Ok(())
 }
 
 /// Refuses a plan whose recorded arguments name another store than the plan does.
@@ -835,7 +897,7 @@ pub fn run_task(a: &RunTaskArgs) -> Result<ExitCode> {
             .ok()
             .and_then(|v| v.parse().ok())
     });
-    let step = remake(&plan, threads)?;
+    let step = remake(&plan, threads, Inputs::Stamped)?;
     check_work(&plan, &step)?;
     let dir = tasks_dir(&plan);
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
@@ -906,6 +968,17 @@ pub fn run_task(a: &RunTaskArgs) -> Result<ExitCode> {
 pub fn commit(a: &CommitArgs) -> Result<ExitCode> {
     let plan_path = absolute(&a.plan)?;
     let plan = read_plan(&plan_path)?;
+    check_store_folders(&plan.store)?;
+    if !a.abandon && !open_marker(&plan) && committed_marker(&plan) {
+        // a commit killed after it closed the plan: only the task folders were left to remove
+        remove_dir(&tasks_dir(&plan))?;
+        crate::outln!(
+            "the plan {} was committed already: {} is complete",
+            plan_path.display(),
+            plan.store.display()
+        );
+        return Ok(ExitCode::SUCCESS);
+    }
     check_open(&plan)?;
     std::env::set_current_dir(&plan.cwd)
         .with_context(|| format!("cannot enter the plan's folder {}", plan.cwd.display()))?;
@@ -936,7 +1009,7 @@ pub fn commit(a: &CommitArgs) -> Result<ExitCode> {
         );
         return Ok(ExitCode::SUCCESS);
     }
-    let step = remake(&plan, None)?;
+    let step = remake(&plan, None, Inputs::Hashed)?;
     check_work(&plan, &step)?;
     let left = wait_for(&plan, &step, None, a.wait)?;
     if !left.is_empty() {
