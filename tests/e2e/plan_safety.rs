@@ -684,11 +684,21 @@ fn a_commit_killed_at_any_durable_step_finishes_when_run_again() {
             "{}",
             text(&o.stderr)
         );
-        if sc_store::open_plan(&store).is_none() && store.join(".sphereclip/tasks").exists() {
+        let tasks_left = store.join(".sphereclip/tasks").exists();
+        if sc_store::open_plan(&store).is_none() && tasks_left {
             closed_then_killed += 1;
         }
         let o = run_in(&state, &["commit", s(&plan)]);
-        ok(&o);
+        if sc_store::open_plan(&store).is_none()
+            && !tasks_left
+            && sc_store::committed_plan(&store).is_none()
+        {
+            // killed after its very last step: the commit was done, and says so when run again
+            let e = one_line_failure(&o, "a commit run again after it finished");
+            assert!(e.contains("committed already"), "{e}");
+        } else {
+            ok(&o);
+        }
         assert!(!store.join(".sphereclip/tasks").exists(), "step {n}");
         assert!(sc_store::open_plan(&store).is_none(), "step {n}");
         if let Some(r) = &reference {

@@ -475,18 +475,27 @@ pub fn run(root: &Path, plan: &Plan, on_shard: &(dyn Fn(u64, u64) + Sync)) -> Re
         )));
     }
     let levels: std::collections::BTreeSet<LevelId> = plan.inputs.iter().map(|p| p.level).collect();
-    for &l in &levels {
-        writer.ensure_level(settings.layer, l)?;
-    }
-    let journal = Journal::open(root, "ingest", &plan.hash)?;
-    writer.keep_undo(!journal.resumed)?;
-    // a shard an interrupted run replaced but did not record is put back first: mosaicking and
-    // feathering read what a shard holds, so redoing it over its new bytes would blend twice
-    for (kind, shard) in writer.undo_entries() {
-        if !journal.is_done(&shard) {
-            writer.restore(kind, shard)?;
+    let prepared = (|| -> Result<Journal> {
+        for &l in &levels {
+            writer.ensure_level(settings.layer, l)?;
         }
-    }
+        let journal = Journal::open(root, "ingest", &plan.hash)?;
+        writer.keep_undo(!journal.resumed)?;
+        // a shard an interrupted run replaced but did not record is put back first: mosaicking
+        // and feathering read what a shard holds, so redoing it over its new bytes would blend
+        // twice
+        for (kind, shard) in writer.undo_entries() {
+            if !journal.is_done(&shard) {
+                writer.restore(kind, shard)?;
+            }
+        }
+        Ok(journal)
+    })();
+    let journal = match prepared {
+        Ok(j) => j,
+        Err(e) if resumable(&e) => return Err(IngestError::Interrupted(Box::new(e))),
+        Err(e) => return Err(e),
+    };
     match write_all(&writer, plan, &journal, start, levels, on_shard) {
         Ok(summary) => Ok(summary),
         Err(e) if resumable(&e) => Err(IngestError::Interrupted(Box::new(e))),

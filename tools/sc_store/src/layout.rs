@@ -222,7 +222,8 @@ pub(crate) fn check_file(
     let path = root
         .join(data_array_path(meta.format_major(), kind, level).trim_start_matches('/'))
         .join("zarr.json");
-    let bytes = std::fs::read(&path).map_err(|e| format!("cannot read array metadata: {e}"))?;
+    let bytes = crate::files::read_regular(&path, 64 << 20)
+        .map_err(|e| format!("cannot read array metadata: {e}"))?;
     let v: serde_json::Value =
         serde_json::from_slice(&bytes).map_err(|e| format!("array metadata is not JSON: {e}"))?;
     check(&v, kind, level, meta)

@@ -31,7 +31,7 @@ pub use sample::{LayerKind, TileSample, range_union};
 pub use verify::{LevelStats, Problem, VerifyReport};
 pub use writer::{
     EncodedTile, HeightCodec, LEVEL_MAKERS, ShardWriter, StoreConfig, StoreWriter, UpgradeReport,
-    being_written, committed_plan, open_plan, upgrade,
+    being_written, committed_plan, forget_committed_plan, open_plan, upgrade,
 };
 
 /// Errors of the store. Messages are one line, lowercase, with the path last.

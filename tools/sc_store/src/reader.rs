@@ -87,6 +87,12 @@ pub(crate) fn read_meta(root: &Path) -> Result<(Arc<FilesystemStore>, StoreMeta)
             path: root.to_path_buf(),
         });
     }
+    crate::files::check_regular_or_missing(&root.join("zarr.json")).map_err(|e| {
+        StoreError::Format {
+            what: format!("damaged store: the store metadata is {e}"),
+            path: root.join("zarr.json"),
+        }
+    })?;
     let fs = open_fs(root)?;
     let group = Group::open(fs.clone(), "/").map_err(|e| StoreError::Format {
         what: format!("not a sphereclip store: {e}"),
@@ -246,7 +252,7 @@ impl StoreReader {
     }
 
     /// Whether the last commit of a complete store listed `shard` as holding data.
-    fn listed_as_present(&self, kind: LayerKind, shard: ShardId) -> bool {
+    pub(crate) fn listed_as_present(&self, kind: LayerKind, shard: ShardId) -> bool {
         let meta = &self.inner.meta;
         meta.complete
             && meta

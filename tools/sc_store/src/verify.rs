@@ -166,6 +166,7 @@ impl StoreReader {
     pub fn verify(&self, on_shard: &(dyn Fn() + Sync)) -> Result<VerifyReport> {
         let meta = self.meta();
         let mut report = VerifyReport::default();
+        self.verify_file_types(self.root(), &mut report);
         self.verify_listing(&mut report);
         if meta.format_major() >= 2 {
             self.verify_consolidated(&mut report);
@@ -201,6 +202,58 @@ impl StoreReader {
             }
         }
         Ok(report)
+    }
+
+    /// Everything in the store is a regular file or a folder: a symlink (which no reader here
+    /// follows, but other readers would), a FIFO, a device or a socket is damage.
+    fn verify_file_types(&self, dir: &Path, report: &mut VerifyReport) {
+        let Ok(rd) = std::fs::read_dir(dir) else {
+            return;
+        };
+        let mut entries: Vec<_> = rd.flatten().collect();
+        entries.sort_by_key(|e| e.file_name());
+        for e in entries {
+            let Ok(t) = e.file_type() else { continue };
+            if t.is_dir() {
+                self.verify_file_types(&e.path(), report);
+            } else if !t.is_file() && !self.is_shard_file(&e.path()) {
+                report.problems.push(Problem {
+                    path: e.path(),
+                    what: "store file".into(),
+                    detail: format!(
+                        "{}, where the store holds only regular files and folders",
+                        crate::files::kind_of(&t)
+                    ),
+                });
+            }
+        }
+    }
+
+    /// Whether `path` names a shard file of a data array (`LAYER/LEVEL/LAYER/c/Y/X[/0]`, or
+    /// `LAYER/LEVEL/c/…` in format 1): those the shard checks report.
+    fn is_shard_file(&self, path: &Path) -> bool {
+        let Ok(rel) = path.strip_prefix(self.root()) else {
+            return false;
+        };
+        let parts: Vec<&str> = rel
+            .components()
+            .filter_map(|c| c.as_os_str().to_str())
+            .collect();
+        let Some(kind) = parts.first().and_then(|l| LayerKind::from_name(l)) else {
+            return false;
+        };
+        let c = if self.meta().format_major() >= 2 {
+            3
+        } else {
+            2
+        };
+        let dims = kind.chunk_indices(0, 0).len();
+        parts.len() == c + 1 + dims
+            && parts[c] == "c"
+            && (c == 2 || parts[2] == parts[0])
+            && parts[c + 1..]
+                .iter()
+                .all(|p| !p.is_empty() && p.bytes().all(|b| b.is_ascii_digit()))
     }
 
     /// Every level array on disk must be listed in the group metadata (a level key renamed or
@@ -397,7 +450,17 @@ impl StoreReader {
         let s = meta.shard_tiles;
         let index = match ShardIndex::read(&path, (s * s) as usize) {
             Ok(Some(index)) => index,
-            Ok(None) => return,
+            Ok(None) => {
+                // a multi-band shard's folder without its file
+                if self.listed_as_present(kind, shard) {
+                    report.problems.push(Problem {
+                        path,
+                        what: format!("{kind} {shard}"),
+                        detail: "missing: the store's metadata lists it as holding data (deleted or lost; readers would take it for nodata)".into(),
+                    });
+                }
+                return;
+            }
             Err(detail) => {
                 report.problems.push(Problem {
                     path,

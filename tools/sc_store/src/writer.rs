@@ -117,6 +117,12 @@ fn committed_marker(root: &Path) -> PathBuf {
     root.join(".sphereclip").join("plan-committed.json")
 }
 
+/// Forgets the last plan committed ([`committed_plan`]), once its commit has cleaned up.
+pub fn forget_committed_plan(root: &Path) -> Result<()> {
+    let path = committed_marker(root);
+    crate::fault::remove_file(&path).map_err(io_err(&path))
+}
+
 /// What the open-plan marker of the last plan committed on the store held, if any.
 pub fn committed_plan(root: &Path) -> Option<String> {
     crate::files::read_regular_string(&committed_marker(root), 64 << 10).ok()
@@ -1011,7 +1017,7 @@ impl StoreWriter {
 
     /// Closes the open plan as committed: its marker's text is kept as the last committed plan
     /// ([`committed_plan`]) before the marker goes, so that a commit killed after this point and
-    /// run again knows its plan is done.
+    /// run again knows its plan is done (it forgets it once it has cleaned up).
     pub fn close_plan_committed(&self) -> Result<()> {
         if let Some(text) = open_plan(&self.root) {
             let path = committed_marker(&self.root);

@@ -339,3 +339,129 @@ fn random_damage_never_panics_and_every_change_is_reported() {
         "only {reported} of {n} cases reported"
     );
 }
+
+/// What takes a file's place in [`swapped_files_never_hang_reach_outside_or_pass_verify`].
+const SWAPS: [&str; 7] = [
+    "fifo",
+    "symlink to a copy outside",
+    "dangling symlink",
+    "symlink to /dev/zero",
+    "symlink to /dev/null",
+    "folder",
+    "deleted",
+];
+
+/// Replaces `p` by what `swap` names; `outside` holds the copies symlinks point to.
+fn swap_file(p: &Path, swap: &str, outside: &Path, n: u64) {
+    let copy = outside.join(format!("copy-{n}"));
+    if p.exists() {
+        std::fs::copy(p, &copy).expect("copy");
+    }
+    let _ = std::fs::remove_file(p);
+    match swap {
+        "fifo" => {
+            let ok = std::process::Command::new("mkfifo")
+                .arg(p)
+                .status()
+                .expect("mkfifo");
+            assert!(ok.success());
+        }
+        "symlink to a copy outside" => std::os::unix::fs::symlink(&copy, p).expect("symlink"),
+        "dangling symlink" => {
+            std::os::unix::fs::symlink(outside.join("nothing"), p).expect("symlink")
+        }
+        "symlink to /dev/zero" => std::os::unix::fs::symlink("/dev/zero", p).expect("symlink"),
+        "symlink to /dev/null" => std::os::unix::fs::symlink("/dev/null", p).expect("symlink"),
+        "folder" => std::fs::create_dir(p).expect("mkdir"),
+        _ => {}
+    }
+}
+
+/// Every file below `dir` (symlinks not followed) with its bytes.
+fn outside_state(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
+    let mut out = BTreeMap::new();
+    for e in std::fs::read_dir(dir).expect("read_dir").flatten() {
+        out.insert(e.path(), std::fs::read(e.path()).unwrap_or_default());
+    }
+    out
+}
+
+#[test]
+fn swapped_files_never_hang_reach_outside_or_pass_verify() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let pristine = dir.path().join("pristine.zarr");
+    make_store(&pristine);
+    let outside = dir.path().join("outside");
+    std::fs::create_dir_all(&outside).expect("mkdir");
+    let work = dir.path().join("case.zarr");
+    let mut targets = Vec::new();
+    files(&pristine, &mut targets);
+    targets.sort();
+    let n: u64 = std::env::var("SPHERECLIP_FUZZ_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .map_or(120, |v: u64| v.div_ceil(3));
+    let mut failures = Vec::new();
+    for seed in 0..n {
+        let _ = std::fs::remove_dir_all(&work);
+        copy_dir(&pristine, &work);
+        let mut rng = StdRng::seed_from_u64(seed);
+        // the lock one case in eight, else any file of the store
+        let rel: PathBuf = if seed % 8 == 0 {
+            PathBuf::from(".lock")
+        } else {
+            targets[rng.random_range(0..targets.len())]
+                .strip_prefix(&pristine)
+                .expect("in")
+                .to_path_buf()
+        };
+        let swap = SWAPS[rng.random_range(0..SWAPS.len())];
+        swap_file(&work.join(&rel), swap, &outside, seed);
+        let what = format!("seed {seed}: {} replaced by {swap}", rel.display());
+        let before = outside_state(&outside);
+        let w = work.clone();
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let r = std::panic::catch_unwind(|| {
+                let verified = StoreReader::open(&w).map(|r| r.verify(&|| {}));
+                let reported = match verified {
+                    Err(_) => true,
+                    Ok(Err(_)) => true,
+                    Ok(Ok(v)) => !v.problems.is_empty(),
+                };
+                let writer = StoreWriter::open(&w).map(|_| ());
+                (reported, writer.map_err(|e| e.to_string()))
+            });
+            let _ = tx.send(r.map_err(|_| "panicked".to_string()));
+        });
+        let (reported, writer) = match rx.recv_timeout(std::time::Duration::from_secs(60)) {
+            Ok(Ok(r)) => r,
+            Ok(Err(e)) => {
+                failures.push(format!("{what}: {e}"));
+                continue;
+            }
+            Err(_) => {
+                failures.push(format!("{what}: hung for a minute"));
+                continue;
+            }
+        };
+        if rel == Path::new(".lock") {
+            if swap != "deleted" && writer.is_ok() {
+                failures.push(format!(
+                    "{what}: a writer took a lock that is no regular file"
+                ));
+            }
+        } else if !reported {
+            failures.push(format!("{what}: open and verify reported nothing"));
+        }
+        if outside_state(&outside) != before || outside.join("nothing").exists() {
+            failures.push(format!("{what}: something outside the store changed"));
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "{} failing cases:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
+}

@@ -972,6 +972,7 @@ pub fn commit(a: &CommitArgs) -> Result<ExitCode> {
     if !a.abandon && !open_marker(&plan) && committed_marker(&plan) {
         // a commit killed after it closed the plan: only the task folders were left to remove
         remove_dir(&tasks_dir(&plan))?;
+        sc_store::forget_committed_plan(&plan.store)?;
         crate::outln!(
             "the plan {} was committed already: {} is complete",
             plan_path.display(),
@@ -1043,6 +1044,7 @@ pub fn commit(a: &CommitArgs) -> Result<ExitCode> {
         }
     };
     remove_dir(&dir)?;
+    sc_store::forget_committed_plan(&plan.store)?;
     if !a.json {
         crate::outln!(
             "committed {} of {} ({} tasks, {shards} shard(s) with data): the store is complete, {seconds:.1} s",

@@ -2,7 +2,7 @@
 
 use std::process::ExitCode;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 
 use crate::cli::UpgradeArgs;
 use crate::progress::Progress;
@@ -14,7 +14,15 @@ pub fn run(a: &UpgradeArgs) -> Result<ExitCode> {
         p.set_total(total as u64);
         p.set(done as u64);
     })
-    .with_context(|| format!("cannot upgrade {}", a.store.display()))?;
+    .map_err(|e| {
+        // a file system failure mid-way (a full disk) is overcome by running it again
+        let hint = if matches!(e, sc_store::StoreError::Io { .. }) {
+            " (the store reads as being upgraded until it is done: run `sphereclip upgrade` again to finish it)"
+        } else {
+            ""
+        };
+        anyhow::anyhow!("cannot upgrade {}{hint}: {e}", a.store.display())
+    })?;
     p.finish();
     let now = format!("{}.{}", sc_store::FORMAT_MAJOR, sc_store::FORMAT_MINOR);
     if report.from == now {
