@@ -13,8 +13,8 @@ use std::sync::OnceLock;
 use std::time::Duration;
 
 use crate::util::{
-    copy_dir, file_names, ok, one_line_failure, run_within, s, same_files, sample, snapshot_with,
-    text, xdg,
+    copy_dir, file_names, ok, one_line_failure, run_with_file_limit, run_within, s, same_files,
+    sample, snapshot_with, text, xdg,
 };
 
 /// The binary, on one thread: the N-th durable step is then the same step on every run.
@@ -516,23 +516,6 @@ fn sizes_that_cannot_work_are_refused_before_any_work() {
     let line = one_line_failure(&o, "level 20");
     assert!(line.contains("texels"), "{line}");
     assert!(!store.exists());
-}
-
-/// `sphereclip ARGS…` under a file-size limit of `kib` KiB: writes beyond it fail with EFBIG
-/// (SIGXFSZ ignored), the way they fail on a full disk, deterministically.
-fn run_with_file_limit(kib: u64, args: &[&str]) -> Output {
-    let mut c = Command::new("bash");
-    c.arg("-c")
-        .arg(format!(
-            "trap '' XFSZ; ulimit -f {kib}; exec {} \"$@\"",
-            env!("CARGO_BIN_EXE_sphereclip")
-        ))
-        .arg("sphereclip")
-        .args(args)
-        .env("SOURCE_DATE_EPOCH", "1790000000")
-        .env("XDG_RUNTIME_DIR", xdg())
-        .stdin(Stdio::null());
-    run_within(c, Duration::from_secs(300))
 }
 
 #[test]

@@ -396,3 +396,66 @@ fn an_interrupted_upgrade_is_named_with_the_command_that_finishes_it() {
     ok(&run60(&["upgrade", s(&old)]));
     ok(&run60(&["info", s(&old), "--verify"]));
 }
+
+#[test]
+fn a_rolled_back_colour_ingest_leaves_no_colour_group_behind() {
+    let top = tempfile::tempdir().expect("tmp");
+    let store = top.path().join("s.zarr");
+    copy_dir(&built(), &store);
+    let before = snapshot(&store);
+    // six 8-bit bands with a damaged strip in the middle: found only while it is read
+    let clean = top.path().join("clean.tif");
+    let o = Command::new("gdal_translate")
+        .args(["-q", "-co", "COMPRESS=DEFLATE", "-co", "BLOCKYSIZE=16"])
+        .arg(sample("landsat7_etm_utm25s.tif"))
+        .arg(&clean)
+        .output()
+        .expect("gdal_translate runs");
+    ok(&o);
+    let mut b = std::fs::read(&clean).expect("read");
+    let mid = b.len() / 2;
+    for x in &mut b[mid..mid + 4000] {
+        *x ^= 0x5a;
+    }
+    let bad = top.path().join("bad.tif");
+    std::fs::write(&bad, b).expect("write");
+    let o = run60(&[
+        "ingest",
+        s(&store),
+        s(&bad),
+        "--layer",
+        "color",
+        "--level",
+        "6",
+    ]);
+    let e = one_line_failure(&o, "a damaged colour input");
+    assert!(e.contains("rolled back"), "{e}");
+    assert!(
+        !store.join("color").exists(),
+        "the colour group the ingest made is gone"
+    );
+    same_files(&before, &snapshot(&store), "after the rollback");
+    ok(&run60(&["info", s(&store), "--verify"]));
+}
+
+#[test]
+fn a_full_disk_while_an_ingest_adds_a_level_or_an_upgrade_runs_says_to_rerun() {
+    let top = tempfile::tempdir().expect("tmp");
+    let store = top.path().join("s.zarr");
+    copy_dir(&built(), &store);
+    let srtm = sample("n07_w006_3arc_v2.tif");
+    // the new level's coordinates are the first file past 16 KiB
+    let o = run_with_file_limit(16, &["ingest", s(&store), s(&srtm), "--level", "7"]);
+    let e = one_line_failure(&o, "ingest on a full disk");
+    assert!(e.contains("rerun the same command to resume"), "{e}");
+    ok(&run60(&["ingest", s(&store), s(&srtm), "--level", "7"]));
+    ok(&run60(&["info", s(&store), "--verify"]));
+
+    let old = top.path().join("old.zarr");
+    copy_dir(&repo("tests/data/format1.zarr"), &old);
+    let o = run_with_file_limit(16, &["upgrade", s(&old)]);
+    let e = one_line_failure(&o, "upgrade on a full disk");
+    assert!(e.contains("run `sphereclip upgrade` again"), "{e}");
+    ok(&run60(&["upgrade", s(&old)]));
+    ok(&run60(&["info", s(&old), "--verify"]));
+}

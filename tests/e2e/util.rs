@@ -380,3 +380,20 @@ pub fn file_names(dir: &Path) -> Vec<String> {
     v.sort();
     v
 }
+
+/// `sphereclip ARGS…` under a file-size limit of `kib` KiB: writes beyond it fail with EFBIG
+/// (SIGXFSZ ignored), the way they fail on a full disk, deterministically.
+pub fn run_with_file_limit(kib: u64, args: &[&str]) -> Output {
+    let mut c = Command::new("bash");
+    c.arg("-c")
+        .arg(format!(
+            "trap '' XFSZ; ulimit -f {kib}; exec {} \"$@\"",
+            env!("CARGO_BIN_EXE_sphereclip")
+        ))
+        .arg("sphereclip")
+        .args(args)
+        .env("SOURCE_DATE_EPOCH", "1790000000")
+        .env("XDG_RUNTIME_DIR", xdg())
+        .stdin(Stdio::null());
+    run_within(c, Duration::from_secs(300))
+}

@@ -579,7 +579,7 @@ impl StoreWriter {
                 fs::remove_dir_all(&dir).map_err(io_err(&dir))?;
             }
         }
-        Ok(())
+        self.remove_unlisted_layer_groups()
     }
 
     fn codec_name(&self, kind: LayerKind) -> &'static str {
@@ -1132,9 +1132,31 @@ impl StoreWriter {
                 fs::remove_dir_all(&p).map_err(io_err(&p))?;
             }
         }
+        self.remove_unlisted_layer_groups()?;
         // the consolidated metadata of the store as it is now
         self.write_group_meta()?;
         self.drop_undo()
+    }
+
+    /// Removes the group of every layer the metadata does not list whose folder holds nothing
+    /// but that group's `zarr.json` (a layer a rolled-back or emptied run made): readers outside
+    /// sphereclip would list an empty layer. A folder holding anything else is left alone.
+    fn remove_unlisted_layer_groups(&self) -> Result<()> {
+        for kind in LayerKind::ALL {
+            if self.lock_meta().layers.contains_key(&kind) {
+                continue;
+            }
+            let dir = self.root.join(kind.name());
+            let Ok(rd) = fs::read_dir(&dir) else { continue };
+            let only_group = rd
+                .flatten()
+                .all(|e| e.file_name() == "zarr.json" && e.file_type().is_ok_and(|t| t.is_file()));
+            if only_group {
+                crate::fault::remove_file(&dir.join("zarr.json")).map_err(io_err(&dir))?;
+                fs::remove_dir(&dir).map_err(io_err(&dir))?;
+            }
+        }
+        Ok(())
     }
 
     /// Forgets the undo entries (after a commit made the run's shards the store's).
