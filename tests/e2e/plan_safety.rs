@@ -142,13 +142,54 @@ const HOSTILE: [&str; 3] = [
     "50% %j done",
 ];
 
+/// A seeded hostile string: shell and YAML syntax, quotes, newlines, commands that make `X`.
+fn random_hostile(rng: &mut StdRng) -> String {
+    const PIECES: [&str; 24] = [
+        "$(touch X)",
+        "`touch X`",
+        "\"",
+        "'",
+        "\n",
+        "\ntouch X\n",
+        "\\",
+        "%",
+        "%j",
+        ";",
+        "&",
+        "|",
+        "<",
+        ">",
+        "*",
+        "?",
+        "~",
+        "#",
+        "{a: b}",
+        "[x]",
+        "!",
+        " ",
+        "é",
+        "\n---\nkind: Pod\n",
+    ];
+    let mut out = String::from("d");
+    for _ in 0..rng.random_range(1..6) {
+        out += PIECES[rng.random_range(0..PIECES.len())];
+    }
+    out
+}
+
 #[test]
 fn a_slurm_script_keeps_every_hostile_path_as_data_and_runs_the_plan() {
     let base = base();
     let top = tempfile::tempdir().expect("tmp");
     let sentinel = sentinel(top.path());
     let before = tree(&sentinel);
-    for (k, name) in HOSTILE.iter().enumerate() {
+    let mut rng = StdRng::seed_from_u64(11);
+    let names: Vec<String> = HOSTILE
+        .iter()
+        .map(|n| n.to_string())
+        .chain((0..3).map(|_| random_hostile(&mut rng)))
+        .collect();
+    for (k, name) in names.iter().enumerate() {
         let dir = top.path().join(name);
         std::fs::create_dir_all(&dir).expect("mkdir");
         let store = dir.join(format!("s{k}.zarr"));
@@ -205,16 +246,34 @@ fn a_slurm_script_keeps_every_hostile_path_as_data_and_runs_the_plan() {
 
 #[test]
 fn kubernetes_manifests_are_exactly_the_jobs_whatever_the_claim_image_or_path() {
+    let top = tempfile::tempdir().expect("tmp");
+    k8s_case(
+        top.path(),
+        "a\n---\nkind: Pod\n#",
+        "data\n---\napiVersion: v1\nkind: Pod\nmetadata:\n  name: evil\n",
+        "img\"x' # {not: a map}\n  evil: true",
+    );
+    let mut rng = StdRng::seed_from_u64(5);
+    for k in 0..12 {
+        let (dir, claim, image) = (
+            random_hostile(&mut rng),
+            random_hostile(&mut rng),
+            random_hostile(&mut rng),
+        );
+        k8s_case(&top.path().join(k.to_string()), &dir, &claim, &image);
+    }
+}
+
+/// Makes a build plan with `--emit k8s` in folder `name` below `top` and checks the manifests
+/// parse to exactly one Job a stage and the commit, holding each value whole.
+fn k8s_case(top: &Path, name: &str, claim: &str, image: &str) {
     use serde::Deserialize;
     let base = base();
-    let top = tempfile::tempdir().expect("tmp");
-    let dir = top.path().join("a\n---\nkind: Pod\n#");
+    let dir = top.join(name);
     std::fs::create_dir_all(&dir).expect("mkdir");
     let store = dir.join("s.zarr");
     copy_dir(&base, &store);
     let plan = dir.join("p.json");
-    let claim = "data\n---\napiVersion: v1\nkind: Pod\nmetadata:\n  name: evil\n";
-    let image = "img\"x' # {not: a map}\n  evil: true";
     ok(&run_in(
         &dir,
         &[
