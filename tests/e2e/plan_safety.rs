@@ -179,7 +179,6 @@ fn random_hostile(rng: &mut StdRng) -> String {
 
 #[test]
 fn a_slurm_script_keeps_every_hostile_path_as_data_and_runs_the_plan() {
-    let base = base();
     let top = tempfile::tempdir().expect("tmp");
     let sentinel = sentinel(top.path());
     let before = tree(&sentinel);
@@ -192,25 +191,11 @@ fn a_slurm_script_keeps_every_hostile_path_as_data_and_runs_the_plan() {
     for (k, name) in names.iter().enumerate() {
         let dir = top.path().join(name);
         std::fs::create_dir_all(&dir).expect("mkdir");
-        let store = dir.join(format!("s{k}.zarr"));
-        copy_dir(&base, &store);
-        let plan = dir.join("p.json");
-        ok(&run_in(
+        let (store, plan) = plan_build(
             &dir,
-            &[
-                "plan",
-                "build",
-                s(&store),
-                "--tasks",
-                "3",
-                "--out",
-                s(&plan),
-                "--cpus-per-task",
-                "1",
-                "--emit",
-                "slurm",
-            ],
-        ));
+            &format!("s{k}.zarr"),
+            &["--cpus-per-task", "1", "--emit", "slurm"],
+        );
         let script = plan.with_extension("sbatch.sh");
         let text = std::fs::read_to_string(&script).expect("script");
         let runner = top.path().join(format!("runner-{k}"));
@@ -268,30 +253,13 @@ fn kubernetes_manifests_are_exactly_the_jobs_whatever_the_claim_image_or_path() 
 /// parse to exactly one Job a stage and the commit, holding each value whole.
 fn k8s_case(top: &Path, name: &str, claim: &str, image: &str) {
     use serde::Deserialize;
-    let base = base();
     let dir = top.join(name);
     std::fs::create_dir_all(&dir).expect("mkdir");
-    let store = dir.join("s.zarr");
-    copy_dir(&base, &store);
-    let plan = dir.join("p.json");
-    ok(&run_in(
+    let (_, plan) = plan_build(
         &dir,
-        &[
-            "plan",
-            "build",
-            s(&store),
-            "--tasks",
-            "2",
-            "--out",
-            s(&plan),
-            "--emit",
-            "k8s",
-            "--claim",
-            claim,
-            "--image",
-            image,
-        ],
-    ));
+        "s.zarr",
+        &["--emit", "k8s", "--claim", claim, "--image", image],
+    );
     let yaml = std::fs::read_to_string(plan.with_extension("k8s.yaml")).expect("yaml");
     let v: serde_json::Value =
         serde_json::from_slice(&std::fs::read(&plan).expect("plan")).expect("json");
@@ -338,11 +306,15 @@ fn k8s_case(top: &Path, name: &str, claim: &str, image: &str) {
 
 /// A copy of the base store with a build plan open on it, in `dir`: (store, plan).
 fn open_build_plan(dir: &Path) -> (PathBuf, PathBuf) {
-    let store = dir.join("s.zarr");
+    plan_build(dir, "s.zarr", &[])
+}
+
+/// A copy of the base store as `dir/STORE` with a 3-task build plan `dir/p.json` made in `dir`
+/// with `extra` arguments: (store, plan).
+fn plan_build(dir: &Path, store: &str, extra: &[&str]) -> (PathBuf, PathBuf) {
+    let (store, plan) = (dir.join(store), dir.join("p.json"));
     copy_dir(&base(), &store);
-    let plan = dir.join("p.json");
-    ok(&run_in(
-        dir,
+    let args = [
         &[
             "plan",
             "build",
@@ -351,16 +323,12 @@ fn open_build_plan(dir: &Path) -> (PathBuf, PathBuf) {
             "3",
             "--out",
             s(&plan),
-        ],
-    ));
+        ][..],
+        extra,
+    ]
+    .concat();
+    ok(&run_in(dir, &args));
     (store, plan)
-}
-
-fn edit_plan(plan: &Path, f: impl FnOnce(&mut serde_json::Value)) {
-    let mut v: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(plan).expect("plan")).expect("json");
-    f(&mut v);
-    std::fs::write(plan, serde_json::to_vec_pretty(&v).expect("json")).expect("write");
 }
 
 #[test]
@@ -395,7 +363,7 @@ fn a_plan_hash_or_store_that_names_another_folder_is_refused_before_anything_is_
     for (field, value) in cases {
         let p = work.join("tampered.json");
         std::fs::copy(&plan, &p).expect("copy");
-        edit_plan(&p, |v| v[field] = value.clone());
+        edit_json(&p, |v| v[field] = value.clone());
         for args in [
             vec!["commit", s(&p), "--abandon"],
             vec!["run-task", s(&p), "--task", "0"],
@@ -445,7 +413,7 @@ fn plan_fields_that_panicked_are_one_line_errors() {
         let dir = top.path().join(k.to_string());
         std::fs::create_dir_all(&dir).expect("mkdir");
         let (_, p) = open_build_plan(&dir);
-        edit_plan(&p, edit);
+        edit_json(&p, edit);
         for args in [
             vec!["run-task", s(&p), "--task", "0"],
             vec!["run-task", s(&p), "--stage", "0", "--task", "0"],
@@ -722,16 +690,20 @@ fn a_commit_killed_at_any_durable_step_finishes_when_run_again() {
         ));
     }
     copy_dir(&state, &saved);
-    let mut reference = None;
-    let mut closed_then_killed = 0;
-    for n in 1.. {
+    // the state after the tasks, then a commit stopped after its n-th durable step
+    let killed_commit = |n: u64| {
         let _ = std::fs::remove_dir_all(&state);
         copy_dir(&saved, &state);
         let mut c = bin();
         c.current_dir(&state)
             .args(["commit", s(&plan)])
             .env("SPHERECLIP_FAULT_AFTER", n.to_string());
-        let o = run_within(c, Duration::from_secs(60));
+        run_within(c, Duration::from_secs(60))
+    };
+    let mut reference = None;
+    let mut closed_then_killed = 0;
+    for n in 1.. {
+        let o = killed_commit(n);
         if o.status.success() {
             assert!(n > 1);
             reference = Some(snapshot(&store));
@@ -772,13 +744,7 @@ fn a_commit_killed_at_any_durable_step_finishes_when_run_again() {
     // each resumed commit ends with the bytes of the uninterrupted one
     let reference = reference.expect("a commit finished");
     for n in 1..4 {
-        let _ = std::fs::remove_dir_all(&state);
-        copy_dir(&saved, &state);
-        let mut c = bin();
-        c.current_dir(&state)
-            .args(["commit", s(&plan)])
-            .env("SPHERECLIP_FAULT_AFTER", n.to_string());
-        run_within(c, Duration::from_secs(60));
+        killed_commit(n);
         ok(&run_in(&state, &["commit", s(&plan)]));
         same_files(
             &reference,

@@ -13,8 +13,8 @@ use std::sync::OnceLock;
 use std::time::Duration;
 
 use crate::util::{
-    copy_dir, file_names, ok, one_line_failure, run_with_file_limit, run_within, s, same_files,
-    sample, snapshot_with, text, xdg,
+    copy_dir, edit_json, file_names, ok, one_line_failure, run_with_file_limit, run_within, s,
+    same_files, sample, snapshot_with, text, xdg,
 };
 
 /// The binary, on one thread: the N-th durable step is then the same step on every run.
@@ -329,14 +329,6 @@ fn bad_input_found_mid_run_rolls_the_store_back() {
     let line = one_line_failure(&o, "locked");
     assert!(line.contains("being written by another process"), "{line}");
     assert!(!line.contains("rerun"), "{line}");
-}
-
-/// Edits one JSON file of a store.
-fn edit_json(path: &Path, f: impl FnOnce(&mut serde_json::Value)) {
-    let mut v: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(path).expect("read")).expect("json");
-    f(&mut v);
-    std::fs::write(path, serde_json::to_vec_pretty(&v).expect("json")).expect("write");
 }
 
 #[test]

@@ -194,7 +194,6 @@ fn verify_says_a_store_is_being_written_or_incomplete_instead_of_passing_or_find
     let store = top.path().join("s.zarr");
     copy_dir(&built(), &store);
     // an ingest holds the store, stopped after its first durable shard until `go` exists
-    let go = top.path().join("go");
     let mut c = bin();
     c.args([
         "ingest",
@@ -202,20 +201,8 @@ fn verify_says_a_store_is_being_written_or_incomplete_instead_of_passing_or_find
         s(&sample("n07_w006_3arc_v2.tif")),
         "--level",
         "4",
-    ])
-    .env("SPHERECLIP_PAUSE", format!("shard-durable:{}", s(&go)))
-    .stdout(std::process::Stdio::null())
-    .stderr(std::process::Stdio::null());
-    let mut writer = c.spawn().expect("spawn");
-    let waiting = top.path().join("go.waiting");
-    let start = std::time::Instant::now();
-    while !waiting.exists() {
-        assert!(
-            start.elapsed() < Duration::from_secs(120),
-            "the ingest did not pause"
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    ]);
+    let (mut writer, go) = spawn_paused(c, "shard-durable", top.path());
     let e = one_line_failure(&run60(&["info", s(&store), "--verify"]), "during a write");
     assert!(e.contains("being written by another process"), "{e}");
     std::fs::write(&go, b"").expect("go");
@@ -233,13 +220,6 @@ fn verify_says_a_store_is_being_written_or_incomplete_instead_of_passing_or_find
     assert!(e.contains("INCOMPLETE"), "{e}");
     ok(&run60(&["build", s(&store)]));
     ok(&run60(&["info", s(&store), "--verify"]));
-}
-
-fn edit_json(path: &Path, f: impl FnOnce(&mut serde_json::Value)) {
-    let mut v: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(path).expect("read")).expect("json");
-    f(&mut v);
-    std::fs::write(path, serde_json::to_vec_pretty(&v).expect("json")).expect("write");
 }
 
 #[test]
@@ -327,22 +307,10 @@ fn verify_names_a_deleted_shard_disagreeing_consolidated_metadata_and_damaged_co
 fn a_killed_export_leaves_no_temp_file_once_it_is_run_again() {
     let top = tempfile::tempdir().expect("tmp");
     let out = top.path().join("o.tif");
-    let go = top.path().join("go");
     let mut c = bin();
-    c.args(["export", s(&built()), "--level", "4", s(&out)])
-        .env("SPHERECLIP_PAUSE", format!("export-staged:{}", s(&go)))
-        .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::null());
-    let mut child = c.spawn().expect("spawn");
+    c.args(["export", s(&built()), "--level", "4", s(&out)]);
+    let (mut child, _) = spawn_paused(c, "export-staged", top.path());
     let waiting = top.path().join("go.waiting");
-    let start = std::time::Instant::now();
-    while !waiting.exists() {
-        assert!(
-            start.elapsed() < Duration::from_secs(120),
-            "export did not pause"
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    }
     // what a kill -9 leaves: the staged file and, maybe, the output's temp file
     child.kill().expect("kill");
     child.wait().expect("wait");

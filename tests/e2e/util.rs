@@ -397,3 +397,31 @@ pub fn run_with_file_limit(kib: u64, args: &[&str]) -> Output {
         .stdin(Stdio::null());
     run_within(c, Duration::from_secs(300))
 }
+
+/// Edits a JSON file (a store's metadata, a plan) in place.
+pub fn edit_json(path: &Path, f: impl FnOnce(&mut serde_json::Value)) {
+    let mut v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(path).expect("read")).expect("json");
+    f(&mut v);
+    std::fs::write(path, serde_json::to_vec_pretty(&v).expect("json")).expect("write");
+}
+
+/// Starts `c` with `SPHERECLIP_PAUSE=POINT:DIR/go` and returns once it waits at `point`; it goes
+/// on when `DIR/go` exists (the returned path).
+pub fn spawn_paused(mut c: Command, point: &str, dir: &Path) -> (std::process::Child, PathBuf) {
+    let go = dir.join("go");
+    c.env("SPHERECLIP_PAUSE", format!("{point}:{}", s(&go)))
+        .stdout(Stdio::null())
+        .stderr(Stdio::null());
+    let child = c.spawn().expect("spawn");
+    let waiting = dir.join("go.waiting");
+    let start = Instant::now();
+    while !waiting.exists() {
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "the process did not pause at {point}"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    (child, go)
+}
