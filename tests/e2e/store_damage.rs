@@ -427,3 +427,53 @@ fn a_full_disk_while_an_ingest_adds_a_level_or_an_upgrade_runs_says_to_rerun() {
     ok(&run60(&["upgrade", s(&old)]));
     ok(&run60(&["info", s(&old), "--verify"]));
 }
+
+#[test]
+fn a_symlinked_folder_inside_a_store_is_never_followed_to_read_or_write() {
+    let top = tempfile::tempdir().expect("tmp");
+    let store = top.path().join("s.zarr");
+    copy_dir(&built(), &store);
+    // a row of shards moved out of the store and linked back: valid bytes, outside
+    let outside = top.path().join("outside-row");
+    let row = store.join("height/L04/height/c/0");
+    copy_dir(&row, &outside);
+    std::fs::remove_dir_all(&row).expect("rm");
+    std::os::unix::fs::symlink(&outside, &row).expect("symlink");
+    let before = snapshot(&outside);
+    let o = run60(&["info", s(&store), "--verify"]);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o.stderr));
+    assert!(
+        text(&o.stderr).contains("symbolic link"),
+        "{}",
+        text(&o.stderr)
+    );
+    let o = run60(&[
+        "export",
+        s(&store),
+        "--level",
+        "4",
+        s(&top.path().join("o.tif")),
+    ]);
+    let e = one_line_failure(&o, "export through a symlinked row");
+    assert!(e.contains("symbolic link"), "{e}");
+    // writers neither read nor write through it
+    for args in [
+        vec!["build", s(&store)],
+        vec![
+            "ingest",
+            s(&store),
+            s(&sample("etopo20.cdf")),
+            "--tile-size",
+            "32",
+            "--level",
+            "4",
+        ],
+    ] {
+        let o = run60(&args);
+        assert!(!o.status.success(), "{args:?} went through the link");
+        let e = one_line_failure(&o, &format!("{args:?}"));
+        assert!(e.contains("symbolic link"), "{e}");
+        assert!(complete(&store), "{args:?} left the store incomplete");
+        same_files(&before, &snapshot(&outside), &format!("{args:?}: outside"));
+    }
+}

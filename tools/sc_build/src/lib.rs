@@ -424,7 +424,7 @@ fn manifest_dir(root: &Path) -> PathBuf {
 }
 
 fn read_manifest(path: &Path, settings: &str) -> Option<Manifest> {
-    std::fs::read(path)
+    sc_store::files::read_regular(path, 1 << 30)
         .ok()
         .and_then(|b| serde_json::from_slice::<Manifest>(&b).ok())
         .filter(|m| m.settings == settings)

@@ -14,6 +14,9 @@ use sc_store::unix_now;
 
 use crate::{IngestError, InputCounts, Result};
 
+/// The largest journal read (a planet-wide ingest records a few hundred bytes a shard).
+const JOURNAL_MAX_BYTES: u64 = 1 << 30;
+
 /// A durable shard's value range: (layer, level, (min, max)).
 pub(crate) type ShardRange = (LayerKind, LevelId, (f64, f64));
 
@@ -62,7 +65,7 @@ impl Journal {
 
     /// The records of the journal at `path` when it belongs to `step` of `plan` (none otherwise).
     pub(crate) fn read(path: &Path, step: &str, plan: &str) -> BTreeMap<String, ShardRecord> {
-        std::fs::read(path)
+        sc_store::files::read_regular(path, JOURNAL_MAX_BYTES)
             .ok()
             .and_then(|b| serde_json::from_slice::<Data>(&b).ok())
             .filter(|d| d.plan == plan && d.step == step)
@@ -78,7 +81,7 @@ impl Journal {
             path: dir.to_path_buf(),
         })?;
         let path = path.to_path_buf();
-        let old: Option<Data> = std::fs::read(&path)
+        let old: Option<Data> = sc_store::files::read_regular(&path, JOURNAL_MAX_BYTES)
             .ok()
             .and_then(|b| serde_json::from_slice(&b).ok())
             .filter(|d: &Data| d.plan == plan && d.step == step);

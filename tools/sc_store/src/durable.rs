@@ -25,8 +25,9 @@ impl DurableFs {
         self.root.join(key)
     }
 
-    /// Writes `value` to `path` atomically and durably.
+    /// Writes `value` to `path` atomically and durably, never through a symlinked folder.
     pub(crate) fn write_atomic(&self, path: &Path, value: &[u8]) -> std::io::Result<()> {
+        crate::files::check_inside(&self.root, path)?;
         crate::fault::write_atomic(path, value)
     }
 }
@@ -47,11 +48,15 @@ impl WritableStorageTraits for DurableFs {
     }
 
     fn erase(&self, key: &StoreKey) -> Result<(), StorageError> {
-        Ok(crate::fault::remove_file(&self.path_of(key.as_str()))?)
+        let path = self.path_of(key.as_str());
+        crate::files::check_inside(&self.root, &path)?;
+        Ok(crate::fault::remove_file(&path)?)
     }
 
     fn erase_prefix(&self, prefix: &StorePrefix) -> Result<(), StorageError> {
-        match fs::remove_dir_all(self.path_of(prefix.as_str())) {
+        let path = self.path_of(prefix.as_str());
+        crate::files::check_inside(&self.root, &path)?;
+        match fs::remove_dir_all(path) {
             Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(e.into()),
             _ => Ok(()),
         }

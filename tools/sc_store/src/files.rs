@@ -110,6 +110,71 @@ pub fn open_lock(path: &Path) -> io::Result<File> {
     regular(f)
 }
 
+/// `Ok` when every folder between `root` and `path` (both excluded) is a real folder, not a
+/// symlink (a missing one is fine: it is made later, or the file is missing). With the no-follow
+/// open of the last component this keeps every open of a store file inside the store.
+pub fn check_inside(root: &Path, path: &Path) -> io::Result<()> {
+    let Ok(rel) = path.strip_prefix(root) else {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidData,
+            "outside the store",
+        ));
+    };
+    let mut at = root.to_path_buf();
+    let parts: Vec<_> = rel.components().collect();
+    for c in parts.iter().take(parts.len().saturating_sub(1)) {
+        if !matches!(c, std::path::Component::Normal(_)) {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidData,
+                "a path that leaves the store",
+            ));
+        }
+        at.push(c);
+        match std::fs::symlink_metadata(&at) {
+            Ok(m) if m.file_type().is_symlink() => {
+                return Err(io::Error::new(
+                    io::ErrorKind::InvalidData,
+                    format!(
+                        "a folder on the way is a symbolic link, which is never followed ({})",
+                        at.display()
+                    ),
+                ));
+            }
+            Ok(m) if !m.is_dir() => {
+                return Err(io::Error::new(
+                    io::ErrorKind::InvalidData,
+                    format!("{} is not a folder", at.display()),
+                ));
+            }
+            Ok(_) => {}
+            Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(()),
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(())
+}
+
+/// The first entry below `root` that is neither a regular file nor a folder (a symlink, FIFO,
+/// device or socket), with what it is; the store's lock is left to the writer's own check.
+/// Folders are read, nothing is followed or opened.
+pub fn first_special_entry(root: &Path) -> Option<(std::path::PathBuf, &'static str)> {
+    let mut dirs = vec![root.to_path_buf()];
+    while let Some(dir) = dirs.pop() {
+        let Ok(rd) = std::fs::read_dir(&dir) else {
+            continue;
+        };
+        for e in rd.flatten() {
+            let Ok(t) = e.file_type() else { continue };
+            if t.is_dir() {
+                dirs.push(e.path());
+            } else if !(t.is_file() || (dir == root && e.file_name() == ".lock")) {
+                return Some((e.path(), kind_of(&t)));
+            }
+        }
+    }
+    None
+}
+
 /// `Ok` when `path` is missing or a regular file that is not a symlink; the error says what it is
 /// instead. For files another library opens (it would follow links and wait on FIFOs).
 pub fn check_regular_or_missing(path: &Path) -> io::Result<()> {

@@ -85,6 +85,11 @@ pub enum StoreError {
     },
 }
 
+/// Refuses a store a writer must not go into: one holding a symlink, FIFO, device or socket.
+pub fn check_writable_tree(root: &std::path::Path) -> Result<()> {
+    writer::check_no_special_entries(root)
+}
+
 /// Result of the store crate.
 pub type Result<T, E = StoreError> = std::result::Result<T, E>;
 

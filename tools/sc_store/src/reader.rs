@@ -232,7 +232,10 @@ impl StoreReader {
             return Ok(i);
         }
         tracing::trace!(layer = %kind, %shard, "store: reading shard index");
-        let index = ShardIndex::read(&self.shard_path(kind, tile)?, (s * s) as usize)
+        let path = self.shard_path(kind, tile)?;
+        crate::files::check_inside(&self.inner.root, &path)
+            .map_err(|e| self.corrupt(kind, tile, None, &e.to_string()))?;
+        let index = ShardIndex::read(&path, (s * s) as usize)
             .map_err(|detail| self.corrupt(kind, tile, None, &detail))?;
         if index.is_none() && self.listed_as_present(kind, shard) {
             return Err(self.corrupt(

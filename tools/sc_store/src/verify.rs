@@ -448,6 +448,14 @@ impl StoreReader {
         let Some(&first) = tiles.first() else { return };
         let path = self.shard_path(kind, first).unwrap_or_default();
         let s = meta.shard_tiles;
+        if let Err(e) = crate::files::check_inside(self.root(), &path) {
+            report.problems.push(Problem {
+                path,
+                what: format!("{kind} {shard} index"),
+                detail: e.to_string(),
+            });
+            return;
+        }
         let index = match ShardIndex::read(&path, (s * s) as usize) {
             Ok(Some(index)) => index,
             Ok(None) => {

@@ -253,6 +253,20 @@ fn lock_store(root: &Path, shared: bool) -> Result<File> {
     }
 }
 
+/// Refuses a store holding a symlink, FIFO, device or socket: a writer would read through it,
+/// block on it, or write, rename or remove through a symlinked folder outside the store.
+pub(crate) fn check_no_special_entries(root: &Path) -> Result<()> {
+    match crate::files::first_special_entry(root) {
+        Some((path, what)) => Err(StoreError::Format {
+            what: format!(
+                "damaged store: {what} where the store holds only files and folders, which no writer goes through (`sphereclip info --verify` lists every such entry)"
+            ),
+            path,
+        }),
+        None => Ok(()),
+    }
+}
+
 fn zarr_err(path: &Path) -> impl Fn(String) -> StoreError + '_ {
     move |what| StoreError::Format {
         what,
@@ -436,6 +450,7 @@ impl StoreWriter {
             }
             let (_, meta) = read_meta(root)?;
             check_writable(root, &meta)?;
+            check_no_special_entries(root)?;
             let codec = crate::layout::height_codec_of(&meta);
             let mut w = Self::with_meta(root, meta, codec, lock)?;
             w.access = access;
@@ -1103,7 +1118,7 @@ impl StoreWriter {
             self.restore(kind, shard)?;
         }
         let dir = self.undo_dir();
-        let before: StoreMeta = fs::read(dir.join("zarr.json"))
+        let before: StoreMeta = crate::files::read_regular(&dir.join("zarr.json"), 64 << 20)
             .ok()
             .and_then(|b| serde_json::from_slice(&b).ok())
             .unwrap_or_else(|| self.initial.clone());
@@ -1589,7 +1604,8 @@ pub fn upgrade(root: &Path, on_level: &dyn Fn(usize, usize)) -> Result<UpgradeRe
             .join(kind.name())
             .join(format!(".{}.upgrading", level.key()));
         let node_type = |p: &Path| -> Option<String> {
-            let v: serde_json::Value = serde_json::from_slice(&fs::read(p).ok()?).ok()?;
+            let v: serde_json::Value =
+                serde_json::from_slice(&crate::files::read_regular(p, 64 << 20).ok()?).ok()?;
             v.get("node_type")?.as_str().map(str::to_string)
         };
         if node_type(&dir.join("zarr.json")).as_deref() == Some("array") {
@@ -1614,7 +1630,7 @@ pub fn upgrade(root: &Path, on_level: &dyn Fn(usize, usize)) -> Result<UpgradeRe
         // the data array gets the attributes of the current format (the rest is unchanged)
         let array_meta = data.join("zarr.json");
         let mut v: serde_json::Value = serde_json::from_slice(
-            &fs::read(&array_meta).map_err(io_err(&array_meta))?,
+            &crate::files::read_regular(&array_meta, 64 << 20).map_err(io_err(&array_meta))?,
         )
         .map_err(|e| StoreError::Format {
             what: format!("array metadata is not JSON: {e}"),

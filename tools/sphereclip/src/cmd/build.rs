@@ -19,6 +19,7 @@ pub fn build(store: &Path, settings: Settings, json: bool) -> Result<sc_build::S
     // a request that does not fit the store, or metadata that cannot be read, is refused
     // before the writer marks the store incomplete
     let reader = StoreReader::open(store).context("cannot read store")?;
+    sc_store::check_writable_tree(store)?;
     sc_build::plan(reader.meta(), store, settings.clone())?;
     if !settings.repair {
         for (&kind, layer) in &reader.meta().layers {
