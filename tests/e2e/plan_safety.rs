@@ -424,6 +424,16 @@ fn plan_fields_that_panicked_are_one_line_errors() {
         // abandoning needs only the plan's hash and store: it may go through, without a panic
         clean_exit(&run_in(&dir, &["commit", s(&p), "--abandon"]), what);
     }
+    // a value quoted in the error stays on its one line, and the line stays short
+    let dir = top.path().join("long");
+    std::fs::create_dir_all(&dir).expect("mkdir");
+    let (_, p) = open_build_plan(&dir);
+    edit_json(&p, |v| {
+        v["store"] = format!("/a\nerror: b{}", "x".repeat(100_000)).into()
+    });
+    let o = run_in(&dir, &["run-task", s(&p), "--task", "0"]);
+    one_line_failure(&o, "a long store with a newline");
+    assert!(o.stderr.len() < 5000, "{} bytes of error", o.stderr.len());
 }
 
 #[test]

@@ -40,24 +40,40 @@ pub fn s(p: &Path) -> &str {
 
 /// Runs the command to its end, or fails the test after `limit` (a hang).
 pub fn run_within(mut c: Command, limit: Duration) -> Output {
+    use std::io::Read;
     let mut child = c
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
         .expect("spawns");
+    // the pipes are drained while it runs: a child writing more than a pipe holds would
+    // otherwise wait on us forever
+    let drain = |mut r: Box<dyn Read + Send>| {
+        std::thread::spawn(move || {
+            let mut b = Vec::new();
+            let _ = r.read_to_end(&mut b);
+            b
+        })
+    };
+    let out = drain(Box::new(child.stdout.take().expect("stdout")));
+    let err = drain(Box::new(child.stderr.take().expect("stderr")));
     let start = Instant::now();
     loop {
-        if child.try_wait().expect("wait").is_some() {
-            return child.wait_with_output().expect("output");
+        if let Some(status) = child.try_wait().expect("wait") {
+            return Output {
+                status,
+                stdout: out.join().expect("stdout"),
+                stderr: err.join().expect("stderr"),
+            };
         }
         if start.elapsed() > limit {
             let _ = child.kill();
-            let o = child.wait_with_output().expect("output");
+            let _ = child.wait();
             panic!(
                 "hung for {limit:?}: {:?}\n{}{}",
                 c,
-                text(&o.stdout),
-                text(&o.stderr)
+                text(&out.join().expect("stdout")),
+                text(&err.join().expect("stderr"))
             );
         }
         std::thread::sleep(Duration::from_millis(10));

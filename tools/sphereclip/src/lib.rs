@@ -53,10 +53,31 @@ pub fn main(run: fn(cli::Cli) -> Result<ExitCode>) -> ExitCode {
         Ok(code) => code,
         Err(e) => {
             // one line: what failed, with its causes, path last
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", one_line(&format!("{e:#}")));
             ExitCode::FAILURE
         }
     }
+}
+
+/// The longest error line printed: messages quote untrusted values (a plan's fields, paths).
+const ERROR_MAX_CHARS: usize = 4000;
+
+/// `message` as one line of bounded length: control characters (a newline in a path or a
+/// plan's field) escaped, the tail past [`ERROR_MAX_CHARS`] cut.
+fn one_line(message: &str) -> String {
+    let mut out = String::new();
+    for (n, c) in message.chars().enumerate() {
+        if n == ERROR_MAX_CHARS {
+            out += &format!(" … ({} more characters)", message.chars().count() - n);
+            break;
+        }
+        if c.is_control() {
+            out.extend(c.escape_default());
+        } else {
+            out.push(c);
+        }
+    }
+    out
 }
 
 /// The process's arguments, GDAL's spelling of creation options (`-co KEY=VALUE`) accepted as
