@@ -1646,13 +1646,9 @@ fn gunzipped(path: &Path) -> Result<Option<PathBuf>> {
     }
     let left = GUNZIP_BUDGET_BYTES.saturating_sub(*used);
     let file = std::fs::File::open(path).map_err(|e| usage(path, format!("cannot open: {e}")))?;
-    // the last member's size (mod 2^32) is a lower bound of the whole (one member) and a hint
-    // for the first allocation, never trusted further
-    let hint = gzip_size_hint(&file).unwrap_or(0);
-    if hint > left {
-        done.push((path.to_path_buf(), None));
-        return Ok(None);
-    }
+    // the last member's size (mod 2^32) is a hint for the first allocation, up to 64 MiB, never
+    // trusted further: a truncated file ends in any bytes
+    let hint = gzip_size_hint(&file).unwrap_or(0).min(left).min(64 << 20);
     let mut data: Vec<u8> = Vec::with_capacity(hint as usize);
     let mut gz = flate2::read::MultiGzDecoder::new(std::io::BufReader::new(file));
     let mut chunk = vec![0u8; 1 << 20];
