@@ -13,6 +13,9 @@ use crate::meta::StoreMeta;
 use crate::shard_index::ShardIndex;
 use crate::{LayerKind, Result, StoreError, TileSample};
 
+/// What a listed shard without its file is said to be, by readers and `verify`.
+pub(crate) const MISSING_SHARD: &str = "missing: the store's metadata lists it as holding data (deleted or lost; readers would take it for nodata)";
+
 /// What [`StoreReader::read_tile`] found.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TileRead {
@@ -196,8 +199,12 @@ impl StoreReader {
 
     /// The file a shard lives in (which may not exist).
     pub fn shard_path(&self, kind: LayerKind, tile: TileId) -> Result<PathBuf> {
-        let lr = self.level(kind, tile.level)?;
-        let shard = tile.shard(self.inner.meta.shard_tiles);
+        self.shard_file(kind, tile.shard(self.inner.meta.shard_tiles))
+    }
+
+    /// The file of `shard` (which may not exist).
+    pub(crate) fn shard_file(&self, kind: LayerKind, shard: ShardId) -> Result<PathBuf> {
+        let lr = self.level(kind, shard.level)?;
         let idx = kind.chunk_indices(shard.x, shard.y);
         Ok(self.inner.root.join(lr.array.chunk_key(&idx).as_str()))
     }
@@ -238,12 +245,7 @@ impl StoreReader {
         let index = ShardIndex::read(&path, (s * s) as usize)
             .map_err(|detail| self.corrupt(kind, tile, None, &detail))?;
         if index.is_none() && self.listed_as_present(kind, shard) {
-            return Err(self.corrupt(
-                kind,
-                tile,
-                None,
-                "missing: the store's metadata lists it as holding data (deleted or lost)",
-            ));
+            return Err(self.corrupt(kind, tile, None, MISSING_SHARD));
         }
         let i = Arc::new(index);
         self.inner

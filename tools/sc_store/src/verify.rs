@@ -78,13 +78,6 @@ impl StoreReader {
             .join(lr.array.path().as_str().trim_start_matches('/'))
     }
 
-    fn shard_file(&self, lr: &LevelReader, shard: ShardId) -> PathBuf {
-        self.array_dir(lr)
-            .join("c")
-            .join(shard.y.to_string())
-            .join(shard.x.to_string())
-    }
-
     /// The shards of a level that have a file, sorted.
     pub fn shards_on_disk(&self, kind: LayerKind, level: LevelId) -> Result<Vec<ShardId>> {
         let lr = self.level(kind, level)?;
@@ -177,9 +170,9 @@ impl StoreReader {
                 let lr = self.level(kind, level)?;
                 for shard in self.missing_shards(kind, level)? {
                     report.problems.push(Problem {
-                        path: self.shard_file(lr, shard),
+                        path: self.shard_file(kind, shard)?,
                         what: format!("{kind} {shard}"),
-                        detail: "missing: the store's metadata lists it as holding data (deleted or lost; readers would take it for nodata)".into(),
+                        detail: crate::reader::MISSING_SHARD.into(),
                     });
                 }
                 let listed = meta
@@ -191,7 +184,7 @@ impl StoreReader {
                         && listed.and_then(|lm| lm.lists_shard(shard.x, shard.y)) == Some(false)
                     {
                         report.problems.push(Problem {
-                            path: self.shard_file(lr, shard),
+                            path: self.shard_file(kind, shard)?,
                             what: format!("{kind} {shard}"),
                             detail: "on disk but not listed in the store's metadata (not written by the last commit)".into(),
                         });
@@ -464,7 +457,7 @@ impl StoreReader {
                     report.problems.push(Problem {
                         path,
                         what: format!("{kind} {shard}"),
-                        detail: "missing: the store's metadata lists it as holding data (deleted or lost; readers would take it for nodata)".into(),
+                        detail: crate::reader::MISSING_SHARD.into(),
                     });
                 }
                 return;
