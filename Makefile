@@ -1,6 +1,7 @@
 # The two commands of the README: `make demo` and `make test`. Both install missing system
-# packages first (scripts/deps.sh). One cargo profile (dev, optimised; see Cargo.toml) serves both,
-# so CI builds everything once.
+# packages first (scripts/deps.sh). `make build`/`make demo` build the release profile, the binary
+# users run and every speed figure comes from; `make test` the `checked` profile (optimised, with
+# debug assertions, no LTO; see Cargo.toml), so CI builds everything once.
 
 CARGO ?= cargo
 export XDG_RUNTIME_DIR ?= /tmp/sphereclip-xdg
@@ -13,10 +14,10 @@ deps:
 	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 0700 $(XDG_RUNTIME_DIR)
 
 build: deps
-	$(CARGO) build --locked --bin sphereclip --bin sphereclip-gdal
+	$(CARGO) build --locked --release --bin sphereclip --bin sphereclip-gdal
 
 demo: build
-	./target/debug/sphereclip demo --samples samples --out out
+	./target/release/sphereclip demo --samples samples --out out
 
 fmt-check:
 	$(CARGO) fmt --all -- --check
@@ -26,11 +27,11 @@ clippy: deps
 
 unit: deps
 	@if command -v cargo-nextest >/dev/null; then \
-		$(CARGO) nextest run --locked --no-fail-fast; \
+		$(CARGO) nextest run --locked --cargo-profile checked --no-fail-fast; \
 	else \
-		$(CARGO) test --locked --no-fail-fast; \
+		$(CARGO) test --locked --profile checked --no-fail-fast; \
 	fi
-	$(CARGO) test --locked --doc
+	$(CARGO) test --locked --profile checked --doc
 
 test: deps fmt-check clippy unit
 

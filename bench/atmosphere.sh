@@ -9,9 +9,9 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 store=$1
 reps=${2:-3}
-cargo build --locked -q --bin sphereclip --bin sphereclip-gdal -p sphereclip
+cargo build --locked -q --release --bin sphereclip --bin sphereclip-gdal -p sphereclip
 cargo build --locked -q --release --bin atmosphere_tables -p sc_bench
-bin=./target/debug/sphereclip
+bin=./target/release/sphereclip
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
 export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp/sphereclip-xdg}

@@ -9,8 +9,8 @@ cd "$(dirname "$0")/.."
 before=$1
 store=$2
 reps=${3:-3}
-cargo build --locked -q --bin sphereclip --bin sphereclip-gdal -p sphereclip
-after=./target/debug/sphereclip
+cargo build --locked -q --release --bin sphereclip --bin sphereclip-gdal -p sphereclip
+after=./target/release/sphereclip
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
 export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp/sphereclip-xdg}

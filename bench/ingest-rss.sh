@@ -8,8 +8,8 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 out=${1:-/tmp/sphereclip-bench/ingest-rss}
 rm -rf "$out" && mkdir -p "$out"
-cargo build --locked -q --bin sphereclip --bin sphereclip-gdal -p sphereclip
-bin=./target/debug/sphereclip
+cargo build --locked -q --release --bin sphereclip --bin sphereclip-gdal -p sphereclip
+bin=./target/release/sphereclip
 gdal_create -q -outsize 65536 65536 -bands 1 -ot Int16 -a_srs EPSG:4326 -a_ullr 0 40 10 30 \
   -co SPARSE_OK=TRUE -co TILED=YES -co COMPRESS=DEFLATE "$out/sparse.tif"
 echo "threads: $(nproc)"

@@ -12,9 +12,9 @@ out=${2:-/tmp/sphereclip-bench}
 mkdir -p "$out"
 export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp/sphereclip-xdg}
 mkdir -p "$XDG_RUNTIME_DIR" && chmod 0700 "$XDG_RUNTIME_DIR"
-cargo build --locked -q --bin sphereclip --bin sphereclip-gdal -p sphereclip
-cargo build --locked -q --bin big_store -p sc_bench
-if [ ! -e "$store/zarr.json" ]; then ./target/debug/big_store "$store" --level 6; fi
+cargo build --locked -q --release --bin sphereclip --bin sphereclip-gdal -p sphereclip
+cargo build --locked -q --release --bin big_store -p sc_bench
+if [ ! -e "$store/zarr.json" ]; then ./target/release/big_store "$store" --level 6; fi
 echo "store: $store ($(du -sh "$store" | cut -f1))"
 
 # measure NAME COMMAND...: runs COMMAND under /usr/bin/time, samples the sphereclip process's
@@ -38,9 +38,9 @@ measure() {
   grep -E "Maximum resident set size|Elapsed" "$out/$name.err" | sed "s/^/$name: /"
 }
 
-measure rss-headless ./target/debug/sphereclip render "$store" --flight bench/rss-flight.toml \
+measure rss-headless ./target/release/sphereclip render "$store" --flight bench/rss-flight.toml \
   --stats "$out/rss-flight.json" --size 640x360
 grep -E "best" "$out/rss-headless.out" || true
-measure rss-window xvfb-run -a -s "-screen 0 800x600x24" ./target/debug/sphereclip view "$store" \
+measure rss-window xvfb-run -a -s "-screen 0 800x600x24" ./target/release/sphereclip view "$store" \
   --flight bench/rss-flight.toml --size 640x360
 cat "$out/rss-window.out"
