@@ -378,18 +378,24 @@ fn bad_export_and_upgrade_arguments_are_one_line_errors_and_write_nothing() {
     let store = sample_planet();
     let dir = tempfile::tempdir().expect("tempdir");
     let out = dir.path().join("x.tif");
+    // (arguments, a usage error, what the line says)
     let bad = [
-        (vec!["--bounds", "1,2,3"], "W,S,E,N"),
-        (vec!["--bounds", "a,b,c,d"], "W,S,E,N"),
-        (vec!["--bounds", "10,0,5,5"], "W < E"),
-        (vec!["--bounds", "0,-95,5,5"], "-90 <= S"),
-        (vec!["--co", "COMPRESS"], "KEY=VALUE"),
+        (vec!["--bounds", "1,2,3"], true, "W,S,E,N"),
+        (vec!["--bounds", "a,b,c,d"], true, "W,S,E,N"),
+        (vec!["--bounds", "10,0,5,5"], true, "W < E"),
+        (vec!["--bounds", "0,-95,5,5"], true, "-90 <= S"),
+        (vec!["--co", "COMPRESS"], false, "KEY=VALUE"),
     ];
-    for (args, says) in bad {
+    for (args, usage, says) in bad {
         let mut a = vec!["export", s(&store), "--level", "3"];
         a.extend(args.iter().copied());
         a.push(s(&out));
-        let line = one_line_failure(&run(&a), &format!("{args:?}"));
+        let what = format!("{args:?}");
+        let line = if usage {
+            crate::util::usage_failure(&run(&a), &what)
+        } else {
+            one_line_failure(&run(&a), &what)
+        };
         assert!(line.contains(says), "{args:?}: {line}");
         assert!(
             file_names(dir.path()).is_empty(),

@@ -19,5 +19,6 @@ mod shading;
 mod store;
 mod store_damage;
 mod tidy;
+mod usage;
 mod util;
 mod view_data;

@@ -124,7 +124,7 @@ fn exaggeration_scales_the_relief_as_a_sphere_of_known_size_shows() {
         "--exaggeration",
         "-1",
     ]);
-    let line = crate::util::one_line_failure(&o, "negative exaggeration");
+    let line = crate::util::usage_failure(&o, "negative exaggeration");
     assert!(line.contains("--exaggeration"), "{line}");
 }
 

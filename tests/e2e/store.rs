@@ -193,7 +193,11 @@ fn bad_stores_get_one_line_errors() {
         "albedo",
         "x.tif",
     ]);
-    assert!(text(&o.stderr).contains("unknown layer"));
+    let line = crate::util::usage_failure(&o, "an unknown layer");
+    assert!(
+        line.contains("'albedo'") && line.contains("height, color"),
+        "{line}"
+    );
     let o = run(&[
         "export",
         root.to_str().expect("utf8"),

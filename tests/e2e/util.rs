@@ -103,6 +103,16 @@ pub fn one_line_failure(o: &Output, what: &str) -> String {
     lines[0].to_string()
 }
 
+/// The one line of a usage error (exit 2: clap's line naming the option and the value).
+pub fn usage_failure(o: &Output, what: &str) -> String {
+    let err = text(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{what}: {err}");
+    let lines: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert_eq!(lines.len(), 1, "{what}: one line expected: {err}");
+    assert!(lines[0].starts_with("error: "), "{what}: {err}");
+    lines[0].to_string()
+}
+
 /// Every file below `root` but the lock, with its bytes; `.sphereclip/` (journals, undo,
 /// provenance) too when `bookkeeping`.
 pub fn snapshot_with(root: &Path, bookkeeping: bool) -> BTreeMap<PathBuf, Vec<u8>> {

@@ -4,6 +4,7 @@ use std::path::PathBuf;
 
 use clap::{Parser, Subcommand};
 use sc_core::{Kernel, LevelId};
+use sc_view_plan::camera::Camera;
 
 /// sphereclip: rasters in any projection → a global spherical pyramid → a planet on screen.
 #[derive(Debug, Parser)]
@@ -75,12 +76,12 @@ pub struct IngestArgs {
     pub store: PathBuf,
     /// Input rasters; later ones win where they overlap (see --list for priorities).
     pub inputs: Vec<PathBuf>,
-    /// Layer to write: height or color.
-    #[arg(long, default_value = "height")]
-    pub layer: String,
+    /// Layer to write.
+    #[arg(long, value_enum, default_value_t = LayerArg::Height)]
+    pub layer: LayerArg,
     /// Output level `L` or `L,A`, or `auto`: per input, the coarsest level no coarser than the input.
-    #[arg(long, default_value = "auto")]
-    pub level: String,
+    #[arg(long, default_value = "auto", value_parser = level_arg)]
+    pub level: LevelArg,
     /// Resampling kernel, applied over each texel's footprint (its level's spacing as a circle on
     /// the sphere); rotated footprints of projected sources use its radial counterpart.
     #[arg(long, value_enum, default_value_t = Resampling::Cubic)]
@@ -92,11 +93,11 @@ pub struct IngestArgs {
     #[arg(long, allow_hyphen_values = true)]
     pub src_nodata: Option<f64>,
     /// Lon/lat edges W,S,E,N of inputs without georeference (e.g. -180,-90,180,90).
-    #[arg(long, allow_hyphen_values = true)]
-    pub bounds: Option<String>,
+    #[arg(long, allow_hyphen_values = true, value_parser = bounds_arg)]
+    pub bounds: Option<Bounds>,
     /// Bands to use, 1-based, e.g. 3,2,1 (default: 1 for heights; grey/RGB/RGBA; 3,2,1 for 5+ bands).
-    #[arg(long)]
-    pub bands: Option<String>,
+    #[arg(long, value_parser = bands_arg)]
+    pub bands: Option<Bands>,
     /// Heights packed into 8-bit RGB(A) images (web map terrain tiles): terrain-rgb (Mapbox:
     /// −10000 + (R·65536 + G·256 + B)·0.1 m), terrarium (R·256 + G + B/256 − 32768 m) or marble
     /// (G·256 + B as a signed 16-bit number, −32768 nodata); alpha 0 is nodata.
@@ -237,9 +238,9 @@ pub struct CommitArgs {
 pub struct BuildArgs {
     /// The store folder.
     pub store: PathBuf,
-    /// Layer to build: height, color or all.
-    #[arg(long, default_value = "all")]
-    pub layer: String,
+    /// Layer to build.
+    #[arg(long, value_enum, default_value_t = BuildLayer::All)]
+    pub layer: BuildLayer,
     /// Circular kernel of the great-circle distance that filters each level from the finer one.
     #[arg(long, value_enum, default_value_t = BuildKernel::JincLanczos3)]
     pub kernel: BuildKernel,
@@ -268,9 +269,9 @@ pub struct InspectArgs {
     /// Where to write the report (report.json, index.html, PNG pictures, SVG plots).
     #[arg(long)]
     pub out: PathBuf,
-    /// Layer of a store: height or color.
-    #[arg(long, default_value = "height")]
-    pub layer: String,
+    /// Layer of a store.
+    #[arg(long, value_enum, default_value_t = LayerArg::Height)]
+    pub layer: LayerArg,
     /// Levels to inspect, `L` or `L,A` (default: every isotropic level up to 2^25 texels; for a
     /// raster: `full` and `overview N`).
     #[arg(long, num_args = 1..)]
@@ -303,11 +304,11 @@ pub struct RenderArgs {
     /// The store folder (its height layer shapes the planet).
     pub store: std::path::PathBuf,
     /// LAT,LON,ALT[,HEADING,PITCH,FOV]: degrees, metres above the ground, degrees.
-    #[arg(long, allow_hyphen_values = true, required_unless_present = "flight")]
-    pub camera: Option<String>,
+    #[arg(long, allow_hyphen_values = true, required_unless_present = "flight", value_parser = camera_arg)]
+    pub camera: Option<Camera>,
     /// Image size WxH.
-    #[arg(long, default_value = "1280x720")]
-    pub size: String,
+    #[arg(long, default_value = "1280x720", value_parser = size_arg)]
+    pub size: Size,
     /// Output PNG.
     #[arg(long, required_unless_present = "flight")]
     pub out: Option<std::path::PathBuf>,
@@ -324,8 +325,8 @@ pub struct RenderArgs {
     #[arg(long, requires = "flight")]
     pub no_draw: bool,
     /// Clear colour as R,G,B in 0..1 (e.g. 1,0,1 to see cracks).
-    #[arg(long)]
-    pub clear: Option<String>,
+    #[arg(long, value_parser = clear_arg)]
+    pub clear: Option<[f64; 3]>,
     /// Render the complete view this many times and report steady-state frame and CPU times
     /// (the image is the last frame).
     #[arg(long, default_value_t = 1)]
@@ -351,15 +352,15 @@ pub struct LookArgs {
     #[arg(long, value_enum, default_value_t = Shading::Lit)]
     pub shading: Shading,
     /// Vertical exaggeration of the heights (1: true relief).
-    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
+    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true, value_parser = exaggeration_arg)]
     pub exaggeration: f64,
     /// The sun as AZIMUTH,ELEVATION in degrees (azimuth clockwise from north) seen from the point
     /// under the camera at the start; fixed in the world from then on [default: 135,50].
-    #[arg(long, allow_hyphen_values = true, conflicts_with = "time")]
+    #[arg(long, allow_hyphen_values = true, conflicts_with = "time", value_parser = sun_arg)]
     pub sun: Option<String>,
     /// Put the sun where it stands at this UTC time (e.g. 2026-06-21T12:00:00Z): straight above
     /// its subsolar point.
-    #[arg(long)]
+    #[arg(long, value_parser = time_arg)]
     pub time: Option<String>,
     /// The atmosphere: sky, sun disc and aerial perspective (Earth's, or the `[atmosphere]`
     /// table of the source graph); off: space is the clear colour, the terrain lit as without
@@ -424,11 +425,11 @@ pub struct ViewArgs {
     /// The store folder (its height layer shapes the planet, its colour layer paints it).
     pub store: std::path::PathBuf,
     /// Start at LAT,LON,ALT[,HEADING,PITCH,FOV]: degrees, metres above the ground, degrees.
-    #[arg(long, allow_hyphen_values = true, default_value = "30,10,12000000")]
-    pub camera: String,
+    #[arg(long, allow_hyphen_values = true, default_value = "30,10,12000000", value_parser = camera_arg)]
+    pub camera: Camera,
     /// Window size WxH.
-    #[arg(long, default_value = "1280x720")]
-    pub size: String,
+    #[arg(long, default_value = "1280x720", value_parser = size_arg)]
+    pub size: Size,
     /// Close after N frames and print frame statistics (tests, benchmarks).
     #[arg(long)]
     pub frames: Option<u64>,
@@ -468,18 +469,19 @@ pub struct InfoArgs {
 pub struct ExportArgs {
     /// The store folder.
     pub store: PathBuf,
-    /// Layer to export: height or color.
-    #[arg(long, default_value = "height")]
-    pub layer: String,
+    /// Layer to export.
+    #[arg(long, value_enum, default_value_t = LayerArg::Height)]
+    pub layer: LayerArg,
     /// Level as `L` or `L,A` (anisotropic), e.g. 4 or 4,2.
     #[arg(long)]
     pub level: LevelId,
     /// Output file: `.tif`/`.tiff` (Cloud Optimized GeoTIFF) or `.exr` (heights only).
+    #[arg(value_parser = export_file_arg)]
     pub out: PathBuf,
     /// Only the texels this box touches, W,S,E,N in degrees (snapped outward to whole texels of
     /// the coarsest overview), e.g. -6,7,-5,8.
-    #[arg(long, allow_hyphen_values = true)]
-    pub bounds: Option<String>,
+    #[arg(long, allow_hyphen_values = true, value_parser = bounds_arg)]
+    pub bounds: Option<Bounds>,
     /// A GDAL COG creation option KEY=VALUE (repeat for more), e.g. `-co COMPRESS=ZSTD`.
     #[arg(long = "co", value_name = "KEY=VALUE")]
     pub creation_options: Vec<String>,
@@ -593,5 +595,159 @@ impl From<BuildKernel> for Kernel {
             BuildKernel::JincLanczos2 => Kernel::JincLanczos2,
             BuildKernel::JincLanczos3 => Kernel::JincLanczos3,
         }
+    }
+}
+
+/// A layer of the store.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum LayerArg {
+    /// Heights, metres.
+    Height,
+    /// Colour, sRGB.
+    Color,
+}
+
+impl From<LayerArg> for sc_store::LayerKind {
+    fn from(l: LayerArg) -> Self {
+        match l {
+            LayerArg::Height => Self::Height,
+            LayerArg::Color => Self::Color,
+        }
+    }
+}
+
+/// The layers `build` builds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum BuildLayer {
+    /// Every layer the store has.
+    All,
+    /// Heights.
+    Height,
+    /// Colour.
+    Color,
+}
+
+/// `ingest --level`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LevelArg {
+    /// Per input, the coarsest level no coarser than the input.
+    Auto,
+    /// This level for every input.
+    Fixed(LevelId),
+}
+
+/// W,S,E,N in degrees.
+pub type Bounds = [f64; 4];
+
+/// 1-based band numbers.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Bands(pub Vec<usize>);
+
+/// An image's width and height in pixels, 16..8192 each.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Size {
+    /// Pixels across.
+    pub width: u32,
+    /// Pixels down.
+    pub height: u32,
+}
+
+// Value parsers: clap reports what they refuse as a usage error (exit 2, its one line naming the
+// option and the value).
+
+/// Comma-separated numbers, exactly `n` of them when given.
+fn numbers<T: std::str::FromStr>(s: &str, n: Option<usize>, what: &str) -> Result<Vec<T>, String> {
+    let v = s
+        .split(',')
+        .map(|x| x.trim().parse::<T>())
+        .collect::<Result<Vec<T>, _>>()
+        .map_err(|_| format!("expected {what}"))?;
+    match n {
+        Some(n) if v.len() != n => Err(format!("expected {what}")),
+        _ => Ok(v),
+    }
+}
+
+fn level_arg(s: &str) -> Result<LevelArg, String> {
+    if s == "auto" {
+        return Ok(LevelArg::Auto);
+    }
+    s.parse::<LevelId>()
+        .map(LevelArg::Fixed)
+        .map_err(|e| format!("{e} (or `auto`)"))
+}
+
+fn bounds_arg(s: &str) -> Result<Bounds, String> {
+    let v: Vec<f64> = numbers(s, Some(4), "W,S,E,N: four numbers, degrees")?;
+    let [w, s, e, n] = [v[0], v[1], v[2], v[3]];
+    if v.iter().any(|x| !x.is_finite()) {
+        return Err("expected W,S,E,N: four finite numbers, degrees".into());
+    }
+    if !(w < e && s < n && -90.0 <= s && n <= 90.0) {
+        return Err("expected W,S,E,N with W < E and -90 <= S < N <= 90".into());
+    }
+    Ok([w, s, e, n])
+}
+
+fn bands_arg(s: &str) -> Result<Bands, String> {
+    numbers(s, None, "band numbers from 1, e.g. 3,2,1").map(Bands)
+}
+
+fn camera_arg(s: &str) -> Result<Camera, String> {
+    Camera::parse(s).map_err(|e| e.to_string())
+}
+
+/// `WxH`, 16..8192 a side.
+pub fn size_arg(s: &str) -> Result<Size, String> {
+    let bad = || "expected WxH, e.g. 1280x720".to_string();
+    let (w, h) = s.split_once('x').ok_or_else(bad)?;
+    let (width, height) = (
+        w.trim().parse::<u32>().map_err(|_| bad())?,
+        h.trim().parse::<u32>().map_err(|_| bad())?,
+    );
+    if !(16..=8192).contains(&width) || !(16..=8192).contains(&height) {
+        return Err(format!("{width}x{height} is outside 16..8192 a side"));
+    }
+    Ok(Size { width, height })
+}
+
+fn clear_arg(s: &str) -> Result<[f64; 3], String> {
+    let v: Vec<f64> = numbers(s, Some(3), "R,G,B in 0..1")?;
+    if v.iter().any(|x| !(0.0..=1.0).contains(x)) {
+        return Err("expected R,G,B in 0..1".into());
+    }
+    Ok([v[0], v[1], v[2]])
+}
+
+fn exaggeration_arg(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(k) if k.is_finite() && (0.01..=1000.0).contains(&k) => Ok(k),
+        _ => Err("expected a number in 0.01..1000".into()),
+    }
+}
+
+/// Checked by the rule that later places the sun (which needs the camera).
+fn sun_arg(s: &str) -> Result<String, String> {
+    sc_view_plan::sun::Sun::parse_az_el(s, 0.0, 0.0)
+        .map(|_| s.to_string())
+        .map_err(|e| e.to_string())
+}
+
+fn time_arg(s: &str) -> Result<String, String> {
+    sc_view_plan::sun::parse_utc(s)
+        .map(|_| s.to_string())
+        .map_err(|e| e.to_string())
+}
+
+fn export_file_arg(s: &str) -> Result<PathBuf, String> {
+    let p = PathBuf::from(s);
+    match p
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .as_deref()
+    {
+        Some("tif" | "tiff" | "exr") => Ok(p),
+        _ => Err("expected a file ending in .tif, .tiff or .exr".into()),
     }
 }

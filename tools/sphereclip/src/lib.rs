@@ -35,6 +35,11 @@ pub fn main(run: fn(cli::Cli) -> Result<ExitCode>) -> ExitCode {
     let cli = match cli::Cli::try_parse_from(args()) {
         Ok(cli) => cli,
         Err(e) if !e.use_stderr() => e.exit(), // --help, --version
+        Err(e) if e.kind() == clap::error::ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand => {
+            // bare `sphereclip`: the help as clap lays it out
+            eprint!("{}", e.render());
+            return ExitCode::from(2);
+        }
         Err(e) => {
             // clap's message, its hints joined onto the same line
             let text = e.render().to_string();
@@ -53,10 +58,25 @@ pub fn main(run: fn(cli::Cli) -> Result<ExitCode>) -> ExitCode {
         Ok(code) => code,
         Err(e) => {
             // one line: what failed, with its causes, path last
-            eprintln!("error: {}", one_line(&format!("{e:#}")));
+            eprintln!("error: {}", one_line(&chain(&e)));
             ExitCode::FAILURE
         }
     }
+}
+
+/// The error and its causes joined by `: `, leaving out a cause whose text the line already holds
+/// (errors that quote their OS error in their own message).
+fn chain(e: &anyhow::Error) -> String {
+    let mut line = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if line.is_empty() {
+            line = text;
+        } else if !line.contains(&text) {
+            line = format!("{line}: {text}");
+        }
+    }
+    line
 }
 
 /// The longest error line printed: messages quote untrusted values (a plan's fields, paths).

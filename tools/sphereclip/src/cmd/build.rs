@@ -7,8 +7,7 @@ use anyhow::{Context, Result, bail};
 use sc_build::Settings;
 use sc_store::{StoreReader, StoreWriter};
 
-use crate::cli::BuildArgs;
-use crate::cmd::parse_layer;
+use crate::cli::{BuildArgs, BuildLayer};
 use crate::progress::Progress;
 
 /// Builds the pyramid of the store at `store`; prints one line (or JSON).
@@ -85,10 +84,10 @@ pub fn build(store: &Path, settings: Settings, json: bool) -> Result<sc_build::S
 
 /// The build settings the arguments ask for.
 pub fn settings(a: &BuildArgs) -> Result<Settings> {
-    let layers = if a.layer == "all" {
-        Vec::new()
-    } else {
-        vec![parse_layer(&a.layer)?]
+    let layers = match a.layer {
+        BuildLayer::All => Vec::new(),
+        BuildLayer::Height => vec![sc_store::LayerKind::Height],
+        BuildLayer::Color => vec![sc_store::LayerKind::Color],
     };
     Ok(Settings {
         layers,

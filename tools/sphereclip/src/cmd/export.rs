@@ -6,35 +6,21 @@ use anyhow::{Context, Result, bail};
 use sc_store::{LayerKind, StoreReader};
 
 use crate::cli::ExportArgs;
-use crate::cmd::parse_layer;
 use crate::progress::Progress;
 
 /// Largest export written without `--force`: samples before compression.
 const EXPORT_LIMIT_BYTES: u64 = 4 << 30;
 
-/// `W,S,E,N` in degrees.
-fn parse_bounds(s: &str) -> Result<[f64; 4]> {
-    let v: Vec<f64> = s
-        .split(',')
-        .map(|p| p.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| anyhow::anyhow!("--bounds: expected W,S,E,N in degrees, found `{s}`"))?;
-    match v[..] {
-        [w, so, e, n] => Ok([w, so, e, n]),
-        _ => bail!("--bounds: expected W,S,E,N in degrees, found `{s}`"),
-    }
-}
-
 /// Runs `export`.
 pub fn run(a: &ExportArgs) -> Result<ExitCode> {
-    let kind = parse_layer(&a.layer)?;
+    let kind = LayerKind::from(a.layer);
     let ext = a
         .out
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase)
         .unwrap_or_default();
-    let bounds = a.bounds.as_deref().map(parse_bounds).transpose()?;
+    let bounds = a.bounds;
     let reader = StoreReader::open(&a.store).context("cannot read store")?;
     if !reader.meta().complete {
         eprintln!(

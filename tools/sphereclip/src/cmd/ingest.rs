@@ -4,24 +4,13 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
-use sc_core::{GridSpec, Kernel, LevelId};
+use sc_core::{GridSpec, Kernel};
 use sc_ingest::{Input, LevelChoice, Settings};
 use sc_raster::SourceOptions;
 use sc_store::{StoreConfig, StoreReader, StoreWriter};
 
-use crate::cli::IngestArgs;
-use crate::cmd::parse_layer;
+use crate::cli::{IngestArgs, LevelArg};
 use crate::progress::Progress;
-
-fn parse_list<T: std::str::FromStr>(s: &str, what: &str) -> Result<Vec<T>> {
-    s.split(',')
-        .map(|v| {
-            v.trim()
-                .parse::<T>()
-                .map_err(|_| anyhow::anyhow!("{what}: `{v}` is not a number in `{s}`"))
-        })
-        .collect()
-}
 
 fn inputs(a: &IngestArgs, options: &SourceOptions) -> Result<Vec<Input>> {
     let mut v: Vec<Input> = a
@@ -71,36 +60,18 @@ pub fn make_plan_trusting(
     a: &IngestArgs,
     known: &[sc_store::InputRecord],
 ) -> Result<sc_ingest::Plan> {
-    let layer = parse_layer(&a.layer)?;
+    let layer = a.layer.into();
     let kernel = Kernel::from(a.resampling);
-    let level = if a.level == "auto" {
-        LevelChoice::Auto
-    } else {
-        LevelChoice::Fixed(
-            a.level
-                .parse::<LevelId>()
-                .map_err(|e| anyhow::anyhow!("--level: {e}"))?,
-        )
+    let level = match a.level {
+        LevelArg::Auto => LevelChoice::Auto,
+        LevelArg::Fixed(l) => LevelChoice::Fixed(l),
     };
-    let bounds = match &a.bounds {
-        None => None,
-        Some(b) => {
-            let v: Vec<f64> = parse_list(b, "--bounds")?;
-            let [w, s, e, n] = v[..] else {
-                bail!("--bounds needs four numbers W,S,E,N, found `{b}`");
-            };
-            Some([w, s, e, n])
-        }
-    };
+    let bounds = a.bounds;
     let options = SourceOptions {
         src_srs: a.src_srs.clone(),
         bounds,
         src_nodata: a.src_nodata,
-        bands: a
-            .bands
-            .as_deref()
-            .map(|b| parse_list(b, "--bands"))
-            .transpose()?,
+        bands: a.bands.as_ref().map(|b| b.0.clone()),
         height_encoding: a.height_encoding.map(Into::into),
     };
     let inputs = inputs(a, &options)?;

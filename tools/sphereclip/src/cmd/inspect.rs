@@ -13,7 +13,6 @@ use sc_inspect::{LevelInput, ReportOptions, SignalTable};
 use sc_store::{LayerKind, StoreConfig, StoreReader, StoreWriter, TileRead};
 
 use crate::cli::InspectArgs;
-use crate::cmd::parse_layer;
 
 /// Largest level `inspect` reads whole (texels).
 const MAX_TEXELS: u64 = 1 << 26;
@@ -214,7 +213,7 @@ pub fn run(a: &InspectArgs) -> Result<ExitCode> {
         let input = a.input.as_ref().ok_or_else(|| {
             anyhow::anyhow!("give a store or a raster to inspect (or --test-signal)")
         })?;
-        let layer = parse_layer(&a.layer)?;
+        let layer = sc_store::LayerKind::from(a.layer);
         let src = Source::open(input, layer)?;
         let against = a
             .against
@@ -246,7 +245,7 @@ pub fn run(a: &InspectArgs) -> Result<ExitCode> {
             serde_json::json!({
                 "kind": kind,
                 "path": input,
-                "layer": a.layer,
+                "layer": layer.name(),
                 "against": a.against,
             }),
             &levels,

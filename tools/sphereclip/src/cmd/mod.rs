@@ -90,29 +90,6 @@ pub fn info_line(args: std::fmt::Arguments<'_>) {
     }
 }
 
-/// Parses a layer name into its kind, with the list of valid names in the error.
-pub fn parse_layer(name: &str) -> Result<sc_store::LayerKind> {
-    sc_store::LayerKind::from_name(name)
-        .ok_or_else(|| anyhow::anyhow!("unknown layer `{name}` (expected one of: height, color)"))
-}
-
-/// `WxH` within 16..8192 a side.
-pub fn parse_size(s: &str) -> Result<(u32, u32)> {
-    let (w, h) = s
-        .split_once('x')
-        .ok_or_else(|| anyhow::anyhow!("--size: expected WxH, found `{s}`"))?;
-    let p = |v: &str| {
-        v.trim()
-            .parse::<u32>()
-            .map_err(|_| anyhow::anyhow!("--size: expected WxH, found `{s}`"))
-    };
-    let (w, h) = (p(w)?, p(h)?);
-    if !(16..=8192).contains(&w) || !(16..=8192).contains(&h) {
-        bail!("image size {w}x{h} is outside 16..8192 a side");
-    }
-    Ok((w, h))
-}
-
 /// The store's streamer ([`sc_view_plan::graph::store_streamer`]), its warnings printed.
 pub fn streamer_for(
     store: &std::path::Path,
@@ -190,9 +167,6 @@ pub fn draw_options(
 ) -> Result<sc_view_plan::frame::DrawOptions> {
     use sc_view_plan::sun::{Sun, parse_utc};
     let k = look.exaggeration;
-    if !(k.is_finite() && (0.01..=1000.0).contains(&k)) {
-        bail!("--exaggeration must be a number in 0.01..1000, found {k}");
-    }
     let sun = match (&look.sun, &look.time) {
         (Some(s), _) => Sun::parse_az_el(s, camera.lat_deg, camera.lon_deg).context("--sun")?,
         (None, Some(t)) => Sun::at_unix_time(parse_utc(t).context("--time")?),

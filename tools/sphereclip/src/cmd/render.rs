@@ -9,12 +9,12 @@ use sc_view_plan::camera::Camera;
 
 use sc_core::stats::{median, percentile};
 
-use super::{parse_size, streamer_for};
+use super::streamer_for;
 use crate::cli::RenderArgs;
 
 /// Runs `render`.
 pub fn run(a: &RenderArgs) -> Result<ExitCode> {
-    let (w, h) = parse_size(&a.size)?;
+    let (w, h) = (a.size.width, a.size.height);
     if let (Some(flight), Some(stats)) = (&a.flight, &a.stats) {
         let s = super::flight::run(&a.store, flight, (w, h), (stats, a.no_draw), &a.look)?;
         for alt in &s.altitudes {
@@ -33,24 +33,14 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
     let (Some(camera), Some(out)) = (&a.camera, &a.out) else {
         bail!("render needs --camera and --out (or --flight and --stats)");
     };
-    let camera = Camera::parse(camera).context("--camera")?;
+    let camera = *camera;
     super::check_output_file(out, "--out")?;
     if !(1..=10_000).contains(&a.frames) {
         bail!("--frames must be 1..10000, found {}", a.frames);
     }
-    let clear = match &a.clear {
+    let clear = match a.clear {
         None => sc_view_gpu::render::SPACE,
-        Some(c) => {
-            let v: Vec<f64> = c
-                .split(',')
-                .map(|x| x.trim().parse::<f64>())
-                .collect::<Result<_, _>>()
-                .map_err(|_| anyhow::anyhow!("--clear: expected R,G,B in 0..1, found `{c}`"))?;
-            let [r0, g0, b0] = v[..] else {
-                bail!("--clear: expected R,G,B in 0..1, found `{c}`");
-            };
-            [r0, g0, b0, 1.0]
-        }
+        Some([r0, g0, b0]) => [r0, g0, b0, 1.0],
     };
     if let Some(n) = a.reference {
         return reference(a, &camera, (w, h), n, clear, out);

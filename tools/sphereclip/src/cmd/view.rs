@@ -3,20 +3,19 @@
 
 use std::process::ExitCode;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use sc_core::stats::{median, percentile};
-use sc_view_plan::camera::Camera;
 use sc_view_plan::flight;
 use sc_view_plan::graph::StoreStreamer;
 use sc_view_window::{ViewOptions, view};
 
-use super::{parse_size, streamer_for};
+use super::streamer_for;
 use crate::cli::ViewArgs;
 
 /// Runs `view`.
 pub fn run(a: &ViewArgs) -> Result<ExitCode> {
-    let camera = Camera::parse(&a.camera).context("--camera")?;
-    let size = parse_size(&a.size)?;
+    let camera = a.camera;
+    let size = (a.size.width, a.size.height);
     if let Some(n) = a.frames
         && !(1..=1_000_000).contains(&n)
     {
