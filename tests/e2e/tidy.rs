@@ -192,3 +192,189 @@ fn every_repository_path_named_in_comments_and_documents_exists() {
     }
     assert!(broken.is_empty(), "{}", broken.join("\n"));
 }
+
+/// The modules of the crate in `src` (a folder of the repository) and, for each, the crate's
+/// other top-level modules its code names (`crate::m`, `use crate::{m, …}`, an item the crate
+/// root re-exports from `m`); `super::m` in a submodule and its unit tests (from `#[cfg(test)]`
+/// on) left out.
+fn module_imports(src: &Path) -> BTreeMap<String, std::collections::BTreeSet<String>> {
+    let root_file = ["lib.rs", "main.rs"]
+        .iter()
+        .map(|f| src.join(f))
+        .find(|p| p.is_file());
+    let mut modules = std::collections::BTreeSet::new();
+    for e in std::fs::read_dir(src).expect("read src").flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        if let Some(m) = name.strip_suffix(".rs") {
+            if m != "lib" && m != "main" {
+                modules.insert(m.to_string());
+            }
+        } else if e.path().is_dir() && e.path().join("mod.rs").is_file() {
+            modules.insert(name);
+        }
+    }
+    // items the root re-exports: `pub use m::{A, B};`, `pub use m::A;`
+    let mut reexported: BTreeMap<String, String> = BTreeMap::new();
+    if let Some(r) = &root_file {
+        let text = std::fs::read_to_string(r).expect("read the crate root");
+        for stmt in text.split(';') {
+            let Some(path) = stmt.trim().strip_prefix("pub use ") else {
+                continue;
+            };
+            let path = path
+                .trim_start_matches("crate::")
+                .trim_start_matches("self::");
+            let Some((m, items)) = path.split_once("::") else {
+                continue;
+            };
+            if !modules.contains(m) {
+                continue;
+            }
+            for item in items.trim_matches(['{', '}', ' ', '\n']).split(',') {
+                let item = item.trim().rsplit("::").next().unwrap_or_default();
+                let item = item.split(" as ").last().unwrap_or_default().trim();
+                if !item.is_empty() {
+                    reexported.insert(item.to_string(), m.to_string());
+                }
+            }
+        }
+    }
+    let mut out = BTreeMap::new();
+    let mut walk = vec![src.to_path_buf()];
+    while let Some(dir) = walk.pop() {
+        for e in std::fs::read_dir(&dir).expect("read_dir").flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                walk.push(p);
+                continue;
+            }
+            if p.extension().is_none_or(|x| x != "rs") {
+                continue;
+            }
+            let rel = p.strip_prefix(src).expect("inside");
+            let first = rel.components().next().expect("a component");
+            let module = first
+                .as_os_str()
+                .to_string_lossy()
+                .trim_end_matches(".rs")
+                .to_string();
+            if !modules.contains(&module) {
+                continue; // the crate root, a binary
+            }
+            let text = std::fs::read_to_string(&p).expect("read");
+            let code: String = text
+                .split("#[cfg(test)]")
+                .next()
+                .unwrap_or_default()
+                .lines()
+                .filter(|l| !l.trim_start().starts_with("//"))
+                .collect::<Vec<_>>()
+                .join("\n");
+            let uses: &mut std::collections::BTreeSet<String> =
+                out.entry(module.clone()).or_default();
+            let mut names = Vec::new();
+            for (at, _) in code.match_indices("crate::") {
+                let rest = &code[at + "crate::".len()..];
+                if let Some(group) = rest.strip_prefix('{') {
+                    // the group's top-level items
+                    let mut depth = 0;
+                    let mut item = String::new();
+                    for c in group.chars() {
+                        match c {
+                            '{' => depth += 1,
+                            '}' if depth == 0 => break,
+                            '}' => depth -= 1,
+                            ',' if depth == 0 => {
+                                names.push(std::mem::take(&mut item));
+                                continue;
+                            }
+                            _ => {}
+                        }
+                        if depth == 0 {
+                            item.push(c);
+                        }
+                    }
+                    names.push(item);
+                } else {
+                    names.push(rest.to_string());
+                }
+            }
+            for n in names {
+                let ident: String = n
+                    .trim()
+                    .chars()
+                    .take_while(|c| c.is_alphanumeric() || *c == '_')
+                    .collect();
+                let target = if modules.contains(&ident) {
+                    Some(ident)
+                } else {
+                    reexported.get(&ident).cloned()
+                };
+                if let Some(t) = target
+                    && t != module
+                {
+                    uses.insert(t);
+                }
+            }
+        }
+    }
+    out
+}
+
+/// The groups of modules that import each other in a circle (strongly connected, more than one).
+fn circles(g: &BTreeMap<String, std::collections::BTreeSet<String>>) -> Vec<Vec<String>> {
+    // reachability by search from each module: small graphs
+    let reach = |from: &String| {
+        let mut seen = std::collections::BTreeSet::new();
+        let mut todo = vec![from.clone()];
+        while let Some(m) = todo.pop() {
+            for n in g.get(&m).into_iter().flatten() {
+                if seen.insert(n.clone()) {
+                    todo.push(n.clone());
+                }
+            }
+        }
+        seen
+    };
+    let reaches: BTreeMap<&String, _> = g.keys().map(|m| (m, reach(m))).collect();
+    let mut done = std::collections::BTreeSet::new();
+    let mut out = Vec::new();
+    for m in g.keys() {
+        if done.contains(m) || !reaches[m].contains(m) {
+            continue;
+        }
+        let group: Vec<String> = g
+            .keys()
+            .filter(|n| reaches[m].contains(*n) && reaches[*n].contains(m))
+            .cloned()
+            .collect();
+        done.extend(group.iter().cloned());
+        out.push(group);
+    }
+    out
+}
+
+#[test]
+fn no_crate_has_modules_importing_each_other_in_a_circle() {
+    let mut found = Vec::new();
+    for group in ["tools", "viewer"] {
+        for e in std::fs::read_dir(root().join(group))
+            .expect("read")
+            .flatten()
+        {
+            let src = e.path().join("src");
+            if !src.is_dir() {
+                continue;
+            }
+            for c in circles(&module_imports(&src)) {
+                found.push(format!(
+                    "{}: {}",
+                    src.strip_prefix(root()).expect("inside").display(),
+                    c.join(" ⇄ ")
+                ));
+            }
+        }
+    }
+    found.sort();
+    assert!(found.is_empty(), "import circles:\n{}", found.join("\n"));
+}

@@ -2,6 +2,8 @@
 
 use std::fmt;
 
+use crate::grid::{GeoRect, TexelPos};
+use crate::level::aniso_min_abs_lat_deg;
 use crate::{GridError, GridSpec, LevelId};
 
 /// One T×T tile of a level; `x` counts columns from −180°, `y` rows from the north pole.
@@ -106,5 +108,57 @@ impl ShardId {
         let y1 = (y0 + shard_tiles).min(grid.tiles_y(self.level));
         let level = self.level;
         (y0..y1).flat_map(move |y| (x0..x1).map(move |x| TileId { level, x, y }))
+    }
+}
+
+/// The grid's rules that name tiles.
+impl GridSpec {
+    /// The tile holding texel (i, j) (indices must lie in the level).
+    pub fn tile_of_texel(self, level: LevelId, i: u64, j: u64) -> TileId {
+        let t = u64::from(self.tile_size());
+        TileId {
+            level,
+            x: i / t,
+            y: j / t,
+        }
+    }
+
+    /// The lon/lat rectangle covered by a tile (edges, not texel centres).
+    pub fn tile_rect(self, tile: TileId) -> GeoRect {
+        let t = u64::from(self.tile_size()) as f64;
+        let nw = self.lonlat_from_texel(
+            tile.level,
+            TexelPos {
+                x: tile.x as f64 * t,
+                y: tile.y as f64 * t,
+            },
+        );
+        let se = self.lonlat_from_texel(
+            tile.level,
+            TexelPos {
+                x: (tile.x + 1) as f64 * t,
+                y: (tile.y + 1) as f64 * t,
+            },
+        );
+        GeoRect {
+            west: nw.lon_deg,
+            south: se.lat_deg,
+            east: se.lon_deg,
+            north: nw.lat_deg,
+        }
+    }
+
+    /// Whether tile row `y` of `level` is stored: every row of an isotropic level; for (ℓ, a) the rows
+    /// whose poleward edge reaches `|lat| ≥ acos(2^−a)` (see [`crate::level`]).
+    pub fn level_has_tile_row(self, level: LevelId, y: u64) -> bool {
+        if y >= self.tiles_y(level) {
+            return false;
+        }
+        if level.is_iso() {
+            return true;
+        }
+        let rect = self.tile_rect(TileId { level, x: 0, y });
+        let poleward = rect.north.abs().max(rect.south.abs());
+        poleward >= aniso_min_abs_lat_deg(level.aniso)
     }
 }

@@ -356,7 +356,7 @@ pub(crate) fn consolidate_level_group(
     grid: GridSpec,
     radius_m: f64,
 ) -> Result<(), String> {
-    let dir = root.join(crate::layout::level_dir(kind, level));
+    let dir = root.join(crate::paths::level_dir(kind, level));
     let c = consolidated(&dir)?;
     write_group(
         &dir.join("zarr.json"),
@@ -377,7 +377,7 @@ pub(crate) fn write_level_group(
     radius_m: f64,
 ) -> Result<(), String> {
     use zarrs::array::{ArrayBuilder, FillValue, data_type};
-    let dir = crate::layout::level_dir(kind, level);
+    let dir = crate::paths::level_dir(kind, level);
     write_group(
         &root.join(&dir).join("zarr.json"),
         level_group_attrs(grid, level, radius_m),
@@ -430,18 +430,6 @@ pub(crate) fn write_level_group(
         .map_err(|e| e.to_string())
 }
 
-/// Whether `dir` holds a file below it (temp files of killed writers do not count).
-pub(crate) fn has_files(dir: &Path) -> bool {
-    let Ok(rd) = std::fs::read_dir(dir) else {
-        return false;
-    };
-    rd.flatten().any(|e| match e.file_type() {
-        Ok(t) if t.is_dir() => has_files(&e.path()),
-        Ok(t) => t.is_file() && !crate::fault::is_temp_name(&e.file_name().to_string_lossy()),
-        Err(_) => false,
-    })
-}
-
 /// The kernel the last build of a store used, by its command-line name.
 fn build_kernel(meta: &crate::StoreMeta) -> String {
     meta.provenance
@@ -464,7 +452,7 @@ pub(crate) fn publish_layers(root: &Path, meta: &crate::StoreMeta) -> crate::Res
             consolidate_level_group(root, kind, level, meta.grid, meta.radius_m).map_err(
                 |what| crate::StoreError::Format {
                     what,
-                    path: root.join(crate::layout::level_dir(kind, level)),
+                    path: root.join(crate::paths::level_dir(kind, level)),
                 },
             )?;
         }

@@ -15,8 +15,9 @@ use zarrs::metadata_ext::codec::pcodec::{
 };
 
 use crate::LayerKind;
+use crate::codec::HeightCodec;
 use crate::meta::StoreMeta;
-use crate::writer::HeightCodec;
+use crate::paths::data_array_path;
 
 /// Largest shard a store may have: 64 Mi samples (256 MiB of f32).
 pub(crate) const MAX_SHARD_SAMPLES: u64 = 64 << 20;
@@ -75,21 +76,6 @@ pub(crate) fn builder(
     );
     builder.attributes(attrs);
     Ok(builder)
-}
-
-/// The folder of a level below the store root: a group (format 2) or the data array itself
-/// (format 1).
-pub(crate) fn level_dir(kind: LayerKind, level: LevelId) -> String {
-    format!("{}/{}", kind.name(), level.key())
-}
-
-/// The zarr path of a level's data array in a store of format `major`.
-pub(crate) fn data_array_path(major: u32, kind: LayerKind, level: LevelId) -> String {
-    if major < 2 {
-        format!("/{}", level_dir(kind, level))
-    } else {
-        format!("/{}/{}", level_dir(kind, level), kind.name())
-    }
 }
 
 /// pcodec's settings for height levels new to a store of format `major`. From format 3: delta

@@ -9,29 +9,34 @@
 //! - one [`ShardWriter`] owns a shard: shards are written whole, atomically (temp file, fsync, rename);
 //! - `meta.complete` turns true only in [`StoreWriter::commit`], after every shard is durable.
 
+mod codec;
 mod durable;
 pub mod fault;
 pub mod files;
 pub mod geozarr;
 mod layout;
 mod meta;
+mod paths;
 mod reader;
 mod sample;
 mod shard_index;
+mod upgrade;
 mod verify;
 mod writer;
 
 use std::path::PathBuf;
 
+pub use codec::HeightCodec;
 pub use meta::{
     BuildRecord, FORMAT_MAJOR, FORMAT_MINOR, InputRecord, LayerMeta, LevelMeta, StoreMeta, unix_now,
 };
 pub use reader::{StoreReader, TileRead};
 pub use sample::{LayerKind, TileSample, range_union};
+pub use upgrade::{UpgradeReport, upgrade};
 pub use verify::{LevelStats, Problem, VerifyReport};
 pub use writer::{
-    EncodedTile, HeightCodec, LEVEL_MAKERS, ShardWriter, StoreConfig, StoreWriter, UpgradeReport,
-    being_written, committed_plan, forget_committed_plan, open_plan, upgrade,
+    EncodedTile, LEVEL_MAKERS, ShardWriter, StoreConfig, StoreWriter, being_written,
+    committed_plan, forget_committed_plan, open_plan,
 };
 
 /// Errors of the store. Messages are one line, lowercase, with the path last.

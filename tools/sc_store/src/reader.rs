@@ -46,7 +46,7 @@ pub(crate) struct LevelReader {
     pub(crate) array: Arc<Array<FilesystemStore>>,
     /// the codecs of a tile inside a shard: a tile's bytes, read once to check their crc32c,
     /// are decoded with them
-    tiles: Arc<crate::writer::TileCodecs>,
+    tiles: Arc<crate::codec::TileCodecs>,
 }
 
 impl std::fmt::Debug for LevelReader {
@@ -121,7 +121,7 @@ impl StoreReader {
     fn open_reusing(root: &Path, known: Option<&Self>) -> Result<Self> {
         let (fs, meta) = read_meta(root)?;
         // its levels are of two formats until the upgrade ends
-        if std::fs::symlink_metadata(crate::writer::upgrade_marker(root)).is_ok() {
+        if std::fs::symlink_metadata(crate::paths::upgrade_marker(root)).is_ok() {
             return Err(StoreError::Format {
                 what: "the store is being upgraded, or its upgrade was interrupted: `sphereclip upgrade` finishes it (run it again if it was stopped)".into(),
                 path: root.to_path_buf(),
@@ -130,7 +130,7 @@ impl StoreReader {
         // a committed store lists every array it has (an incomplete one may hold an array a
         // killed writer made and had not listed yet)
         if meta.complete
-            && let Some((kind, name, path)) = crate::verify::unlisted_arrays(root, &meta)
+            && let Some((kind, name, path)) = crate::paths::unlisted_arrays(root, &meta)
                 .into_iter()
                 .next()
         {
@@ -150,7 +150,7 @@ impl StoreReader {
                     Some(lr) => (lr.array.clone(), lr.tiles.clone()),
                     None => {
                         let path =
-                            crate::layout::data_array_path(meta.format_major(), kind, lm.level);
+                            crate::paths::data_array_path(meta.format_major(), kind, lm.level);
                         let damaged = |what: String| StoreError::Format {
                             what: format!("damaged store: {kind} level {}: {what}", lm.level.key()),
                             path: root.join(path.trim_start_matches('/')).join("zarr.json"),
@@ -161,7 +161,7 @@ impl StoreReader {
                                 what: format!("cannot open {kind} level {}: {e}", lm.level),
                                 path: root.join(path.trim_start_matches('/')),
                             })?;
-                        let tiles = crate::writer::TileCodecs::of(&array).map_err(&damaged)?;
+                        let tiles = crate::codec::TileCodecs::of(&array).map_err(&damaged)?;
                         (Arc::new(array), Arc::new(tiles))
                     }
                 };

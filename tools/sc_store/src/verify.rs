@@ -1,5 +1,6 @@
 //! Whole-store statistics (`info`) and checksum verification (`info --verify`).
 
+use crate::paths::{shard_files, unlisted_arrays};
 use std::path::{Path, PathBuf};
 
 use sc_core::{LevelId, ShardId, TileId};
@@ -270,7 +271,7 @@ impl StoreReader {
         for &kind in meta.layers.keys() {
             groups.push(self.root().join(kind.name()));
             for level in meta.levels(kind) {
-                groups.push(self.root().join(crate::layout::level_dir(kind, level)));
+                groups.push(self.root().join(crate::paths::level_dir(kind, level)));
             }
         }
         for dir in groups {
@@ -339,7 +340,7 @@ impl StoreReader {
                     ("lat", grid.height(level), 90.0 - dy / 2.0, -dy),
                     ("lon", grid.width(level), -180.0 + dx / 2.0, dx),
                 ] {
-                    let dir = format!("{}/{name}", crate::layout::level_dir(kind, level));
+                    let dir = format!("{}/{name}", crate::paths::level_dir(kind, level));
                     let at = self.root().join(&dir);
                     let mut problem = |path: PathBuf, detail: String| {
                         report.problems.push(Problem {
@@ -504,56 +505,4 @@ impl StoreReader {
             }
         }
     }
-}
-
-/// The `(y, x)` names of the shards under a level array's chunk folder `cdir` (`c/Y/X`), in row
-/// order; entries of every file type count (a reader then says what is wrong with one).
-pub(crate) fn shard_files(cdir: &Path) -> Vec<(u64, u64)> {
-    let mut out = Vec::new();
-    let Ok(rows) = std::fs::read_dir(cdir) else {
-        return out;
-    };
-    let number = |e: &std::fs::DirEntry| e.file_name().to_str().and_then(|s| s.parse::<u64>().ok());
-    for row in rows.flatten() {
-        let Some(y) = number(&row) else { continue };
-        if !row.file_type().is_ok_and(|t| t.is_dir()) {
-            continue;
-        }
-        let Ok(cols) = std::fs::read_dir(row.path()) else {
-            continue;
-        };
-        out.extend(cols.flatten().filter_map(|c| number(&c)).map(|x| (y, x)));
-    }
-    out.sort();
-    out
-}
-
-/// Level arrays on disk that the group metadata does not list: `(layer, key, folder)`.
-pub(crate) fn unlisted_arrays(
-    root: &Path,
-    meta: &crate::StoreMeta,
-) -> Vec<(LayerKind, String, PathBuf)> {
-    let mut out = Vec::new();
-    for kind in [LayerKind::Height, LayerKind::Color] {
-        let dir = root.join(kind.name());
-        let Ok(rd) = std::fs::read_dir(&dir) else {
-            continue;
-        };
-        let mut names: Vec<String> = rd
-            .flatten()
-            .filter(|e| e.path().join("zarr.json").is_file())
-            .map(|e| e.file_name().to_string_lossy().into_owned())
-            .collect();
-        names.sort();
-        for name in names {
-            let listed = meta
-                .layers
-                .get(&kind)
-                .is_some_and(|l| l.levels.contains_key(&name));
-            if !listed {
-                out.push((kind, name.clone(), dir.join(name)));
-            }
-        }
-    }
-    out
 }

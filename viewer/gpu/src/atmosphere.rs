@@ -6,7 +6,7 @@
 //! fragment stage; [`AtmosphereTables`] reads them back for the tests that compare them with
 //! their CPU twins (`sc_view_plan::atmosphere`).
 
-use crate::render::{RenderError, gpu_device, read_back};
+use crate::device::{RenderError, gpu_device, read_back};
 use sc_view_plan::atmosphere::{
     AERIAL_SIZE, Atmosphere, AtmosphereFrame, AtmosphereUniforms, IRRADIANCE_SIZE,
     MULTIPLE_SCATTERING_SIZE, SKY_VIEW_SIZE, TRANSMITTANCE_SIZE,

@@ -4,6 +4,7 @@
 //! measurements of drawn geometry from depth, and the WGSL of `shaders/`.
 
 pub mod atmosphere;
+pub mod device;
 pub mod flight;
 pub mod measure;
 pub mod probe;

@@ -5,7 +5,7 @@
 
 use wgpu::util::DeviceExt;
 
-use crate::render::{RenderError, gpu_device, read_back};
+use crate::device::{RenderError, gpu_device, read_back};
 use sc_view_plan::cdlod::{CdlodUniform, LeafInstance};
 use sc_view_plan::transform::TransformUniforms;
 use sc_view_plan::warp::WarpFrame;
