@@ -1,8 +1,9 @@
 //! Tidy: rules of the code base that no compiler checks, in the spirit of rust-analyzer's
-//! `tidy` — the crate dependency rules of ARCHITECTURE.md ("Invariants", read from
-//! `cargo metadata`), every Rust file opening with a `//!` line, no comment that names a work
-//! item (the word "issue" and a number), and every repository path a comment or document names
-//! existing.
+//! `tidy` — each crate's dependencies exactly as ARCHITECTURE.md's table lists them (from
+//! `cargo metadata`), every Rust name ARCHITECTURE.md writes defined in the code, no module
+//! importing another that imports it back, every Rust file opening with a `//!` line, no comment
+//! that names a work item (the word "issue" and a number), and every repository path a comment
+//! or document names existing.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -62,64 +63,175 @@ fn dependencies() -> BTreeMap<String, Vec<String>> {
         .collect()
 }
 
-#[test]
-fn crate_dependencies_follow_the_architecture() {
-    let deps = dependencies();
-    for name in [
-        "sc_core",
-        "sc_raster",
-        "sc_view_plan",
-        "sc_view_gpu",
-        "sc_view_window",
-    ] {
-        assert!(deps.contains_key(name), "no crate {name}");
-    }
-    let uses = |krate: &str, dep: &str| deps[krate].iter().any(|d| d == dep);
-    let mut broken = Vec::new();
-    let mut rule = |ok: bool, what: String| {
-        if !ok {
-            broken.push(what);
-        }
+/// ARCHITECTURE.md's table of crates: each crate's name (the first code span of its row) and the
+/// names its "may depend on" column (the last cell) lists.
+fn architecture_table() -> BTreeMap<String, Vec<String>> {
+    let text = std::fs::read_to_string(root().join("ARCHITECTURE.md")).expect("ARCHITECTURE.md");
+    let spans = |cell: &str| -> Vec<String> {
+        cell.split('`')
+            .skip(1)
+            .step_by(2)
+            .map(str::to_string)
+            .collect()
     };
+    let mut out = BTreeMap::new();
+    for line in text.lines() {
+        let cells: Vec<&str> = line.split('|').map(str::trim).collect();
+        // | crate | what it is | may depend on |
+        if cells.len() != 5 || !cells[1].starts_with('`') {
+            continue;
+        }
+        let name = spans(cells[1]).into_iter().next().expect("a crate name");
+        out.insert(name, spans(cells[3]));
+    }
+    out
+}
+
+#[test]
+fn crate_dependencies_are_exactly_the_architecture_table() {
+    let deps = dependencies();
+    let table = architecture_table();
+    let mut broken = Vec::new();
+    for (krate, actual) in &deps {
+        let Some(allowed) = table.get(krate) else {
+            broken.push(format!(
+                "{krate} is not in ARCHITECTURE.md's table of crates"
+            ));
+            continue;
+        };
+        for d in actual {
+            if !allowed.contains(d) {
+                broken.push(format!(
+                    "{krate} depends on {d}, which its row does not list"
+                ));
+            }
+        }
+        for d in allowed {
+            if !actual.contains(d) {
+                broken.push(format!(
+                    "{krate}'s row lists {d}, which it does not depend on"
+                ));
+            }
+        }
+    }
+    for krate in table.keys() {
+        if !deps.contains_key(krate) {
+            broken.push(format!(
+                "ARCHITECTURE.md lists {krate}, which is not a crate"
+            ));
+        }
+    }
+    // the rules the table exists for
     for (krate, d) in &deps {
         for dep in d {
-            rule(
-                !(dep == "gdal" || dep == "gdal-sys") || krate == "sc_raster",
-                format!("{krate} links GDAL (only sc_raster may)"),
-            );
-            rule(
-                dep != "anyhow" || krate == "sphereclip",
-                format!("{krate} uses anyhow (only sphereclip may)"),
-            );
-            rule(
-                dep != "winit" || krate == "sc_view_window" || krate == "sphereclip",
-                format!("{krate} links winit"),
-            );
+            if (dep == "gdal" || dep == "gdal-sys") && krate != "sc_raster" {
+                broken.push(format!("{krate} links GDAL (only sc_raster may)"));
+            }
+            if dep == "anyhow" && krate != "sphereclip" {
+                broken.push(format!("{krate} uses anyhow (only sphereclip may)"));
+            }
+            if dep.starts_with("winit") && krate != "sc_view_window" {
+                broken.push(format!("{krate} links winit (only sc_view_window may)"));
+            }
+            if dep == "wgpu" && (krate == "sc_view_plan" || krate == "sc_core") {
+                broken.push(format!("{krate} links wgpu"));
+            }
         }
     }
-    for dep in ["sc_store", "sc_raster", "wgpu", "gdal"] {
-        rule(!uses("sc_core", dep), format!("sc_core depends on {dep}"));
-    }
-    for dep in [
-        "wgpu",
-        "winit",
-        "egui",
-        "egui-wgpu",
-        "egui-winit",
-        "sc_view_gpu",
-    ] {
-        rule(
-            !uses("sc_view_plan", dep),
-            format!("sc_view_plan depends on {dep}"),
-        );
-    }
-    for dep in ["winit", "egui", "egui-winit", "egui-wgpu", "sc_view_window"] {
-        rule(
-            !uses("sc_view_gpu", dep),
-            format!("sc_view_gpu depends on {dep}"),
-        );
-    }
     assert!(broken.is_empty(), "{}", broken.join("\n"));
+}
+
+/// Every item name defined in the workspace's Rust code: functions, types, traits, constants,
+/// modules (files and folders too), enum variants and fields.
+fn defined_names() -> std::collections::BTreeSet<String> {
+    let mut out = std::collections::BTreeSet::new();
+    let ident = |s: &str| -> String {
+        s.chars()
+            .take_while(|c| c.is_alphanumeric() || *c == '_')
+            .collect()
+    };
+    for f in files() {
+        let top = f
+            .components()
+            .next()
+            .map(|c| c.as_os_str().to_string_lossy().into_owned());
+        if !matches!(top.as_deref(), Some("tools" | "viewer" | "bench" | "tests")) {
+            continue;
+        }
+        for c in f.components() {
+            let c = c.as_os_str().to_string_lossy();
+            out.insert(c.trim_end_matches(".rs").to_string());
+        }
+        if f.extension().is_none_or(|e| e != "rs") {
+            continue;
+        }
+        let text = std::fs::read_to_string(root().join(&f)).unwrap_or_default();
+        for line in text.lines() {
+            let words: Vec<&str> = line.split_whitespace().collect();
+            for w in words.windows(2) {
+                if matches!(
+                    w[0],
+                    "fn" | "struct" | "enum" | "trait" | "type" | "const" | "static" | "mod"
+                ) {
+                    out.insert(ident(w[1]));
+                }
+            }
+            // a variant or a field: `    Name,` `    Name(…)` `    Name {` `    pub name: T`
+            let t = line
+                .trim_start()
+                .trim_start_matches("pub ")
+                .trim_start_matches("pub(crate) ");
+            let name = ident(t);
+            let rest = &t[name.len()..];
+            if !name.is_empty()
+                && (rest.starts_with(',')
+                    || rest.starts_with('(')
+                    || rest.starts_with(" {")
+                    || rest.starts_with(':'))
+            {
+                out.insert(name);
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn every_rust_name_in_the_architecture_exists() {
+    let text = std::fs::read_to_string(root().join("ARCHITECTURE.md")).expect("ARCHITECTURE.md");
+    let names = defined_names();
+    let is_ident = |s: &str| {
+        !s.is_empty()
+            && s.chars().all(|c| c.is_alphanumeric() || c == '_')
+            && !s.starts_with(|c: char| c.is_ascii_digit())
+    };
+    let mut missing = Vec::new();
+    for span in text.split('`').skip(1).step_by(2) {
+        let span = span.trim_end_matches("()");
+        let segments: Vec<&str> = span.split("::").collect();
+        let camel = |s: &str| {
+            s.starts_with(|c: char| c.is_ascii_uppercase())
+                && s.chars().any(|c| c.is_ascii_lowercase())
+                && !s.contains('_')
+        };
+        // a path (`a::b`), or a CamelCase name (a type)
+        let rusty = (segments.len() > 1 && segments.iter().all(|s| is_ident(s)))
+            || (segments.len() == 1 && is_ident(span) && camel(span));
+        if rusty {
+            for s in segments {
+                if !names.contains(s) && !matches!(s, "crate" | "self" | "super") {
+                    missing.push(format!("{span} ({s})"));
+                }
+            }
+        }
+    }
+    missing.sort();
+    missing.dedup();
+    assert!(
+        missing.is_empty(),
+        "ARCHITECTURE.md names what the code does not define: {}",
+        missing.join(", ")
+    );
 }
 
 #[test]

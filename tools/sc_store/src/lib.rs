@@ -1,8 +1,10 @@
 //! The sphereclip tiled store: a Zarr v3 group with one sharded array per layer and level.
 //!
-//! Layout (see ARCHITECTURE.md): `STORE/zarr.json` is the group, its attribute `sphereclip` holds
-//! [`StoreMeta`]; `STORE/<layer>/<level key>` is one array per level, shard = `S×S` tiles, inner
-//! chunk = one `T×T` tile, each inner chunk and shard index carrying a crc32c.
+//! Layout (drawn in docs/design.md, "The store"): `STORE/zarr.json` is the root group, its attribute
+//! `sphereclip` holds [`StoreMeta`]; `STORE/<layer>/<level key>` is a group per level holding the
+//! data array `<layer>` (format 1: the level is the array itself), shard = `S×S` tiles, inner
+//! chunk = one `T×T` tile, each inner chunk and shard index carrying a crc32c; `lat`/`lon`
+//! coordinates and a grid mapping beside it for other readers.
 //!
 //! Invariants:
 //! - one process writes a store at a time (an OS lock on `STORE/.lock`);
