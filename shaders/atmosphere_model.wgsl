@@ -34,18 +34,7 @@ struct AtmosphereFrame {
     space: vec4<f32>,
 }
 
-const TRANSMITTANCE_W: u32 = 256u;
-const TRANSMITTANCE_H: u32 = 64u;
-const MS_SIZE: u32 = 32u;
-const MS_DIRECTIONS: u32 = 8u;
-const MS_STEPS: u32 = 20u;
-const SKY_VIEW_W: u32 = 192u;
-const SKY_VIEW_H: u32 = 108u;
-const SKY_STEPS: u32 = 30u;
-const AERIAL: u32 = 32u;
-const IRRADIANCE_W: u32 = 64u;
-const IRRADIANCE_H: u32 = 16u;
-const IRRADIANCE_DIRECTIONS: u32 = 8u;
+// the tables' sizes and sampling: shaders/constants.wgsl, generated from the Rust twins
 const PI: f32 = 3.14159265358979;
 
 fn extinction_at(h_in: f32) -> vec3<f32> {

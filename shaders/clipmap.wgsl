@@ -321,9 +321,9 @@ fn window_inside(k: u32, off: vec2<f32>, color: bool) -> f32 {
         open = levels[k].color_open;
     }
     let far = 1e9;
-    let ex = select(min(t.x, size.x - t.x), far, (open & 1u) != 0u);
-    let top = select(t.y, far, (open & 2u) != 0u);
-    let bottom = select(size.y - t.y, far, (open & 4u) != 0u);
+    let ex = select(min(t.x, size.x - t.x), far, (open & OPEN_ROUND) != 0u);
+    let top = select(t.y, far, (open & OPEN_NORTH) != 0u);
+    let bottom = select(size.y - t.y, far, (open & OPEN_SOUTH) != 0u);
     let edge = min(ex, min(top, bottom));
     return clamp((edge - 4.0) / 16.0, 0.0, 1.0);
 }
@@ -338,7 +338,7 @@ fn level_cap(l: u32, ring: f32, off: vec2<f32>, color: bool) -> f32 {
     var cap = min(ring, f32(l) - 1.0 + levels[l].fade);
     // a round colour window covers half a square one's colatitude: beyond it, the next coarser
     // level's (which covers the ring)
-    if (color && (levels[l].color_open & 1u) != 0u && l > frame.level_lo) {
+    if (color && (levels[l].color_open & OPEN_ROUND) != 0u && l > frame.level_lo) {
         cap = min(cap, f32(l) - 1.0 + window_inside(l, off, true));
     }
     // level k only where k − 1 is wholly available
@@ -441,7 +441,7 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
         // (2π/2N at every level): as many samples as the pixel covers of them, along its axis
         // that crosses the most
         let lt = min(u32(ceil(la)), frame.level_hi);
-        if ((levels[lt].color_open & 1u) != 0u) {
+        if ((levels[lt].color_open & OPEN_ROUND) != 0u) {
             let tpr = levels[lt].color_texels_per_rad;
             let tx = length(doff_x * tpr);
             let ty = length(doff_y * tpr);
@@ -458,10 +458,10 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
         c = c / n;
         albedo = mix(albedo, c.rgb, clamp(c.a, 0.0, 1.0));
     }
-    if ((frame.flags & 1u) != 0u) {
+    if ((frame.flags & FLAG_LEVEL_COLORS) != 0u) {
         albedo = mix(albedo, level_tint(l), 0.6);
     }
-    if ((frame.flags & 2u) != 0u) {
+    if ((frame.flags & FLAG_UNLIT) != 0u) {
         return vec4<f32>(albedo, 1.0);
     }
     // smooth normals from the height clipmap (blended between levels like the heights)

@@ -16,117 +16,42 @@ fn every_malformed_value_exits_2_with_one_line_naming_it_and_makes_nothing() {
     let t = s(&tif);
     let input = sample("N57E011.hgt");
     let i = s(&input);
-    // (arguments, the option the line names, the value it quotes)
-    let cases: Vec<(Vec<&str>, &str, &str)> = vec![
-        (
-            vec!["ingest", st, i, "--layer", "heights"],
-            "--layer",
-            "heights",
-        ),
-        (vec!["ingest", st, i, "--level", "4,x"], "--level", "4,x"),
-        (vec!["ingest", st, i, "--level", "99"], "--level", "99"),
-        (
-            vec!["ingest", st, i, "--bounds", "1,2,3"],
-            "--bounds",
-            "1,2,3",
-        ),
-        (
-            vec!["ingest", st, i, "--bounds", "10,0,5,5"],
-            "--bounds",
-            "10,0,5,5",
-        ),
-        (
-            vec!["ingest", st, i, "--bands", "3,x,1"],
-            "--bands",
-            "3,x,1",
-        ),
-        (
-            vec!["build", st, "--layer", "elevation"],
-            "--layer",
-            "elevation",
-        ),
-        (
-            vec!["inspect", st, "--out", t, "--layer", "rgb"],
-            "--layer",
-            "rgb",
-        ),
-        (
-            vec!["export", st, "--level", "3", "--layer", "x", t],
-            "--layer",
-            "x",
-        ),
-        (vec!["export", st, "--level", "3", p], "<OUT>", p),
-        (
-            vec!["render", st, "--camera", "1,2", "--out", p],
-            "--camera",
-            "1,2",
-        ),
-        (
-            vec!["render", st, "--camera", "1,2,x", "--out", p],
-            "--camera",
-            "1,2,x",
-        ),
-        (
-            vec![
-                "render", st, "--camera", "1,2,3", "--out", p, "--size", "64",
-            ],
-            "--size",
-            "64",
-        ),
-        (
-            vec![
-                "render", st, "--camera", "1,2,3", "--out", p, "--size", "8x8",
-            ],
-            "--size",
-            "8x8",
-        ),
-        (
-            vec![
-                "render", st, "--camera", "1,2,3", "--out", p, "--clear", "1,0",
-            ],
-            "--clear",
-            "1,0",
-        ),
-        (
-            vec![
-                "render",
-                st,
-                "--camera",
-                "1,2,3",
-                "--out",
-                p,
-                "--exaggeration",
-                "NaN",
-            ],
-            "--exaggeration",
-            "NaN",
-        ),
-        (
-            vec![
-                "render", st, "--camera", "1,2,3", "--out", p, "--sun", "10,95",
-            ],
-            "--sun",
-            "10,95",
-        ),
-        (
-            vec![
-                "render", st, "--camera", "1,2,3", "--out", p, "--time", "noon",
-            ],
-            "--time",
-            "noon",
-        ),
-        (
-            vec!["view", st, "--camera", "0,0", "--frames", "1"],
-            "--camera",
-            "0,0",
-        ),
-        (
-            vec!["view", st, "--size", "0x0", "--frames", "1"],
-            "--size",
-            "0x0",
-        ),
+    let ingest: &[&str] = &["ingest", st, i];
+    let render: &[&str] = &["render", st, "--camera", "1,2,3", "--out", p];
+    let view: &[&str] = &["view", st, "--frames", "1"];
+    // (the command, the option given a bad value, the value)
+    let cases: [(&[&str], &str, &str); 19] = [
+        (ingest, "--layer", "heights"),
+        (ingest, "--level", "4,x"),
+        (ingest, "--level", "99"),
+        (ingest, "--bounds", "1,2,3"),
+        (ingest, "--bounds", "10,0,5,5"),
+        (ingest, "--bands", "3,x,1"),
+        (&["build", st], "--layer", "elevation"),
+        (&["inspect", st, "--out", t], "--layer", "rgb"),
+        (&["export", st, "--level", "3", t], "--layer", "x"),
+        (&["render", st, "--out", p], "--camera", "1,2"),
+        (&["render", st, "--out", p], "--camera", "1,2,x"),
+        (render, "--size", "64"),
+        (render, "--size", "8x8"),
+        (render, "--clear", "1,0"),
+        (render, "--exaggeration", "NaN"),
+        (render, "--sun", "10,95"),
+        (render, "--time", "noon"),
+        (view, "--camera", "0,0"),
+        (view, "--size", "0x0"),
     ];
-    for (args, option, value) in &cases {
+    let mut all: Vec<(Vec<&str>, &str, &str)> = cases
+        .iter()
+        .map(|(command, option, value)| {
+            let mut args = command.to_vec();
+            args.extend([*option, *value]);
+            (args, *option, *value)
+        })
+        .collect();
+    // an export to a file type it cannot write
+    all.push((vec!["export", st, "--level", "3", p], "<OUT>", p));
+    for (args, option, value) in &all {
         let line = usage_failure(&run(args), &format!("{args:?}"));
         assert!(
             line.contains(&format!("'{value}'")) && line.contains(option),

@@ -10,8 +10,46 @@ pub mod measure;
 pub mod probe;
 pub mod render;
 
+/// The constants the shaders share with the Rust side, as WGSL: what `shaders/constants.wgsl`
+/// holds (a test keeps the file equal to this; `SPHERECLIP_BLESS=1` rewrites it). The Rust
+/// constants are the only source: table sizes of the atmosphere, the frame's flags, the sides
+/// of a colour window that are no edge.
+pub fn shader_constants() -> String {
+    use sc_view_plan::atmosphere as a;
+    use sc_view_plan::frame as f;
+    let u = |v: usize| u32::try_from(v).expect("a table size fits a u32");
+    let constants: [(&str, u32); 17] = [
+        ("TRANSMITTANCE_W", u(a::TRANSMITTANCE_SIZE.0)),
+        ("TRANSMITTANCE_H", u(a::TRANSMITTANCE_SIZE.1)),
+        ("MS_SIZE", u(a::MULTIPLE_SCATTERING_SIZE)),
+        ("MS_DIRECTIONS", u(a::MS_DIRECTIONS)),
+        ("MS_STEPS", u(a::MS_STEPS)),
+        ("SKY_VIEW_W", u(a::SKY_VIEW_SIZE.0)),
+        ("SKY_VIEW_H", u(a::SKY_VIEW_SIZE.1)),
+        ("SKY_STEPS", u(a::SKY_STEPS)),
+        ("AERIAL", u(a::AERIAL_SIZE)),
+        ("IRRADIANCE_W", u(a::IRRADIANCE_SIZE.0)),
+        ("IRRADIANCE_H", u(a::IRRADIANCE_SIZE.1)),
+        ("IRRADIANCE_DIRECTIONS", u(a::IRRADIANCE_DIRECTIONS)),
+        ("FLAG_LEVEL_COLORS", f::FLAG_LEVEL_COLORS),
+        ("FLAG_UNLIT", f::FLAG_UNLIT),
+        ("OPEN_ROUND", f::OPEN_ROUND),
+        ("OPEN_NORTH", f::OPEN_NORTH),
+        ("OPEN_SOUTH", f::OPEN_SOUTH),
+    ];
+    let mut out = String::from(
+        "// Generated from the Rust constants by `sc_view_gpu::shader_constants`: do not edit.\n\
+         // `SPHERECLIP_BLESS=1 cargo test -p sc_view_gpu shader_constants` rewrites it.\n\n",
+    );
+    for (name, value) in constants {
+        out += &format!("const {name}: u32 = {value}u;\n");
+    }
+    out
+}
+
 /// The WGSL of the clipmap renderer, from `shaders/` (the map transform first).
 pub const CLIPMAP_WGSL: &str = concat!(
+    include_str!("../../../shaders/constants.wgsl"),
     include_str!("../../../shaders/map_transform.wgsl"),
     include_str!("../../../shaders/atmosphere_model.wgsl"),
     include_str!("../../../shaders/clipmap.wgsl")
@@ -20,6 +58,7 @@ pub const CLIPMAP_WGSL: &str = concat!(
 /// The WGSL of the CDLOD renderer: the clipmap renderer's (its height reads and fragment stage),
 /// CDLOD's geometry and its vertex stage.
 pub const CDLOD_WGSL: &str = concat!(
+    include_str!("../../../shaders/constants.wgsl"),
     include_str!("../../../shaders/map_transform.wgsl"),
     include_str!("../../../shaders/atmosphere_model.wgsl"),
     include_str!("../../../shaders/clipmap.wgsl"),
@@ -30,6 +69,7 @@ pub const CDLOD_WGSL: &str = concat!(
 /// The WGSL of the geometry-image warping renderer: the clipmap renderer's and the warped
 /// mesh's vertex stage.
 pub const WARP_WGSL: &str = concat!(
+    include_str!("../../../shaders/constants.wgsl"),
     include_str!("../../../shaders/map_transform.wgsl"),
     include_str!("../../../shaders/atmosphere_model.wgsl"),
     include_str!("../../../shaders/clipmap.wgsl"),
@@ -39,24 +79,45 @@ pub const WARP_WGSL: &str = concat!(
 
 /// The WGSL of the warped mesh's geometry probe (a compute pass over its vertices).
 pub const WARP_PROBE_WGSL: &str = concat!(
+    include_str!("../../../shaders/constants.wgsl"),
     include_str!("../../../shaders/warp_geometry.wgsl"),
     include_str!("../../../shaders/warp_probe.wgsl")
 );
 
 /// The WGSL of the CDLOD geometry probe (a compute pass over patch vertices).
 pub const CDLOD_PROBE_WGSL: &str = concat!(
+    include_str!("../../../shaders/constants.wgsl"),
     include_str!("../../../shaders/cdlod_geometry.wgsl"),
     include_str!("../../../shaders/cdlod_probe.wgsl")
 );
 
 /// The WGSL of the atmosphere's lookup tables (compute passes; the model first).
 pub const ATMOSPHERE_WGSL: &str = concat!(
+    include_str!("../../../shaders/constants.wgsl"),
     include_str!("../../../shaders/atmosphere_model.wgsl"),
     include_str!("../../../shaders/atmosphere.wgsl")
 );
 
 /// The WGSL of the map-transform probe (a compute pass over vertices).
 pub const PROBE_WGSL: &str = concat!(
+    include_str!("../../../shaders/constants.wgsl"),
     include_str!("../../../shaders/map_transform.wgsl"),
     include_str!("../../../shaders/transform_probe.wgsl")
 );
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn shader_constants_file_is_what_the_rust_constants_generate() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shaders/constants.wgsl");
+        let want = super::shader_constants();
+        if std::env::var_os("SPHERECLIP_BLESS").is_some() {
+            std::fs::write(path, &want).expect("write shaders/constants.wgsl");
+        }
+        let have = std::fs::read_to_string(path).unwrap_or_default();
+        assert!(
+            have == want,
+            "shaders/constants.wgsl differs from the Rust constants; SPHERECLIP_BLESS=1 rewrites it:\n{want}"
+        );
+    }
+}

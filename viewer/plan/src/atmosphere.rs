@@ -327,10 +327,10 @@ impl TransmittanceLut {
 pub const MULTIPLE_SCATTERING_SIZE: usize = 32;
 
 /// Directions over the sphere the multiple-scattering table integrates (Hillaire's 64: 8×8).
-const MS_DIRECTIONS: usize = 8;
+pub const MS_DIRECTIONS: usize = 8;
 
 /// Steps along each of those directions.
-const MS_STEPS: usize = 20;
+pub const MS_STEPS: usize = 20;
 
 /// Rayleigh's phase function at the cosine `nu` of the scattering angle.
 pub fn rayleigh_phase(nu: f64) -> f64 {
@@ -1055,7 +1055,7 @@ pub const IRRADIANCE_SIZE: (usize, usize) = (64, 16);
 
 /// Directions over the upper hemisphere the sky-irradiance table integrates, per axis (zenith
 /// cosine, azimuth).
-const IRRADIANCE_DIRECTIONS: usize = 8;
+pub const IRRADIANCE_DIRECTIONS: usize = 8;
 
 /// The sky's irradiance on a horizontal surface: per altitude and sun angle, ∫ L_sky cos θ dω
 /// over the upper hemisphere, the sky's radiance by [`Atmosphere::sky`] (single and multiple

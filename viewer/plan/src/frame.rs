@@ -935,7 +935,7 @@ fn held_index(layer: LayerKind) -> usize {
 /// [`CLIPMAP_N`] cover.
 pub fn layer_window(i: u32, viewer: &Viewer, n: u32) -> (Placement, GridId) {
     let p = Placement::new(i, viewer, n);
-    (p, grid_of(&p))
+    (p, GridId::with_texels_of(&p))
 }
 
 /// Level `i`'s colour window of `n` texels a side around `viewer`, `lo` the coarsest level
@@ -950,19 +950,7 @@ pub fn color_window(i: u32, viewer: &Viewer, n: u32, lo: u32) -> (Placement, Gri
     } else {
         Placement::new(i, viewer, n)
     };
-    (p, grid_of(&p))
-}
-
-/// The grid of [`CLIPMAP_N`]-texel tiles with a window's texel size.
-fn grid_of(p: &Placement) -> GridId {
-    let n = f64::from(CLIPMAP_N);
-    // level L's colatitude texel is 2·outer(L)/N = π·2^−L/N
-    let level = (PI / (n * p.win.texel_colat)).log2().round();
-    let k = (2.0 * PI / (n * p.win.texel_lon)).log2().round();
-    GridId {
-        level: level.max(0.0) as u32,
-        k: k.max(0.0) as u32,
-    }
+    (p, GridId::with_texels_of(&p))
 }
 
 /// The tiles a window at `p` overlaps: the quad where the window is the tiles' size (see

@@ -28,7 +28,7 @@ use std::time::{Duration, Instant};
 
 use sc_store::StoreReader;
 
-use crate::clipmap::{LevelWindow, Placement, StoreColors, StoreHeights};
+use crate::clipmap::{CLIPMAP_N, LevelWindow, Placement, StoreColors, StoreHeights};
 use crate::detail::Detail;
 use crate::geometry::level_outer;
 
@@ -43,6 +43,15 @@ pub struct GridId {
 }
 
 impl GridId {
+    /// The grid of [`CLIPMAP_N`]-texel tiles with the texel size of the window at `p` (a colour
+    /// window of [`crate::clipmap::COLOR_N`] texels has level i + 1's texels).
+    pub fn with_texels_of(p: &Placement) -> Self {
+        let n = f64::from(CLIPMAP_N);
+        // level L's colatitude texel is 2·outer(L)/N = π·2^−L/N
+        let level = (PI / (n * p.win.texel_colat)).log2().round();
+        Self::of(level.max(0.0) as u32, p, CLIPMAP_N)
+    }
+
     /// The grid of clipmap level `level` placed at `p`.
     pub fn of(level: u32, p: &Placement, n: u32) -> Self {
         let k = (2.0 * PI / (f64::from(n) * p.win.texel_lon)).log2().round();
