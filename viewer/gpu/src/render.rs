@@ -18,6 +18,7 @@ use sc_view_plan::frame::{
 };
 use sc_view_plan::geometry::HemisphereSpec;
 use sc_view_plan::stream::Streamer;
+use sc_view_plan::terrain::GeometryFrame;
 use sc_view_plan::warp::{WarpFrame, mesh_indices};
 use wgpu::util::DeviceExt;
 
@@ -714,13 +715,13 @@ impl ClipmapPass {
             .write_buffer(&self.level_buf, 0, bytemuck::cast_slice(&plan.levels));
         self.last = plan.stats;
         self.last_frame = plan.frame;
-        match &plan.cdlod {
-            Some(f) => self.cdlod.upload(&self.device, &self.queue, f),
-            None => self.cdlod.leaves = None,
+        match &plan.geometry {
+            GeometryFrame::Cdlod(f) => self.cdlod.upload(&self.device, &self.queue, f),
+            _ => self.cdlod.leaves = None,
         }
-        match &plan.warp {
-            Some(f) => self.warp.upload(&self.device, &self.queue, f),
-            None => self.warp.drawn = false,
+        match &plan.geometry {
+            GeometryFrame::Warp(f) => self.warp.upload(&self.device, &self.queue, f),
+            _ => self.warp.drawn = false,
         }
         match self.options.atmosphere {
             Some(a) => {

@@ -6,7 +6,8 @@ use sc_view_gpu::render::Renderer;
 use sc_view_plan::camera::Camera;
 use sc_view_plan::cdlod::CdlodSpec;
 use sc_view_plan::clipmap::{ColorSource, HeightSource, LevelWindow};
-use sc_view_plan::frame::{DrawOptions, Geometry, view_projection};
+use sc_view_plan::frame::{DrawOptions, view_projection};
+use sc_view_plan::terrain::Geometry;
 use sc_view_plan::transform::Viewer;
 use sc_view_plan::warp::WarpSpec;
 

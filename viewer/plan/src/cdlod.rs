@@ -46,7 +46,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 
 use crate::camera::Camera;
-use crate::transform::{Viewer, offsets_f64};
+use crate::transform::{Viewer, offsets_f64, ring_of};
 
 /// Faces of the icosahedron.
 pub const FACES: usize = 20;
@@ -715,7 +715,7 @@ impl Walk<'_> {
         let ring = if far >= PI / 2.0 {
             0
         } else {
-            ((PI / 2.0 / far).log2().floor() as u32).min(MAX_RING)
+            (ring_of(far) as u32).min(MAX_RING)
         };
         let (h_min, h_max) =
             self.ranges[ring.saturating_sub(2).max(self.lo).min(MAX_RING) as usize];

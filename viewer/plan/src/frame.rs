@@ -14,7 +14,6 @@ use sc_store::LayerKind;
 
 use crate::atmosphere::Atmosphere;
 use crate::camera::Camera;
-use crate::cdlod::{CdlodFrame, CdlodPlanner, CdlodSpec};
 use crate::clipmap::{
     CLIPMAP_N, COLOR_N, ColorSource, HeightSource, Placement, Region, all_regions, changed_regions,
     fill_region,
@@ -22,8 +21,8 @@ use crate::clipmap::{
 use crate::geometry::{Hemisphere, HemisphereSpec, level_outer};
 use crate::stream::{Focus, GridId, Streamer, Task, Tile, TileData, TileKey};
 use crate::sun::Sun;
+use crate::terrain::{Geometry, GeometryFrame, GeometryInput, GeometryPlanner, planner_for};
 use crate::transform::{Viewer, finest_level_in_view, visible_levels};
-use crate::warp::{WarpFrame, WarpSpec};
 
 /// The frame uniform of `shaders/clipmap.wgsl`, as plain numbers (its layout is checked against
 /// the WGSL by the GPU crate's tests).
@@ -122,18 +121,6 @@ pub struct FrameStats {
     pub culled_horizon: u32,
     /// See `leaves`.
     pub culled_frustum: u32,
-}
-
-/// Which geometry draws the planet; both read the same clipmaps.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub enum Geometry {
-    /// Spherical geometry clipmaps (the static hemisphere around the viewer).
-    #[default]
-    Clipmap,
-    /// Icosahedral triangular CDLOD (`crate::cdlod`).
-    Cdlod(CdlodSpec),
-    /// One mesh warped every frame to where the view needs vertices (`crate::warp`).
-    Warp(WarpSpec),
 }
 
 /// How to draw: shading, vertical scale, the sun, and the viewer's debug toggles.
@@ -258,10 +245,8 @@ pub struct FramePlan {
     pub stats: FrameStats,
     /// The ground height under the camera, metres.
     pub ground: f64,
-    /// With [`Geometry::Cdlod`]: the leaves to draw and their uniform.
-    pub cdlod: Option<CdlodFrame>,
-    /// With [`Geometry::Warp`]: the warped mesh's rings and azimuths.
-    pub warp: Option<WarpFrame>,
+    /// What the geometry draws (CDLOD's leaves, the warped mesh…).
+    pub geometry: GeometryFrame,
 }
 
 /// The CPU side of the clipmap renderer: what each clipmap level holds, what was asked of the
@@ -290,10 +275,8 @@ pub struct FramePlanner {
     pub options: DrawOptions,
     /// Per level, how far it has faded in (streamed frames).
     fades: Vec<f32>,
-    /// CDLOD's tree, while it draws.
-    cdlod: Option<CdlodPlanner>,
-    /// The warped mesh's split between rings and azimuths last frame, while it draws.
-    warp_split: Option<i32>,
+    /// The geometry drawing, and its planner.
+    geometry: (Geometry, Box<dyn GeometryPlanner>),
     /// Per level, the lowest and highest height its clipmap holds (as drawn, not scaled).
     ranges: Vec<Option<(f32, f32)>>,
 }
@@ -315,8 +298,7 @@ impl FramePlanner {
             tile_top: HashMap::new(),
             options: DrawOptions::default(),
             fades: vec![0.0; levels],
-            cdlod: None,
-            warp_split: None,
+            geometry: (Geometry::Clipmap, planner_for(Geometry::Clipmap)),
             ranges: vec![None; levels],
         }
     }
@@ -484,8 +466,7 @@ impl FramePlanner {
             ..Default::default()
         };
         let frame = self.frame_uniform(&viewer, camera, (w, h), ground, colors.is_some(), stats);
-        let cdlod = self.plan_cdlod(camera, (w, h), &frame, &mut stats);
-        let warp = self.plan_warp(camera, (w, h), &frame, &mut stats);
+        let geometry = self.plan_geometry(camera, (w, h), &frame, &mut stats);
         FramePlan {
             uploads,
             tasks: Vec::new(),
@@ -493,89 +474,46 @@ impl FramePlanner {
             levels: self.level_uniforms.clone(),
             stats,
             ground,
-            cdlod,
-            warp,
+            geometry,
         }
     }
 
-    /// With [`Geometry::Cdlod`], the tree's leaves for this frame (its statistics into `stats`).
-    fn plan_cdlod(
+    /// This frame's geometry from the planner of the geometry the options ask for (made anew
+    /// when they ask for another).
+    fn plan_geometry(
         &mut self,
         camera: &Camera,
         size: (u32, u32),
         frame: &FrameUniform,
         stats: &mut FrameStats,
-    ) -> Option<CdlodFrame> {
-        let Geometry::Cdlod(spec) = self.options.geometry else {
-            self.cdlod = None;
-            return None;
-        };
-        let planner = match &mut self.cdlod {
-            Some(p) if p.spec == spec => p,
-            slot => slot.insert(CdlodPlanner::new(spec)),
-        };
+    ) -> GeometryFrame {
+        if self.geometry.0 != self.options.geometry {
+            self.geometry = (self.options.geometry, planner_for(self.options.geometry));
+        }
         let (lo, hi) = (stats.level_lo, stats.level_hi);
         let bounds = drawn_ranges(&self.ranges, (lo, hi), self.options.exaggeration);
-        let f = planner.plan(
+        let texels_per_rad: Vec<[f32; 2]> = self
+            .level_uniforms
+            .iter()
+            .map(|u| u.texels_per_rad)
+            .collect();
+        let input = GeometryInput {
             camera,
             size,
-            self.radius,
-            (
-                f64::from(frame.cam_height),
-                f64::from(frame.cam_height) - camera.alt,
-            ),
-            (&bounds, lo, hi),
-        );
-        stats.triangles = f.stats.triangles;
-        stats.leaves = f.stats.leaves;
-        stats.culled_horizon = f.stats.culled_horizon;
-        stats.culled_frustum = f.stats.culled_frustum;
-        Some(f)
-    }
-
-    /// With [`Geometry::Warp`], the mesh warped for this frame (its triangles into `stats`).
-    /// Its importance is bounded (the paper's I_s) by the texels of the clipmap level whose
-    /// heights the mesh carries at each arc (as `mesh_height` picks it): vertices closer than
-    /// those texels add nothing.
-    fn plan_warp(
-        &mut self,
-        camera: &Camera,
-        size: (u32, u32),
-        frame: &FrameUniform,
-        stats: &mut FrameStats,
-    ) -> Option<WarpFrame> {
-        let Geometry::Warp(spec) = self.options.geometry else {
-            self.warp_split = None;
-            return None;
+            radius: self.radius,
+            cam_height: f64::from(frame.cam_height),
+            levels: (lo, hi),
+            bounds: &bounds,
+            texels_per_rad: &texels_per_rad,
         };
-        let (lo, hi) = (stats.level_lo, stats.level_hi);
-        let ground = f64::from(frame.cam_height) - camera.alt;
-        let (low, high) = drawn_ranges(&self.ranges, (lo, hi), self.options.exaggeration)
-            .into_iter()
-            .flatten()
-            .fold((ground, ground), |(a, b), (l, h)| (a.min(l), b.max(h)));
-        let texels = |theta: f64| {
-            let ring = (std::f64::consts::FRAC_PI_2 / theta.max(1e-30))
-                .log2()
-                .floor()
-                .clamp(0.0, 25.0) as u32;
-            let lv = ring.clamp(lo, hi).max(lo + 1) - 1;
-            f64::from(self.level_uniforms[lv as usize].texels_per_rad[1])
-        };
-        let f = crate::warp::plan(
-            spec,
-            camera,
-            size,
-            self.radius,
-            f64::from(frame.cam_height),
-            ground,
-            (low, high),
-            texels,
-            self.warp_split,
-        );
-        self.warp_split = Some(f.mesh.split);
-        stats.triangles = f.triangles();
-        Some(f)
+        let g = self.geometry.1.plan(&input);
+        if let Some(c) = g.counts() {
+            stats.triangles = c.triangles;
+            stats.leaves = c.leaves;
+            stats.culled_horizon = c.culled_horizon;
+            stats.culled_frustum = c.culled_frustum;
+        }
+        g
     }
 
     /// The frame's uniforms.
@@ -891,8 +829,7 @@ impl FramePlanner {
             sources.color.is_some(),
             stats,
         );
-        let cdlod = self.plan_cdlod(camera, (w, h), &frame, &mut stats);
-        let warp = self.plan_warp(camera, (w, h), &frame, &mut stats);
+        let geometry = self.plan_geometry(camera, (w, h), &frame, &mut stats);
         FramePlan {
             uploads,
             tasks: self.last_tasks.clone(),
@@ -900,8 +837,7 @@ impl FramePlanner {
             levels: self.level_uniforms.clone(),
             stats,
             ground,
-            cdlod,
-            warp,
+            geometry,
         }
     }
 }

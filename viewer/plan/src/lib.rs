@@ -16,6 +16,7 @@ pub mod graph;
 pub mod reference;
 pub mod stream;
 pub mod sun;
+pub mod terrain;
 pub mod transform;
 pub mod warp;
 

@@ -207,15 +207,20 @@ pub fn visible_levels(
     let pixel = h * (fov_rad / f64::from(pixels.max(1))).tan();
     let theta_min = pixel * f64::from(steps.max(1)) / (2.0 * std::f64::consts::PI) / radius_m;
     let level_of = |theta: f64| -> u32 {
-        // level i spans (π/2·2^−(i+1), π/2·2^−i]
-        let i = (std::f64::consts::FRAC_PI_2 / theta.max(1e-300))
-            .log2()
-            .floor();
+        let i = ring_of(theta.max(1e-300));
         (i.max(0.0) as u32).min(levels - 1)
     };
     let lo = level_of(theta_max);
     let hi = level_of(theta_min).max(lo);
     (lo, hi)
+}
+
+/// The hemisphere ring (clipmap level) of the ground at arc `theta` from the point under the
+/// viewer, as a whole number: level i spans (π/2·2^−(i+1), π/2·2^−i], so ⌊log2(π/2 / θ)⌋
+/// (negative beyond π/2; callers clamp to the levels they have). The CPU twin of the ring level
+/// `ring_of` in `shaders/clipmap.wgsl` computes.
+pub fn ring_of(theta: f64) -> f64 {
+    (std::f64::consts::FRAC_PI_2 / theta).log2().floor()
 }
 
 /// The finest of levels `lo..=hi` whose ground can show in the view (coarse levels first: a

@@ -20,10 +20,11 @@ use sc_view_gpu::render::{
 };
 use sc_view_plan::camera::{Camera, CameraScript, Controller, Input, Mode};
 use sc_view_plan::cdlod::CdlodSpec;
-use sc_view_plan::frame::{DrawOptions, FrameClock, FrameStats, Geometry, StreamSources};
+use sc_view_plan::frame::{DrawOptions, FrameClock, FrameStats, StreamSources};
 use sc_view_plan::graph::{FilterHandle, FilterParams};
 use sc_view_plan::stream::Streamer;
 use sc_view_plan::sun::Sun;
+use sc_view_plan::terrain::Geometry;
 use sc_view_plan::warp::WarpSpec;
 
 /// How long a frame may spend updating clipmap levels before it draws what it has (Alg. 1).

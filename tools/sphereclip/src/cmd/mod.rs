@@ -134,9 +134,9 @@ pub fn clipmap_sources(
 }
 
 /// The geometry `--renderer` (and CDLOD's or the warp's options) ask for.
-pub fn geometry(look: &crate::cli::LookArgs) -> Result<sc_view_plan::frame::Geometry> {
+pub fn geometry(look: &crate::cli::LookArgs) -> Result<sc_view_plan::terrain::Geometry> {
     Ok(match look.renderer {
-        crate::cli::RendererKind::Clipmap => sc_view_plan::frame::Geometry::Clipmap,
+        crate::cli::RendererKind::Clipmap => sc_view_plan::terrain::Geometry::Clipmap,
         crate::cli::RendererKind::Cdlod => {
             let spec = sc_view_plan::cdlod::CdlodSpec {
                 patch: look.cdlod_patch,
@@ -144,7 +144,7 @@ pub fn geometry(look: &crate::cli::LookArgs) -> Result<sc_view_plan::frame::Geom
             };
             spec.check()
                 .map_err(|e| anyhow::anyhow!("--cdlod-patch/--cdlod-pixels: {e}"))?;
-            sc_view_plan::frame::Geometry::Cdlod(spec)
+            sc_view_plan::terrain::Geometry::Cdlod(spec)
         }
         crate::cli::RendererKind::Warp => {
             let spec = sc_view_plan::warp::WarpSpec {
@@ -153,7 +153,7 @@ pub fn geometry(look: &crate::cli::LookArgs) -> Result<sc_view_plan::frame::Geom
             }
             .validate()
             .map_err(|e| anyhow::anyhow!("--warp-mesh/--warp-importance: {e}"))?;
-            sc_view_plan::frame::Geometry::Warp(spec)
+            sc_view_plan::terrain::Geometry::Warp(spec)
         }
     })
 }

@@ -1,0 +1,189 @@
+//! The geometries that draw the planet, behind one interface: each is a [`GeometryPlanner`] that
+//! turns what the frame planner knows (camera, levels drawn, heights the clipmaps hold, texel
+//! sizes) into the [`GeometryFrame`] the GPU side draws. All read the same clipmaps, so they
+//! show the same data. Adding a geometry: its planner here (or in its own module), a variant of
+//! [`Geometry`] and of [`GeometryFrame`], and its line in [`planner_for`].
+
+use crate::camera::Camera;
+use crate::cdlod::{CdlodFrame, CdlodPlanner, CdlodSpec};
+use crate::transform::ring_of;
+use crate::warp::{WarpFrame, WarpSpec};
+
+/// Which geometry draws the planet; all read the same clipmaps.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum Geometry {
+    /// Spherical geometry clipmaps (the static hemisphere around the viewer).
+    #[default]
+    Clipmap,
+    /// Icosahedral triangular CDLOD (`crate::cdlod`).
+    Cdlod(CdlodSpec),
+    /// One mesh warped every frame to where the view needs vertices (`crate::warp`).
+    Warp(WarpSpec),
+}
+
+/// What a geometry draws this frame.
+#[derive(Debug, Clone, Default)]
+pub enum GeometryFrame {
+    /// The static hemisphere of spherical clipmaps (nothing to plan: its rings are fixed).
+    #[default]
+    Clipmap,
+    /// CDLOD's leaves and their uniform.
+    Cdlod(Box<CdlodFrame>),
+    /// The warped mesh's rings and azimuths.
+    Warp(WarpFrame),
+}
+
+/// What a geometry frame draws, for the frame's statistics.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct GeometryCounts {
+    /// Triangles drawn.
+    pub triangles: u32,
+    /// CDLOD: leaves drawn, and tree nodes culled beyond the horizon and outside the frustum.
+    pub leaves: u32,
+    /// See `leaves`.
+    pub culled_horizon: u32,
+    /// See `leaves`.
+    pub culled_frustum: u32,
+}
+
+impl GeometryFrame {
+    /// What it draws; `None` for the hemisphere, whose rings the frame planner counts.
+    pub fn counts(&self) -> Option<GeometryCounts> {
+        match self {
+            GeometryFrame::Clipmap => None,
+            GeometryFrame::Cdlod(f) => Some(GeometryCounts {
+                triangles: f.stats.triangles,
+                leaves: f.stats.leaves,
+                culled_horizon: f.stats.culled_horizon,
+                culled_frustum: f.stats.culled_frustum,
+            }),
+            GeometryFrame::Warp(f) => Some(GeometryCounts {
+                triangles: f.triangles(),
+                ..GeometryCounts::default()
+            }),
+        }
+    }
+}
+
+/// What every geometry is given each frame.
+#[derive(Debug, Clone, Copy)]
+pub struct GeometryInput<'a> {
+    /// The camera.
+    pub camera: &'a Camera,
+    /// The target, pixels.
+    pub size: (u32, u32),
+    /// The sphere's radius, metres.
+    pub radius: f64,
+    /// The camera's height above the sphere as the frame draws it (exaggerated ground +
+    /// altitude), metres.
+    pub cam_height: f64,
+    /// The coarsest and finest clipmap levels drawn.
+    pub levels: (u32, u32),
+    /// Per level, the lowest and highest height drawn (scaled), for the levels drawn.
+    pub bounds: &'a [Option<(f64, f64)>],
+    /// Per clipmap level, its texels per radian (longitude, colatitude) as drawn.
+    pub texels_per_rad: &'a [[f32; 2]],
+}
+
+impl GeometryInput<'_> {
+    /// The ground under the camera as drawn, metres.
+    pub fn ground(&self) -> f64 {
+        self.cam_height - self.camera.alt
+    }
+}
+
+/// Plans a geometry frame by frame (keeping whatever it carries from one frame to the next).
+pub trait GeometryPlanner: std::fmt::Debug + Send {
+    /// This frame's geometry.
+    fn plan(&mut self, input: &GeometryInput<'_>) -> GeometryFrame;
+}
+
+/// The planner of `geometry`: the one place that registers each geometry.
+pub fn planner_for(geometry: Geometry) -> Box<dyn GeometryPlanner> {
+    match geometry {
+        Geometry::Clipmap => Box::new(ClipmapGeometry),
+        Geometry::Cdlod(spec) => Box::new(CdlodGeometry::new(spec)),
+        Geometry::Warp(spec) => Box::new(WarpGeometry { spec, split: None }),
+    }
+}
+
+/// Spherical geometry clipmaps: the hemisphere's rings are static, the frame planner has already
+/// counted their triangles.
+#[derive(Debug)]
+pub struct ClipmapGeometry;
+
+impl GeometryPlanner for ClipmapGeometry {
+    fn plan(&mut self, _: &GeometryInput<'_>) -> GeometryFrame {
+        GeometryFrame::Clipmap
+    }
+}
+
+/// Icosahedral triangular CDLOD: the tree traversed per frame.
+#[derive(Debug)]
+pub struct CdlodGeometry {
+    tree: CdlodPlanner,
+}
+
+impl CdlodGeometry {
+    /// With `spec`'s patch and pixel error.
+    pub fn new(spec: CdlodSpec) -> Self {
+        Self {
+            tree: CdlodPlanner::new(spec),
+        }
+    }
+}
+
+impl GeometryPlanner for CdlodGeometry {
+    fn plan(&mut self, input: &GeometryInput<'_>) -> GeometryFrame {
+        let (lo, hi) = input.levels;
+        let f = self.tree.plan(
+            input.camera,
+            input.size,
+            input.radius,
+            (input.cam_height, input.ground()),
+            (input.bounds, lo, hi),
+        );
+        GeometryFrame::Cdlod(Box::new(f))
+    }
+}
+
+/// Geometry-image warping: one mesh warped every frame; its split between rings and azimuths
+/// carries over from frame to frame.
+#[derive(Debug)]
+pub struct WarpGeometry {
+    spec: WarpSpec,
+    split: Option<i32>,
+}
+
+impl GeometryPlanner for WarpGeometry {
+    /// The mesh's importance is bounded (the paper's I_s) by the texels of the clipmap level
+    /// whose heights the mesh carries at each arc (as `mesh_height` picks it): vertices closer
+    /// than those texels add nothing.
+    fn plan(&mut self, input: &GeometryInput<'_>) -> GeometryFrame {
+        let (lo, hi) = input.levels;
+        let ground = input.ground();
+        let (low, high) = input
+            .bounds
+            .iter()
+            .flatten()
+            .fold((ground, ground), |(a, b), (l, h)| (a.min(*l), b.max(*h)));
+        let texels = |theta: f64| {
+            let ring = ring_of(theta.max(1e-30)).clamp(0.0, 25.0) as u32;
+            let lv = ring.clamp(lo, hi).max(lo + 1) - 1;
+            f64::from(input.texels_per_rad[lv as usize][1])
+        };
+        let f = crate::warp::plan(
+            self.spec,
+            input.camera,
+            input.size,
+            input.radius,
+            input.cam_height,
+            ground,
+            (low, high),
+            texels,
+            self.split,
+        );
+        self.split = Some(f.mesh.split);
+        GeometryFrame::Warp(f)
+    }
+}
