@@ -159,7 +159,7 @@ struct RingPoint {
 fn ring_of(one_minus_cos: f32) -> RingPoint {
     let theta = 2.0 * asin(sqrt(0.5 * one_minus_cos));
     let lam = log2(1.5707964 / max(theta, 1e-30));
-    let ring = clamp(floor(lam), 0.0, 25.0);
+    let ring = clamp(floor(lam), 0.0, f32(MAX_RING));
     if (u32(ring) < frame.level_lo) {
         return RingPoint(frame.level_lo, 0.0);
     }

@@ -1,6 +1,7 @@
 // Generated from the Rust constants by `sc_view_gpu::shader_constants`: do not edit.
 // `SPHERECLIP_BLESS=1 cargo test -p sc_view_gpu shader_constants` rewrites it.
 
+const MAX_RING: u32 = 25u;
 const TRANSMITTANCE_W: u32 = 256u;
 const TRANSMITTANCE_H: u32 = 64u;
 const MS_SIZE: u32 = 32u;

@@ -4,6 +4,10 @@
 
 use sc_view_plan::geometry::HemisphereSpec;
 
+/// The depth buffer of every pass: float, reversed Z (cleared to 0, nearer is greater) with an
+/// infinite far plane, which serves orbit and the ground alike.
+pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
 /// Errors of the renderer.
 #[derive(Debug, thiserror::Error)]
 pub enum RenderError {

@@ -6,11 +6,10 @@
 
 use std::time::{Duration, Instant};
 
-use bytemuck::{Pod, Zeroable};
+use bytemuck::Zeroable;
 use sc_store::LayerKind;
 use sc_view_plan::atmosphere::AtmosphereFrame;
 use sc_view_plan::camera::Camera;
-use sc_view_plan::cdlod::{CdlodFrame, CdlodUniform, LeafInstance, patch_mesh};
 use sc_view_plan::clipmap::{CLIPMAP_N, COLOR_N, ColorSource, HeightSource, Region};
 use sc_view_plan::frame::{
     DrawOptions, FrameClock, FramePlan, FramePlanner, FrameStats, FrameUniform, LevelUniform,
@@ -18,24 +17,11 @@ use sc_view_plan::frame::{
 };
 use sc_view_plan::geometry::HemisphereSpec;
 use sc_view_plan::stream::Streamer;
-use sc_view_plan::terrain::GeometryFrame;
-use sc_view_plan::warp::{WarpFrame, mesh_indices};
-use wgpu::util::DeviceExt;
 
 use crate::atmosphere::AtmospherePasses;
+use crate::device::DEPTH_FORMAT;
 pub use crate::device::{RenderError, device_for, gpu_device, read_back};
-
-#[repr(C)]
-#[derive(Debug, Clone, Copy, Pod, Zeroable)]
-struct GpuVertex {
-    pxy: [f32; 2],
-    one_minus_cos: f32,
-    seam: f32,
-    level: u32,
-    depth: f32,
-}
-
-const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+use crate::terrain::{TerrainDraw, TerrainRenderer, TerrainSetup};
 
 /// The spherical-clipmap pass on a device, for any colour target format: static hemisphere
 /// geometry, height and colour clipmap texture arrays (toroidally addressed), pipelines. The
@@ -44,24 +30,27 @@ const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 pub struct ClipmapPass {
     device: wgpu::Device,
     queue: wgpu::Queue,
-    pipeline: wgpu::RenderPipeline,
+    /// Every geometry's renderer ([`crate::terrain::renderers`]), and which one draws the
+    /// frame uploaded last.
+    terrain: Vec<Box<dyn TerrainRenderer>>,
+    drawing: usize,
+    /// Whether the device draws triangle edges.
+    line_mode: bool,
+    /// What a terrain renderer is made with: the target's format, the layouts of groups 0 and
+    /// 1, the clipmap shader.
+    format: wgpu::TextureFormat,
+    shared_layouts: [wgpu::BindGroupLayout; 2],
+    clipmap_shader: wgpu::ShaderModule,
     sky: wgpu::RenderPipeline,
     atmosphere: AtmospherePasses,
     atmosphere_bind: wgpu::BindGroup,
     radius_m: f64,
     size: (u32, u32),
-    wire: Option<wgpu::RenderPipeline>,
-    vertices: wgpu::Buffer,
-    indices: wgpu::Buffer,
     heights: wgpu::Texture,
     colors: wgpu::Texture,
     frame_buf: wgpu::Buffer,
     level_buf: wgpu::Buffer,
     bind: wgpu::BindGroup,
-    /// The CDLOD renderer's resources (its pipelines share the layout, group 2 its own).
-    cdlod: CdlodResources,
-    /// The warped mesh's resources (group 2 its own).
-    warp: WarpResources,
     /// The CPU side: what each level holds, the streaming requests, the frame plans.
     planner: FramePlanner,
     /// What the last uploaded plan draws.
@@ -72,211 +61,6 @@ pub struct ClipmapPass {
     pub options: DrawOptions,
     /// Behind the planet and its atmosphere (linear RGB; the clear colour without atmosphere).
     pub space: [f64; 4],
-}
-
-/// CDLOD's pipelines, its patch (made for the patch size asked for), the leaves of the last frame.
-#[derive(Debug)]
-struct CdlodResources {
-    pipeline: wgpu::RenderPipeline,
-    wire: Option<wgpu::RenderPipeline>,
-    uniform: wgpu::Buffer,
-    bind: wgpu::BindGroup,
-    /// (segments, vertices, indices, index count) of the patch.
-    patch: Option<(u32, wgpu::Buffer, wgpu::Buffer, u32)>,
-    instances: Option<(wgpu::Buffer, u64)>,
-    /// Leaves drawn by the last frame uploaded; None: it drew clipmaps.
-    leaves: Option<u32>,
-}
-
-impl CdlodResources {
-    /// Writes a frame's uniform and leaves (buffers made or grown as needed).
-    fn upload(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, frame: &CdlodFrame) {
-        let n = frame.uniform.params[0];
-        if self.patch.as_ref().map(|p| p.0) != Some(n) {
-            let (v, i) = patch_mesh(n);
-            let vb = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("cdlod patch vertices"),
-                contents: bytemuck::cast_slice(&v),
-                usage: wgpu::BufferUsages::VERTEX,
-            });
-            let ib = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("cdlod patch indices"),
-                contents: bytemuck::cast_slice(&i),
-                usage: wgpu::BufferUsages::INDEX,
-            });
-            self.patch = Some((n, vb, ib, i.len() as u32));
-        }
-        queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&frame.uniform));
-        let bytes: &[u8] = bytemuck::cast_slice(&frame.leaves);
-        let held = self.instances.as_ref().map(|b| b.1);
-        if let Some(b) = grown(
-            device,
-            held,
-            bytes.len(),
-            "cdlod leaves",
-            wgpu::BufferUsages::VERTEX,
-        ) {
-            self.instances = Some(b);
-        }
-        if let Some((buf, _)) = &self.instances
-            && !bytes.is_empty()
-        {
-            queue.write_buffer(buf, 0, bytes);
-        }
-        self.leaves = Some(frame.leaves.len() as u32);
-    }
-}
-
-/// A buffer the vertex stage reads at `binding`.
-fn vertex_buffer_entry(binding: u32, ty: wgpu::BufferBindingType) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::VERTEX,
-        ty: wgpu::BindingType::Buffer {
-            ty,
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
-
-/// A new buffer for `usage` and writes when one of `held` bytes cannot take `len` (its size a
-/// power of two, at least 64 bytes, so that a growing list is reallocated rarely), with its size.
-fn grown(
-    device: &wgpu::Device,
-    held: Option<u64>,
-    len: usize,
-    label: &str,
-    usage: wgpu::BufferUsages,
-) -> Option<(wgpu::Buffer, u64)> {
-    let size = (len as u64).max(64).next_power_of_two();
-    held.is_none_or(|h| h < size).then(|| {
-        let buf = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some(label),
-            size,
-            usage: usage | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        (buf, size)
-    })
-}
-
-/// The warped mesh's pipelines, its index buffer (made for the mesh size asked for), and the
-/// rings and azimuths of the last frame.
-#[derive(Debug)]
-struct WarpResources {
-    pipeline: wgpu::RenderPipeline,
-    wire: Option<wgpu::RenderPipeline>,
-    layout: wgpu::BindGroupLayout,
-    uniform: wgpu::Buffer,
-    /// (cells along a line of azimuth and along a ring, indices, index count).
-    indices: Option<((u32, u32), wgpu::Buffer, u32)>,
-    /// The lines' buffer (as allocated) and the bind group over it.
-    lines: Option<(wgpu::Buffer, u64, wgpu::BindGroup)>,
-    /// Whether the last frame uploaded drew the warped mesh.
-    drawn: bool,
-}
-
-impl WarpResources {
-    /// Writes a frame's mesh size and lines (buffers made or grown as needed).
-    fn upload(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, frame: &WarpFrame) {
-        if self.indices.as_ref().map(|p| p.0) != Some(frame.cells()) {
-            let i = mesh_indices(frame.cells());
-            let ib = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("warp mesh indices"),
-                contents: bytemuck::cast_slice(&i),
-                usage: wgpu::BufferUsages::INDEX,
-            });
-            self.indices = Some((frame.cells(), ib, i.len() as u32));
-        }
-        let (rings, around) = frame.cells();
-        queue.write_buffer(
-            &self.uniform,
-            0,
-            bytemuck::cast_slice(&[around, rings, 0, 0]),
-        );
-        let bytes: &[u8] = bytemuck::cast_slice(&frame.lines);
-        let held = self.lines.as_ref().map(|b| b.1);
-        if let Some((buf, size)) = grown(
-            device,
-            held,
-            bytes.len(),
-            "warp lines",
-            wgpu::BufferUsages::STORAGE,
-        ) {
-            let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("warp"),
-                layout: &self.layout,
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: self.uniform.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: buf.as_entire_binding(),
-                    },
-                ],
-            });
-            self.lines = Some((buf, size, bind));
-        }
-        if let Some((buf, _, _)) = &self.lines {
-            queue.write_buffer(buf, 0, bytes);
-        }
-        self.drawn = true;
-    }
-}
-
-/// What distinguishes the terrain pipelines (the hemisphere's, CDLOD's and the warped mesh's):
-/// all draw into the same targets with the same depth test and the clipmap fragment stage.
-struct TerrainStage<'a> {
-    label: &'static str,
-    layout: &'a wgpu::PipelineLayout,
-    module: &'a wgpu::ShaderModule,
-    vertex_entry: &'static str,
-    buffers: &'a [wgpu::VertexBufferLayout<'a>],
-}
-
-impl TerrainStage<'_> {
-    fn pipeline(
-        &self,
-        device: &wgpu::Device,
-        format: wgpu::TextureFormat,
-        polygon_mode: wgpu::PolygonMode,
-    ) -> wgpu::RenderPipeline {
-        device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some(self.label),
-            layout: Some(self.layout),
-            vertex: wgpu::VertexState {
-                module: self.module,
-                entry_point: Some(self.vertex_entry),
-                compilation_options: Default::default(),
-                buffers: self.buffers,
-            },
-            primitive: wgpu::PrimitiveState {
-                cull_mode: None,
-                polygon_mode,
-                ..Default::default()
-            },
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: DEPTH_FORMAT,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Greater),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: self.module,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[Some(format.into())],
-            }),
-            multiview_mask: None,
-            cache: None,
-        })
-    }
 }
 
 fn clipmap_array(
@@ -327,29 +111,7 @@ impl ClipmapPass {
         radius_m: f64,
     ) -> Self {
         let planner = FramePlanner::new(radius_m);
-        let hemi = planner.hemisphere();
-        let levels = hemi.spec.levels;
-        let verts: Vec<GpuVertex> = hemi
-            .vertices
-            .iter()
-            .map(|v| GpuVertex {
-                pxy: [v.px, v.py],
-                one_minus_cos: v.one_minus_cos,
-                seam: v.seam,
-                level: v.level,
-                depth: v.depth,
-            })
-            .collect();
-        let vertices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("hemisphere vertices"),
-            contents: bytemuck::cast_slice(&verts),
-            usage: wgpu::BufferUsages::VERTEX,
-        });
-        let indices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("hemisphere indices"),
-            contents: bytemuck::cast_slice(&hemi.indices),
-            usage: wgpu::BufferUsages::INDEX,
-        });
+        let levels = planner.hemisphere().spec.levels;
         let heights = clipmap_array(
             device,
             "height clipmap",
@@ -459,124 +221,20 @@ impl ClipmapPass {
                 .collect::<Vec<_>>(),
         });
         atmosphere.disable(queue);
-        let cdlod_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("cdlod"),
-            entries: &[vertex_buffer_entry(0, wgpu::BufferBindingType::Uniform)],
-        });
-        let cdlod_uniform = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("cdlod"),
-            size: std::mem::size_of::<CdlodUniform>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let cdlod_bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("cdlod"),
-            layout: &cdlod_layout,
-            entries: &[wgpu::BindGroupEntry {
-                binding: 0,
-                resource: cdlod_uniform.as_entire_binding(),
-            }],
-        });
-        let warp_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("warp"),
-            entries: &[
-                vertex_buffer_entry(0, wgpu::BufferBindingType::Uniform),
-                vertex_buffer_entry(1, wgpu::BufferBindingType::Storage { read_only: true }),
-            ],
-        });
-        let warp_uniform = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("warp"),
-            size: 16,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let warp_pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("warp"),
-            bind_group_layouts: &[Some(&layout), Some(&air_layout), Some(&warp_layout)],
-            ..Default::default()
-        });
-        let warp_shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("warp.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(crate::WARP_WGSL.into()),
-        });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("clipmap"),
             bind_group_layouts: &[Some(&layout), Some(&air_layout)],
             ..Default::default()
         });
-        let cdlod_pipeline_layout =
-            device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some("cdlod"),
-                bind_group_layouts: &[Some(&layout), Some(&air_layout), Some(&cdlod_layout)],
-                ..Default::default()
-            });
-        let cdlod_shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("cdlod.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(crate::CDLOD_WGSL.into()),
-        });
-        let hemisphere_buffers = [wgpu::VertexBufferLayout {
-            array_stride: std::mem::size_of::<GpuVertex>() as u64,
-            step_mode: wgpu::VertexStepMode::Vertex,
-            attributes: &wgpu::vertex_attr_array![0 => Float32x2, 1 => Float32, 2 => Float32, 3 => Uint32, 4 => Float32],
-        }];
-        let patch_buffers = [
-            wgpu::VertexBufferLayout {
-                array_stride: 8,
-                step_mode: wgpu::VertexStepMode::Vertex,
-                attributes: &wgpu::vertex_attr_array![0 => Uint32x2],
-            },
-            wgpu::VertexBufferLayout {
-                array_stride: std::mem::size_of::<LeafInstance>() as u64,
-                step_mode: wgpu::VertexStepMode::Instance,
-                attributes: &wgpu::vertex_attr_array![1 => Uint32, 2 => Uint32, 3 => Sint32x2, 4 => Sint32, 5 => Float32],
-            },
-        ];
-        let clipmap = TerrainStage {
-            label: "clipmap",
-            layout: &pipeline_layout,
-            module: &shader,
-            vertex_entry: "vs_main",
-            buffers: &hemisphere_buffers,
+        let setup = TerrainSetup {
+            device,
+            format,
+            shared: [&layout, &air_layout],
+            clipmap_shader: &shader,
+            hemisphere: planner.hemisphere(),
         };
-        let cdlod_stage = TerrainStage {
-            label: "cdlod",
-            layout: &cdlod_pipeline_layout,
-            module: &cdlod_shader,
-            vertex_entry: "cdlod_vs",
-            buffers: &patch_buffers,
-        };
-        let warp_stage = TerrainStage {
-            label: "warp",
-            layout: &warp_pipeline_layout,
-            module: &warp_shader,
-            vertex_entry: "warp_vs",
-            buffers: &[],
-        };
-        let line_mode = device
-            .features()
-            .contains(wgpu::Features::POLYGON_MODE_LINE);
-        let make =
-            |stage: &TerrainStage, polygon_mode| stage.pipeline(device, format, polygon_mode);
-        let pipeline = make(&clipmap, wgpu::PolygonMode::Fill);
-        let wire = line_mode.then(|| make(&clipmap, wgpu::PolygonMode::Line));
-        let cdlod = CdlodResources {
-            pipeline: make(&cdlod_stage, wgpu::PolygonMode::Fill),
-            wire: line_mode.then(|| make(&cdlod_stage, wgpu::PolygonMode::Line)),
-            uniform: cdlod_uniform,
-            bind: cdlod_bind,
-            patch: None,
-            instances: None,
-            leaves: None,
-        };
-        let warp = WarpResources {
-            pipeline: make(&warp_stage, wgpu::PolygonMode::Fill),
-            wire: line_mode.then(|| make(&warp_stage, wgpu::PolygonMode::Line)),
-            layout: warp_layout,
-            uniform: warp_uniform,
-            indices: None,
-            lines: None,
-            drawn: false,
-        };
+        let terrain = crate::terrain::renderers(&setup);
+        let line_mode = setup.line_mode();
         // the sky: a screen-filling triangle where the terrain left the far plane
         let sky = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some("sky"),
@@ -608,22 +266,22 @@ impl ClipmapPass {
         Self {
             device: device.clone(),
             queue: queue.clone(),
-            pipeline,
+            terrain,
+            drawing: 0,
+            line_mode,
+            format,
+            shared_layouts: [layout, air_layout],
+            clipmap_shader: shader,
             sky,
             atmosphere,
             atmosphere_bind,
             radius_m,
             size: (1, 1),
-            wire,
-            vertices,
-            indices,
             heights,
             colors,
             frame_buf,
             level_buf,
             bind,
-            cdlod,
-            warp,
             planner,
             last: FrameStats::default(),
             last_frame: FrameUniform::zeroed(),
@@ -632,9 +290,29 @@ impl ClipmapPass {
         }
     }
 
+    /// Draws every frame from now on with a geometry from outside this crate: `planner` plans
+    /// its frames ([`sc_view_plan::terrain::GeometryFrame::Other`]) and the renderer `make`
+    /// builds draws them.
+    pub fn use_geometry(
+        &mut self,
+        planner: Box<dyn sc_view_plan::terrain::GeometryPlanner>,
+        make: impl FnOnce(&TerrainSetup<'_>) -> Box<dyn TerrainRenderer>,
+    ) {
+        let [frame, air] = &self.shared_layouts;
+        let setup = TerrainSetup {
+            device: &self.device,
+            format: self.format,
+            shared: [frame, air],
+            clipmap_shader: &self.clipmap_shader,
+            hemisphere: self.planner.hemisphere(),
+        };
+        self.terrain.push(make(&setup));
+        self.planner.use_geometry(planner);
+    }
+
     /// Whether the device draws wireframes.
     pub fn has_wireframe(&self) -> bool {
-        self.wire.is_some()
+        self.line_mode
     }
 
     /// Forgets what the clipmaps hold (a source's parameters changed and its tiles were dropped
@@ -653,17 +331,7 @@ impl ClipmapPass {
     /// index buffers, CDLOD's patch, leaf instances (the buffer as allocated) and uniform, or the
     /// warped mesh's indices, lines and uniform.
     pub fn geometry_bytes(&self) -> u64 {
-        let w = &self.warp;
-        if let (true, Some((_, i, _)), Some((_, n, _))) = (w.drawn, &w.indices, &w.lines) {
-            return i.size() + n + w.uniform.size();
-        }
-        let c = &self.cdlod;
-        match (c.leaves, &c.patch) {
-            (Some(_), Some((_, v, i, _))) => {
-                v.size() + i.size() + c.instances.as_ref().map_or(0, |b| b.1) + c.uniform.size()
-            }
-            _ => self.vertices.size() + self.indices.size(),
-        }
+        self.terrain[self.drawing].bytes()
     }
 
     /// Plans a frame with tiles sampled from the sources on this thread
@@ -715,13 +383,10 @@ impl ClipmapPass {
             .write_buffer(&self.level_buf, 0, bytemuck::cast_slice(&plan.levels));
         self.last = plan.stats;
         self.last_frame = plan.frame;
-        match &plan.geometry {
-            GeometryFrame::Cdlod(f) => self.cdlod.upload(&self.device, &self.queue, f),
-            _ => self.cdlod.leaves = None,
-        }
-        match &plan.geometry {
-            GeometryFrame::Warp(f) => self.warp.upload(&self.device, &self.queue, f),
-            _ => self.warp.drawn = false,
+        for (k, r) in self.terrain.iter_mut().enumerate() {
+            if r.upload(&self.device, &self.queue, &plan.geometry) {
+                self.drawing = k;
+            }
         }
         match self.options.atmosphere {
             Some(a) => {
@@ -780,56 +445,18 @@ impl ClipmapPass {
         );
     }
 
-    /// A geometry's wireframe pipeline when wireframes are asked for and drawn, else its fill.
-    fn pipeline_of<'a>(
-        &self,
-        fill: &'a wgpu::RenderPipeline,
-        wire: &'a Option<wgpu::RenderPipeline>,
-    ) -> &'a wgpu::RenderPipeline {
-        match (wire, self.options.wireframe) {
-            (Some(w), true) => w,
-            _ => fill,
-        }
-    }
-
-    /// Records the draw of the last prepared frame into `pass`: the fill disc closing the finest
-    /// visible level, then the rings of the visible levels from the finest outwards (near ground
-    /// first, so that the depth test spares the shading of far ground it hides).
+    /// Records the draw of the last prepared frame into `pass`: the terrain by the renderer of
+    /// its geometry, then the sky.
     pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>) {
-        let (lo, hi) = (self.last.level_lo as usize, self.last.level_hi as usize);
         pass.set_bind_group(0, &self.bind, &[]);
         pass.set_bind_group(1, &self.atmosphere_bind, &[]);
-        let c = &self.cdlod;
-        let w = &self.warp;
-        if let (true, Some((_, wi, count)), Some((_, _, bind))) = (w.drawn, &w.indices, &w.lines) {
-            pass.set_pipeline(self.pipeline_of(&w.pipeline, &w.wire));
-            pass.set_bind_group(2, bind, &[]);
-            pass.set_index_buffer(wi.slice(..), wgpu::IndexFormat::Uint32);
-            pass.draw_indexed(0..*count, 0, 0..1);
-        } else if let (Some(leaves), Some((_, pv, pi, count)), Some((inst, _))) =
-            (c.leaves, &c.patch, &c.instances)
-        {
-            pass.set_pipeline(self.pipeline_of(&c.pipeline, &c.wire));
-            pass.set_bind_group(2, &c.bind, &[]);
-            pass.set_vertex_buffer(0, pv.slice(..));
-            pass.set_vertex_buffer(1, inst.slice(..));
-            pass.set_index_buffer(pi.slice(..), wgpu::IndexFormat::Uint32);
-            if leaves > 0 {
-                pass.draw_indexed(0..*count, 0, 0..leaves);
-            }
-        } else {
-            pass.set_pipeline(self.pipeline_of(&self.pipeline, &self.wire));
-            pass.set_vertex_buffer(0, self.vertices.slice(..));
-            pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
-            // nearest first: the fill disc, then the rings from the finest level outwards
-            let hemi = self.planner.hemisphere();
-            pass.draw_indexed(hemi.fill_ranges[hi].clone(), 0, 0..1);
-            pass.draw_indexed(
-                hemi.level_ranges[hi].start..hemi.level_ranges[lo].end,
-                0,
-                0..1,
-            );
-        }
+        self.terrain[self.drawing].draw(
+            pass,
+            &TerrainDraw {
+                wireframe: self.options.wireframe,
+                levels: (self.last.level_lo, self.last.level_hi),
+            },
+        );
         if self.options.atmosphere.is_some() {
             pass.set_pipeline(&self.sky);
             pass.draw(0..3, 0..1);

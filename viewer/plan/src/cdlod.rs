@@ -238,8 +238,8 @@ pub struct FaceUniform {
     pub slots: [u32; 8],
 }
 
-/// The finest clipmap level (the hemisphere's 26 levels).
-const MAX_RING: u32 = 25;
+/// The finest clipmap level.
+const MAX_RING: u32 = crate::geometry::LEVELS - 1;
 
 /// Per clipmap level i, the lowest and highest height that points within its cap can read: the
 /// union of the ranges of levels i..=hi (within the levels drawn `lo..=hi`; a level unknown

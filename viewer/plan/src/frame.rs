@@ -275,13 +275,19 @@ pub struct FramePlanner {
     pub options: DrawOptions,
     /// Per level, how far it has faded in (streamed frames).
     fades: Vec<f32>,
-    /// The geometry drawing, and its planner.
-    geometry: (Geometry, Box<dyn GeometryPlanner>),
+    /// The geometry drawing (None: one given by [`Self::use_geometry`]), and its planner.
+    geometry: (Option<Geometry>, Box<dyn GeometryPlanner>),
     /// Per level, the lowest and highest height its clipmap holds (as drawn, not scaled).
     ranges: Vec<Option<(f32, f32)>>,
 }
 
 impl FramePlanner {
+    /// Plans every frame from now on with `planner`, whatever [`DrawOptions::geometry`] says (a
+    /// geometry from outside this crate).
+    pub fn use_geometry(&mut self, planner: Box<dyn GeometryPlanner>) {
+        self.geometry = (None, planner);
+    }
+
     /// A planner for a sphere of `radius_m` and the default hemisphere geometry.
     pub fn new(radius_m: f64) -> Self {
         let hemi = Hemisphere::new(HemisphereSpec::default());
@@ -298,7 +304,7 @@ impl FramePlanner {
             tile_top: HashMap::new(),
             options: DrawOptions::default(),
             fades: vec![0.0; levels],
-            geometry: (Geometry::Clipmap, planner_for(Geometry::Clipmap)),
+            geometry: (Some(Geometry::Clipmap), planner_for(Geometry::Clipmap)),
             ranges: vec![None; levels],
         }
     }
@@ -487,8 +493,13 @@ impl FramePlanner {
         frame: &FrameUniform,
         stats: &mut FrameStats,
     ) -> GeometryFrame {
-        if self.geometry.0 != self.options.geometry {
-            self.geometry = (self.options.geometry, planner_for(self.options.geometry));
+        if let Some(g) = self.geometry.0
+            && g != self.options.geometry
+        {
+            self.geometry = (
+                Some(self.options.geometry),
+                planner_for(self.options.geometry),
+            );
         }
         let (lo, hi) = (stats.level_lo, stats.level_hi);
         let bounds = drawn_ranges(&self.ranges, (lo, hi), self.options.exaggeration);

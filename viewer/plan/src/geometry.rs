@@ -44,13 +44,17 @@ pub struct HemisphereSpec {
     pub levels: u32,
 }
 
+/// The clipmap levels of the viewer's hemisphere: the one definition of their count (the ring
+/// rule's finest level, [`crate::terrain`]'s and the shaders' `MAX_RING`, is `LEVELS − 1`).
+pub const LEVELS: u32 = 26;
+
 impl Default for HemisphereSpec {
     /// 256 steps around, 16 rings per level, 26 levels (the finest ring ≈ 0.3 m on Earth).
     fn default() -> Self {
         Self {
             n: 256,
             m: 16,
-            levels: 26,
+            levels: LEVELS,
         }
     }
 }

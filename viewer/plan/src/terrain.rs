@@ -1,8 +1,10 @@
 //! The geometries that draw the planet, behind one interface: each is a [`GeometryPlanner`] that
 //! turns what the frame planner knows (camera, levels drawn, heights the clipmaps hold, texel
 //! sizes) into the [`GeometryFrame`] the GPU side draws. All read the same clipmaps, so they
-//! show the same data. Adding a geometry: its planner here (or in its own module), a variant of
-//! [`Geometry`] and of [`GeometryFrame`], and its line in [`planner_for`].
+//! show the same data. A geometry of the viewer: its planner here (or in its own module), a
+//! variant of [`Geometry`] and of [`GeometryFrame`], and its line in [`planner_for`]; one from
+//! outside the crate: its planner, handed to [`crate::frame::FramePlanner::use_geometry`], whose
+//! frames are [`GeometryFrame::Other`].
 
 use crate::camera::Camera;
 use crate::cdlod::{CdlodFrame, CdlodPlanner, CdlodSpec};
@@ -31,6 +33,9 @@ pub enum GeometryFrame {
     Cdlod(Box<CdlodFrame>),
     /// The warped mesh's rings and azimuths.
     Warp(WarpFrame),
+    /// What a geometry added from outside this crate ([`crate::frame::FramePlanner::use_geometry`])
+    /// hands its renderer.
+    Other(std::sync::Arc<dyn std::any::Any + Send + Sync>),
 }
 
 /// What a geometry frame draws, for the frame's statistics.
@@ -50,7 +55,7 @@ impl GeometryFrame {
     /// What it draws; `None` for the hemisphere, whose rings the frame planner counts.
     pub fn counts(&self) -> Option<GeometryCounts> {
         match self {
-            GeometryFrame::Clipmap => None,
+            GeometryFrame::Clipmap | GeometryFrame::Other(_) => None,
             GeometryFrame::Cdlod(f) => Some(GeometryCounts {
                 triangles: f.stats.triangles,
                 leaves: f.stats.leaves,
@@ -168,7 +173,8 @@ impl GeometryPlanner for WarpGeometry {
             .flatten()
             .fold((ground, ground), |(a, b), (l, h)| (a.min(*l), b.max(*h)));
         let texels = |theta: f64| {
-            let ring = ring_of(theta.max(1e-30)).clamp(0.0, 25.0) as u32;
+            let max_ring = f64::from(crate::geometry::LEVELS - 1);
+            let ring = ring_of(theta.max(1e-30)).clamp(0.0, max_ring) as u32;
             let lv = ring.clamp(lo, hi).max(lo + 1) - 1;
             f64::from(input.texels_per_rad[lv as usize][1])
         };
