@@ -134,14 +134,15 @@ fn the_window_shows_the_planet_and_the_panel() {
         e.contains("window") && e.contains("sphereclip render"),
         "{e}"
     );
-    // bad input is refused before any window opens
-    for (args, want) in [
+    // bad input is refused before any window opens (a malformed value as a usage error)
+    for (args, code, want) in [
         (
             vec!["view", s(&dir.path().join("none"))],
+            1,
             "cannot read store",
         ),
-        (vec!["view", s(&store), "--camera", "0,0"], "--camera"),
-        (vec!["view", s(&store), "--frames", "0"], "--frames"),
+        (vec!["view", s(&store), "--camera", "0,0"], 2, "--camera"),
+        (vec!["view", s(&store), "--frames", "0"], 1, "--frames"),
         (
             vec![
                 "view",
@@ -149,11 +150,12 @@ fn the_window_shows_the_planet_and_the_panel() {
                 "--flight",
                 s(&dir.path().join("none.toml")),
             ],
+            1,
             "none.toml",
         ),
     ] {
         let o = run(&args);
-        assert_eq!(o.status.code(), Some(1), "{args:?}");
+        assert_eq!(o.status.code(), Some(code), "{args:?}");
         let e = text(&o.stderr);
         assert_eq!(e.trim().lines().count(), 1, "{e}");
         assert!(e.contains(want), "{args:?}: {e}");

@@ -560,66 +560,10 @@ impl FramePlanner {
         }
     }
 
-    /// The frame of Alg. 1 (clipmap-data-synthesis §7) with tiles made by `streamer`'s worker
-    /// threads: posts the tiles of the visible levels' quads (and, as prefetch, of the next finer
-    /// level) when the focus moved, prunes the cache, then goes through the levels coarse to
-    /// fine, updating each from its quad; a level whose tiles are not ready (or failed) is not
-    /// waited for — the previous level is drawn as a full disc — and past `clock`'s deadline no
-    /// further level is updated. Only the coarsest visible level is waited for (up to `wait`), so
-    /// that something shows. Returns the ground height under the camera and what the frame draws.
-    pub fn plan_streamed(
-        &mut self,
-        streamer: &Streamer,
-        sources: StreamSources,
-        camera: &Camera,
-        (w, h): (u32, u32),
-        clock: FrameClock,
-        wait: Duration,
-    ) -> FramePlan {
-        let n = CLIPMAP_N;
-        debug_assert_eq!(streamer.tile_size(), n);
-        // colour shaded by the heights' detail needs the detail at the colour's texels: at
-        // COLOR_N that costs 2–5× the tile work (a pole view from 3000 km: 21 → 111 s to
-        // complete), so such colour keeps the heights' window size
-        self.color_n = match sources.color {
-            Some(c) if streamer.dependents(sources.height).contains(&c) => CLIPMAP_N,
-            _ => COLOR_N,
-        };
-        let viewer = Viewer::from_deg(camera.lat_deg, camera.lon_deg);
-        let levels = self.hemi.spec.levels;
-        let (lo, sharpest) = self.visible(camera, h);
-        let layers: Vec<(LayerKind, u32)> = std::iter::once((LayerKind::Height, sources.height))
-            .chain(sources.color.map(|c| (LayerKind::Color, c)))
-            .collect();
-        let windows: Vec<(u32, Placement, GridId)> = (lo..=(sharpest + 1).min(levels - 1))
-            .map(|i| {
-                let (p, grid) = layer_window(i, &viewer, n);
-                (i, p, grid)
-            })
-            .collect();
-        // each level's colour window, placed once (its uniform needs it without colour too)
-        let color_windows: Vec<(Placement, GridId)> = windows
-            .iter()
-            .map(|&(i, ..)| color_window(i, &viewer, self.color_n, lo))
-            .collect();
-        let placed = |k: usize, layer: LayerKind| match layer {
-            LayerKind::Height => (windows[k].1, windows[k].2),
-            LayerKind::Color => color_windows[k],
-        };
-        // levels whose ground is out of view are not drawn (the coarser disc covers it unseen),
-        // only prefetched: tilting the camera down finds their tiles made
-        let rises = self.rises(streamer, sources.height, &windows);
-        let wanted = finest_level_in_view(
-            self.radius,
-            camera.alt,
-            camera.pitch.to_radians(),
-            camera.fov.to_radians(),
-            (lo, sharpest),
-            |i| rises[(i - lo) as usize],
-        );
-        // the motion since the last frame, per second (radians of longitude and colatitude,
-        // and of arc)
-        let motion = self.prev_viewer.map(|(prev, then)| {
+    /// The motion since the last frame, per second: radians of longitude and colatitude, and of
+    /// arc (None on the first frame).
+    fn motion(&self, viewer: &Viewer, clock: FrameClock) -> Option<(f64, f64, f64)> {
+        self.prev_viewer.map(|(prev, then)| {
             let dt = clock
                 .now
                 .saturating_duration_since(then)
@@ -629,7 +573,21 @@ impl FramePlanner {
             let dcolat = viewer.colat_rad - prev.colat_rad;
             let arc = dcolat.hypot(dlon * viewer.colat_rad.sin());
             (dlon / dt, dcolat / dt, arc / dt)
-        });
+        })
+    }
+
+    /// Alg. 1's requests: the tiles the frame's windows `wins` need (levels `lo..=wanted` in
+    /// view, `sharpest` the finest worth drawing), with the prefetch, posted to `streamer` when
+    /// they changed; then the cache pruned around them.
+    fn post_tasks(
+        &mut self,
+        streamer: &Streamer,
+        wins: &FrameWindows,
+        viewer: &Viewer,
+        (lo, wanted, sharpest): (u32, u32, u32),
+        motion: Option<(f64, f64, f64)>,
+    ) {
+        let n = CLIPMAP_N;
         // 1. the tasks of this focus: the visible levels; as prefetch, the level just out of
         // view (terrain ahead may lift its ground into view any frame), and the finer ones (out
         // of view, or the next finer) whose window the camera does not cross within
@@ -643,10 +601,10 @@ impl FramePlanner {
         } else {
             wanted
         };
-        for (k, &(i, ..)) in windows.iter().enumerate() {
+        for (k, &(i, ..)) in wins.levels.iter().enumerate() {
             let crossed_slowly = speed * PREFETCH_FINER_S < 2.0 * level_outer(i);
-            for &(layer, src) in &layers {
-                let (p, grid) = placed(k, layer);
+            for &(layer, src) in &wins.layers {
+                let (p, grid) = wins.placed(k, layer);
                 let quad = window_keys(src, grid, &p);
                 if i <= wanted {
                     tasks.extend(quad.iter().copied().map(Task::visible));
@@ -680,7 +638,7 @@ impl FramePlanner {
                         lon_rad: viewer.lon_rad + dlon * t,
                         colat_rad: (viewer.colat_rad + dcolat * t).clamp(1e-9, PI - 1e-9),
                     };
-                    for &(layer, src) in &layers {
+                    for &(layer, src) in &wins.layers {
                         let (p, grid) = match layer {
                             LayerKind::Height => layer_window(i, &ahead, n),
                             LayerKind::Color => color_window(i, &ahead, self.color_n, lo),
@@ -692,25 +650,38 @@ impl FramePlanner {
                 }
             }
         }
-        self.prev_viewer = Some((viewer, clock.now));
         if tasks != self.last_tasks {
             streamer.request(tasks.clone());
             self.last_tasks = tasks;
         }
         streamer.prune(&focus, &self.last_tasks);
-        // 2. levels coarse to fine, as far as their tiles are ready
+    }
+
+    /// Alg. 1's levels coarse to fine (`lo..=wanted`), each updated from its tiles in the cache
+    /// if they are all there (the coarsest waited for up to `wait`), until one is missing or
+    /// the frame's deadline passes: the uploads, the finest level drawn with its tiles, how
+    /// many layers were filled, and whether a level stopped at a failed tile.
+    fn update_levels(
+        &mut self,
+        streamer: &Streamer,
+        wins: &FrameWindows,
+        (lo, wanted): (u32, u32),
+        clock: FrameClock,
+        wait: Duration,
+    ) -> (Vec<Upload>, Option<DrawnLevel>, u32, bool) {
         let mut uploads = Vec::new();
         let mut drawn = None;
         let mut filled = 0;
         let mut level_failed = false;
-        for (k, &(i, p, grid)) in windows.iter().enumerate() {
+        for (k, &(i, p, grid)) in wins.levels.iter().enumerate() {
             if i > wanted {
                 break;
             }
-            let level: Vec<(LayerKind, Placement, Vec<TileKey>)> = layers
+            let level: Vec<(LayerKind, Placement, Vec<TileKey>)> = wins
+                .layers
                 .iter()
                 .map(|&(layer, src)| {
-                    let (lp, lg) = placed(k, layer);
+                    let (lp, lg) = wins.placed(k, layer);
                     (layer, lp, window_keys(src, lg, &lp))
                 })
                 .collect();
@@ -742,9 +713,9 @@ impl FramePlanner {
                 }
                 filled += u32::from(!todo.is_empty());
             }
-            self.level_uniforms[i as usize] = level_uniform(&p, &color_windows[k].0);
+            self.level_uniforms[i as usize] = level_uniform(&p, &wins.color[k].0);
             let mut range = None;
-            for k in quad_keys(sources.height, grid, &p, n) {
+            for k in quad_keys(wins.height_source, grid, &p, CLIPMAP_N) {
                 let t = self.tile_extremes(streamer, k);
                 range = match (range, t) {
                     (None, Some(t)) => Some((t.2, t.0)),
@@ -758,12 +729,88 @@ impl FramePlanner {
                 break;
             }
         }
+        (uploads, drawn, filled, level_failed)
+    }
+
+    /// Advances each level's fade-in for a frame that drew levels `lo..=hi` (`drawn`: anything
+    /// at all); whether one is still fading.
+    fn fade(&mut self, drawn: bool, (lo, hi): (u32, u32)) -> bool {
+        // a level drawn for the first time fades in over the coarser one; the coarsest drawn is
+        // whole (nothing to fade from), levels not drawn start again from nothing
+        let mut fading = false;
+        for (i, f) in self.fades.iter_mut().enumerate() {
+            let i = i as u32;
+            *f = if !drawn || i < lo || i > hi {
+                0.0
+            } else if i == lo || !self.options.fade_in {
+                1.0
+            } else {
+                (*f + 1.0 / FADE_FRAMES as f32).min(1.0)
+            };
+            if let Some(u) = self.level_uniforms.get_mut(i as usize) {
+                u.fade = *f;
+            }
+            fading |= drawn && (lo..=hi).contains(&i) && *f < 1.0;
+        }
+        fading
+    }
+
+    /// The frame of Alg. 1 (clipmap-data-synthesis §7) with tiles made by `streamer`'s worker
+    /// threads: posts the tiles of the visible levels' quads (and, as prefetch, of the next finer
+    /// level) when the focus moved, prunes the cache, then goes through the levels coarse to
+    /// fine, updating each from its quad; a level whose tiles are not ready (or failed) is not
+    /// waited for — the previous level is drawn as a full disc — and past `clock`'s deadline no
+    /// further level is updated. Only the coarsest visible level is waited for (up to `wait`), so
+    /// that something shows. Returns the ground height under the camera and what the frame draws.
+    pub fn plan_streamed(
+        &mut self,
+        streamer: &Streamer,
+        sources: StreamSources,
+        camera: &Camera,
+        (w, h): (u32, u32),
+        clock: FrameClock,
+        wait: Duration,
+    ) -> FramePlan {
+        let n = CLIPMAP_N;
+        debug_assert_eq!(streamer.tile_size(), n);
+        // colour shaded by the heights' detail needs the detail at the colour's texels: at
+        // COLOR_N that costs 2–5× the tile work (a pole view from 3000 km: 21 → 111 s to
+        // complete), so such colour keeps the heights' window size
+        self.color_n = match sources.color {
+            Some(c) if streamer.dependents(sources.height).contains(&c) => CLIPMAP_N,
+            _ => COLOR_N,
+        };
+        let viewer = Viewer::from_deg(camera.lat_deg, camera.lon_deg);
+        let levels = self.hemi.spec.levels;
+        let (lo, sharpest) = self.visible(camera, h);
+        let wins = FrameWindows::new(
+            &viewer,
+            sources,
+            lo..=(sharpest + 1).min(levels - 1),
+            self.color_n,
+        );
+        let windows = &wins.levels;
+        // levels whose ground is out of view are not drawn (the coarser disc covers it unseen),
+        // only prefetched: tilting the camera down finds their tiles made
+        let rises = self.rises(streamer, sources.height, windows);
+        let wanted = finest_level_in_view(
+            self.radius,
+            camera.alt,
+            camera.pitch.to_radians(),
+            camera.fov.to_radians(),
+            (lo, sharpest),
+            |i| rises[(i - lo) as usize],
+        );
+        let motion = self.motion(&viewer, clock);
+        self.post_tasks(streamer, &wins, &viewer, (lo, wanted, sharpest), motion);
+        self.prev_viewer = Some((viewer, clock.now));
+        let (uploads, drawn, filled, level_failed) =
+            self.update_levels(streamer, &wins, (lo, wanted), clock, wait);
         let hi = match &drawn {
             Some((i, ..)) => *i,
             None => {
                 // nothing made yet (or the coarsest level failed): the sphere at sea level
-                if let (Some(&(i, p, _)), Some((pc, _))) = (windows.first(), color_windows.first())
-                {
+                if let (Some(&(i, p, _)), Some((pc, _))) = (windows.first(), wins.color.first()) {
                     self.level_uniforms[i as usize] = level_uniform(&p, pc);
                 }
                 lo
@@ -791,23 +838,7 @@ impl FramePlanner {
                 Some((Some(i), ground_from_quad(&q, &p, n)))
             })
             .unwrap_or((None, 0.0));
-        // a level drawn for the first time fades in over the coarser one; the coarsest drawn is
-        // whole (nothing to fade from), levels not drawn start again from nothing
-        let mut fading = false;
-        for (i, f) in self.fades.iter_mut().enumerate() {
-            let i = i as u32;
-            *f = if drawn.is_none() || i < lo || i > hi {
-                0.0
-            } else if i == lo || !self.options.fade_in {
-                1.0
-            } else {
-                (*f + 1.0 / FADE_FRAMES as f32).min(1.0)
-            };
-            if let Some(u) = self.level_uniforms.get_mut(i as usize) {
-                u.fade = *f;
-            }
-            fading |= drawn.is_some() && (lo..=hi).contains(&i) && *f < 1.0;
-        }
+        let fading = self.fade(drawn.is_some(), (lo, hi));
         // the ground as drawn while the finest level fades: its vertices blend from the heights
         // of the level before their own
         let ground = match (drawn.is_some(), vertex_level(hi, lo)) {
@@ -849,6 +880,62 @@ impl FramePlanner {
             stats,
             ground,
             geometry,
+        }
+    }
+}
+
+/// The finest level a streamed frame draws: the level, its height window, and per layer the
+/// tiles of its window.
+type DrawnLevel = (u32, Placement, Vec<Vec<Tile>>);
+
+/// The windows of the levels a streamed frame may draw or prefetch, each placed once.
+#[derive(Debug)]
+struct FrameWindows {
+    /// Per level, coarse to fine: the level, its height window and the grid of its tiles.
+    levels: Vec<(u32, Placement, GridId)>,
+    /// Per level, its colour window (placed even without colour: its uniform needs it).
+    color: Vec<(Placement, GridId)>,
+    /// The layers streamed and their sources.
+    layers: Vec<(LayerKind, u32)>,
+    /// The source of the heights.
+    height_source: u32,
+}
+
+impl FrameWindows {
+    /// Around `viewer`, for `levels`, colour windows of `color_n` texels.
+    fn new(
+        viewer: &Viewer,
+        sources: StreamSources,
+        levels: std::ops::RangeInclusive<u32>,
+        color_n: u32,
+    ) -> Self {
+        let lo = *levels.start();
+        let layers = std::iter::once((LayerKind::Height, sources.height))
+            .chain(sources.color.map(|c| (LayerKind::Color, c)))
+            .collect();
+        let levels: Vec<(u32, Placement, GridId)> = levels
+            .map(|i| {
+                let (p, grid) = layer_window(i, viewer, CLIPMAP_N);
+                (i, p, grid)
+            })
+            .collect();
+        let color = levels
+            .iter()
+            .map(|&(i, ..)| color_window(i, viewer, color_n, lo))
+            .collect();
+        Self {
+            levels,
+            color,
+            layers,
+            height_source: sources.height,
+        }
+    }
+
+    /// Level `k`'s window of `layer`.
+    fn placed(&self, k: usize, layer: LayerKind) -> (Placement, GridId) {
+        match layer {
+            LayerKind::Height => (self.levels[k].1, self.levels[k].2),
+            LayerKind::Color => self.color[k],
         }
     }
 }

@@ -497,202 +497,272 @@ impl Graph {
         if file.sources.is_empty() || file.sources.len() > MAX_SOURCES {
             return Err(format!("declare 1..{MAX_SOURCES} [[source]] tables"));
         }
-        let mut g = Graph::empty(0.0);
         if let Some(a) = &file.atmosphere {
             a.check()?;
         }
-        g.atmosphere = file.atmosphere;
-        // what each source makes
-        let mut kinds: Vec<LayerKind> = Vec::new();
-        // per source: the store heights it samples (stores of heights and their details), and
-        // for a detail, its input
-        let mut stores: Vec<Option<StoreHeightTiles>> = Vec::new();
-        let mut detail_of: Vec<Option<u32>> = Vec::new();
-        let find = |g: &Graph, name: &str, who: &str| -> Result<u32, String> {
-            g.names
-                .iter()
-                .position(|n| n == name)
-                .map(|i| i as u32)
-                .ok_or_else(|| {
-                    format!("source `{who}` takes `{name}`, which is not declared before it")
-                })
+        let mut b = GraphBuilder {
+            g: Graph::empty(0.0),
+            kinds: Vec::new(),
+            stores: Vec::new(),
+            detail_of: Vec::new(),
         };
+        b.g.atmosphere = file.atmosphere;
         for d in file.sources {
-            let name = match &d {
-                Decl::Store { name, .. }
-                | Decl::Overlay { name, .. }
-                | Decl::Detail { name, .. }
-                | Decl::Filter { name, .. } => name.clone(),
-            };
-            let mut store = None;
-            let mut detail_input = None;
-            if g.names.contains(&name) {
-                return Err(format!("source `{name}` is declared twice"));
-            }
-            match d {
-                Decl::Store { path, layer, .. } => {
-                    let full = here.join(&path);
-                    let reader = open(&full, &mut g.warnings)?;
-                    let kind = LayerKind::from_name(&layer).ok_or_else(|| {
-                        format!("source `{name}`: unknown layer `{layer}` (height or color)")
-                    })?;
-                    if reader.meta().levels(kind).is_empty() {
-                        return Err(format!(
-                            "source `{name}`: {} has no {layer} layer",
-                            full.display()
-                        ));
-                    }
-                    if g.radius == 0.0 {
-                        g.radius = reader.meta().radius_m;
-                    }
-                    match kind {
-                        LayerKind::Height => {
-                            let h = StoreHeightTiles::keeping_nodata(reader, true);
-                            store = Some(h.handle());
-                            g.sources.push(Box::new(h));
-                        }
-                        LayerKind::Color => g.sources.push(Box::new(StoreColorTiles::new(reader))),
-                    }
-                    kinds.push(kind);
-                }
-                Decl::Detail {
-                    input,
-                    heights,
-                    seed,
-                    hurst,
-                    amplitude,
-                    color,
-                    ..
-                } => {
-                    let i = find(&g, &input, &name)?;
-                    detail_input = Some(i);
-                    match (kinds[i as usize], heights) {
-                        (LayerKind::Height, None) => {
-                            let Some(base) = &stores[i as usize] else {
-                                return Err(format!(
-                                    "detail `{name}` needs the heights of a store, `{input}` is not one"
-                                ));
-                            };
-                            if detail_of[i as usize].is_some() {
-                                return Err(format!(
-                                    "detail `{name}`: `{input}` already has detail"
-                                ));
-                            }
-                            let d = DetailParams::default();
-                            let p = DetailParams {
-                                seed: seed.unwrap_or(d.seed),
-                                hurst: hurst.or(d.hurst),
-                                amplitude: amplitude.unwrap_or(d.amplitude),
-                                color: color.unwrap_or(d.color),
-                            };
-                            p.check().map_err(|e| format!("detail `{name}`: {e}"))?;
-                            let radius = base.radius_m();
-                            let h = base.with_detail(Arc::new(Detail::new(p, radius)));
-                            store = Some(h.handle());
-                            g.sources.push(Box::new(h));
-                            kinds.push(LayerKind::Height);
-                        }
-                        (LayerKind::Height, Some(_)) => {
-                            return Err(format!(
-                                "detail `{name}`: `heights` is for a colour detail; `{input}` makes heights"
-                            ));
-                        }
-                        (LayerKind::Color, None) => {
-                            return Err(format!(
-                                "detail `{name}` over colours needs `heights`: the detail heights that shade them"
-                            ));
-                        }
-                        (LayerKind::Color, Some(h)) => {
-                            if seed.is_some()
-                                || hurst.is_some()
-                                || amplitude.is_some()
-                                || color.is_some()
-                            {
-                                return Err(format!(
-                                    "detail `{name}` over colours takes its settings from `{h}`"
-                                ));
-                            }
-                            let hi = find(&g, &h, &name)?;
-                            let shaded = stores[hi as usize]
-                                .as_ref()
-                                .and_then(|s| DetailColorTiles::new(i, hi, s))
-                                .ok_or_else(|| {
-                                    format!(
-                                        "detail `{name}`: `{h}` is not a detail over a store's heights"
-                                    )
-                                })?;
-                            g.sources.push(Box::new(shaded));
-                            kinds.push(LayerKind::Color);
-                        }
-                    }
-                }
-                Decl::Overlay { inputs, .. } => {
-                    if inputs.is_empty() {
-                        return Err(format!("overlay `{name}` has no inputs"));
-                    }
-                    let idx: Vec<u32> = inputs
-                        .iter()
-                        .map(|i| find(&g, i, &name))
-                        .collect::<Result<_, _>>()?;
-                    let kind = kinds[idx[0] as usize];
-                    if idx.iter().any(|&i| kinds[i as usize] != kind) {
-                        return Err(format!("overlay `{name}` mixes heights and colours"));
-                    }
-                    g.sources.push(Box::new(Overlay { inputs: idx }));
-                    kinds.push(kind);
-                }
-                Decl::Filter {
-                    input,
-                    brightness,
-                    contrast,
-                    gamma,
-                    saturation,
-                    ..
-                } => {
-                    let i = find(&g, &input, &name)?;
-                    if kinds[i as usize] != LayerKind::Color {
-                        return Err(format!(
-                            "filter `{name}` needs a colour input, `{input}` makes heights"
-                        ));
-                    }
-                    let d = FilterParams::default();
-                    let p = FilterParams {
-                        brightness: brightness.unwrap_or(d.brightness),
-                        contrast: contrast.unwrap_or(d.contrast),
-                        gamma: gamma.unwrap_or(d.gamma),
-                        saturation: saturation.unwrap_or(d.saturation),
-                    };
-                    p.check().map_err(|e| format!("filter `{name}`: {e}"))?;
-                    let params = Arc::new(RwLock::new(p));
-                    g.filters.push(FilterHandle {
-                        name: name.clone(),
-                        source: g.sources.len() as u32,
-                        params: params.clone(),
-                    });
-                    g.sources.push(Box::new(ColorFilter { input: i, params }));
-                    kinds.push(LayerKind::Color);
-                }
-            }
-            g.names.push(name);
-            stores.push(store);
-            detail_of.push(detail_input);
+            b.declare(d, here)?;
         }
-        let h = find(&g, &file.clipmaps.height, "[clipmaps] height")?;
-        if kinds[h as usize] != LayerKind::Height {
+        b.finish(&file.clipmaps)
+    }
+}
+
+/// A graph being built from its declarations, in order.
+struct GraphBuilder {
+    g: Graph,
+    /// What each source makes.
+    kinds: Vec<LayerKind>,
+    /// Per source: the store heights it samples (stores of heights and their details).
+    stores: Vec<Option<StoreHeightTiles>>,
+    /// Per source: for a detail, its input.
+    detail_of: Vec<Option<u32>>,
+}
+
+impl GraphBuilder {
+    /// The source named `name`, which `who` takes: declared before it.
+    fn find(&self, name: &str, who: &str) -> Result<u32, String> {
+        self.g
+            .names
+            .iter()
+            .position(|n| n == name)
+            .map(|i| i as u32)
+            .ok_or_else(|| {
+                format!("source `{who}` takes `{name}`, which is not declared before it")
+            })
+    }
+
+    /// Adds the source `d` declares (store paths relative to `here`).
+    fn declare(&mut self, d: Decl, here: &Path) -> Result<(), String> {
+        let name = match &d {
+            Decl::Store { name, .. }
+            | Decl::Overlay { name, .. }
+            | Decl::Detail { name, .. }
+            | Decl::Filter { name, .. } => name.clone(),
+        };
+        if self.g.names.contains(&name) {
+            return Err(format!("source `{name}` is declared twice"));
+        }
+        let (store, detail_input) = match d {
+            Decl::Store { path, layer, .. } => (self.store(&name, &here.join(path), &layer)?, None),
+            Decl::Detail {
+                input,
+                heights,
+                seed,
+                hurst,
+                amplitude,
+                color,
+                ..
+            } => {
+                let i = self.find(&input, &name)?;
+                let params = (seed, hurst, amplitude, color);
+                (self.detail(&name, (i, &input), heights, params)?, Some(i))
+            }
+            Decl::Overlay { inputs, .. } => {
+                self.overlay(&name, &inputs)?;
+                (None, None)
+            }
+            Decl::Filter {
+                input,
+                brightness,
+                contrast,
+                gamma,
+                saturation,
+                ..
+            } => {
+                let p = (brightness, contrast, gamma, saturation);
+                self.filter(&name, &input, p)?;
+                (None, None)
+            }
+        };
+        self.g.names.push(name);
+        self.stores.push(store);
+        self.detail_of.push(detail_input);
+        Ok(())
+    }
+
+    /// A store's layer; a height layer's tiles, for details over it.
+    fn store(
+        &mut self,
+        name: &str,
+        full: &Path,
+        layer: &str,
+    ) -> Result<Option<StoreHeightTiles>, String> {
+        let mut store = None;
+        let reader = open(full, &mut self.g.warnings)?;
+        let kind = LayerKind::from_name(layer)
+            .ok_or_else(|| format!("source `{name}`: unknown layer `{layer}` (height or color)"))?;
+        if reader.meta().levels(kind).is_empty() {
             return Err(format!(
-                "[clipmaps] height = `{}` makes colours",
-                file.clipmaps.height
+                "source `{name}`: {} has no {layer} layer",
+                full.display()
             ));
         }
-        g.clipmaps.height = h;
-        if let Some(c) = &file.clipmaps.color {
-            let c = find(&g, c, "[clipmaps] color")?;
-            if kinds[c as usize] != LayerKind::Color {
-                return Err("[clipmaps] color names a height source".into());
-            }
-            g.clipmaps.color = Some(c);
+        if self.g.radius == 0.0 {
+            self.g.radius = reader.meta().radius_m;
         }
-        let off = |s: u32| detail_of[s as usize].unwrap_or(s);
+        match kind {
+            LayerKind::Height => {
+                let h = StoreHeightTiles::keeping_nodata(reader, true);
+                store = Some(h.handle());
+                self.g.sources.push(Box::new(h));
+            }
+            LayerKind::Color => self.g.sources.push(Box::new(StoreColorTiles::new(reader))),
+        }
+        self.kinds.push(kind);
+        Ok(store)
+    }
+
+    /// Detail over the source `i` (named `input`): over a store's heights, or colours shaded by
+    /// the detail heights `heights`.
+    fn detail(
+        &mut self,
+        name: &str,
+        (i, input): (u32, &str),
+        heights: Option<String>,
+        (seed, hurst, amplitude, color): (Option<u64>, Option<f64>, Option<f64>, Option<f64>),
+    ) -> Result<Option<StoreHeightTiles>, String> {
+        let mut store = None;
+        match (self.kinds[i as usize], heights) {
+            (LayerKind::Height, None) => {
+                let Some(base) = &self.stores[i as usize] else {
+                    return Err(format!(
+                        "detail `{name}` needs the heights of a store, `{input}` is not one"
+                    ));
+                };
+                if self.detail_of[i as usize].is_some() {
+                    return Err(format!("detail `{name}`: `{input}` already has detail"));
+                }
+                let d = DetailParams::default();
+                let p = DetailParams {
+                    seed: seed.unwrap_or(d.seed),
+                    hurst: hurst.or(d.hurst),
+                    amplitude: amplitude.unwrap_or(d.amplitude),
+                    color: color.unwrap_or(d.color),
+                };
+                p.check().map_err(|e| format!("detail `{name}`: {e}"))?;
+                let radius = base.radius_m();
+                let h = base.with_detail(Arc::new(Detail::new(p, radius)));
+                store = Some(h.handle());
+                self.g.sources.push(Box::new(h));
+                self.kinds.push(LayerKind::Height);
+            }
+            (LayerKind::Height, Some(_)) => {
+                return Err(format!(
+                    "detail `{name}`: `heights` is for a colour detail; `{input}` makes heights"
+                ));
+            }
+            (LayerKind::Color, None) => {
+                return Err(format!(
+                    "detail `{name}` over colours needs `heights`: the detail heights that shade them"
+                ));
+            }
+            (LayerKind::Color, Some(h)) => {
+                if seed.is_some() || hurst.is_some() || amplitude.is_some() || color.is_some() {
+                    return Err(format!(
+                        "detail `{name}` over colours takes its settings from `{h}`"
+                    ));
+                }
+                let hi = self.find(&h, name)?;
+                let shaded = self.stores[hi as usize]
+                    .as_ref()
+                    .and_then(|s| DetailColorTiles::new(i, hi, s))
+                    .ok_or_else(|| {
+                        format!("detail `{name}`: `{h}` is not a detail over a store's heights")
+                    })?;
+                self.g.sources.push(Box::new(shaded));
+                self.kinds.push(LayerKind::Color);
+            }
+        }
+        Ok(store)
+    }
+
+    /// An overlay of `inputs`, later ones over earlier ones.
+    fn overlay(&mut self, name: &str, inputs: &[String]) -> Result<(), String> {
+        if inputs.is_empty() {
+            return Err(format!("overlay `{name}` has no inputs"));
+        }
+        let idx: Vec<u32> = inputs
+            .iter()
+            .map(|i| self.find(i, name))
+            .collect::<Result<_, _>>()?;
+        let kind = self.kinds[idx[0] as usize];
+        if idx.iter().any(|&i| self.kinds[i as usize] != kind) {
+            return Err(format!("overlay `{name}` mixes heights and colours"));
+        }
+        self.g.sources.push(Box::new(Overlay { inputs: idx }));
+        self.kinds.push(kind);
+        Ok(())
+    }
+
+    /// A colour filter over `input`.
+    fn filter(
+        &mut self,
+        name: &str,
+        input: &str,
+        (brightness, contrast, gamma, saturation): (
+            Option<f32>,
+            Option<f32>,
+            Option<f32>,
+            Option<f32>,
+        ),
+    ) -> Result<(), String> {
+        let i = self.find(input, name)?;
+        if self.kinds[i as usize] != LayerKind::Color {
+            return Err(format!(
+                "filter `{name}` needs a colour input, `{input}` makes heights"
+            ));
+        }
+        let d = FilterParams::default();
+        let p = FilterParams {
+            brightness: brightness.unwrap_or(d.brightness),
+            contrast: contrast.unwrap_or(d.contrast),
+            gamma: gamma.unwrap_or(d.gamma),
+            saturation: saturation.unwrap_or(d.saturation),
+        };
+        p.check().map_err(|e| format!("filter `{name}`: {e}"))?;
+        let params = Arc::new(RwLock::new(p));
+        self.g.filters.push(FilterHandle {
+            name: name.to_string(),
+            source: self.g.sources.len() as u32,
+            params: params.clone(),
+        });
+        self.g
+            .sources
+            .push(Box::new(ColorFilter { input: i, params }));
+        self.kinds.push(LayerKind::Color);
+        Ok(())
+    }
+
+    /// The graph, with the sources its clipmaps draw.
+    fn finish(self, clipmaps: &Clipmaps) -> Result<Graph, String> {
+        let h = self.find(&clipmaps.height, "[clipmaps] height")?;
+        if self.kinds[h as usize] != LayerKind::Height {
+            return Err(format!(
+                "[clipmaps] height = `{}` makes colours",
+                clipmaps.height
+            ));
+        }
+        let color = match &clipmaps.color {
+            Some(c) => {
+                let c = self.find(c, "[clipmaps] color")?;
+                if self.kinds[c as usize] != LayerKind::Color {
+                    return Err("[clipmaps] color names a height source".into());
+                }
+                Some(c)
+            }
+            None => None,
+        };
+        let mut g = self.g;
+        g.clipmaps.height = h;
+        g.clipmaps.color = color;
+        let off = |s: u32| self.detail_of[s as usize].unwrap_or(s);
         g.without_detail = StreamSources {
             height: off(g.clipmaps.height),
             color: g.clipmaps.color.map(off),
