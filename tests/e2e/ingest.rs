@@ -57,6 +57,16 @@ fn bad_input_is_one_line_and_leaves_the_store_unchanged() {
                 "--bounds".into(),
                 "-200,-90,180,95".into(),
             ],
+            "-90 <= S < N <= 90",
+        ),
+        (
+            vec![
+                "--layer".into(),
+                "color".into(),
+                bm.display().to_string(),
+                "--bounds".into(),
+                "-200,-90,180,90".into(),
+            ],
             "out of range",
         ),
         (vec![huge.display().to_string()], "10000000x10000000"),
@@ -78,7 +88,8 @@ fn bad_input_is_one_line_and_leaves_the_store_unchanged() {
         let o = ingest(&store, &args);
         let err = text(&o.stderr);
         // a value the argument parser refuses exits 2, one found wrong later 1
-        let code = if expect == "'--resampling" { 2 } else { 1 };
+        let usage = ["'--resampling", "-90 <= S < N <= 90", "level"];
+        let code = if usage.contains(&expect) { 2 } else { 1 };
         assert_eq!(o.status.code(), Some(code), "{args:?}: {err}");
         let lines: Vec<&str> = err.lines().collect();
         assert_eq!(lines.len(), 1, "{args:?} should fail in one line:\n{err}");

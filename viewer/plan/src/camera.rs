@@ -15,6 +15,7 @@
 use glam::DVec3;
 
 use crate::ViewError;
+use crate::transform::LocalAxes;
 
 /// Moves the camera instead of the user: given the seconds since the last frame, the camera for
 /// this frame, or `None` when the script is over (a window closes).
@@ -231,14 +232,10 @@ impl Controller {
     }
 }
 
-/// Unit vectors at (lat, lon): position, north, east (at a pole "north" is the direction of
-/// longitude lon + 180°, so headings stay continuous through it).
+/// Unit vectors at (lat, lon): position, north, east ([`LocalAxes`]).
 fn frame(lat: f64, lon: f64) -> (DVec3, DVec3, DVec3) {
-    let (la, lo) = (lat.to_radians(), lon.to_radians());
-    let p = DVec3::new(la.cos() * lo.cos(), la.cos() * lo.sin(), la.sin());
-    let east = DVec3::new(-lo.sin(), lo.cos(), 0.0);
-    let north = DVec3::new(-la.sin() * lo.cos(), -la.sin() * lo.sin(), la.cos());
-    (p, north, east)
+    let a = LocalAxes::at(lat, lon);
+    (a.up, a.north, a.east)
 }
 
 /// Moves the camera `dist` metres along the great circle leaving at `bearing` (degrees); the

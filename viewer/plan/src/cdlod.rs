@@ -46,7 +46,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 
 use crate::camera::Camera;
-use crate::transform::{Viewer, offsets_f64, ring_of};
+use crate::transform::{Viewer, offsets_f64, ring_of, view_axes};
 
 /// Faces of the icosahedron.
 pub const FACES: usize = 20;
@@ -640,12 +640,15 @@ impl CdlodPlanner {
 /// view frame, as `frame::view_projection` builds the view (widened by 2 %).
 fn frustum_planes(viewer: &Viewer, camera: &Camera, aspect: f64) -> [DVec3; 5] {
     let o = viewer.orient();
-    let (north, east, up) = (DVec3::new(-o, 0.0, 0.0), DVec3::new(0.0, o, 0.0), DVec3::Z);
-    let (hd, pt) = (camera.heading.to_radians(), camera.pitch.to_radians());
-    let horiz = north * hd.cos() + east * hd.sin();
-    let f = (horiz * pt.cos() + up * pt.sin()).normalize();
-    let screen_up = if pt.abs() > 1.5 { horiz } else { up };
-    let s = f.cross(screen_up).normalize();
+    let axes = view_axes(
+        DVec3::new(-o, 0.0, 0.0),
+        DVec3::new(0.0, o, 0.0),
+        DVec3::Z,
+        camera.heading.to_radians(),
+        camera.pitch.to_radians(),
+    );
+    let f = axes.forward.normalize();
+    let s = f.cross(axes.screen_up).normalize();
     let u = s.cross(f);
     let tv = (camera.fov.to_radians() / 2.0).tan() * 1.02;
     let th = tv * aspect;

@@ -22,7 +22,7 @@ use crate::geometry::{Hemisphere, HemisphereSpec, level_outer};
 use crate::stream::{Focus, GridId, Streamer, Task, Tile, TileData, TileKey};
 use crate::sun::Sun;
 use crate::terrain::{Geometry, GeometryFrame, GeometryInput, GeometryPlanner, planner_for};
-use crate::transform::{Viewer, finest_level_in_view, visible_levels};
+use crate::transform::{Viewer, finest_level_in_view, view_axes, visible_levels};
 
 /// The frame uniform of `shaders/clipmap.wgsl`, as plain numbers (its layout is checked against
 /// the WGSL by the GPU crate's tests).
@@ -1173,18 +1173,14 @@ fn at_viewer(p: &Placement, mut at: impl FnMut(i64, i64) -> f64) -> f64 {
 /// perspective with an infinite far plane.
 pub fn view_projection(viewer: &Viewer, camera: &Camera, w: u32, h: u32) -> Mat4 {
     let o = viewer.orient() as f32;
-    let north = Vec3::new(-o, 0.0, 0.0);
-    let east = Vec3::new(0.0, o, 0.0);
-    let up = Vec3::Z;
-    let (hd, pt) = (
+    let axes = view_axes(
+        Vec3::new(-o, 0.0, 0.0),
+        Vec3::new(0.0, o, 0.0),
+        Vec3::Z,
         camera.heading.to_radians() as f32,
         camera.pitch.to_radians() as f32,
     );
-    let horiz = north * hd.cos() + east * hd.sin();
-    let forward = horiz * pt.cos() + up * pt.sin();
-    // looking straight down: "up" on screen is the heading
-    let screen_up = if pt.abs() > 1.5 { horiz } else { up };
-    let view = Mat4::look_to_rh(Vec3::ZERO, forward, screen_up);
+    let view = Mat4::look_to_rh(Vec3::ZERO, axes.forward, axes.screen_up);
     let near = (camera.alt * 0.01).clamp(0.05, 1000.0) as f32;
     let proj = Mat4::perspective_infinite_reverse_rh(
         camera.fov.to_radians() as f32,

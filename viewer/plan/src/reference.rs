@@ -12,6 +12,7 @@ use std::f64::consts::PI;
 use crate::camera::Camera;
 use crate::clipmap::{HeightSource, LevelWindow, StoreColors, StoreHeights};
 use crate::sun::unit_of;
+use crate::transform::{LocalAxes, view_axes};
 
 /// A clipmap texel finer than any stored level: the store's finest level with data serves.
 const FINEST: LevelWindow = LevelWindow {
@@ -90,16 +91,15 @@ impl ViewFrame {
             unit_of(camera.lat_deg, camera.lon_deg),
             ground_radius + camera.alt,
         );
-        let (slat, clat) = camera.lat_deg.to_radians().sin_cos();
-        let (slon, clon) = camera.lon_deg.to_radians().sin_cos();
-        let north = [-slat * clon, -slat * slon, clat];
-        let east = [-slon, clon, 0.0];
-        let up = [clat * clon, clat * slon, slat];
-        let (sh, ch) = camera.heading.to_radians().sin_cos();
-        let pitch = camera.pitch.to_radians();
-        let horiz = add(scale(north, ch), scale(east, sh));
-        let forward = add(scale(horiz, pitch.cos()), scale(up, pitch.sin()));
-        let screen_up = if pitch.abs() > 1.5 { horiz } else { up };
+        let local = LocalAxes::at(camera.lat_deg, camera.lon_deg);
+        let axes = view_axes(
+            local.north,
+            local.east,
+            local.up,
+            camera.heading.to_radians(),
+            camera.pitch.to_radians(),
+        );
+        let (forward, screen_up) = (axes.forward.to_array(), axes.screen_up.to_array());
         let right = normalize(cross(forward, screen_up));
         Self {
             eye,

@@ -4,7 +4,7 @@
 //! space of each frame (viewer at the north pole) where the shader lights the surface.
 
 use crate::ViewError;
-use crate::transform::Viewer;
+use crate::transform::{LocalAxes, Viewer};
 
 /// A unit direction towards the sun in the planet's frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -12,20 +12,13 @@ pub struct Sun(pub [f64; 3]);
 
 /// The unit vector of a point of the sphere at `lat`, `lon` (degrees).
 pub fn unit_of(lat_deg: f64, lon_deg: f64) -> [f64; 3] {
-    let (sl, cl) = lat_deg.to_radians().sin_cos();
-    let (so, co) = lon_deg.to_radians().sin_cos();
-    [cl * co, cl * so, sl]
+    LocalAxes::at(lat_deg, lon_deg).up.to_array()
 }
 
 /// The local frame at `lat`, `lon` (degrees): north, east and up unit vectors.
 fn local_frame(lat_deg: f64, lon_deg: f64) -> [[f64; 3]; 3] {
-    let (sl, cl) = lat_deg.to_radians().sin_cos();
-    let (so, co) = lon_deg.to_radians().sin_cos();
-    [
-        [-sl * co, -sl * so, cl],
-        [-so, co, 0.0],
-        [cl * co, cl * so, sl],
-    ]
+    let a = LocalAxes::at(lat_deg, lon_deg);
+    [a.north.to_array(), a.east.to_array(), a.up.to_array()]
 }
 
 fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {

@@ -13,6 +13,93 @@
 //! `q = ρ − p_x = p_y² / (ρ + p_x)` (when p_x > 0), so Δθ = atan2 of two well-conditioned terms,
 //! and `1 − cos θ̃` comes precomputed per vertex. [`offsets_f64`] is the exact twin.
 
+/// The local axes at a point of the sphere, planet frame (x towards latitude 0, longitude 0;
+/// z towards the north pole): up (the point's unit vector), north and east. At a pole "north" is
+/// the direction of longitude lon + 180°, so headings stay continuous through it. The one
+/// definition the camera, the sun and the ray-caster place things with.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LocalAxes {
+    /// The point's unit vector.
+    pub up: glam::DVec3,
+    /// Towards the north pole along the meridian.
+    pub north: glam::DVec3,
+    /// Towards the east along the circle of latitude.
+    pub east: glam::DVec3,
+}
+
+impl LocalAxes {
+    /// At `lat`, `lon` (degrees).
+    pub fn at(lat_deg: f64, lon_deg: f64) -> Self {
+        let (sl, cl) = lat_deg.to_radians().sin_cos();
+        let (so, co) = lon_deg.to_radians().sin_cos();
+        Self {
+            up: glam::DVec3::new(cl * co, cl * so, sl),
+            north: glam::DVec3::new(-sl * co, -sl * so, cl),
+            east: glam::DVec3::new(-so, co, 0.0),
+        }
+    }
+}
+
+/// A camera's axes from its local north, east and up (in any frame: the planet's, or the view
+/// space of [`Viewer`], where they are (−o, 0, 0), (0, o, 0) and z with o = [`Viewer::orient`]),
+/// in f32 (what the GPU is given) or f64.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ViewAxes<V> {
+    /// The horizontal direction of view (the heading).
+    pub horiz: V,
+    /// The direction of view (not normalised).
+    pub forward: V,
+    /// "Up" on screen: the local up, or the heading when looking (almost) straight down.
+    pub screen_up: V,
+}
+
+/// A float type [`view_axes`] works in.
+pub trait ViewFloat: Copy + PartialOrd {
+    /// sin and cos.
+    fn sin_cos(self) -> (Self, Self);
+    /// |self|.
+    fn abs(self) -> Self;
+    /// Pitches steeper than this (radians) count as looking straight down or up.
+    const STRAIGHT: Self;
+}
+
+impl ViewFloat for f32 {
+    fn sin_cos(self) -> (Self, Self) {
+        (self.sin(), self.cos())
+    }
+    fn abs(self) -> Self {
+        f32::abs(self)
+    }
+    const STRAIGHT: Self = 1.5;
+}
+
+impl ViewFloat for f64 {
+    fn sin_cos(self) -> (Self, Self) {
+        (self.sin(), self.cos())
+    }
+    fn abs(self) -> Self {
+        f64::abs(self)
+    }
+    const STRAIGHT: Self = 1.5;
+}
+
+/// The camera's axes for `heading` (clockwise from north) and `pitch` (up from the horizon),
+/// radians, from its local `north`, `east` and `up`.
+pub fn view_axes<S, V>(north: V, east: V, up: V, heading: S, pitch: S) -> ViewAxes<V>
+where
+    S: ViewFloat,
+    V: Copy + std::ops::Add<Output = V> + std::ops::Mul<S, Output = V>,
+{
+    let (sh, ch) = heading.sin_cos();
+    let (sp, cp) = pitch.sin_cos();
+    let horiz = north * ch + east * sh;
+    ViewAxes {
+        horiz,
+        forward: horiz * cp + up * sp,
+        screen_up: if pitch.abs() > S::STRAIGHT { horiz } else { up },
+    }
+}
+
 /// The viewer's position as the transform needs it (f64 on the CPU).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Viewer {

@@ -168,10 +168,14 @@ impl ViewImportance {
         params: ImportanceParams,
     ) -> Self {
         let o = Viewer::from_deg(camera.lat_deg, camera.lon_deg).orient();
-        let (hs, hc) = camera.heading.to_radians().sin_cos();
-        let (ps, pc) = camera.pitch.to_radians().sin_cos();
-        let horiz = DVec3::new(-o * hc, o * hs, 0.0);
-        let forward = horiz * pc + DVec3::Z * ps;
+        let forward = crate::transform::view_axes(
+            DVec3::new(-o, 0.0, 0.0),
+            DVec3::new(0.0, o, 0.0),
+            DVec3::Z,
+            camera.heading.to_radians(),
+            camera.pitch.to_radians(),
+        )
+        .forward;
         let ty = (camera.fov.to_radians() / 2.0).tan();
         // pixels a metre spans at one metre's distance, face-on
         let px_per_m = f64::from(pixels_high) / (2.0 * ty);
