@@ -361,7 +361,7 @@ pub struct LookArgs {
     /// Put the sun where it stands at this UTC time (e.g. 2026-06-21T12:00:00Z): straight above
     /// its subsolar point.
     #[arg(long, value_parser = time_arg)]
-    pub time: Option<String>,
+    pub time: Option<f64>,
     /// The atmosphere: sky, sun disc and aerial perspective (Earth's, or the `[atmosphere]`
     /// table of the source graph); off: space is the clear colour, the terrain lit as without
     /// air. `--shading none` draws none.
@@ -477,7 +477,7 @@ pub struct ExportArgs {
     pub level: LevelId,
     /// Output file: `.tif`/`.tiff` (Cloud Optimized GeoTIFF) or `.exr` (heights only).
     #[arg(value_parser = export_file_arg)]
-    pub out: PathBuf,
+    pub out: ExportFile,
     /// Only the texels this box touches, W,S,E,N in degrees (snapped outward to whole texels of
     /// the coarsest overview), e.g. -6,7,-5,8.
     #[arg(long, allow_hyphen_values = true, value_parser = bounds_arg)]
@@ -639,6 +639,24 @@ pub enum LevelArg {
 /// W,S,E,N in degrees.
 pub type Bounds = [f64; 4];
 
+/// What `export` writes, by the output file's extension.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ExportFormat {
+    /// `.tif`, `.tiff`: a Cloud Optimized GeoTIFF.
+    GeoTiff,
+    /// `.exr`: an f32 OpenEXR heightmap.
+    Exr,
+}
+
+/// `export`'s output file and its format.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ExportFile {
+    /// The file.
+    pub path: PathBuf,
+    /// Its format.
+    pub format: ExportFormat,
+}
+
 /// 1-based band numbers.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Bands(pub Vec<usize>);
@@ -733,21 +751,22 @@ fn sun_arg(s: &str) -> Result<String, String> {
         .map_err(|e| e.to_string())
 }
 
-fn time_arg(s: &str) -> Result<String, String> {
-    sc_view_plan::sun::parse_utc(s)
-        .map(|_| s.to_string())
-        .map_err(|e| e.to_string())
+/// Seconds since the Unix epoch.
+fn time_arg(s: &str) -> Result<f64, String> {
+    sc_view_plan::sun::parse_utc(s).map_err(|e| e.to_string())
 }
 
-fn export_file_arg(s: &str) -> Result<PathBuf, String> {
-    let p = PathBuf::from(s);
-    match p
+fn export_file_arg(s: &str) -> Result<ExportFile, String> {
+    let path = PathBuf::from(s);
+    let format = match path
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase)
         .as_deref()
     {
-        Some("tif" | "tiff" | "exr") => Ok(p),
-        _ => Err("expected a file ending in .tif, .tiff or .exr".into()),
-    }
+        Some("tif" | "tiff") => ExportFormat::GeoTiff,
+        Some("exr") => ExportFormat::Exr,
+        _ => return Err("expected a file ending in .tif, .tiff or .exr".into()),
+    };
+    Ok(ExportFile { path, format })
 }

@@ -46,7 +46,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 
 use crate::camera::Camera;
-use crate::transform::{Viewer, offsets_f64, ring_of, view_axes};
+use crate::transform::{Viewer, offsets_f64, ring_of};
 
 /// Faces of the icosahedron.
 pub const FACES: usize = 20;
@@ -639,14 +639,7 @@ impl CdlodPlanner {
 /// The view frustum's inward plane normals through the camera (left, right, bottom, top, near),
 /// view frame, as `frame::view_projection` builds the view (widened by 2 %).
 fn frustum_planes(viewer: &Viewer, camera: &Camera, aspect: f64) -> [DVec3; 5] {
-    let o = viewer.orient();
-    let axes = view_axes(
-        DVec3::new(-o, 0.0, 0.0),
-        DVec3::new(0.0, o, 0.0),
-        DVec3::Z,
-        camera.heading.to_radians(),
-        camera.pitch.to_radians(),
-    );
+    let axes = viewer.camera_axes(camera.heading, camera.pitch);
     let f = axes.forward.normalize();
     let s = f.cross(axes.screen_up).normalize();
     let u = s.cross(f);

@@ -22,7 +22,7 @@ use crate::geometry::{Hemisphere, HemisphereSpec, level_outer};
 use crate::stream::{Focus, GridId, Streamer, Task, Tile, TileData, TileKey};
 use crate::sun::Sun;
 use crate::terrain::{Geometry, GeometryFrame, GeometryInput, GeometryPlanner, planner_for};
-use crate::transform::{Viewer, finest_level_in_view, view_axes, visible_levels};
+use crate::transform::{Viewer, finest_level_in_view, vertex_level, view_axes, visible_levels};
 
 /// The frame uniform of `shaders/clipmap.wgsl`, as plain numbers (its layout is checked against
 /// the WGSL by the GPU crate's tests).
@@ -1130,13 +1130,6 @@ fn height_extremes(tile: &TileData, n: u32) -> (f32, f32, f32) {
         }
     }
     (top, step, bottom)
-}
-
-/// The level whose heights the mesh of ring `i` carries (`shaders/clipmap.wgsl`, `vs_main`): the
-/// next coarser one, whose texels are about as far apart as the ring's vertices (the ring's own,
-/// twice as fine, shade it), or the coarsest level drawn.
-fn vertex_level(i: u32, lo: u32) -> u32 {
-    i.max(lo + 1) - 1
 }
 
 /// Height under the viewer, bilinear from a level's height quad.

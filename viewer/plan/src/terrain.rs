@@ -8,7 +8,7 @@
 
 use crate::camera::Camera;
 use crate::cdlod::{CdlodFrame, CdlodPlanner, CdlodSpec};
-use crate::transform::ring_of;
+use crate::transform::{ring_of, vertex_level};
 use crate::warp::{WarpFrame, WarpSpec};
 
 /// Which geometry draws the planet; all read the same clipmaps.
@@ -175,7 +175,7 @@ impl GeometryPlanner for WarpGeometry {
         let texels = |theta: f64| {
             let max_ring = f64::from(crate::geometry::LEVELS - 1);
             let ring = ring_of(theta.max(1e-30)).clamp(0.0, max_ring) as u32;
-            let lv = ring.clamp(lo, hi).max(lo + 1) - 1;
+            let lv = vertex_level(ring.clamp(lo, hi), lo);
             f64::from(input.texels_per_rad[lv as usize][1])
         };
         let f = crate::warp::plan(

@@ -118,6 +118,19 @@ impl Viewer {
         }
     }
 
+    /// A camera's axes in this viewer's view space, f64, from its heading and pitch (degrees);
+    /// `frame::view_projection` builds the same axes in f32 for the GPU.
+    pub fn camera_axes(&self, heading_deg: f64, pitch_deg: f64) -> ViewAxes<glam::DVec3> {
+        let o = self.orient();
+        view_axes(
+            glam::DVec3::new(-o, 0.0, 0.0),
+            glam::DVec3::new(0.0, o, 0.0),
+            glam::DVec3::Z,
+            heading_deg.to_radians(),
+            pitch_deg.to_radians(),
+        )
+    }
+
     /// +1 in the northern hemisphere (and on the equator), −1 in the southern.
     pub fn orient(&self) -> f64 {
         if self.colat_rad <= std::f64::consts::FRAC_PI_2 {
@@ -308,6 +321,13 @@ pub fn visible_levels(
 /// `ring_of` in `shaders/clipmap.wgsl` computes.
 pub fn ring_of(theta: f64) -> f64 {
     (std::f64::consts::FRAC_PI_2 / theta).log2().floor()
+}
+
+/// The level whose heights the mesh of ring `i` carries (`shaders/clipmap.wgsl`, `vs_main`): the
+/// next coarser one, whose texels are about as far apart as the ring's vertices (the ring's own,
+/// twice as fine, shade it), or the coarsest level drawn.
+pub fn vertex_level(i: u32, lo: u32) -> u32 {
+    i.max(lo + 1) - 1
 }
 
 /// The finest of levels `lo..=hi` whose ground can show in the view (coarse levels first: a

@@ -167,15 +167,9 @@ impl ViewImportance {
         (pixels_high, aspect): (u32, f64),
         params: ImportanceParams,
     ) -> Self {
-        let o = Viewer::from_deg(camera.lat_deg, camera.lon_deg).orient();
-        let forward = crate::transform::view_axes(
-            DVec3::new(-o, 0.0, 0.0),
-            DVec3::new(0.0, o, 0.0),
-            DVec3::Z,
-            camera.heading.to_radians(),
-            camera.pitch.to_radians(),
-        )
-        .forward;
+        let forward = Viewer::from_deg(camera.lat_deg, camera.lon_deg)
+            .camera_axes(camera.heading, camera.pitch)
+            .forward;
         let ty = (camera.fov.to_radians() / 2.0).tan();
         // pixels a metre spans at one metre's distance, face-on
         let px_per_m = f64::from(pixels_high) / (2.0 * ty);

@@ -5,7 +5,7 @@ use std::process::ExitCode;
 use anyhow::{Context, Result, bail};
 use sc_store::{LayerKind, StoreReader};
 
-use crate::cli::ExportArgs;
+use crate::cli::{ExportArgs, ExportFormat};
 use crate::progress::Progress;
 
 /// Largest export written without `--force`: samples before compression.
@@ -14,12 +14,6 @@ const EXPORT_LIMIT_BYTES: u64 = 4 << 30;
 /// Runs `export`.
 pub fn run(a: &ExportArgs) -> Result<ExitCode> {
     let kind = LayerKind::from(a.layer);
-    let ext = a
-        .out
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase)
-        .unwrap_or_default();
     let bounds = a.bounds;
     let reader = StoreReader::open(&a.store).context("cannot read store")?;
     if !reader.meta().complete {
@@ -35,8 +29,9 @@ pub fn run(a: &ExportArgs) -> Result<ExitCode> {
     })
     .context("cannot install the interrupt handler")?;
     let mut overview_note = String::new();
-    let summary = match ext.as_str() {
-        "tif" | "tiff" => {
+    let out = &a.out.path;
+    let summary = match a.out.format {
+        ExportFormat::GeoTiff => {
             let region = sc_raster::plan_export(&reader, kind, a.level, bounds, !a.no_overviews)
                 .with_context(|| format!("cannot export {kind} level {}", a.level))?;
             let bytes = region.raw_bytes();
@@ -69,7 +64,7 @@ pub fn run(a: &ExportArgs) -> Result<ExitCode> {
                 kind,
                 &region,
                 &a.creation_options,
-                &a.out,
+                out,
                 &|d, t| {
                     p.set_total(t);
                     p.set(d);
@@ -77,25 +72,21 @@ pub fn run(a: &ExportArgs) -> Result<ExitCode> {
             )
             .inspect(|_| p.finish())
         }
-        "exr" if kind == LayerKind::Height => {
+        ExportFormat::Exr if kind == LayerKind::Height => {
             if bounds.is_some() {
                 bail!("--bounds is for GeoTIFF exports; EXR export writes the whole level");
             }
             let rows = reader.meta().grid.tiles_y(a.level);
             let p = Progress::new("export", rows);
-            sc_raster::export_exr(&reader, a.level, &a.out, &|d, _| p.set(d))
+            sc_raster::export_exr(&reader, a.level, out, &|d, _| p.set(d))
                 .inspect(|_| p.finish())
         }
-        "exr" => bail!("EXR export holds heights only; use .tif for the {kind} layer"),
-        _ => bail!(
-            "unknown output format `.{ext}` (expected .tif, .tiff or .exr): {}",
-            a.out.display()
-        ),
+        ExportFormat::Exr => bail!("EXR export holds heights only; use .tif for the {kind} layer"),
     }
     .with_context(|| format!("cannot export {kind} level {}", a.level))?;
     crate::outln!(
         "wrote {} ({}x{}, {} tiles, {} missing as nodata{overview_note})",
-        a.out.display(),
+        out.display(),
         summary.width,
         summary.height,
         summary.tiles_present,

@@ -165,11 +165,11 @@ pub fn draw_options(
     camera: &sc_view_plan::camera::Camera,
     graph_atmosphere: Option<sc_view_plan::atmosphere::Atmosphere>,
 ) -> Result<sc_view_plan::frame::DrawOptions> {
-    use sc_view_plan::sun::{Sun, parse_utc};
+    use sc_view_plan::sun::Sun;
     let k = look.exaggeration;
-    let sun = match (&look.sun, &look.time) {
+    let sun = match (&look.sun, look.time) {
         (Some(s), _) => Sun::parse_az_el(s, camera.lat_deg, camera.lon_deg).context("--sun")?,
-        (None, Some(t)) => Sun::at_unix_time(parse_utc(t).context("--time")?),
+        (None, Some(t)) => Sun::at_unix_time(t),
         (None, None) => Sun::default_for(camera.lat_deg, camera.lon_deg),
     };
     let lit = look.shading == crate::cli::Shading::Lit;
