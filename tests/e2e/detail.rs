@@ -83,7 +83,7 @@ fn tile_columns(
     lat: f64,
     lon: f64,
 ) -> (Vec<Vec<f64>>, Vec<Vec<f64>>, f64) {
-    let g = Graph::for_store(store).expect("graph");
+    let g = Graph::for_store(&sc_store::Location::Local(store.into())).expect("graph");
     let n = 512u32;
     let grid = GridId { level: 13, k: 13 };
     let w = grid.window(n);

@@ -71,7 +71,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let mut ms = Vec::new();
             let mut sum = 0xcbf2_9ce4_8422_2325u64;
             for _ in 0..reps {
-                let g = Graph::for_store(std::path::Path::new(store))?;
+                let g = Graph::for_store(&sc_store::Location::Local(store.into()))?;
                 let source = if detail {
                     g.clipmaps.height
                 } else {

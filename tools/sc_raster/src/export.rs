@@ -82,7 +82,7 @@ fn check_level(reader: &StoreReader, kind: LayerKind, level: LevelId) -> Result<
             } else {
                 have.join(" ")
             },
-            reader.root().display()
+            reader.location()
         )));
     }
     Ok(())

@@ -22,11 +22,16 @@ mod paths;
 mod reader;
 mod sample;
 mod shard_index;
+mod source;
 mod upgrade;
 mod verify;
 mod writer;
 
 use std::path::PathBuf;
+
+/// The most bytes a shard file may have: [`layout`]'s largest shard of f32 samples, its index
+/// and slack for the codecs' headers.
+pub(crate) const MAX_SHARD_BYTES: u64 = (layout::MAX_SHARD_SAMPLES * 4) + (64 << 20);
 
 pub use codec::HeightCodec;
 pub use meta::{
@@ -34,6 +39,7 @@ pub use meta::{
 };
 pub use reader::{StoreReader, TileRead};
 pub use sample::{LayerKind, TileSample, range_union};
+pub use source::{FolderSource, HttpSource, Location, StoreSource, is_url};
 pub use upgrade::{UpgradeReport, upgrade};
 pub use verify::{LevelStats, Problem, VerifyReport};
 pub use writer::{

@@ -11,6 +11,7 @@ use zarrs::group::Group;
 
 use crate::meta::StoreMeta;
 use crate::shard_index::ShardIndex;
+use crate::source::{Location, StoreSource};
 use crate::{LayerKind, Result, StoreError, TileSample};
 
 /// What a listed shard without its file is said to be, by readers and `verify`.
@@ -36,14 +37,16 @@ type IndexCache = HashMap<(LayerKind, ShardId), Arc<Option<ShardIndex>>>;
 
 #[derive(Debug)]
 struct Inner {
-    root: PathBuf,
+    location: Location,
+    source: Arc<dyn StoreSource>,
     meta: StoreMeta,
     levels: HashMap<(LayerKind, LevelId), LevelReader>,
     indexes: RwLock<IndexCache>,
 }
 
 pub(crate) struct LevelReader {
-    pub(crate) array: Arc<Array<FilesystemStore>>,
+    /// the level's array metadata (keys, codecs); its bytes are read through the source
+    pub(crate) array: Arc<Array<()>>,
     /// the codecs of a tile inside a shard: a tile's bytes, read once to check their crc32c,
     /// are decoded with them
     tiles: Arc<crate::codec::TileCodecs>,
@@ -105,21 +108,102 @@ pub(crate) fn read_meta(root: &Path) -> Result<(Arc<FilesystemStore>, StoreMeta)
     Ok((fs, meta))
 }
 
+/// The largest metadata file a reader takes (a store's root metadata with its consolidated
+/// listing is a few hundred kB).
+pub(crate) const METADATA_MAX_BYTES: u64 = 64 << 20;
+
+/// The metadata of the store a remote source serves.
+fn read_remote_meta(source: &dyn StoreSource) -> Result<StoreMeta> {
+    let at = source.name_of("zarr.json");
+    let format = |what: String| StoreError::Format {
+        what,
+        path: at.clone(),
+    };
+    let bytes = source
+        .get("zarr.json", METADATA_MAX_BYTES)
+        .map_err(|e| format(format!("cannot read the store metadata: {e}")))?
+        .ok_or_else(|| format("no store there: no zarr.json".into()))?;
+    let v: serde_json::Value = serde_json::from_slice(&bytes).map_err(|e| {
+        format(format!(
+            "not a sphereclip store: zarr.json is not JSON: {e}"
+        ))
+    })?;
+    if v.get("zarr_format") != Some(&serde_json::json!(3))
+        || v.get("node_type") != Some(&serde_json::json!("group"))
+    {
+        return Err(format(
+            "not a sphereclip store: zarr.json is not a Zarr v3 group".into(),
+        ));
+    }
+    let empty = serde_json::Map::new();
+    let attrs = v
+        .get("attributes")
+        .and_then(serde_json::Value::as_object)
+        .unwrap_or(&empty);
+    StoreMeta::from_attributes(attrs, &at)
+}
+
 impl StoreReader {
-    /// Opens a store for reading. Refuses non-stores and newer major versions.
+    /// Opens a store folder for reading. Refuses non-stores and newer major versions.
     pub fn open(root: &Path) -> Result<Self> {
-        Self::open_reusing(root, None)
+        Self::open_at(&Location::Local(root.to_path_buf()))
+    }
+
+    /// Opens a store folder or a store served over HTTP(S) for reading.
+    pub fn open_at(location: &Location) -> Result<Self> {
+        Self::open_source(location.clone(), crate::source::source_of(location), None)
     }
 
     /// The store as it is on disk now (levels and shards written since this reader was opened),
     /// taking the level arrays this reader has checked and opened already as they are: a writer
     /// holding the store reads its own levels again after each step. Shard indexes are read anew.
     pub fn reopen(&self) -> Result<Self> {
-        Self::open_reusing(&self.inner.root, Some(self))
+        Self::open_source(
+            self.inner.location.clone(),
+            self.inner.source.clone(),
+            Some(self),
+        )
     }
 
-    fn open_reusing(root: &Path, known: Option<&Self>) -> Result<Self> {
-        let (fs, meta) = read_meta(root)?;
+    /// Opens the store whose bytes `source` gives (`location` names it in messages).
+    pub fn open_source(
+        location: Location,
+        source: Arc<dyn StoreSource>,
+        known: Option<&Self>,
+    ) -> Result<Self> {
+        let meta = match source.local_root() {
+            Some(root) => Self::check_local(root)?,
+            None => read_remote_meta(source.as_ref())?,
+        };
+        let mut levels = HashMap::new();
+        for (&kind, layer) in &meta.layers {
+            for lm in layer.levels.values() {
+                // the arrays a known reader checked and opened are taken as they are
+                let lr = match known.and_then(|k| k.inner.levels.get(&(kind, lm.level))) {
+                    Some(lr) => LevelReader {
+                        array: lr.array.clone(),
+                        tiles: lr.tiles.clone(),
+                    },
+                    None => Self::open_level(source.as_ref(), &meta, kind, lm.level)?,
+                };
+                levels.insert((kind, lm.level), lr);
+            }
+        }
+        Ok(Self {
+            inner: Arc::new(Inner {
+                location,
+                source,
+                meta,
+                levels,
+                indexes: RwLock::new(HashMap::new()),
+            }),
+        })
+    }
+
+    /// The metadata of a store folder, refused while an upgrade is unfinished or when the folder
+    /// holds arrays a committed store does not list.
+    fn check_local(root: &Path) -> Result<StoreMeta> {
+        let (_, meta) = read_meta(root)?;
         // its levels are of two formats until the upgrade ends
         if std::fs::symlink_metadata(crate::paths::upgrade_marker(root)).is_ok() {
             return Err(StoreError::Format {
@@ -141,40 +225,37 @@ impl StoreReader {
                 path,
             });
         }
-        let mut levels = HashMap::new();
-        for (&kind, layer) in &meta.layers {
-            for lm in layer.levels.values() {
-                // the arrays a known reader checked and opened are taken as they are
-                let (array, tiles) = match known.and_then(|k| k.inner.levels.get(&(kind, lm.level)))
-                {
-                    Some(lr) => (lr.array.clone(), lr.tiles.clone()),
-                    None => {
-                        let path =
-                            crate::paths::data_array_path(meta.format_major(), kind, lm.level);
-                        let damaged = |what: String| StoreError::Format {
-                            what: format!("damaged store: {kind} level {}: {what}", lm.level.key()),
-                            path: root.join(path.trim_start_matches('/')).join("zarr.json"),
-                        };
-                        crate::layout::check_file(root, kind, lm.level, &meta).map_err(&damaged)?;
-                        let array =
-                            Array::open(fs.clone(), &path).map_err(|e| StoreError::Format {
-                                what: format!("cannot open {kind} level {}: {e}", lm.level),
-                                path: root.join(path.trim_start_matches('/')),
-                            })?;
-                        let tiles = crate::codec::TileCodecs::of(&array).map_err(&damaged)?;
-                        (Arc::new(array), Arc::new(tiles))
-                    }
-                };
-                levels.insert((kind, lm.level), LevelReader { array, tiles });
-            }
-        }
-        Ok(Self {
-            inner: Arc::new(Inner {
-                root: root.to_path_buf(),
-                meta,
-                levels,
-                indexes: RwLock::new(HashMap::new()),
-            }),
+        Ok(meta)
+    }
+
+    /// A level's array, its metadata read and checked against the grid model.
+    fn open_level(
+        source: &dyn StoreSource,
+        meta: &StoreMeta,
+        kind: LayerKind,
+        level: LevelId,
+    ) -> Result<LevelReader> {
+        let path = crate::paths::data_array_path(meta.format_major(), kind, level);
+        let key = format!("{}/zarr.json", path.trim_start_matches('/'));
+        let damaged = |what: String| StoreError::Format {
+            what: format!("damaged store: {kind} level {}: {what}", level.key()),
+            path: source.name_of(&key),
+        };
+        let bytes = source
+            .get(&key, METADATA_MAX_BYTES)
+            .map_err(|e| damaged(format!("cannot read array metadata: {e}")))?
+            .ok_or_else(|| damaged("cannot read array metadata: no such file".into()))?;
+        let v: serde_json::Value = serde_json::from_slice(&bytes)
+            .map_err(|e| damaged(format!("array metadata is not JSON: {e}")))?;
+        crate::layout::check(&v, kind, level, meta).map_err(&damaged)?;
+        let metadata: zarrs::array::ArrayMetadata =
+            serde_json::from_value(v).map_err(|e| damaged(e.to_string()))?;
+        let array = Array::new_with_metadata(Arc::new(()), &path, metadata)
+            .map_err(|e| damaged(format!("cannot open: {e}")))?;
+        let tiles = crate::codec::TileCodecs::of(&array).map_err(&damaged)?;
+        Ok(LevelReader {
+            array: Arc::new(array),
+            tiles: Arc::new(tiles),
         })
     }
 
@@ -183,30 +264,45 @@ impl StoreReader {
         &self.inner.meta
     }
 
-    /// The store folder.
-    pub fn root(&self) -> &Path {
-        &self.inner.root
+    /// Where the store is.
+    pub fn location(&self) -> &Location {
+        &self.inner.location
+    }
+
+    /// The store folder; `None` for a store read over HTTP(S).
+    pub fn local_root(&self) -> Option<&Path> {
+        self.inner.source.local_root()
+    }
+
+    /// Where `key` (a path inside the store) lives, for messages.
+    pub(crate) fn name_of(&self, key: &str) -> PathBuf {
+        self.inner.source.name_of(key)
     }
 
     pub(crate) fn level(&self, kind: LayerKind, level: LevelId) -> Result<&LevelReader> {
         self.inner.levels.get(&(kind, level)).ok_or_else(|| {
             StoreError::Usage(format!(
                 "the store has no {kind} level {level} in {}",
-                self.inner.root.display()
+                self.inner.location
             ))
         })
     }
 
-    /// The file a shard lives in (which may not exist).
+    /// The file (or URL) a shard lives in (which may not exist).
     pub fn shard_path(&self, kind: LayerKind, tile: TileId) -> Result<PathBuf> {
         self.shard_file(kind, tile.shard(self.inner.meta.shard_tiles))
     }
 
-    /// The file of `shard` (which may not exist).
+    /// The file (or URL) of `shard` (which may not exist).
     pub(crate) fn shard_file(&self, kind: LayerKind, shard: ShardId) -> Result<PathBuf> {
+        Ok(self.name_of(&self.shard_key(kind, shard)?))
+    }
+
+    /// The key of `shard` inside the store.
+    pub(crate) fn shard_key(&self, kind: LayerKind, shard: ShardId) -> Result<String> {
         let lr = self.level(kind, shard.level)?;
         let idx = kind.chunk_indices(shard.x, shard.y);
-        Ok(self.inner.root.join(lr.array.chunk_key(&idx).as_str()))
+        Ok(lr.array.chunk_key(&idx).as_str().to_string())
     }
 
     pub(crate) fn tile_indices(kind: LayerKind, tile: TileId) -> Vec<u64> {
@@ -239,10 +335,8 @@ impl StoreReader {
             return Ok(i);
         }
         tracing::trace!(layer = %kind, %shard, "store: reading shard index");
-        let path = self.shard_path(kind, tile)?;
-        crate::files::check_inside(&self.inner.root, &path)
-            .map_err(|e| self.corrupt(kind, tile, None, &e.to_string()))?;
-        let index = ShardIndex::read(&path, (s * s) as usize)
+        let key = self.shard_key(kind, shard)?;
+        let index = ShardIndex::read(self.inner.source.as_ref(), &key, (s * s) as usize)
             .map_err(|detail| self.corrupt(kind, tile, None, &detail))?;
         if index.is_none() && self.listed_as_present(kind, shard) {
             return Err(self.corrupt(kind, tile, None, MISSING_SHARD));
@@ -312,8 +406,9 @@ impl StoreReader {
             return Ok(TileRead::Missing);
         };
         let what = || Some(format!("{kind} {tile}"));
+        let key = self.shard_key(kind, tile.shard(s))?;
         let bytes = index
-            .tile_bytes(&self.shard_path(kind, tile)?, local_tile_number(tile, s))
+            .tile_bytes(self.inner.source.as_ref(), &key, local_tile_number(tile, s))
             .map_err(|d| self.corrupt(kind, tile, what(), &d))?;
         let lr = self.level(kind, tile.level)?;
         lr.tiles

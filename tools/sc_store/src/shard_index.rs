@@ -9,8 +9,7 @@
 //! `sharding_indexed` spec with the index at the end, encoded `bytes(little)` + `crc32c`, exactly
 //! as the writer configures it.
 
-use std::io::{Read, Seek, SeekFrom};
-use std::path::Path;
+use crate::source::StoreSource;
 
 /// The decoded index of one shard: `(offset, nbytes)` per tile, row-major over the shard's tiles.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -42,25 +41,24 @@ impl ShardIndex {
         out
     }
 
-    /// Reads the index of the shard file at `path` holding `tiles` tiles. `Ok(None)`: no file.
-    /// `Err(detail)`: truncated, checksum mismatch or byte ranges outside the file.
-    pub(crate) fn read(path: &Path, tiles: usize) -> Result<Option<Self>, String> {
-        let mut f = match crate::files::open_regular(path) {
-            Ok(f) => f,
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+    /// Reads the index of the shard `key` of `source` holding `tiles` tiles. `Ok(None)`: no
+    /// file. `Err(detail)`: truncated, checksum mismatch or byte ranges outside the file.
+    pub(crate) fn read(
+        source: &dyn StoreSource,
+        key: &str,
+        tiles: usize,
+    ) -> Result<Option<Self>, String> {
+        let index_len = (tiles * 16 + 4) as u64;
+        let (len, buf) = match source.get_suffix(key, index_len) {
+            Ok(Some(found)) => found,
+            Ok(None) => return Ok(None),
             Err(e) => return Err(e.to_string()),
         };
-        let len = f.metadata().map_err(|e| e.to_string())?.len();
-        let index_len = (tiles * 16 + 4) as u64;
-        if len < index_len {
+        if len < index_len || buf.len() as u64 != index_len {
             return Err(format!(
                 "truncated shard: {len} bytes, the index alone needs {index_len}"
             ));
         }
-        let mut buf = vec![0u8; index_len as usize];
-        f.seek(SeekFrom::Start(len - index_len))
-            .and_then(|_| f.read_exact(&mut buf))
-            .map_err(|e| e.to_string())?;
         let (body, crc) = buf.split_at(tiles * 16);
         let stored = u32::from_le_bytes([crc[0], crc[1], crc[2], crc[3]]);
         if crc32c::crc32c(body) != stored {
@@ -86,14 +84,23 @@ impl ShardIndex {
         Ok(Some(Self { entries }))
     }
 
-    /// Reads tile number `i`'s encoded bytes from `path` and checks their trailing crc32c.
-    pub(crate) fn check_tile(&self, path: &Path, i: usize) -> Result<(), String> {
-        self.tile_bytes(path, i).map(|_| ())
+    /// Reads tile number `i`'s encoded bytes and checks their trailing crc32c.
+    pub(crate) fn check_tile(
+        &self,
+        source: &dyn StoreSource,
+        key: &str,
+        i: usize,
+    ) -> Result<(), String> {
+        self.tile_bytes(source, key, i).map(|_| ())
     }
 
-    /// Tile number `i`'s encoded bytes read from `path`, their trailing crc32c checked.
-    pub(crate) fn tile_bytes(&self, path: &Path, i: usize) -> Result<Vec<u8>, String> {
-        use std::os::unix::fs::FileExt;
+    /// Tile number `i`'s encoded bytes read from the shard `key`, their trailing crc32c checked.
+    pub(crate) fn tile_bytes(
+        &self,
+        source: &dyn StoreSource,
+        key: &str,
+        i: usize,
+    ) -> Result<Vec<u8>, String> {
         let Some(&(offset, nbytes)) = self.entries.get(i) else {
             return Err(format!("tile {i} is not in the shard index"));
         };
@@ -102,9 +109,8 @@ impl ShardIndex {
                 "tile {i} has {nbytes} bytes, too few for its checksum"
             ));
         }
-        let mut buf = vec![0u8; nbytes as usize];
-        crate::files::open_regular(path)
-            .and_then(|f| f.read_exact_at(&mut buf, offset))
+        let buf = source
+            .get_range(key, offset, nbytes)
             .map_err(|e| e.to_string())?;
         let (body, crc) = buf.split_at(buf.len() - 4);
         let stored = u32::from_le_bytes([crc[0], crc[1], crc[2], crc[3]]);

@@ -74,18 +74,42 @@ fn dir_bytes(path: &Path) -> u64 {
 }
 
 impl StoreReader {
-    fn array_dir(&self, lr: &LevelReader) -> PathBuf {
-        self.root()
-            .join(lr.array.path().as_str().trim_start_matches('/'))
+    /// The store folder, for what only a folder on this machine can answer (listings, file
+    /// types, sizes on disk).
+    fn folder(&self) -> Result<&Path> {
+        self.local_root().ok_or_else(|| {
+            crate::StoreError::Usage(format!(
+                "{} is read over HTTP: verification reads the store's files, run it where the store lives",
+                self.location()
+            ))
+        })
     }
 
-    /// The shards of a level that have a file, sorted.
+    fn array_dir(&self, root: &Path, lr: &LevelReader) -> PathBuf {
+        root.join(lr.array.path().as_str().trim_start_matches('/'))
+    }
+
+    /// The shards of a level that have a file, sorted; of a store read over HTTP, the shards its
+    /// metadata lists (a remote store cannot be listed).
     pub fn shards_on_disk(&self, kind: LayerKind, level: LevelId) -> Result<Vec<ShardId>> {
         let lr = self.level(kind, level)?;
-        let mut out: Vec<ShardId> = shard_files(&self.array_dir(lr).join("c"))
-            .into_iter()
-            .map(|(y, x)| ShardId { level, x, y })
-            .collect();
+        let mut out: Vec<ShardId> = match self.local_root() {
+            Some(root) => shard_files(&self.array_dir(root, lr).join("c"))
+                .into_iter()
+                .map(|(y, x)| ShardId { level, x, y })
+                .collect(),
+            None => self
+                .meta()
+                .layers
+                .get(&kind)
+                .and_then(|l| l.levels.get(&level.key()))
+                .map(|lm| {
+                    lm.listed_shards()
+                        .map(|(x, y)| ShardId { level, x, y })
+                        .collect()
+                })
+                .unwrap_or_default(),
+        };
         out.sort();
         Ok(out)
     }
@@ -146,7 +170,9 @@ impl StoreReader {
                     tiles_present: present,
                     tiles_total: grid.tiles_x(level) * grid.tiles_y(level),
                     shards: shards.len() as u64,
-                    bytes_on_disk: dir_bytes(&self.array_dir(lr)),
+                    bytes_on_disk: self
+                        .local_root()
+                        .map_or(0, |root| dir_bytes(&self.array_dir(root, lr))),
                     value_range: lm.value_range,
                     unreadable_shards: unreadable,
                 });
@@ -160,7 +186,7 @@ impl StoreReader {
     pub fn verify(&self, on_shard: &(dyn Fn() + Sync)) -> Result<VerifyReport> {
         let meta = self.meta();
         let mut report = VerifyReport::default();
-        self.verify_file_types(self.root(), &mut report);
+        self.verify_file_types(self.folder()?, &mut report);
         self.verify_listing(&mut report);
         if meta.format_major() >= 2 {
             self.verify_consolidated(&mut report);
@@ -226,7 +252,10 @@ impl StoreReader {
     /// Whether `path` names a shard file of a data array (`LAYER/LEVEL/LAYER/c/Y/X[/0]`, or
     /// `LAYER/LEVEL/c/…` in format 1): those the shard checks report.
     fn is_shard_file(&self, path: &Path) -> bool {
-        let Ok(rel) = path.strip_prefix(self.root()) else {
+        let Ok(root) = self.folder() else {
+            return false;
+        };
+        let Ok(rel) = path.strip_prefix(root) else {
             return false;
         };
         let parts: Vec<&str> = rel
@@ -253,8 +282,11 @@ impl StoreReader {
     /// Every level array on disk must be listed in the group metadata (a level key renamed or
     /// dropped there would silently hide its data from every reader).
     fn verify_listing(&self, report: &mut VerifyReport) {
+        let Ok(root) = self.folder() else {
+            return;
+        };
         let meta = self.meta();
-        for (kind, name, path) in unlisted_arrays(self.root(), meta) {
+        for (kind, name, path) in unlisted_arrays(root, meta) {
             report.problems.push(Problem {
                 path,
                 what: format!("{kind} array {name}"),
@@ -266,12 +298,15 @@ impl StoreReader {
     /// The consolidated metadata of the root, each layer and each level group must be what the arrays' own
     /// `zarr.json` say (readers that trust it, like xarray, would get other shapes or codecs).
     fn verify_consolidated(&self, report: &mut VerifyReport) {
+        let Ok(root) = self.folder() else {
+            return;
+        };
         let meta = self.meta();
-        let mut groups = vec![self.root().to_path_buf()];
+        let mut groups = vec![root.to_path_buf()];
         for &kind in meta.layers.keys() {
-            groups.push(self.root().join(kind.name()));
+            groups.push(root.join(kind.name()));
             for level in meta.levels(kind) {
-                groups.push(self.root().join(crate::paths::level_dir(kind, level)));
+                groups.push(root.join(crate::paths::level_dir(kind, level)));
             }
         }
         for dir in groups {
@@ -328,9 +363,12 @@ impl StoreReader {
     /// Each level's `lat` and `lon` coordinates must have the level's shape and hold the texel
     /// centres of its grid, value for value (they are what xarray and GDAL place the data by).
     fn verify_coordinates(&self, report: &mut VerifyReport) {
+        let Ok(root) = self.folder() else {
+            return;
+        };
         let meta = self.meta();
         let grid = meta.grid;
-        let Ok(fs) = crate::reader::open_fs(self.root()) else {
+        let Ok(fs) = crate::reader::open_fs(root) else {
             return;
         };
         for &kind in meta.layers.keys() {
@@ -341,7 +379,7 @@ impl StoreReader {
                     ("lon", grid.width(level), -180.0 + dx / 2.0, dx),
                 ] {
                     let dir = format!("{}/{name}", crate::paths::level_dir(kind, level));
-                    let at = self.root().join(&dir);
+                    let at = root.join(&dir);
                     let mut problem = |path: PathBuf, detail: String| {
                         report.problems.push(Problem {
                             path,
@@ -435,14 +473,32 @@ impl StoreReader {
         report: &mut VerifyReport,
     ) {
         let meta = self.meta();
-        // a fresh cache: verification must read the bytes on disk now
-        let cache = ArrayShardedReadableExtCache::new(&lr.array);
+        let Ok(root) = self.folder() else { return };
+        // the level's array over the folder, and a fresh cache: verification decodes the bytes
+        // on disk now, through zarrs' own reading of a shard
+        let array = match crate::reader::open_fs(root).and_then(|fs| {
+            Array::open(fs, lr.array.path().as_str()).map_err(|e| crate::StoreError::Format {
+                what: e.to_string(),
+                path: self.array_dir(root, lr),
+            })
+        }) {
+            Ok(a) => a,
+            Err(e) => {
+                report.problems.push(Problem {
+                    path: self.array_dir(root, lr),
+                    what: format!("{kind} {shard}"),
+                    detail: e.to_string(),
+                });
+                return;
+            }
+        };
+        let cache = ArrayShardedReadableExtCache::new(&array);
         report.shards_checked += 1;
         let tiles: Vec<TileId> = shard.tiles(meta.grid, meta.shard_tiles).collect();
         let Some(&first) = tiles.first() else { return };
         let path = self.shard_path(kind, first).unwrap_or_default();
         let s = meta.shard_tiles;
-        if let Err(e) = crate::files::check_inside(self.root(), &path) {
+        if let Err(e) = crate::files::check_inside(root, &path) {
             report.problems.push(Problem {
                 path,
                 what: format!("{kind} {shard} index"),
@@ -450,7 +506,12 @@ impl StoreReader {
             });
             return;
         }
-        let index = match ShardIndex::read(&path, (s * s) as usize) {
+        let key = path
+            .strip_prefix(root)
+            .map(|k| k.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let folder = crate::source::FolderSource::new(root);
+        let index = match ShardIndex::read(&folder, &key, (s * s) as usize) {
             Ok(Some(index)) => index,
             Ok(None) => {
                 // a multi-band shard's folder without its file
@@ -478,7 +539,7 @@ impl StoreReader {
             }
             let idx = Self::tile_indices(kind, tile);
             report.tiles_checked += 1;
-            if let Err(detail) = index.check_tile(&path, local_tile_number(tile, s)) {
+            if let Err(detail) = index.check_tile(&folder, &key, local_tile_number(tile, s)) {
                 report.problems.push(Problem {
                     path: path.clone(),
                     what: format!("{kind} {tile}"),
@@ -487,12 +548,10 @@ impl StoreReader {
                 continue;
             }
             let decoded = match kind {
-                LayerKind::Height => lr
-                    .array
+                LayerKind::Height => array
                     .retrieve_subchunk_opt::<Vec<f32>>(&cache, &idx, &Default::default())
                     .map(|_| ()),
-                LayerKind::Color => lr
-                    .array
+                LayerKind::Color => array
                     .retrieve_subchunk_opt::<Vec<u8>>(&cache, &idx, &Default::default())
                     .map(|_| ()),
             };

@@ -37,6 +37,9 @@ pub enum Command {
     Render(RenderArgs),
     /// Show a store's layers, levels, tiles, sizes and value ranges; --verify checks every checksum.
     Info(InfoArgs),
+    /// Serve a store over HTTP, read-only, with Range requests (for `view http://…`, other hosts'
+    /// pages and any Zarr reader); loopback only unless --addr says otherwise.
+    Serve(ServeArgs),
     /// Write one level of a store as a GeoTIFF (EPSG:4326) or an f32 OpenEXR heightmap.
     Export(ExportArgs),
     /// Run the demo on the bundled samples (what exists so far).
@@ -301,8 +304,8 @@ pub struct InspectArgs {
 /// `sphereclip render`.
 #[derive(Debug, clap::Args)]
 pub struct RenderArgs {
-    /// The store folder (its height layer shapes the planet).
-    pub store: std::path::PathBuf,
+    /// The store folder, or its URL (http://…/planet.zarr) (its height layer shapes the planet).
+    pub store: sc_store::Location,
     /// LAT,LON,ALT[,HEADING,PITCH,FOV]: degrees, metres above the ground, degrees.
     #[arg(long, allow_hyphen_values = true, required_unless_present = "flight", value_parser = camera_arg)]
     pub camera: Option<Camera>,
@@ -422,8 +425,9 @@ pub enum Shading {
 /// `sphereclip view`.
 #[derive(Debug, clap::Args)]
 pub struct ViewArgs {
-    /// The store folder (its height layer shapes the planet, its colour layer paints it).
-    pub store: std::path::PathBuf,
+    /// The store folder, or its URL (http://…/planet.zarr) (its height layer shapes the planet,
+    /// its colour layer paints it).
+    pub store: sc_store::Location,
     /// Start at LAT,LON,ALT[,HEADING,PITCH,FOV]: degrees, metres above the ground, degrees.
     #[arg(long, allow_hyphen_values = true, default_value = "30,10,12000000", value_parser = camera_arg)]
     pub camera: Camera,
@@ -451,8 +455,8 @@ pub struct ViewArgs {
 /// `sphereclip info`.
 #[derive(Debug, clap::Args)]
 pub struct InfoArgs {
-    /// The store folder.
-    pub store: PathBuf,
+    /// The store folder, or its URL (http://…/planet.zarr).
+    pub store: sc_store::Location,
     /// Read every shard and tile and check its crc32c; exit 1 naming each bad shard/tile.
     #[arg(long)]
     pub verify: bool,
@@ -464,11 +468,25 @@ pub struct InfoArgs {
     pub json: bool,
 }
 
+/// `sphereclip serve`.
+#[derive(Debug, clap::Args)]
+pub struct ServeArgs {
+    /// The store folder.
+    pub store: PathBuf,
+    /// Address and port to listen on (port 0: any free port); 0.0.0.0:PORT serves every network
+    /// this machine is on.
+    #[arg(long, default_value = "127.0.0.1:8080")]
+    pub addr: std::net::SocketAddr,
+    /// Open the page in the desktop's browser (xdg-open).
+    #[arg(long)]
+    pub open: bool,
+}
+
 /// `sphereclip export`.
 #[derive(Debug, clap::Args)]
 pub struct ExportArgs {
-    /// The store folder.
-    pub store: PathBuf,
+    /// The store folder, or its URL (http://…/planet.zarr).
+    pub store: sc_store::Location,
     /// Layer to export.
     #[arg(long, value_enum, default_value_t = LayerArg::Height)]
     pub layer: LayerArg,

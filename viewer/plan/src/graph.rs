@@ -65,6 +65,8 @@
 //! through a neutral filter, each with detail (the heights' default settings) and without.
 
 use std::path::{Path, PathBuf};
+
+use sc_store::Location;
 use std::sync::{Arc, RwLock};
 
 use sc_store::{LayerKind, StoreReader};
@@ -367,7 +369,10 @@ pub struct StoreStreamer {
 /// Streams the image-source graph of `store`: the one in `graph_file` (TOML), else the
 /// `STEM.sources.toml` beside the store, else the default (heights, colours through a neutral
 /// filter).
-pub fn store_streamer(store: &Path, graph_file: Option<&Path>) -> Result<StoreStreamer, ViewError> {
+pub fn store_streamer(
+    store: &Location,
+    graph_file: Option<&Path>,
+) -> Result<StoreStreamer, ViewError> {
     let graph = match graph_file.map(PathBuf::from).or_else(|| beside(store)) {
         Some(file) => Graph::load(&file)?,
         None => Graph::for_store(store)?,
@@ -391,13 +396,11 @@ pub fn store_streamer(store: &Path, graph_file: Option<&Path>) -> Result<StoreSt
 /// Most sources a graph may declare.
 pub const MAX_SOURCES: usize = 64;
 
-fn open(path: &Path, warnings: &mut Vec<String>) -> Result<StoreReader, String> {
-    let r = StoreReader::open(path)
-        .map_err(|e| format!("cannot read store {}: {e}", path.display()))?;
+fn open(at: &Location, warnings: &mut Vec<String>) -> Result<StoreReader, String> {
+    let r = StoreReader::open_at(at).map_err(|e| format!("cannot read store {at}: {e}"))?;
     if !r.meta().complete {
         warnings.push(format!(
-            "store {} is INCOMPLETE (a writer did not commit): some tiles may be missing or old",
-            path.display()
+            "store {at} is INCOMPLETE (a writer did not commit): some tiles may be missing or old"
         ));
     }
     Ok(r)
@@ -426,7 +429,7 @@ impl Graph {
 
     /// The default graph of `store`: its heights (a smooth sphere if it has none) and its
     /// colours through a neutral filter.
-    pub fn for_store(store: &Path) -> Result<Self, ViewError> {
+    pub fn for_store(store: &Location) -> Result<Self, ViewError> {
         let mut warnings = Vec::new();
         let reader = open(store, &mut warnings).map_err(ViewError::Graph)?;
         let meta = reader.meta();
@@ -441,8 +444,7 @@ impl Graph {
             g.sources.push(Box::new(h));
         } else {
             g.warnings.push(format!(
-                "{} has no height layer; rendering a smooth sphere",
-                store.display()
+                "{store} has no height layer; rendering a smooth sphere"
             ));
             g.sources
                 .push(Box::new(FnHeightTiles(|_: f64, _: f64| 0.0f32)));
@@ -550,7 +552,14 @@ impl GraphBuilder {
             return Err(format!("source `{name}` is declared twice"));
         }
         let (store, detail_input) = match d {
-            Decl::Store { path, layer, .. } => (self.store(&name, &here.join(path), &layer)?, None),
+            Decl::Store { path, layer, .. } => {
+                // a URL is a store over HTTP(S); a path is relative to the graph file
+                let at = match path.to_str() {
+                    Some(u) if sc_store::is_url(u) => Location::parse(path.as_os_str()),
+                    _ => Location::Local(here.join(path)),
+                };
+                (self.store(&name, &at, &layer)?, None)
+            }
             Decl::Detail {
                 input,
                 heights,
@@ -591,7 +600,7 @@ impl GraphBuilder {
     fn store(
         &mut self,
         name: &str,
-        full: &Path,
+        full: &Location,
         layer: &str,
     ) -> Result<Option<StoreHeightTiles>, String> {
         let mut store = None;
@@ -599,10 +608,7 @@ impl GraphBuilder {
         let kind = LayerKind::from_name(layer)
             .ok_or_else(|| format!("source `{name}`: unknown layer `{layer}` (height or color)"))?;
         if reader.meta().levels(kind).is_empty() {
-            return Err(format!(
-                "source `{name}`: {} has no {layer} layer",
-                full.display()
-            ));
+            return Err(format!("source `{name}`: {full} has no {layer} layer"));
         }
         if self.g.radius == 0.0 {
             self.g.radius = reader.meta().radius_m;
@@ -774,8 +780,10 @@ impl GraphBuilder {
     }
 }
 
-/// The graph file next to `store` (`planet.zarr` → `planet.sources.toml`), if there is one.
-pub fn beside(store: &Path) -> Option<PathBuf> {
+/// The graph file next to a store folder (`planet.zarr` → `planet.sources.toml`), if there is
+/// one (a store over HTTP has none: give it with `--sources`).
+pub fn beside(store: &Location) -> Option<PathBuf> {
+    let store = store.local()?;
     let stem = store.file_stem()?.to_string_lossy().into_owned();
     let p = store.with_file_name(format!("{stem}.sources.toml"));
     p.is_file().then_some(p)

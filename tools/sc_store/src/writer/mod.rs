@@ -749,7 +749,14 @@ impl StoreWriter {
             path: sw.path.clone(),
         };
         // the writer releases its claim when dropped on the way out
-        crate::shard_index::ShardIndex::read(&sw.path, (t * t) as usize).map_err(corrupt)?;
+        let key = sw
+            .path
+            .strip_prefix(&self.root)
+            .map_err(|_| corrupt("outside the store".into()))?
+            .to_string_lossy()
+            .into_owned();
+        let folder = crate::source::FolderSource::new(&self.root);
+        crate::shard_index::ShardIndex::read(&folder, &key, (t * t) as usize).map_err(corrupt)?;
         let existing = sw
             .arrays
             .read

@@ -15,11 +15,11 @@ const EXPORT_LIMIT_BYTES: u64 = 4 << 30;
 pub fn run(a: &ExportArgs) -> Result<ExitCode> {
     let kind = LayerKind::from(a.layer);
     let bounds = a.bounds;
-    let reader = StoreReader::open(&a.store).context("cannot read store")?;
+    let reader = StoreReader::open_at(&a.store).context("cannot read store")?;
     if !reader.meta().complete {
         eprintln!(
             "warning: store {} is INCOMPLETE (a writer did not commit): some tiles may be missing or old",
-            a.store.display()
+            a.store
         );
     }
     // temp files go on SIGINT/SIGTERM too

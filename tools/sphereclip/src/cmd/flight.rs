@@ -14,7 +14,7 @@ use crate::cli::LookArgs;
 /// Flies the flight file `flight_path` over `store` headless at `size`; writes the statistics
 /// (JSON) to `out` and returns them; `no_draw`: frames are planned and uploaded, not drawn.
 pub fn run(
-    store: &Path,
+    store: &sc_store::Location,
     flight_path: &Path,
     (w, h): (u32, u32),
     (out, no_draw): (&Path, bool),
@@ -38,7 +38,7 @@ pub fn run(
         sources,
         &flight,
         (s.radius, default_workers()),
-        &store.display().to_string(),
+        &store.to_string(),
         &mut |alt, run| {
             eprintln!(
                 "flight: {} at {} alt/s ({:.0} m/s): {} frames, finest level in {:.0} %, frame p50 {:.0} ms, {:.0} tiles/s, workers busy {:.0} %",

@@ -51,21 +51,28 @@ fn data_box(reader: &StoreReader, kind: LayerKind, level: LevelId) -> Option<[f6
 
 /// Runs `info`.
 pub fn run(a: &InfoArgs) -> Result<ExitCode> {
-    let reader = StoreReader::open(&a.store).context("cannot read store")?;
+    let reader = StoreReader::open_at(&a.store).context("cannot read store")?;
     let stats = reader.level_stats().context("cannot read store")?;
+    let local = reader.local_root();
     let written = || {
-        sc_store::being_written(&a.store).then(|| {
+        local.filter(|root| sc_store::being_written(root)).map(|_| {
             anyhow::anyhow!(
                 "the store is being written by another process: verify it when that is done: {}",
-                a.store.display()
+                a.store
             )
         })
     };
     let report = if a.verify {
+        let Some(root) = local else {
+            bail!(
+                "{} is read over HTTP: --verify reads the store's files, run it where the store lives",
+                a.store
+            );
+        };
         if let Some(e) = written() {
             return Err(e);
         }
-        let before = std::fs::read(a.store.join("zarr.json")).ok();
+        let before = std::fs::read(root.join("zarr.json")).ok();
         let p = Progress::new("verify", reader.shard_count()?);
         let r = reader.verify(&|| p.inc())?;
         p.finish();
@@ -74,10 +81,10 @@ pub fn run(a: &InfoArgs) -> Result<ExitCode> {
             if let Some(e) = written() {
                 return Err(e);
             }
-            if std::fs::read(a.store.join("zarr.json")).ok() != before {
+            if std::fs::read(root.join("zarr.json")).ok() != before {
                 bail!(
                     "the store was written while it was verified: verify it again: {}",
-                    a.store.display()
+                    a.store
                 );
             }
         }
@@ -87,7 +94,7 @@ pub fn run(a: &InfoArgs) -> Result<ExitCode> {
     };
     if a.json {
         let v = serde_json::json!({
-            "store": a.store,
+            "store": a.store.to_string(),
             "meta": reader.meta(),
             "levels": stats,
             "bytes_on_disk": stats.iter().map(|s| s.bytes_on_disk).sum::<u64>(),
@@ -112,11 +119,11 @@ pub fn run(a: &InfoArgs) -> Result<ExitCode> {
         Some(_) if !reader.meta().complete => {
             eprintln!(
                 "error: the store is INCOMPLETE: its checksums hold, but a writer did not commit ({}): {}",
-                match sc_store::open_plan(&a.store) {
+                match local.and_then(sc_store::open_plan) {
                     Some(_) => "a plan run by many processes is open",
                     None => "rerun the command that was writing it",
                 },
-                a.store.display()
+                a.store
             );
             ExitCode::FAILURE
         }
@@ -133,18 +140,22 @@ fn print_text(
     let m = reader.meta();
     let total: u64 = stats.iter().map(|s| s.bytes_on_disk).sum();
     crate::outln!(
-        "store {}: format {}, {}, {} on disk",
-        reader.root().display(),
+        "store {}: format {}, {}, {}",
+        reader.location(),
         m.format_version,
         if m.complete {
             "complete".to_string()
-        } else if let Some(plan) = sc_store::open_plan(reader.root()) {
+        } else if let Some(plan) = reader.local_root().and_then(sc_store::open_plan) {
             let path = plan.split_once(' ').map_or("", |(_, p)| p.trim());
             format!("INCOMPLETE (a plan run by many processes is open: `sphereclip commit {path}`)")
         } else {
             "INCOMPLETE (a writer did not commit)".to_string()
         },
-        human_bytes(total)
+        if reader.local_root().is_some() {
+            format!("{} on disk", human_bytes(total))
+        } else {
+            "read over HTTP".to_string()
+        }
     );
     crate::outln!(
         "  grid: latitude/longitude (WGS 84 values) on a sphere of radius {:.1} km; tiles {}x{} texels, shards {}x{} tiles",
@@ -250,7 +261,9 @@ fn print_text(
             p.inputs.len()
         );
     }
-    let journals: Vec<String> = std::fs::read_dir(reader.root().join(".sphereclip"))
+    let journals: Vec<String> = reader
+        .local_root()
+        .and_then(|root| std::fs::read_dir(root.join(".sphereclip")).ok())
         .map(|rd| {
             rd.flatten()
                 .map(|e| e.file_name().to_string_lossy().into_owned())

@@ -145,7 +145,7 @@ impl Source {
                             .map(|l| l.to_string())
                             .collect::<Vec<_>>()
                             .join(" "),
-                        r.root().display()
+                        r.location()
                     );
                 }
                 read_store_level(r, *kind, id)

@@ -9,6 +9,7 @@ mod ingest;
 mod inspect;
 mod plan;
 mod render;
+mod serve;
 mod upgrade;
 mod view;
 
@@ -42,6 +43,7 @@ pub fn run_without_gdal(cli: Cli) -> Result<ExitCode> {
         Command::Build(a) => build::run(&a),
         Command::View(a) => view::run(&a),
         Command::Render(a) => render::run(&a),
+        Command::Serve(a) => serve::run(&a),
         Command::Upgrade(a) => upgrade::run(&a),
         Command::Completions(a) => {
             let mut cmd = <Cli as clap::CommandFactory>::command();
@@ -92,7 +94,7 @@ pub fn info_line(args: std::fmt::Arguments<'_>) {
 
 /// The store's streamer ([`sc_view_plan::graph::store_streamer`]), its warnings printed.
 pub fn streamer_for(
-    store: &std::path::Path,
+    store: &sc_store::Location,
     graph_file: Option<&std::path::Path>,
 ) -> Result<sc_view_plan::graph::StoreStreamer> {
     let s = sc_view_plan::graph::store_streamer(store, graph_file)?;

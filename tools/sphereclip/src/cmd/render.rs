@@ -159,8 +159,8 @@ fn reference(
     if !(1..=16).contains(&n) {
         bail!("--reference must be 1..16 rays per pixel side, found {n}");
     }
-    let reader = sc_store::StoreReader::open(&a.store)
-        .with_context(|| format!("cannot read store {}", a.store.display()))?;
+    let reader = sc_store::StoreReader::open_at(&a.store)
+        .with_context(|| format!("cannot read store {}", a.store))?;
     let radius = reader.meta().radius_m;
     let options = super::draw_options(&a.look, camera, None)?;
     // the clear colour is linear light, as the GPU's sRGB target takes it
@@ -180,7 +180,7 @@ fn reference(
             ))
         })
         .collect::<Option<Vec<_>>>()
-        .with_context(|| format!("the store has no colour layer: {}", a.store.display()))?;
+        .with_context(|| format!("the store has no colour layer: {}", a.store))?;
     let parts = std::thread::scope(|scope| {
         let jobs: Vec<_> = casters
             .into_iter()

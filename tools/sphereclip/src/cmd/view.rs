@@ -45,7 +45,7 @@ pub fn run(a: &ViewArgs) -> Result<ExitCode> {
             "no display to open a window on (DISPLAY and WAYLAND_DISPLAY are unset); use `sphereclip render` for images, or run under xvfb-run"
         );
     }
-    let title = format!("sphereclip — {}", a.store.display());
+    let title = format!("sphereclip — {}", a.store);
     let detail = (sources != without_detail).then_some((sources, without_detail));
     let sources = super::clipmap_sources(&a.look, sources, without_detail);
     let report = view(

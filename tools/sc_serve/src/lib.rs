@@ -1,0 +1,706 @@
+//! `sphereclip serve`: a store over HTTP, read-only, for the web viewer, the desktop viewer
+//! (`view http://…`) and any Zarr reader.
+//!
+//! What is served: the store's files under `/<name>/` (its folder's name), with Range requests
+//! (single, open-ended, suffix, several as `multipart/byteranges`; 416 otherwise), ETag and
+//! Last-Modified with their conditional requests, gzip for metadata, and CORS so a page on another
+//! host can read it; a page at `/` saying what is served. What is never served: anything whose
+//! path has a component beginning with `.` (the lock, `.sphereclip/`, `..`), temp files, a
+//! path through a symlink or to a non-regular file (each open is no-follow, folder by folder,
+//! as the readers open a store), anything while the store is INCOMPLETE or being written (a page
+//! says so) or gone. Bounded: no request reads more than it sends, multi-range answers are
+//! capped, files are streamed.
+
+use std::net::SocketAddr;
+use std::os::unix::fs::MetadataExt;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::time::{Duration, SystemTime};
+
+use axum::body::Body;
+use axum::http::{HeaderMap, HeaderValue, Method, StatusCode, Uri, header};
+use axum::response::{IntoResponse, Response};
+
+/// Why the server could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum ServeError {
+    /// The store cannot be served (missing, not a store, damaged).
+    #[error("{0}")]
+    Store(#[from] sc_store::StoreError),
+    /// The address cannot be bound.
+    #[error("cannot listen on {addr}: {source}")]
+    Bind {
+        /// The address asked for.
+        addr: SocketAddr,
+        /// What the system said.
+        source: std::io::Error,
+    },
+    /// The runtime failed.
+    #[error("{0}")]
+    Io(#[from] std::io::Error),
+}
+
+/// Most ranges one request may ask for, and most bytes a multi-range answer may hold.
+const MAX_RANGES: usize = 64;
+const MAX_MULTIPART_BYTES: u64 = 64 << 20;
+/// The largest metadata file gzipped on the fly.
+const MAX_GZIP_BYTES: u64 = 16 << 20;
+
+/// A running server: its address, and a handle that stops it.
+#[derive(Debug)]
+pub struct Server {
+    /// Where it listens.
+    pub addr: SocketAddr,
+    /// The URL of the store.
+    pub store_url: String,
+    stop: Option<tokio::sync::oneshot::Sender<()>>,
+    thread: Option<std::thread::JoinHandle<Result<(), ServeError>>>,
+}
+
+impl Server {
+    /// Waits until the server stops (on SIGINT/SIGTERM when `on_signal` was set, or [`Self::stop`]).
+    pub fn wait(mut self) -> Result<(), ServeError> {
+        match self.thread.take().map(std::thread::JoinHandle::join) {
+            Some(Ok(r)) => r,
+            Some(Err(_)) => Err(ServeError::Io(std::io::Error::other(
+                "the server thread failed",
+            ))),
+            None => Ok(()),
+        }
+    }
+
+    /// Stops the server and waits for it.
+    pub fn stop(mut self) -> Result<(), ServeError> {
+        if let Some(s) = self.stop.take() {
+            let _ = s.send(());
+        }
+        self.wait()
+    }
+}
+
+/// The name the store is served under: its folder's name when that is a plain name, else
+/// `planet.zarr`.
+pub fn mount_name(store: &Path) -> String {
+    store
+        .file_name()
+        .and_then(|n| n.to_str())
+        .filter(|n| plain_component(n))
+        .unwrap_or("planet.zarr")
+        .to_string()
+}
+
+/// A path component served: ASCII letters, digits, `_`, `-` and `.`, not beginning with `.`.
+fn plain_component(c: &str) -> bool {
+    !c.is_empty()
+        && !c.starts_with('.')
+        && c.bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-' || b == b'.')
+}
+
+/// Starts serving `store` on `addr` in a thread of its own. The store is opened and checked
+/// first: a missing or damaged store is an error here, not a server that answers 404s.
+/// `on_signal`: stop on SIGINT/SIGTERM (the command line), not only on [`Server::stop`].
+pub fn start(store: &Path, addr: SocketAddr, on_signal: bool) -> Result<Server, ServeError> {
+    sc_store::StoreReader::open(store)?;
+    let std_listener =
+        std::net::TcpListener::bind(addr).map_err(|source| ServeError::Bind { addr, source })?;
+    std_listener.set_nonblocking(true)?;
+    let addr = std_listener.local_addr()?;
+    let name = mount_name(store);
+    let state = Arc::new(State {
+        root: store.to_path_buf(),
+        name: name.clone(),
+        seen: Mutex::new(None),
+    });
+    let (tx, rx) = tokio::sync::oneshot::channel::<()>();
+    let thread = std::thread::Builder::new().name("serve".into()).spawn(
+        move || -> Result<(), ServeError> {
+            let rt = tokio::runtime::Builder::new_multi_thread()
+                .enable_all()
+                .build()?;
+            rt.block_on(async move {
+                use axum::serve::ListenerExt;
+                // small answers (a tile's range) go out at once, not after a delayed ACK
+                let listener = tokio::net::TcpListener::from_std(std_listener)?.tap_io(|tcp| {
+                    let _ = tcp.set_nodelay(true);
+                });
+                let app = axum::Router::new().fallback(handle).with_state(state);
+                let stop = async move {
+                    if on_signal {
+                        tokio::select! {
+                            _ = rx => {}
+                            _ = signal() => {}
+                        }
+                    } else {
+                        let _ = rx.await;
+                    }
+                };
+                axum::serve(listener, app)
+                    .with_graceful_shutdown(stop)
+                    .await
+                    .map_err(ServeError::Io)
+            })
+        },
+    )?;
+    Ok(Server {
+        addr,
+        store_url: format!("http://{addr}/{name}"),
+        stop: Some(tx),
+        thread: Some(thread),
+    })
+}
+
+async fn signal() {
+    use tokio::signal::unix::{SignalKind, signal};
+    let (Ok(mut int), Ok(mut term)) = (
+        signal(SignalKind::interrupt()),
+        signal(SignalKind::terminate()),
+    ) else {
+        std::future::pending::<()>().await;
+        return;
+    };
+    tokio::select! {
+        _ = int.recv() => {}
+        _ = term.recv() => {}
+    }
+}
+
+/// What the server knows of the store between requests.
+struct State {
+    root: PathBuf,
+    name: String,
+    /// The root metadata file's identity when it was last read, and what the store was then.
+    seen: Mutex<Option<(FileId, Health)>>,
+}
+
+/// A file's identity: size, modification time, inode.
+type FileId = (u64, i64, i64, u64);
+
+fn file_id(m: &std::fs::Metadata) -> FileId {
+    (m.len(), m.mtime(), m.mtime_nsec(), m.ino())
+}
+
+/// Whether the store can be served now.
+#[derive(Debug, Clone, PartialEq)]
+enum Health {
+    Ready { levels: Vec<String> },
+    Incomplete,
+    Broken(String),
+}
+
+impl State {
+    /// The store's health now: re-read when its root metadata changed (a stat a request).
+    fn health(&self) -> Health {
+        if sc_store::being_written(&self.root) {
+            return Health::Incomplete;
+        }
+        let id = match std::fs::symlink_metadata(self.root.join("zarr.json")) {
+            Ok(m) if m.is_file() => file_id(&m),
+            Ok(_) => return Health::Broken("the store's zarr.json is not a regular file".into()),
+            Err(_) => return Health::Broken("there is no store here any more".into()),
+        };
+        let mut seen = self.seen.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some((known, h)) = seen.as_ref()
+            && *known == id
+        {
+            return h.clone();
+        }
+        let h = match sc_store::StoreReader::open(&self.root) {
+            Ok(r) if !r.meta().complete => Health::Incomplete,
+            Ok(r) => Health::Ready {
+                levels: r
+                    .meta()
+                    .layers
+                    .iter()
+                    .map(|(k, l)| {
+                        let mut keys: Vec<String> = l.levels.keys().cloned().collect();
+                        keys.sort();
+                        format!("{k}: {}", keys.join(" "))
+                    })
+                    .collect(),
+            },
+            Err(e) => Health::Broken(e.to_string()),
+        };
+        *seen = Some((id, h.clone()));
+        h
+    }
+}
+
+async fn handle(
+    axum::extract::State(state): axum::extract::State<Arc<State>>,
+    method: Method,
+    uri: Uri,
+    headers: HeaderMap,
+) -> Response {
+    let path = uri.path();
+    if method == Method::OPTIONS {
+        return cors(
+            Response::builder()
+                .status(StatusCode::NO_CONTENT)
+                .header(header::ALLOW, "GET, HEAD, OPTIONS")
+                .header(header::ACCESS_CONTROL_ALLOW_METHODS, "GET, HEAD, OPTIONS")
+                .header(
+                    header::ACCESS_CONTROL_ALLOW_HEADERS,
+                    "Range, If-None-Match, If-Modified-Since, If-Range",
+                )
+                .header(header::ACCESS_CONTROL_MAX_AGE, "86400")
+                .body(Body::empty()),
+        );
+    }
+    if method != Method::GET && method != Method::HEAD {
+        return page(
+            StatusCode::METHOD_NOT_ALLOWED,
+            "Read-only",
+            "This server only answers GET and HEAD: the store is read-only here.",
+        );
+    }
+    let head = method == Method::HEAD;
+    let st = state.clone();
+    let health = tokio::task::spawn_blocking(move || st.health())
+        .await
+        .unwrap_or_else(|_| Health::Broken("the server failed to read the store".into()));
+    if path == "/" || path == "/index.html" {
+        return index(&state, &health);
+    }
+    let Some(rest) = path
+        .strip_prefix('/')
+        .and_then(|p| p.strip_prefix(state.name.as_str()))
+        .and_then(|p| p.strip_prefix('/'))
+    else {
+        return page(
+            StatusCode::NOT_FOUND,
+            "Not found",
+            &format!(
+                "Nothing is served at this path. The store is at /{}/.",
+                state.name
+            ),
+        );
+    };
+    let Some(key) = store_key(rest) else {
+        return page(
+            StatusCode::NOT_FOUND,
+            "Not served",
+            "Only the store's data and metadata are served: no hidden files (the lock, .sphereclip/), no temp files, no `..`, no percent-encoded or unusual names.",
+        );
+    };
+    match health {
+        Health::Ready { .. } => {}
+        Health::Incomplete => {
+            return page(
+                StatusCode::SERVICE_UNAVAILABLE,
+                "The store is INCOMPLETE",
+                "A writer is working on this store or stopped before it committed, so its tiles may be missing or old. Rerun (or let finish) the command that was writing it, then reload.",
+            );
+        }
+        Health::Broken(why) => {
+            return page(
+                StatusCode::NOT_FOUND,
+                "No store",
+                &format!("The store cannot be read: {why}"),
+            );
+        }
+    }
+    let root = state.root.clone();
+    let file = tokio::task::spawn_blocking(move || open_inside(&root, &key)).await;
+    let (file, meta, json) = match file {
+        Ok(Ok(found)) => found,
+        Ok(Err(e)) if e.kind() == std::io::ErrorKind::NotFound => {
+            return page(
+                StatusCode::NOT_FOUND,
+                "Not found",
+                "The store has no such file.",
+            );
+        }
+        Ok(Err(_)) | Err(_) => {
+            return page(
+                StatusCode::NOT_FOUND,
+                "Not served",
+                "Only regular files inside the store are served, never through a symbolic link.",
+            );
+        }
+    };
+    send_file(file, &meta, json, &headers, head).await
+}
+
+/// The store key of a request path inside the store, or `None` when it is not served.
+fn store_key(rest: &str) -> Option<String> {
+    if rest.is_empty() {
+        return Some("zarr.json".into());
+    }
+    let parts: Vec<&str> = rest.split('/').collect();
+    let ok = parts.iter().all(|c| plain_component(c))
+        && !parts
+            .last()
+            .is_some_and(|n| sc_store::fault::is_temp_name(n));
+    ok.then(|| parts.join("/"))
+}
+
+/// Opens `key` inside `root` as the readers do: no symlinked folder on the way, the file itself
+/// opened no-follow, regular only.
+fn open_inside(
+    root: &Path,
+    key: &str,
+) -> std::io::Result<(std::fs::File, std::fs::Metadata, bool)> {
+    let path = root.join(key);
+    sc_store::files::check_inside(root, &path)?;
+    let f = sc_store::files::open_regular(&path)?;
+    let m = f.metadata()?;
+    Ok((f, m, key.ends_with(".json")))
+}
+
+fn etag(m: &std::fs::Metadata) -> String {
+    let (len, s, ns, ino) = file_id(m);
+    format!("\"{len:x}-{s:x}{ns:08x}-{ino:x}\"")
+}
+
+fn cors(r: Result<Response, axum::http::Error>) -> Response {
+    let mut r = r.unwrap_or_else(|_| StatusCode::INTERNAL_SERVER_ERROR.into_response());
+    let h = r.headers_mut();
+    h.insert(
+        header::ACCESS_CONTROL_ALLOW_ORIGIN,
+        HeaderValue::from_static("*"),
+    );
+    h.insert(
+        header::ACCESS_CONTROL_EXPOSE_HEADERS,
+        HeaderValue::from_static(
+            "Content-Range, Content-Length, ETag, Last-Modified, Accept-Ranges",
+        ),
+    );
+    r
+}
+
+fn header_str(headers: &HeaderMap, name: header::HeaderName) -> Option<&str> {
+    headers.get(name).and_then(|v| v.to_str().ok())
+}
+
+/// Whether an `If-None-Match` list names `tag` (weak comparison, `*` matches).
+fn none_match(list: &str, tag: &str) -> bool {
+    list.split(',')
+        .map(|t| t.trim().trim_start_matches("W/"))
+        .any(|t| t == "*" || t == tag)
+}
+
+async fn send_file(
+    file: std::fs::File,
+    m: &std::fs::Metadata,
+    json: bool,
+    headers: &HeaderMap,
+    head: bool,
+) -> Response {
+    let len = m.len();
+    let tag = etag(m);
+    let modified = m.modified().unwrap_or(SystemTime::UNIX_EPOCH);
+    let last_modified = httpdate::fmt_http_date(modified);
+    let content_type = if json {
+        "application/json"
+    } else {
+        "application/octet-stream"
+    };
+    let base = || {
+        Response::builder()
+            .header(header::ETAG, &tag)
+            .header(header::LAST_MODIFIED, &last_modified)
+            .header(header::ACCEPT_RANGES, "bytes")
+            .header(header::CACHE_CONTROL, "no-cache")
+            .header(header::VARY, "Accept-Encoding")
+    };
+    // conditional requests: If-None-Match wins over If-Modified-Since
+    let not_modified = match header_str(headers, header::IF_NONE_MATCH) {
+        Some(list) => none_match(list, &tag),
+        None => header_str(headers, header::IF_MODIFIED_SINCE)
+            .and_then(|d| httpdate::parse_http_date(d).ok())
+            .is_some_and(|since| {
+                modified
+                    .duration_since(since)
+                    .map_or(true, |d| d < Duration::from_secs(1))
+            }),
+    };
+    if not_modified {
+        return cors(base().status(StatusCode::NOT_MODIFIED).body(Body::empty()));
+    }
+    // a Range applies only while the If-Range validator still holds
+    let range = header_str(headers, header::RANGE).filter(|_| {
+        header_str(headers, header::IF_RANGE).is_none_or(|v| v == tag || v == last_modified)
+    });
+    let Some(range) = range else {
+        let gzip = json
+            && len <= MAX_GZIP_BYTES
+            && header_str(headers, header::ACCEPT_ENCODING)
+                .is_some_and(|a| a.split(',').any(|e| e.trim().starts_with("gzip")));
+        if gzip {
+            let Ok(Ok(body)) = tokio::task::spawn_blocking(move || gzip_file(file, len)).await
+            else {
+                return page(
+                    StatusCode::INTERNAL_SERVER_ERROR,
+                    "Read failed",
+                    "The file could not be read.",
+                );
+            };
+            return cors(
+                base()
+                    .status(StatusCode::OK)
+                    .header(header::CONTENT_TYPE, content_type)
+                    .header(header::CONTENT_ENCODING, "gzip")
+                    .header(header::CONTENT_LENGTH, body.len())
+                    .body(if head {
+                        Body::empty()
+                    } else {
+                        Body::from(body)
+                    }),
+            );
+        }
+        return cors(
+            base()
+                .status(StatusCode::OK)
+                .header(header::CONTENT_TYPE, content_type)
+                .header(header::CONTENT_LENGTH, len)
+                .body(if head {
+                    Body::empty()
+                } else {
+                    stream(file, 0, len)
+                }),
+        );
+    };
+    let ranges = match ranges_of(range, len) {
+        Ok(r) => r,
+        Err(why) => {
+            return cors(
+                Response::builder()
+                    .status(StatusCode::RANGE_NOT_SATISFIABLE)
+                    .header(header::CONTENT_RANGE, format!("bytes */{len}"))
+                    .header(header::CONTENT_TYPE, "text/plain; charset=utf-8")
+                    .body(Body::from(format!("range not satisfiable: {why}\n"))),
+            );
+        }
+    };
+    if let [(start, end)] = ranges[..] {
+        return cors(
+            base()
+                .status(StatusCode::PARTIAL_CONTENT)
+                .header(header::CONTENT_TYPE, content_type)
+                .header(header::CONTENT_RANGE, format!("bytes {start}-{end}/{len}"))
+                .header(header::CONTENT_LENGTH, end - start + 1)
+                .body(if head {
+                    Body::empty()
+                } else {
+                    stream(file, start, end - start + 1)
+                }),
+        );
+    }
+    let boundary = format!(
+        "sphereclip-{:016x}",
+        len ^ (modified.elapsed().map_or(7, |d| d.as_nanos() as u64))
+    );
+    let Ok(Ok(body)) = tokio::task::spawn_blocking({
+        let boundary = boundary.clone();
+        move || multipart(&file, &ranges, len, content_type, &boundary)
+    })
+    .await
+    else {
+        return page(
+            StatusCode::INTERNAL_SERVER_ERROR,
+            "Read failed",
+            "The file could not be read.",
+        );
+    };
+    cors(
+        base()
+            .status(StatusCode::PARTIAL_CONTENT)
+            .header(
+                header::CONTENT_TYPE,
+                format!("multipart/byteranges; boundary={boundary}"),
+            )
+            .header(header::CONTENT_LENGTH, body.len())
+            .body(if head {
+                Body::empty()
+            } else {
+                Body::from(body)
+            }),
+    )
+}
+
+/// The byte ranges (inclusive) a `Range` header asks of a file of `len` bytes: single,
+/// open-ended, suffix (a suffix longer than the file is all of it), or several that neither
+/// overlap nor run backwards, at most [`MAX_RANGES`] holding at most [`MAX_MULTIPART_BYTES`].
+fn ranges_of(value: &str, len: u64) -> Result<Vec<(u64, u64)>, String> {
+    use http_range_header::{EndPosition, StartPosition};
+    let parsed = http_range_header::parse_range_header(value).map_err(|e| format!("{e:?}"))?;
+    if parsed.ranges.len() > MAX_RANGES {
+        return Err(format!("more than {MAX_RANGES} ranges"));
+    }
+    let mut out = Vec::with_capacity(parsed.ranges.len());
+    for r in &parsed.ranges {
+        let (start, end) = match (r.start, r.end) {
+            (StartPosition::FromLast(n), _) => (len.saturating_sub(n), len.saturating_sub(1)),
+            (StartPosition::Index(s), EndPosition::LastByte) => (s, len.saturating_sub(1)),
+            (StartPosition::Index(s), EndPosition::Index(e)) => (s, e.min(len.saturating_sub(1))),
+        };
+        if len == 0 || start >= len || start > end {
+            return Err(format!("the file has {len} bytes"));
+        }
+        out.push((start, end));
+    }
+    let mut sorted = out.clone();
+    sorted.sort_unstable();
+    if sorted.windows(2).any(|w| w[1].0 <= w[0].1) {
+        return Err("overlapping ranges".into());
+    }
+    if out.len() > 1 && out.iter().map(|(s, e)| e - s + 1).sum::<u64>() > MAX_MULTIPART_BYTES {
+        return Err(format!(
+            "several ranges holding more than {MAX_MULTIPART_BYTES} bytes"
+        ));
+    }
+    Ok(out)
+}
+
+/// `len` bytes of `file` from `start`, streamed in chunks.
+fn stream(mut file: std::fs::File, start: u64, len: u64) -> Body {
+    use std::io::Seek;
+    use tokio::io::AsyncReadExt;
+    if let Err(e) = file.seek(std::io::SeekFrom::Start(start)) {
+        return Body::from_stream(tokio_util::io::ReaderStream::new(FailedRead(Some(e))));
+    }
+    let f = tokio::fs::File::from_std(file).take(len);
+    Body::from_stream(tokio_util::io::ReaderStream::new(f))
+}
+
+/// A reader that fails once with the error of a seek.
+struct FailedRead(Option<std::io::Error>);
+
+impl tokio::io::AsyncRead for FailedRead {
+    fn poll_read(
+        mut self: std::pin::Pin<&mut Self>,
+        _: &mut std::task::Context<'_>,
+        _: &mut tokio::io::ReadBuf<'_>,
+    ) -> std::task::Poll<std::io::Result<()>> {
+        std::task::Poll::Ready(self.0.take().map_or(Ok(()), Err))
+    }
+}
+
+/// A JSON file gzipped (metadata only; bounded by [`MAX_GZIP_BYTES`]).
+fn gzip_file(file: std::fs::File, len: u64) -> std::io::Result<Vec<u8>> {
+    use std::io::{Read, Write};
+    let mut raw = Vec::with_capacity(len as usize);
+    file.take(MAX_GZIP_BYTES).read_to_end(&mut raw)?;
+    let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::new(6));
+    enc.write_all(&raw)?;
+    enc.finish()
+}
+
+/// A `multipart/byteranges` body of `ranges` of `file`.
+fn multipart(
+    file: &std::fs::File,
+    ranges: &[(u64, u64)],
+    len: u64,
+    content_type: &str,
+    boundary: &str,
+) -> std::io::Result<Vec<u8>> {
+    use std::os::unix::fs::FileExt;
+    let mut out = Vec::new();
+    for &(s, e) in ranges {
+        out.extend_from_slice(
+            format!(
+                "\r\n--{boundary}\r\nContent-Type: {content_type}\r\nContent-Range: bytes {s}-{e}/{len}\r\n\r\n"
+            )
+            .as_bytes(),
+        );
+        let at = out.len();
+        out.resize(at + (e - s + 1) as usize, 0);
+        file.read_exact_at(&mut out[at..], s)?;
+    }
+    out.extend_from_slice(format!("\r\n--{boundary}--\r\n").as_bytes());
+    Ok(out)
+}
+
+fn escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+/// A short HTML page: what happened and what to do.
+fn page(status: StatusCode, title: &str, text: &str) -> Response {
+    let body = format!(
+        "<!doctype html><meta charset=utf-8><title>{t}</title><h1>{t}</h1><p>{x}</p>\n",
+        t = escape(title),
+        x = escape(text)
+    );
+    cors(
+        Response::builder()
+            .status(status)
+            .header(header::CONTENT_TYPE, "text/html; charset=utf-8")
+            .header(header::CACHE_CONTROL, "no-store")
+            .body(Body::from(body)),
+    )
+}
+
+/// The page at `/`: what is served and how to open it.
+fn index(state: &State, health: &Health) -> Response {
+    let (status, title, text) = match health {
+        Health::Ready { levels } => (
+            StatusCode::OK,
+            format!("sphereclip: {}", state.name),
+            format!(
+                "The store {name} is served at /{name}/ (levels: {}). Open it with: sphereclip view URL/{name} (or render, info, export), or any Zarr v3 reader.",
+                levels.join("; "),
+                name = state.name
+            ),
+        ),
+        Health::Incomplete => (
+            StatusCode::SERVICE_UNAVAILABLE,
+            "The store is INCOMPLETE".to_string(),
+            "A writer is working on this store or stopped before it committed. Rerun (or let finish) the command that was writing it, then reload.".to_string(),
+        ),
+        Health::Broken(why) => (
+            StatusCode::NOT_FOUND,
+            "No store".to_string(),
+            format!("The store cannot be read: {why}"),
+        ),
+    };
+    page(status, &title, &text)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ranges_single_open_suffix_several_and_refused() {
+        assert_eq!(ranges_of("bytes=0-9", 100), Ok(vec![(0, 9)]));
+        assert_eq!(ranges_of("bytes=90-", 100), Ok(vec![(90, 99)]));
+        assert_eq!(ranges_of("bytes=-10", 100), Ok(vec![(90, 99)]));
+        assert_eq!(ranges_of("bytes=-500", 100), Ok(vec![(0, 99)]));
+        assert_eq!(ranges_of("bytes=95-200", 100), Ok(vec![(95, 99)]));
+        assert_eq!(
+            ranges_of("bytes=0-1,10-11", 100),
+            Ok(vec![(0, 1), (10, 11)])
+        );
+        assert!(ranges_of("bytes=100-", 100).is_err());
+        assert!(ranges_of("bytes=5-1", 100).is_err());
+        assert!(ranges_of("bytes=0-10,5-20", 100).is_err());
+        assert!(ranges_of("items=0-1", 100).is_err());
+        assert!(ranges_of("bytes=0-0", 0).is_err());
+    }
+
+    #[test]
+    fn only_plain_names_are_store_keys() {
+        assert_eq!(store_key("").as_deref(), Some("zarr.json"));
+        assert_eq!(
+            store_key("height/8/data/c/0/1").as_deref(),
+            Some("height/8/data/c/0/1")
+        );
+        for bad in [
+            ".lock",
+            ".sphereclip/journal-1.json",
+            "height/../../etc/passwd",
+            "height/./zarr.json",
+            "height//zarr.json",
+            "height/%2e%2e/x",
+            "zarr.json.12.34.tmp",
+            "a\\b",
+        ] {
+            assert_eq!(store_key(bad), None, "{bad}");
+        }
+    }
+}

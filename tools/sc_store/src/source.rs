@@ -1,0 +1,348 @@
+//! Where a reader's bytes come from: a store folder on this machine, or a store served over
+//! HTTP(S) (by `sphereclip serve` or any static host that answers Range requests). Readers ask for
+//! whole small objects (metadata), a shard's end (its index) and byte ranges (tiles); nothing
+//! else, so any source that can answer those three can hold a planet.
+
+use std::ffi::OsStr;
+use std::io::{self, Read, Seek, SeekFrom};
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+/// Where a store is: a folder, or the URL of one (`http://…` or `https://…`). A local folder
+/// whose name begins with `http:` is reached as `./http:…`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Location {
+    /// A store folder on this machine.
+    Local(PathBuf),
+    /// A store served over HTTP(S), its URL without a trailing slash.
+    Remote(String),
+}
+
+impl Location {
+    /// What a command-line argument names.
+    pub fn parse(arg: &OsStr) -> Self {
+        match arg.to_str() {
+            Some(s) if is_url(s) => Self::Remote(s.trim_end_matches('/').to_string()),
+            _ => Self::Local(PathBuf::from(arg)),
+        }
+    }
+
+    /// The folder of a local store.
+    pub fn local(&self) -> Option<&Path> {
+        match self {
+            Self::Local(p) => Some(p),
+            Self::Remote(_) => None,
+        }
+    }
+
+    /// The store as a path, for messages (a URL is kept as written).
+    pub fn as_path(&self) -> PathBuf {
+        match self {
+            Self::Local(p) => p.clone(),
+            Self::Remote(u) => PathBuf::from(u),
+        }
+    }
+}
+
+impl From<std::ffi::OsString> for Location {
+    fn from(arg: std::ffi::OsString) -> Self {
+        Self::parse(&arg)
+    }
+}
+
+impl std::fmt::Display for Location {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Local(p) => write!(f, "{}", p.display()),
+            Self::Remote(u) => f.write_str(u),
+        }
+    }
+}
+
+/// Whether a command-line argument is an HTTP(S) URL rather than a path.
+pub fn is_url(s: &str) -> bool {
+    let lower = s.get(..8).unwrap_or(s).to_ascii_lowercase();
+    lower.starts_with("http://") || lower.starts_with("https://")
+}
+
+/// The bytes of a store, by key (a `/`-separated path inside the store, e.g. `zarr.json` or
+/// `height/8/data/c/0/1`). Every answer is bounded: a key is never read past what was asked.
+pub trait StoreSource: Send + Sync + std::fmt::Debug {
+    /// Where `key` lives, for messages (a path or a URL).
+    fn name_of(&self, key: &str) -> PathBuf;
+    /// The whole object; `None` when there is none; an error when it is larger than `limit`.
+    fn get(&self, key: &str, limit: u64) -> io::Result<Option<Vec<u8>>>;
+    /// The object's last `len` bytes (all of it when shorter) and its size; `None` when there
+    /// is no object.
+    fn get_suffix(&self, key: &str, len: u64) -> io::Result<Option<(u64, Vec<u8>)>>;
+    /// `len` bytes from `offset`; an error when the object ends before.
+    fn get_range(&self, key: &str, offset: u64, len: u64) -> io::Result<Vec<u8>>;
+    /// Whether this is a folder on this machine (which may hold markers and journals a
+    /// remote store does not publish).
+    fn local_root(&self) -> Option<&Path> {
+        None
+    }
+}
+
+/// The source of [`Location`].
+pub fn source_of(location: &Location) -> std::sync::Arc<dyn StoreSource> {
+    match location {
+        Location::Local(p) => std::sync::Arc::new(FolderSource::new(p)),
+        Location::Remote(u) => std::sync::Arc::new(HttpSource::new(u)),
+    }
+}
+
+/// A store folder: files opened as untrusted (regular files only, never through a symlink).
+#[derive(Debug, Clone)]
+pub struct FolderSource {
+    root: PathBuf,
+}
+
+impl FolderSource {
+    /// The store folder at `root`.
+    pub fn new(root: &Path) -> Self {
+        Self {
+            root: root.to_path_buf(),
+        }
+    }
+
+    fn open(&self, key: &str) -> io::Result<Option<std::fs::File>> {
+        let path = self.name_of(key);
+        crate::files::check_inside(&self.root, &path)?;
+        match crate::files::open_regular(&path) {
+            Ok(f) => Ok(Some(f)),
+            Err(e) if e.kind() == io::ErrorKind::NotFound => Ok(None),
+            Err(e) => Err(e),
+        }
+    }
+}
+
+impl StoreSource for FolderSource {
+    fn name_of(&self, key: &str) -> PathBuf {
+        self.root.join(key.trim_start_matches('/'))
+    }
+
+    fn get(&self, key: &str, limit: u64) -> io::Result<Option<Vec<u8>>> {
+        let path = self.name_of(key);
+        crate::files::check_inside(&self.root, &path)?;
+        match crate::files::read_regular(&path, limit) {
+            Ok(b) => Ok(Some(b)),
+            Err(e) if e.kind() == io::ErrorKind::NotFound => Ok(None),
+            Err(e) => Err(e),
+        }
+    }
+
+    fn get_suffix(&self, key: &str, len: u64) -> io::Result<Option<(u64, Vec<u8>)>> {
+        let Some(mut f) = self.open(key)? else {
+            return Ok(None);
+        };
+        let size = f.metadata()?.len();
+        let n = len.min(size);
+        let mut buf = vec![0u8; n as usize];
+        f.seek(SeekFrom::Start(size - n))?;
+        f.read_exact(&mut buf)?;
+        Ok(Some((size, buf)))
+    }
+
+    fn get_range(&self, key: &str, offset: u64, len: u64) -> io::Result<Vec<u8>> {
+        use std::os::unix::fs::FileExt;
+        let Some(f) = self.open(key)? else {
+            return Err(io::Error::new(io::ErrorKind::NotFound, "no such file"));
+        };
+        let mut buf = vec![0u8; len as usize];
+        f.read_exact_at(&mut buf, offset)?;
+        Ok(buf)
+    }
+
+    fn local_root(&self) -> Option<&Path> {
+        Some(&self.root)
+    }
+}
+
+/// A store over HTTP(S): metadata with GET, shard indexes with a suffix Range, tiles with a
+/// Range each. Bounded everywhere: a connect timeout, a timeout per request, a size limit per
+/// answer; transient failures (connection errors, 5xx) are retried twice.
+#[derive(Debug, Clone)]
+pub struct HttpSource {
+    base: String,
+    agent: ureq::Agent,
+}
+
+/// How long one request may take, start to end.
+const REQUEST_TIMEOUT: Duration = Duration::from_secs(30);
+/// Tries per request (transient failures only).
+const TRIES: u32 = 3;
+
+impl HttpSource {
+    /// The store at `base` (its URL, with or without a trailing slash).
+    pub fn new(base: &str) -> Self {
+        let config = ureq::Agent::config_builder()
+            .timeout_global(Some(REQUEST_TIMEOUT))
+            .timeout_connect(Some(Duration::from_secs(10)))
+            .http_status_as_error(false)
+            .max_redirects(5)
+            .user_agent(concat!("sphereclip/", env!("CARGO_PKG_VERSION")))
+            .build();
+        Self {
+            base: base.trim_end_matches('/').to_string(),
+            agent: ureq::Agent::new_with_config(config),
+        }
+    }
+
+    fn url(&self, key: &str) -> String {
+        format!("{}/{}", self.base, key.trim_start_matches('/'))
+    }
+
+    /// One GET (with a Range header when given), retried on transient failures; the status and
+    /// the response. `limit`: the most body bytes accepted.
+    fn fetch(
+        &self,
+        key: &str,
+        range: Option<String>,
+        limit: u64,
+    ) -> io::Result<(u16, Option<String>, Vec<u8>)> {
+        let url = self.url(key);
+        let mut last = None;
+        for attempt in 0..TRIES {
+            if attempt > 0 {
+                std::thread::sleep(Duration::from_millis(200 << (2 * attempt)));
+            }
+            let mut req = self.agent.get(&url);
+            if let Some(r) = &range {
+                req = req.header("Range", r);
+            }
+            let resp = match req.call() {
+                Ok(r) => r,
+                Err(e) => {
+                    last = Some(http_error(&url, &e.to_string()));
+                    continue;
+                }
+            };
+            let status = resp.status().as_u16();
+            if status >= 500 {
+                last = Some(http_error(&url, &format!("HTTP {status}")));
+                continue;
+            }
+            let content_range = resp
+                .headers()
+                .get("content-range")
+                .and_then(|v| v.to_str().ok())
+                .map(str::to_string);
+            if status == 404 || status == 410 {
+                return Ok((status, None, Vec::new()));
+            }
+            if !(200..300).contains(&status) {
+                return Err(http_error(&url, &format!("HTTP {status}")));
+            }
+            let body = resp
+                .into_body()
+                .into_with_config()
+                .limit(limit)
+                .read_to_vec()
+                .map_err(|e| http_error(&url, &e.to_string()))?;
+            return Ok((status, content_range, body));
+        }
+        Err(last.unwrap_or_else(|| http_error(&url, "no answer")))
+    }
+}
+
+fn http_error(url: &str, what: &str) -> io::Error {
+    io::Error::other(format!("{url}: {what}"))
+}
+
+/// The total size in a `Content-Range: bytes a-b/total` header.
+fn range_total(content_range: &str) -> Option<u64> {
+    content_range.rsplit_once('/')?.1.trim().parse().ok()
+}
+
+impl StoreSource for HttpSource {
+    fn name_of(&self, key: &str) -> PathBuf {
+        PathBuf::from(self.url(key))
+    }
+
+    fn get(&self, key: &str, limit: u64) -> io::Result<Option<Vec<u8>>> {
+        let (status, _, body) = self.fetch(key, None, limit)?;
+        Ok((status != 404 && status != 410).then_some(body))
+    }
+
+    fn get_suffix(&self, key: &str, len: u64) -> io::Result<Option<(u64, Vec<u8>)>> {
+        // a shard is at most a few hundred MiB; a server that ignores Range sends all of it
+        let (status, cr, mut body) =
+            self.fetch(key, Some(format!("bytes=-{len}")), crate::MAX_SHARD_BYTES)?;
+        match status {
+            404 | 410 => Ok(None),
+            206 => {
+                let total = cr.as_deref().and_then(range_total).ok_or_else(|| {
+                    http_error(&self.url(key), "a partial answer without its total size")
+                })?;
+                Ok(Some((total, body)))
+            }
+            _ => {
+                let total = body.len() as u64;
+                let keep = body.len() - (len.min(total) as usize);
+                Ok(Some((total, body.split_off(keep))))
+            }
+        }
+    }
+
+    fn get_range(&self, key: &str, offset: u64, len: u64) -> io::Result<Vec<u8>> {
+        if len == 0 {
+            return Ok(Vec::new());
+        }
+        let last = offset
+            .checked_add(len - 1)
+            .ok_or_else(|| http_error(&self.url(key), "a byte range past 2^64"))?;
+        let (status, _, body) = self.fetch(
+            key,
+            Some(format!("bytes={offset}-{last}")),
+            crate::MAX_SHARD_BYTES,
+        )?;
+        let short = || {
+            io::Error::new(
+                io::ErrorKind::UnexpectedEof,
+                format!("{}: the answer ends before the range asked", self.url(key)),
+            )
+        };
+        match status {
+            404 | 410 => Err(io::Error::new(
+                io::ErrorKind::NotFound,
+                format!("{}: not found", self.url(key)),
+            )),
+            206 if body.len() as u64 == len => Ok(body),
+            206 => Err(short()),
+            _ => {
+                let start = usize::try_from(offset).map_err(|_| short())?;
+                body.get(start..start + len as usize)
+                    .map(<[u8]>::to_vec)
+                    .ok_or_else(short)
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_url_is_remote_anything_else_a_folder() {
+        assert_eq!(
+            Location::parse(OsStr::new("http://127.0.0.1:8080/planet.zarr/")),
+            Location::Remote("http://127.0.0.1:8080/planet.zarr".into())
+        );
+        assert!(matches!(
+            Location::parse(OsStr::new("HTTPS://example.org/p.zarr")),
+            Location::Remote(_)
+        ));
+        assert_eq!(
+            Location::parse(OsStr::new("./http://x")),
+            Location::Local(PathBuf::from("./http://x"))
+        );
+        assert_eq!(
+            Location::parse(OsStr::new("planet.zarr")),
+            Location::Local(PathBuf::from("planet.zarr"))
+        );
+        assert_eq!(range_total("bytes 10-19/4096"), Some(4096));
+        assert_eq!(range_total("bytes 10-19/*"), None);
+    }
+}
