@@ -15,6 +15,7 @@ mod interop;
 mod plan_safety;
 mod render;
 mod safety;
+mod serve;
 mod shading;
 mod store;
 mod store_damage;

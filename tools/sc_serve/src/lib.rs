@@ -697,7 +697,7 @@ mod tests {
             "height/./zarr.json",
             "height//zarr.json",
             "height/%2e%2e/x",
-            "zarr.json.12.34.tmp",
+            "zarr.json.tmp.12.34",
             "a\\b",
         ] {
             assert_eq!(store_key(bad), None, "{bad}");

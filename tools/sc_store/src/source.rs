@@ -219,7 +219,11 @@ impl HttpSource {
                 }
             };
             let status = resp.status().as_u16();
-            if status >= 500 {
+            // a gateway's hiccup, or an unavailable server that says when to come back, is
+            // tried again; a server explaining itself is believed
+            let transient = matches!(status, 502 | 504)
+                || (status == 503 && resp.headers().contains_key("retry-after"));
+            if transient {
                 last = Some(http_error(&url, &format!("HTTP {status}")));
                 continue;
             }
@@ -232,7 +236,14 @@ impl HttpSource {
                 return Ok((status, None, Vec::new()));
             }
             if !(200..300).contains(&status) {
-                return Err(http_error(&url, &format!("HTTP {status}")));
+                let why = resp
+                    .into_body()
+                    .into_with_config()
+                    .limit(64 << 10)
+                    .read_to_string()
+                    .map(|page| headline(&page))
+                    .unwrap_or_default();
+                return Err(http_error(&url, &format!("HTTP {status}{why}")));
             }
             let body = resp
                 .into_body()
@@ -243,6 +254,20 @@ impl HttpSource {
             return Ok((status, content_range, body));
         }
         Err(last.unwrap_or_else(|| http_error(&url, "no answer")))
+    }
+}
+
+/// What an error page says in its first heading (or its first line of text), as `: …`.
+fn headline(page: &str) -> String {
+    let text = match (page.find("<h1>"), page.find("</h1>")) {
+        (Some(a), Some(b)) if a + 4 <= b => &page[a + 4..b],
+        _ => page.lines().find(|l| !l.trim().is_empty()).unwrap_or(""),
+    };
+    let text: String = text.chars().filter(|c| !c.is_control()).take(200).collect();
+    if text.trim().is_empty() || text.contains('<') {
+        String::new()
+    } else {
+        format!(": {}", text.trim())
     }
 }
 
