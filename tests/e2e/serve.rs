@@ -431,6 +431,44 @@ fn incomplete_vanished_and_missing_stores_are_answered_clearly() {
 }
 
 #[test]
+fn a_server_that_goes_away_mid_render_ends_the_render_with_what_it_has() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let server = Served::start(&sample_planet());
+    let go = dir.path().join("go");
+    let mut c = bin();
+    c.env("XDG_RUNTIME_DIR", xdg())
+        .env("SPHERECLIP_PAUSE", format!("render-opened:{}", s(&go)))
+        .args([
+            "render",
+            &server.url,
+            "--camera",
+            "46.5,8,300000,0,-30,60",
+            "--size",
+            "64x36",
+            "--out",
+            s(&dir.path().join("gone.png")),
+        ]);
+    let waiting = dir.path().join("go.waiting");
+    let child = std::thread::spawn(move || run_within(c, Duration::from_secs(120)));
+    while !waiting.exists() {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    drop(server);
+    std::fs::write(&go, b"").expect("go");
+    let o = child.join().expect("render ran");
+    let err = text(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("not answering") || err.contains("onnection"),
+        "{err}"
+    );
+    assert!(
+        !err.contains("corrupt"),
+        "a network failure called damage: {err}"
+    );
+}
+
+#[test]
 fn a_loopback_load_is_answered_in_full_with_bounded_memory() {
     const CLIENTS: usize = 50;
     const REQUESTS: usize = 2000;

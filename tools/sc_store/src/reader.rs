@@ -337,7 +337,7 @@ impl StoreReader {
         tracing::trace!(layer = %kind, %shard, "store: reading shard index");
         let key = self.shard_key(kind, shard)?;
         let index = ShardIndex::read(self.inner.source.as_ref(), &key, (s * s) as usize)
-            .map_err(|detail| self.corrupt(kind, tile, None, &detail))?;
+            .map_err(|e| self.shard_error(kind, tile, None, e))?;
         if index.is_none() && self.listed_as_present(kind, shard) {
             return Err(self.corrupt(kind, tile, None, MISSING_SHARD));
         }
@@ -366,6 +366,26 @@ impl StoreReader {
         TileId::new(self.inner.meta.grid, tile.level, tile.x, tile.y)
             .map(|_| ())
             .map_err(|e| StoreError::Usage(e.to_string()))
+    }
+
+    /// A shard that could not be read: over HTTP a failure to fetch is the network's, not
+    /// damage; in a folder every failure to read a store file is reported as damage to it.
+    fn shard_error(
+        &self,
+        kind: LayerKind,
+        tile: TileId,
+        what: Option<String>,
+        e: crate::shard_index::ShardError,
+    ) -> StoreError {
+        match e {
+            crate::shard_index::ShardError::Unavailable(source) if self.local_root().is_none() => {
+                StoreError::Io {
+                    source,
+                    path: self.shard_path(kind, tile).unwrap_or_default(),
+                }
+            }
+            e => self.corrupt(kind, tile, what, &e.to_string()),
+        }
     }
 
     pub(crate) fn corrupt(
@@ -409,7 +429,7 @@ impl StoreReader {
         let key = self.shard_key(kind, tile.shard(s))?;
         let bytes = index
             .tile_bytes(self.inner.source.as_ref(), &key, local_tile_number(tile, s))
-            .map_err(|d| self.corrupt(kind, tile, what(), &d))?;
+            .map_err(|e| self.shard_error(kind, tile, what(), e))?;
         let lr = self.level(kind, tile.level)?;
         lr.tiles
             .decode_into(&bytes, T::as_bytes_mut(out))

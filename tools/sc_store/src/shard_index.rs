@@ -11,6 +11,30 @@
 
 use crate::source::StoreSource;
 
+/// Why a shard's index or a tile could not be read.
+#[derive(Debug)]
+pub(crate) enum ShardError {
+    /// The source failed to give the bytes (a file system or a network error).
+    Unavailable(std::io::Error),
+    /// The bytes are there and wrong: truncated, a checksum mismatch, ranges outside the file.
+    Damaged(String),
+}
+
+impl std::fmt::Display for ShardError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Unavailable(e) => write!(f, "{e}"),
+            Self::Damaged(d) => f.write_str(d),
+        }
+    }
+}
+
+impl From<String> for ShardError {
+    fn from(d: String) -> Self {
+        Self::Damaged(d)
+    }
+}
+
 /// The decoded index of one shard: `(offset, nbytes)` per tile, row-major over the shard's tiles.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub(crate) struct ShardIndex {
@@ -47,22 +71,24 @@ impl ShardIndex {
         source: &dyn StoreSource,
         key: &str,
         tiles: usize,
-    ) -> Result<Option<Self>, String> {
+    ) -> Result<Option<Self>, ShardError> {
         let index_len = (tiles * 16 + 4) as u64;
         let (len, buf) = match source.get_suffix(key, index_len) {
             Ok(Some(found)) => found,
             Ok(None) => return Ok(None),
-            Err(e) => return Err(e.to_string()),
+            Err(e) => return Err(ShardError::Unavailable(e)),
         };
         if len < index_len || buf.len() as u64 != index_len {
-            return Err(format!(
+            return Err(ShardError::Damaged(format!(
                 "truncated shard: {len} bytes, the index alone needs {index_len}"
-            ));
+            )));
         }
         let (body, crc) = buf.split_at(tiles * 16);
         let stored = u32::from_le_bytes([crc[0], crc[1], crc[2], crc[3]]);
         if crc32c::crc32c(body) != stored {
-            return Err("shard index checksum mismatch (truncated or damaged shard)".into());
+            return Err(ShardError::Damaged(
+                "shard index checksum mismatch (truncated or damaged shard)".into(),
+            ));
         }
         let data_end = len - index_len;
         let mut entries = Vec::with_capacity(tiles);
@@ -75,9 +101,9 @@ impl ShardIndex {
             if !(offset == EMPTY && nbytes == EMPTY)
                 && offset.checked_add(nbytes).is_none_or(|end| end > data_end)
             {
-                return Err(format!(
+                return Err(ShardError::Damaged(format!(
                     "tile bytes {offset}+{nbytes} lie outside the shard's {data_end} data bytes"
-                ));
+                )));
             }
             entries.push((offset, nbytes));
         }
@@ -90,7 +116,7 @@ impl ShardIndex {
         source: &dyn StoreSource,
         key: &str,
         i: usize,
-    ) -> Result<(), String> {
+    ) -> Result<(), ShardError> {
         self.tile_bytes(source, key, i).map(|_| ())
     }
 
@@ -100,22 +126,22 @@ impl ShardIndex {
         source: &dyn StoreSource,
         key: &str,
         i: usize,
-    ) -> Result<Vec<u8>, String> {
+    ) -> Result<Vec<u8>, ShardError> {
         let Some(&(offset, nbytes)) = self.entries.get(i) else {
-            return Err(format!("tile {i} is not in the shard index"));
+            return Err(format!("tile {i} is not in the shard index").into());
         };
         if nbytes < 4 {
-            return Err(format!(
-                "tile {i} has {nbytes} bytes, too few for its checksum"
-            ));
+            return Err(format!("tile {i} has {nbytes} bytes, too few for its checksum").into());
         }
         let buf = source
             .get_range(key, offset, nbytes)
-            .map_err(|e| e.to_string())?;
+            .map_err(ShardError::Unavailable)?;
         let (body, crc) = buf.split_at(buf.len() - 4);
         let stored = u32::from_le_bytes([crc[0], crc[1], crc[2], crc[3]]);
         if crc32c::crc32c(body) != stored {
-            return Err("tile checksum mismatch (damaged bytes)".into());
+            return Err(ShardError::Damaged(
+                "tile checksum mismatch (damaged bytes)".into(),
+            ));
         }
         Ok(buf)
     }

@@ -166,7 +166,13 @@ impl StoreSource for FolderSource {
 pub struct HttpSource {
     base: String,
     agent: ureq::Agent,
+    /// When the server last failed to answer at all (connection refused, reset, timed out):
+    /// for [`DOWN_FOR`] after, requests fail at once instead of each waiting out its retries.
+    down_since: std::sync::Arc<std::sync::Mutex<Option<std::time::Instant>>>,
 }
+
+/// How long a server that did not answer is taken to be down.
+const DOWN_FOR: Duration = Duration::from_secs(5);
 
 /// How long one request may take, start to end.
 const REQUEST_TIMEOUT: Duration = Duration::from_secs(30);
@@ -186,6 +192,7 @@ impl HttpSource {
         Self {
             base: base.trim_end_matches('/').to_string(),
             agent: ureq::Agent::new_with_config(config),
+            down_since: Default::default(),
         }
     }
 
@@ -202,6 +209,19 @@ impl HttpSource {
         limit: u64,
     ) -> io::Result<(u16, Option<String>, Vec<u8>)> {
         let url = self.url(key);
+        let down = || {
+            self.down_since
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner)
+        };
+        if let Some(t) = *down()
+            && t.elapsed() < DOWN_FOR
+        {
+            return Err(http_error(
+                &self.base,
+                "the server is not answering (it did not a moment ago)",
+            ));
+        }
         let mut last = None;
         for attempt in 0..TRIES {
             if attempt > 0 {
@@ -215,9 +235,16 @@ impl HttpSource {
                 Ok(r) => r,
                 Err(e) => {
                     last = Some(http_error(&url, &e.to_string()));
+                    if matches!(e, ureq::Error::Io(ref io) if io.kind() == io::ErrorKind::ConnectionRefused)
+                        || matches!(e, ureq::Error::ConnectionFailed)
+                    {
+                        // nothing listens: no point in trying again now
+                        break;
+                    }
                     continue;
                 }
             };
+            *down() = None;
             let status = resp.status().as_u16();
             // a gateway's hiccup, or an unavailable server that says when to come back, is
             // tried again; a server explaining itself is believed
@@ -253,6 +280,7 @@ impl HttpSource {
                 .map_err(|e| http_error(&url, &e.to_string()))?;
             return Ok((status, content_range, body));
         }
+        *down() = Some(std::time::Instant::now());
         Err(last.unwrap_or_else(|| http_error(&url, "no answer")))
     }
 }

@@ -524,11 +524,11 @@ impl StoreReader {
                 }
                 return;
             }
-            Err(detail) => {
+            Err(e) => {
                 report.problems.push(Problem {
                     path,
                     what: format!("{kind} {shard} index"),
-                    detail,
+                    detail: e.to_string(),
                 });
                 return;
             }
@@ -539,11 +539,11 @@ impl StoreReader {
             }
             let idx = Self::tile_indices(kind, tile);
             report.tiles_checked += 1;
-            if let Err(detail) = index.check_tile(&folder, &key, local_tile_number(tile, s)) {
+            if let Err(e) = index.check_tile(&folder, &key, local_tile_number(tile, s)) {
                 report.problems.push(Problem {
                     path: path.clone(),
                     what: format!("{kind} {tile}"),
-                    detail,
+                    detail: e.to_string(),
                 });
                 continue;
             }

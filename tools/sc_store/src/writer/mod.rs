@@ -756,7 +756,8 @@ impl StoreWriter {
             .to_string_lossy()
             .into_owned();
         let folder = crate::source::FolderSource::new(&self.root);
-        crate::shard_index::ShardIndex::read(&folder, &key, (t * t) as usize).map_err(corrupt)?;
+        crate::shard_index::ShardIndex::read(&folder, &key, (t * t) as usize)
+            .map_err(|e| corrupt(e.to_string()))?;
         let existing = sw
             .arrays
             .read

@@ -53,6 +53,8 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
         atmosphere,
         ..
     } = streamer_for(&a.store, a.sources.as_deref())?;
+    // where the tests take a served store away from a render that has opened it
+    sc_store::fault::pause("render-opened");
     let sources = super::clipmap_sources(&a.look, sources, without_detail);
     // a still picture: each level whole as soon as it is drawn
     let options = sc_view_plan::frame::DrawOptions {
