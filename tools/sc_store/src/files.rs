@@ -5,14 +5,26 @@
 
 use std::fs::{File, OpenOptions};
 use std::io::{self, Read};
+#[cfg(unix)]
 use std::os::unix::fs::OpenOptionsExt;
 use std::path::Path;
 
 /// Flags of every open here: the last component is not followed if it is a symlink (`ELOOP`),
 /// and opening a FIFO or a device does not wait for a peer.
+#[cfg(unix)]
 const FLAGS: i32 = libc::O_NOFOLLOW | libc::O_NONBLOCK | libc::O_CLOEXEC;
 
+/// Where there is no safe open (a browser has no folders), files are not opened at all.
+#[cfg(not(unix))]
+fn no_files() -> io::Error {
+    io::Error::new(
+        io::ErrorKind::Unsupported,
+        "store folders are read only on Unix here",
+    )
+}
+
 /// Turns the errors of a refused open into ones that say why.
+#[cfg(unix)]
 fn explain(e: io::Error) -> io::Error {
     if e.raw_os_error() == Some(libc::ELOOP) {
         return io::Error::new(
@@ -41,30 +53,44 @@ fn regular(f: File) -> io::Result<File> {
 
 /// A word for a file type, for messages.
 pub fn kind_of(t: &std::fs::FileType) -> &'static str {
-    use std::os::unix::fs::FileTypeExt;
     if t.is_symlink() {
-        "a symbolic link"
-    } else if t.is_dir() {
-        "a folder"
-    } else if t.is_fifo() {
-        "a FIFO"
-    } else if t.is_char_device() || t.is_block_device() {
-        "a device"
-    } else if t.is_socket() {
-        "a socket"
-    } else {
-        "a file"
+        return "a symbolic link";
     }
+    if t.is_dir() {
+        return "a folder";
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if t.is_fifo() {
+            return "a FIFO";
+        }
+        if t.is_char_device() || t.is_block_device() {
+            return "a device";
+        }
+        if t.is_socket() {
+            return "a socket";
+        }
+    }
+    "a file"
 }
 
 /// Opens `path` for reading: a regular file, not a symlink, without blocking.
 pub fn open_regular(path: &Path) -> io::Result<File> {
-    let f = OpenOptions::new()
-        .read(true)
-        .custom_flags(FLAGS)
-        .open(path)
-        .map_err(explain)?;
-    regular(f)
+    #[cfg(unix)]
+    {
+        let f = OpenOptions::new()
+            .read(true)
+            .custom_flags(FLAGS)
+            .open(path)
+            .map_err(explain)?;
+        regular(f)
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = (path, OpenOptions::new(), regular);
+        Err(no_files())
+    }
 }
 
 /// Reads all of the regular file `path` (see [`open_regular`]), refusing one larger than `limit`
@@ -99,15 +125,23 @@ pub fn read_regular_string(path: &Path, limit: u64) -> io::Result<String> {
 /// Opens (creating it if missing) a lock file for writing: a regular file, never a symlink's
 /// target, never a FIFO (which would block).
 pub fn open_lock(path: &Path) -> io::Result<File> {
-    let f = OpenOptions::new()
-        .create(true)
-        .truncate(false)
-        .write(true)
-        .custom_flags(FLAGS)
-        .mode(0o644)
-        .open(path)
-        .map_err(explain)?;
-    regular(f)
+    #[cfg(unix)]
+    {
+        let f = OpenOptions::new()
+            .create(true)
+            .truncate(false)
+            .write(true)
+            .custom_flags(FLAGS)
+            .mode(0o644)
+            .open(path)
+            .map_err(explain)?;
+        regular(f)
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = path;
+        Err(no_files())
+    }
 }
 
 /// `Ok` when every folder between `root` and `path` (both excluded) is a real folder, not a
@@ -189,7 +223,7 @@ pub fn check_regular_or_missing(path: &Path) -> io::Result<()> {
     }
 }
 
-#[cfg(test)]
+#[cfg(all(test, unix))]
 mod tests {
     use super::*;
 

@@ -332,6 +332,7 @@ pub(crate) fn consolidated(dir: &Path) -> Result<Value, String> {
     Ok(json!({"kind": "inline", "must_understand": false, "metadata": out}))
 }
 
+#[cfg(not(target_arch = "wasm32"))]
 /// Writes a group's `zarr.json` atomically and durably: `attrs`, and the inline consolidated
 /// metadata when given.
 pub(crate) fn write_group(
@@ -347,6 +348,7 @@ pub(crate) fn write_group(
     crate::fault::write_atomic(path, &bytes)
 }
 
+#[cfg(not(target_arch = "wasm32"))]
 /// Rewrites a level group with its consolidated metadata, once its data array exists (readers
 /// that open the level alone, like `xarray.open_zarr(STORE/LAYER/LEVEL)`, then list nothing).
 pub(crate) fn consolidate_level_group(
@@ -366,6 +368,7 @@ pub(crate) fn consolidate_level_group(
     .map_err(|e| format!("cannot write the level group: {e}"))
 }
 
+#[cfg(not(target_arch = "wasm32"))]
 /// Writes the group of a new level with everything but its data array: the group's attributes,
 /// the `lat` and `lon` coordinates (f64 texel centres) and the `spatial_ref` grid mapping.
 pub(crate) fn write_level_group(
@@ -442,6 +445,7 @@ fn build_kernel(meta: &crate::StoreMeta) -> String {
         .unwrap_or_else(|| "none (levels ingested)".into())
 }
 
+#[cfg(not(target_arch = "wasm32"))]
 /// Writes each level group with its consolidated metadata, then each layer group with its
 /// `multiscales` attributes and its consolidated metadata (all from what is on disk, so a
 /// resumed writer publishes the same bytes as an uninterrupted one).

@@ -11,7 +11,11 @@
 //! - one [`ShardWriter`] owns a shard: shards are written whole, atomically (temp file, fsync, rename);
 //! - `meta.complete` turns true only in [`StoreWriter::commit`], after every shard is durable.
 
+// in a browser only the reading half is used
+#![cfg_attr(target_arch = "wasm32", allow(dead_code))]
+
 mod codec;
+#[cfg(not(target_arch = "wasm32"))]
 mod durable;
 pub mod fault;
 pub mod files;
@@ -23,8 +27,11 @@ mod reader;
 mod sample;
 mod shard_index;
 mod source;
+#[cfg(not(target_arch = "wasm32"))]
 mod upgrade;
+#[cfg(not(target_arch = "wasm32"))]
 mod verify;
+#[cfg(not(target_arch = "wasm32"))]
 mod writer;
 
 use std::path::PathBuf;
@@ -39,9 +46,14 @@ pub use meta::{
 };
 pub use reader::{StoreReader, TileRead};
 pub use sample::{LayerKind, TileSample, range_union};
-pub use source::{FolderSource, HttpSource, Location, StoreSource, is_url};
+#[cfg(not(target_arch = "wasm32"))]
+pub use source::HttpSource;
+pub use source::{FolderSource, Location, StoreSource, is_url};
+#[cfg(not(target_arch = "wasm32"))]
 pub use upgrade::{UpgradeReport, upgrade};
+#[cfg(not(target_arch = "wasm32"))]
 pub use verify::{LevelStats, Problem, VerifyReport};
+#[cfg(not(target_arch = "wasm32"))]
 pub use writer::{
     EncodedTile, LEVEL_MAKERS, ShardWriter, StoreConfig, StoreWriter, being_written,
     committed_plan, forget_committed_plan, open_plan,
@@ -99,6 +111,7 @@ pub enum StoreError {
 }
 
 /// Refuses a store a writer must not go into: one holding a symlink, FIFO, device or socket.
+#[cfg(not(target_arch = "wasm32"))]
 pub fn check_writable_tree(root: &std::path::Path) -> Result<()> {
     writer::check_no_special_entries(root)
 }

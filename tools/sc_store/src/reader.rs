@@ -6,7 +6,9 @@ use std::sync::{Arc, PoisonError, RwLock};
 
 use sc_core::{LevelId, ShardId, TileId};
 use zarrs::array::Array;
+#[cfg(not(target_arch = "wasm32"))]
 use zarrs::filesystem::FilesystemStore;
+#[cfg(not(target_arch = "wasm32"))]
 use zarrs::group::Group;
 
 use crate::meta::StoreMeta;
@@ -65,6 +67,7 @@ pub(crate) fn local_tile_number(tile: TileId, shard_tiles: u64) -> usize {
     ((tile.y % shard_tiles) * shard_tiles + tile.x % shard_tiles) as usize
 }
 
+#[cfg(not(target_arch = "wasm32"))]
 pub(crate) fn open_fs(root: &Path) -> Result<Arc<FilesystemStore>> {
     FilesystemStore::new(root)
         .map(Arc::new)
@@ -75,6 +78,7 @@ pub(crate) fn open_fs(root: &Path) -> Result<Arc<FilesystemStore>> {
 }
 
 /// Reads and checks the store metadata at `root`.
+#[cfg(not(target_arch = "wasm32"))]
 pub(crate) fn read_meta(root: &Path) -> Result<(Arc<FilesystemStore>, StoreMeta)> {
     if !root.is_dir() {
         let what = if root.exists() {
@@ -151,7 +155,11 @@ impl StoreReader {
 
     /// Opens a store folder or a store served over HTTP(S) for reading.
     pub fn open_at(location: &Location) -> Result<Self> {
-        Self::open_source(location.clone(), crate::source::source_of(location), None)
+        let source = crate::source::source_of(location).map_err(|e| StoreError::Io {
+            source: e,
+            path: location.as_path(),
+        })?;
+        Self::open_source(location.clone(), source, None)
     }
 
     /// The store as it is on disk now (levels and shards written since this reader was opened),
@@ -172,8 +180,9 @@ impl StoreReader {
         known: Option<&Self>,
     ) -> Result<Self> {
         let meta = match source.local_root() {
+            #[cfg(not(target_arch = "wasm32"))]
             Some(root) => Self::check_local(root)?,
-            None => read_remote_meta(source.as_ref())?,
+            _ => read_remote_meta(source.as_ref())?,
         };
         let mut levels = HashMap::new();
         for (&kind, layer) in &meta.layers {
@@ -202,6 +211,7 @@ impl StoreReader {
 
     /// The metadata of a store folder, refused while an upgrade is unfinished or when the folder
     /// holds arrays a committed store does not list.
+    #[cfg(not(target_arch = "wasm32"))]
     fn check_local(root: &Path) -> Result<StoreMeta> {
         let (_, meta) = read_meta(root)?;
         // its levels are of two formats until the upgrade ends

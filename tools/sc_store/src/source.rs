@@ -6,7 +6,6 @@
 use std::ffi::OsStr;
 use std::io::{self, Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
-use std::time::Duration;
 
 /// Where a store is: a folder, or the URL of one (`http://…` or `https://…`). A local folder
 /// whose name begins with `http:` is reached as `./http:…`.
@@ -84,11 +83,18 @@ pub trait StoreSource: Send + Sync + std::fmt::Debug {
     }
 }
 
-/// The source of [`Location`].
-pub fn source_of(location: &Location) -> std::sync::Arc<dyn StoreSource> {
+/// The source of [`Location`]. In a browser (wasm32) a URL's bytes come from the page's own
+/// source ([`crate::StoreReader::open_source`]), not from here.
+pub fn source_of(location: &Location) -> io::Result<std::sync::Arc<dyn StoreSource>> {
     match location {
-        Location::Local(p) => std::sync::Arc::new(FolderSource::new(p)),
-        Location::Remote(u) => std::sync::Arc::new(HttpSource::new(u)),
+        Location::Local(p) => Ok(std::sync::Arc::new(FolderSource::new(p))),
+        #[cfg(not(target_arch = "wasm32"))]
+        Location::Remote(u) => Ok(std::sync::Arc::new(HttpSource::new(u))),
+        #[cfg(target_arch = "wasm32")]
+        Location::Remote(u) => Err(io::Error::new(
+            io::ErrorKind::Unsupported,
+            format!("{u}: give the page's fetching source"),
+        )),
     }
 }
 
@@ -145,12 +151,12 @@ impl StoreSource for FolderSource {
     }
 
     fn get_range(&self, key: &str, offset: u64, len: u64) -> io::Result<Vec<u8>> {
-        use std::os::unix::fs::FileExt;
-        let Some(f) = self.open(key)? else {
+        let Some(mut f) = self.open(key)? else {
             return Err(io::Error::new(io::ErrorKind::NotFound, "no such file"));
         };
         let mut buf = vec![0u8; len as usize];
-        f.read_exact_at(&mut buf, offset)?;
+        f.seek(SeekFrom::Start(offset))?;
+        f.read_exact(&mut buf)?;
         Ok(buf)
     }
 
@@ -159,215 +165,224 @@ impl StoreSource for FolderSource {
     }
 }
 
-/// A store over HTTP(S): metadata with GET, shard indexes with a suffix Range, tiles with a
-/// Range each. Bounded everywhere: a connect timeout, a timeout per request, a size limit per
-/// answer; transient failures (connection errors, 5xx) are retried twice.
-#[derive(Debug, Clone)]
-pub struct HttpSource {
-    base: String,
-    agent: ureq::Agent,
-    /// When the server last failed to answer at all (connection refused, reset, timed out):
-    /// for [`DOWN_FOR`] after, requests fail at once instead of each waiting out its retries.
-    down_since: std::sync::Arc<std::sync::Mutex<Option<std::time::Instant>>>,
-}
+#[cfg(not(target_arch = "wasm32"))]
+pub use http::HttpSource;
 
-/// How long a server that did not answer is taken to be down.
-const DOWN_FOR: Duration = Duration::from_secs(5);
+#[cfg(not(target_arch = "wasm32"))]
+mod http {
+    use super::*;
+    use std::time::Duration;
 
-/// How long one request may take, start to end.
-const REQUEST_TIMEOUT: Duration = Duration::from_secs(30);
-/// Tries per request (transient failures only).
-const TRIES: u32 = 3;
-
-impl HttpSource {
-    /// The store at `base` (its URL, with or without a trailing slash).
-    pub fn new(base: &str) -> Self {
-        let config = ureq::Agent::config_builder()
-            .timeout_global(Some(REQUEST_TIMEOUT))
-            .timeout_connect(Some(Duration::from_secs(10)))
-            .http_status_as_error(false)
-            .max_redirects(5)
-            .user_agent(concat!("sphereclip/", env!("CARGO_PKG_VERSION")))
-            .build();
-        Self {
-            base: base.trim_end_matches('/').to_string(),
-            agent: ureq::Agent::new_with_config(config),
-            down_since: Default::default(),
-        }
+    /// A store over HTTP(S): metadata with GET, shard indexes with a suffix Range, tiles with a
+    /// Range each. Bounded everywhere: a connect timeout, a timeout per request, a size limit per
+    /// answer; transient failures (connection errors, 5xx) are retried twice.
+    #[derive(Debug, Clone)]
+    pub struct HttpSource {
+        base: String,
+        agent: ureq::Agent,
+        /// When the server last failed to answer at all (connection refused, reset, timed out):
+        /// for [`DOWN_FOR`] after, requests fail at once instead of each waiting out its retries.
+        down_since: std::sync::Arc<std::sync::Mutex<Option<std::time::Instant>>>,
     }
 
-    fn url(&self, key: &str) -> String {
-        format!("{}/{}", self.base, key.trim_start_matches('/'))
-    }
+    /// How long a server that did not answer is taken to be down.
+    const DOWN_FOR: Duration = Duration::from_secs(5);
 
-    /// One GET (with a Range header when given), retried on transient failures; the status and
-    /// the response. `limit`: the most body bytes accepted.
-    fn fetch(
-        &self,
-        key: &str,
-        range: Option<String>,
-        limit: u64,
-    ) -> io::Result<(u16, Option<String>, Vec<u8>)> {
-        let url = self.url(key);
-        let down = || {
-            self.down_since
-                .lock()
-                .unwrap_or_else(std::sync::PoisonError::into_inner)
-        };
-        if let Some(t) = *down()
-            && t.elapsed() < DOWN_FOR
-        {
-            return Err(http_error(
-                &self.base,
-                "the server is not answering (it did not a moment ago)",
-            ));
+    /// How long one request may take, start to end.
+    const REQUEST_TIMEOUT: Duration = Duration::from_secs(30);
+    /// Tries per request (transient failures only).
+    const TRIES: u32 = 3;
+
+    impl HttpSource {
+        /// The store at `base` (its URL, with or without a trailing slash).
+        pub fn new(base: &str) -> Self {
+            let config = ureq::Agent::config_builder()
+                .timeout_global(Some(REQUEST_TIMEOUT))
+                .timeout_connect(Some(Duration::from_secs(10)))
+                .http_status_as_error(false)
+                .max_redirects(5)
+                .user_agent(concat!("sphereclip/", env!("CARGO_PKG_VERSION")))
+                .build();
+            Self {
+                base: base.trim_end_matches('/').to_string(),
+                agent: ureq::Agent::new_with_config(config),
+                down_since: Default::default(),
+            }
         }
-        let mut last = None;
-        for attempt in 0..TRIES {
-            if attempt > 0 {
-                std::thread::sleep(Duration::from_millis(200 << (2 * attempt)));
+
+        fn url(&self, key: &str) -> String {
+            format!("{}/{}", self.base, key.trim_start_matches('/'))
+        }
+
+        /// One GET (with a Range header when given), retried on transient failures; the status and
+        /// the response. `limit`: the most body bytes accepted.
+        fn fetch(
+            &self,
+            key: &str,
+            range: Option<String>,
+            limit: u64,
+        ) -> io::Result<(u16, Option<String>, Vec<u8>)> {
+            let url = self.url(key);
+            let down = || {
+                self.down_since
+                    .lock()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner)
+            };
+            if let Some(t) = *down()
+                && t.elapsed() < DOWN_FOR
+            {
+                return Err(http_error(
+                    &self.base,
+                    "the server is not answering (it did not a moment ago)",
+                ));
             }
-            let mut req = self.agent.get(&url);
-            if let Some(r) = &range {
-                req = req.header("Range", r);
-            }
-            let resp = match req.call() {
-                Ok(r) => r,
-                Err(e) => {
-                    last = Some(http_error(&url, &e.to_string()));
-                    if matches!(e, ureq::Error::Io(ref io) if io.kind() == io::ErrorKind::ConnectionRefused)
-                        || matches!(e, ureq::Error::ConnectionFailed)
-                    {
-                        // nothing listens: no point in trying again now
-                        break;
+            let mut last = None;
+            for attempt in 0..TRIES {
+                if attempt > 0 {
+                    std::thread::sleep(Duration::from_millis(200 << (2 * attempt)));
+                }
+                let mut req = self.agent.get(&url);
+                if let Some(r) = &range {
+                    req = req.header("Range", r);
+                }
+                let resp = match req.call() {
+                    Ok(r) => r,
+                    Err(e) => {
+                        last = Some(http_error(&url, &e.to_string()));
+                        if matches!(e, ureq::Error::Io(ref io) if io.kind() == io::ErrorKind::ConnectionRefused)
+                            || matches!(e, ureq::Error::ConnectionFailed)
+                        {
+                            // nothing listens: no point in trying again now
+                            break;
+                        }
+                        continue;
                     }
+                };
+                *down() = None;
+                let status = resp.status().as_u16();
+                // a gateway's hiccup, or an unavailable server that says when to come back, is
+                // tried again; a server explaining itself is believed
+                let transient = matches!(status, 502 | 504)
+                    || (status == 503 && resp.headers().contains_key("retry-after"));
+                if transient {
+                    last = Some(http_error(&url, &format!("HTTP {status}")));
                     continue;
                 }
-            };
-            *down() = None;
-            let status = resp.status().as_u16();
-            // a gateway's hiccup, or an unavailable server that says when to come back, is
-            // tried again; a server explaining itself is believed
-            let transient = matches!(status, 502 | 504)
-                || (status == 503 && resp.headers().contains_key("retry-after"));
-            if transient {
-                last = Some(http_error(&url, &format!("HTTP {status}")));
-                continue;
-            }
-            let content_range = resp
-                .headers()
-                .get("content-range")
-                .and_then(|v| v.to_str().ok())
-                .map(str::to_string);
-            if status == 404 || status == 410 {
-                return Ok((status, None, Vec::new()));
-            }
-            if !(200..300).contains(&status) {
-                let why = resp
+                let content_range = resp
+                    .headers()
+                    .get("content-range")
+                    .and_then(|v| v.to_str().ok())
+                    .map(str::to_string);
+                if status == 404 || status == 410 {
+                    return Ok((status, None, Vec::new()));
+                }
+                if !(200..300).contains(&status) {
+                    let why = resp
+                        .into_body()
+                        .into_with_config()
+                        .limit(64 << 10)
+                        .read_to_string()
+                        .map(|page| headline(&page))
+                        .unwrap_or_default();
+                    return Err(http_error(&url, &format!("HTTP {status}{why}")));
+                }
+                let body = resp
                     .into_body()
                     .into_with_config()
-                    .limit(64 << 10)
-                    .read_to_string()
-                    .map(|page| headline(&page))
-                    .unwrap_or_default();
-                return Err(http_error(&url, &format!("HTTP {status}{why}")));
+                    .limit(limit)
+                    .read_to_vec()
+                    .map_err(|e| http_error(&url, &e.to_string()))?;
+                return Ok((status, content_range, body));
             }
-            let body = resp
-                .into_body()
-                .into_with_config()
-                .limit(limit)
-                .read_to_vec()
-                .map_err(|e| http_error(&url, &e.to_string()))?;
-            return Ok((status, content_range, body));
-        }
-        *down() = Some(std::time::Instant::now());
-        Err(last.unwrap_or_else(|| http_error(&url, "no answer")))
-    }
-}
-
-/// What an error page says in its first heading (or its first line of text), as `: …`.
-fn headline(page: &str) -> String {
-    let text = match (page.find("<h1>"), page.find("</h1>")) {
-        (Some(a), Some(b)) if a + 4 <= b => &page[a + 4..b],
-        _ => page.lines().find(|l| !l.trim().is_empty()).unwrap_or(""),
-    };
-    let text: String = text.chars().filter(|c| !c.is_control()).take(200).collect();
-    if text.trim().is_empty() || text.contains('<') {
-        String::new()
-    } else {
-        format!(": {}", text.trim())
-    }
-}
-
-fn http_error(url: &str, what: &str) -> io::Error {
-    io::Error::other(format!("{url}: {what}"))
-}
-
-/// The total size in a `Content-Range: bytes a-b/total` header.
-fn range_total(content_range: &str) -> Option<u64> {
-    content_range.rsplit_once('/')?.1.trim().parse().ok()
-}
-
-impl StoreSource for HttpSource {
-    fn name_of(&self, key: &str) -> PathBuf {
-        PathBuf::from(self.url(key))
-    }
-
-    fn get(&self, key: &str, limit: u64) -> io::Result<Option<Vec<u8>>> {
-        let (status, _, body) = self.fetch(key, None, limit)?;
-        Ok((status != 404 && status != 410).then_some(body))
-    }
-
-    fn get_suffix(&self, key: &str, len: u64) -> io::Result<Option<(u64, Vec<u8>)>> {
-        // a shard is at most a few hundred MiB; a server that ignores Range sends all of it
-        let (status, cr, mut body) =
-            self.fetch(key, Some(format!("bytes=-{len}")), crate::MAX_SHARD_BYTES)?;
-        match status {
-            404 | 410 => Ok(None),
-            206 => {
-                let total = cr.as_deref().and_then(range_total).ok_or_else(|| {
-                    http_error(&self.url(key), "a partial answer without its total size")
-                })?;
-                Ok(Some((total, body)))
-            }
-            _ => {
-                let total = body.len() as u64;
-                let keep = body.len() - (len.min(total) as usize);
-                Ok(Some((total, body.split_off(keep))))
-            }
+            *down() = Some(std::time::Instant::now());
+            Err(last.unwrap_or_else(|| http_error(&url, "no answer")))
         }
     }
 
-    fn get_range(&self, key: &str, offset: u64, len: u64) -> io::Result<Vec<u8>> {
-        if len == 0 {
-            return Ok(Vec::new());
-        }
-        let last = offset
-            .checked_add(len - 1)
-            .ok_or_else(|| http_error(&self.url(key), "a byte range past 2^64"))?;
-        let (status, _, body) = self.fetch(
-            key,
-            Some(format!("bytes={offset}-{last}")),
-            crate::MAX_SHARD_BYTES,
-        )?;
-        let short = || {
-            io::Error::new(
-                io::ErrorKind::UnexpectedEof,
-                format!("{}: the answer ends before the range asked", self.url(key)),
-            )
+    /// What an error page says in its first heading (or its first line of text), as `: …`.
+    fn headline(page: &str) -> String {
+        let text = match (page.find("<h1>"), page.find("</h1>")) {
+            (Some(a), Some(b)) if a + 4 <= b => &page[a + 4..b],
+            _ => page.lines().find(|l| !l.trim().is_empty()).unwrap_or(""),
         };
-        match status {
-            404 | 410 => Err(io::Error::new(
-                io::ErrorKind::NotFound,
-                format!("{}: not found", self.url(key)),
-            )),
-            206 if body.len() as u64 == len => Ok(body),
-            206 => Err(short()),
-            _ => {
-                let start = usize::try_from(offset).map_err(|_| short())?;
-                body.get(start..start + len as usize)
-                    .map(<[u8]>::to_vec)
-                    .ok_or_else(short)
+        let text: String = text.chars().filter(|c| !c.is_control()).take(200).collect();
+        if text.trim().is_empty() || text.contains('<') {
+            String::new()
+        } else {
+            format!(": {}", text.trim())
+        }
+    }
+
+    fn http_error(url: &str, what: &str) -> io::Error {
+        io::Error::other(format!("{url}: {what}"))
+    }
+
+    /// The total size in a `Content-Range: bytes a-b/total` header.
+    pub(super) fn range_total(content_range: &str) -> Option<u64> {
+        content_range.rsplit_once('/')?.1.trim().parse().ok()
+    }
+
+    impl StoreSource for HttpSource {
+        fn name_of(&self, key: &str) -> PathBuf {
+            PathBuf::from(self.url(key))
+        }
+
+        fn get(&self, key: &str, limit: u64) -> io::Result<Option<Vec<u8>>> {
+            let (status, _, body) = self.fetch(key, None, limit)?;
+            Ok((status != 404 && status != 410).then_some(body))
+        }
+
+        fn get_suffix(&self, key: &str, len: u64) -> io::Result<Option<(u64, Vec<u8>)>> {
+            // a shard is at most a few hundred MiB; a server that ignores Range sends all of it
+            let (status, cr, mut body) =
+                self.fetch(key, Some(format!("bytes=-{len}")), crate::MAX_SHARD_BYTES)?;
+            match status {
+                404 | 410 => Ok(None),
+                206 => {
+                    let total = cr.as_deref().and_then(range_total).ok_or_else(|| {
+                        http_error(&self.url(key), "a partial answer without its total size")
+                    })?;
+                    Ok(Some((total, body)))
+                }
+                _ => {
+                    let total = body.len() as u64;
+                    let keep = body.len() - (len.min(total) as usize);
+                    Ok(Some((total, body.split_off(keep))))
+                }
+            }
+        }
+
+        fn get_range(&self, key: &str, offset: u64, len: u64) -> io::Result<Vec<u8>> {
+            if len == 0 {
+                return Ok(Vec::new());
+            }
+            let last = offset
+                .checked_add(len - 1)
+                .ok_or_else(|| http_error(&self.url(key), "a byte range past 2^64"))?;
+            let (status, _, body) = self.fetch(
+                key,
+                Some(format!("bytes={offset}-{last}")),
+                crate::MAX_SHARD_BYTES,
+            )?;
+            let short = || {
+                io::Error::new(
+                    io::ErrorKind::UnexpectedEof,
+                    format!("{}: the answer ends before the range asked", self.url(key)),
+                )
+            };
+            match status {
+                404 | 410 => Err(io::Error::new(
+                    io::ErrorKind::NotFound,
+                    format!("{}: not found", self.url(key)),
+                )),
+                206 if body.len() as u64 == len => Ok(body),
+                206 => Err(short()),
+                _ => {
+                    let start = usize::try_from(offset).map_err(|_| short())?;
+                    body.get(start..start + len as usize)
+                        .map(<[u8]>::to_vec)
+                        .ok_or_else(short)
+                }
             }
         }
     }
@@ -395,7 +410,7 @@ mod tests {
             Location::parse(OsStr::new("planet.zarr")),
             Location::Local(PathBuf::from("planet.zarr"))
         );
-        assert_eq!(range_total("bytes 10-19/4096"), Some(4096));
-        assert_eq!(range_total("bytes 10-19/*"), None);
+        assert_eq!(http::range_total("bytes 10-19/4096"), Some(4096));
+        assert_eq!(http::range_total("bytes 10-19/*"), None);
     }
 }
