@@ -7,7 +7,7 @@ CARGO ?= cargo
 export XDG_RUNTIME_DIR ?= /tmp/sphereclip-xdg
 export CARGO_TERM_COLOR ?= never
 
-.PHONY: demo test deps build fmt-check clippy unit bench
+.PHONY: demo test deps build fmt-check clippy unit wasm bench
 
 deps:
 	@bash scripts/deps.sh
@@ -33,7 +33,11 @@ unit: deps
 	fi
 	$(CARGO) test --locked --profile checked --doc
 
-test: deps fmt-check clippy unit
+# what the browser viewer is built from compiles for wasm32
+wasm: deps
+	$(CARGO) build --locked --profile checked --target wasm32-unknown-unknown -p sc_core -p sc_store
+
+test: deps fmt-check clippy wasm unit
 
 bench: build
 	bash bench/run.sh

@@ -8,8 +8,9 @@ set -euo pipefail
 # tests and benchmarks; netcdf/jpeg support comes with libgdal; mesa-vulkan-drivers: lavapipe, the
 # CPU Vulkan adapter the headless renderer and GPU tests use; xvfb + xauth: a display for the
 # windowed viewer on machines without one; time: /usr/bin/time, which the memory-bound test reads;
-# python3 + python3-venv: the environment (scripts/pyenv.sh) the interoperability test reads stores with.
-PACKAGES=(pkg-config libgdal-dev gdal-bin mesa-vulkan-drivers libvulkan1 xvfb xauth time python3 python3-venv)
+# python3 + python3-venv: the environment (scripts/pyenv.sh) the interoperability test reads stores with;
+# clang: compiles the C codecs (zstd) for wasm32, the browser's target.
+PACKAGES=(pkg-config libgdal-dev gdal-bin mesa-vulkan-drivers libvulkan1 xvfb xauth time python3 python3-venv clang)
 
 missing=()
 for p in "${PACKAGES[@]}"; do
@@ -37,3 +38,8 @@ done
 for comp in rustfmt clippy; do
   cargo "$( [ "$comp" = rustfmt ] && echo fmt || echo clippy )" --version >/dev/null 2>&1 || { echo "missing Rust component $comp: rustup component add $comp" >&2; exit 1; }
 done
+# the browser's target: the store reader is built for it in `make test`
+if command -v rustup >/dev/null && ! rustup target list --installed 2>/dev/null | grep -qx wasm32-unknown-unknown; then
+  echo "adding the Rust target wasm32-unknown-unknown" >&2
+  rustup target add wasm32-unknown-unknown >&2
+fi

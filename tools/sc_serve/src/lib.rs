@@ -53,6 +53,8 @@ pub struct Server {
     pub addr: SocketAddr,
     /// The URL of the store.
     pub store_url: String,
+    /// What it has answered so far.
+    pub counts: Arc<Counts>,
     stop: Option<tokio::sync::oneshot::Sender<()>>,
     thread: Option<std::thread::JoinHandle<Result<(), ServeError>>>,
 }
@@ -111,7 +113,9 @@ pub fn start(store: &Path, addr: SocketAddr, on_signal: bool) -> Result<Server, 
         root: store.to_path_buf(),
         name: name.clone(),
         seen: Mutex::new(None),
+        counts: Arc::default(),
     });
+    let counts = state.counts.clone();
     let (tx, rx) = tokio::sync::oneshot::channel::<()>();
     let thread = std::thread::Builder::new().name("serve".into()).spawn(
         move || -> Result<(), ServeError> {
@@ -145,6 +149,7 @@ pub fn start(store: &Path, addr: SocketAddr, on_signal: bool) -> Result<Server, 
     Ok(Server {
         addr,
         store_url: format!("http://{addr}/{name}"),
+        counts,
         stop: Some(tx),
         thread: Some(thread),
     })
@@ -171,6 +176,17 @@ struct State {
     name: String,
     /// The root metadata file's identity when it was last read, and what the store was then.
     seen: Mutex<Option<(FileId, Health)>>,
+    counts: Arc<Counts>,
+}
+
+/// Requests answered and body bytes sent (as the answers' lengths say), for the operator and
+/// the benchmarks.
+#[derive(Debug, Default)]
+pub struct Counts {
+    /// Requests answered.
+    pub requests: std::sync::atomic::AtomicU64,
+    /// Body bytes of the answers.
+    pub bytes: std::sync::atomic::AtomicU64,
 }
 
 /// A file's identity: size, modification time, inode.
@@ -232,6 +248,22 @@ async fn handle(
     uri: Uri,
     headers: HeaderMap,
 ) -> Response {
+    use std::sync::atomic::Ordering::Relaxed;
+    let counts = state.counts.clone();
+    let head = method == Method::HEAD;
+    let r = answer(state, method, uri, headers).await;
+    counts.requests.fetch_add(1, Relaxed);
+    let len = r
+        .headers()
+        .get(header::CONTENT_LENGTH)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.parse::<u64>().ok())
+        .unwrap_or(0);
+    counts.bytes.fetch_add(if head { 0 } else { len }, Relaxed);
+    r
+}
+
+async fn answer(state: Arc<State>, method: Method, uri: Uri, headers: HeaderMap) -> Response {
     let path = uri.path();
     if method == Method::OPTIONS {
         return cors(

@@ -28,6 +28,13 @@ pub fn run(a: &ServeArgs) -> Result<ExitCode> {
     {
         eprintln!("warning: cannot open a browser (xdg-open: {e}); open {page}");
     }
+    let counts = server.counts.clone();
     server.wait().context("the server stopped")?;
+    use std::sync::atomic::Ordering::Relaxed;
+    crate::outln!(
+        "served {} requests, {}",
+        counts.requests.load(Relaxed),
+        super::human_bytes(counts.bytes.load(Relaxed))
+    );
     Ok(ExitCode::SUCCESS)
 }
