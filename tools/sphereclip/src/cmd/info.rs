@@ -138,6 +138,14 @@ fn print_text(
     table: bool,
 ) {
     let m = reader.meta();
+    // sizes on disk are known of a folder only
+    let size = |b: u64| {
+        if reader.local_root().is_some() {
+            human_bytes(b)
+        } else {
+            "-".to_string()
+        }
+    };
     let total: u64 = stats.iter().map(|s| s.bytes_on_disk).sum();
     crate::outln!(
         "store {}: format {}, {}, {}",
@@ -205,7 +213,7 @@ fn print_text(
             m.grid.width(finest),
             m.grid.height(finest),
             human_metres(spacing),
-            human_bytes(bytes),
+            size(bytes),
             layer.codec
         );
         crate::outln!("    data at level {hi}: {bbox}{range}");
@@ -245,7 +253,7 @@ fn print_text(
                     format!("{}x{}", s.width, s.height),
                     format!("{}/{}", s.tiles_present, s.tiles_total),
                     s.shards,
-                    human_bytes(s.bytes_on_disk),
+                    size(s.bytes_on_disk),
                 );
             }
         }
