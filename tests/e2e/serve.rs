@@ -434,25 +434,20 @@ fn incomplete_vanished_and_missing_stores_are_answered_clearly() {
 fn a_server_that_goes_away_mid_render_ends_the_render_with_what_it_has() {
     let dir = tempfile::tempdir().expect("tmp");
     let server = Served::start(&sample_planet());
-    let go = dir.path().join("go");
     let mut c = bin();
-    c.env("XDG_RUNTIME_DIR", xdg())
-        .env("SPHERECLIP_PAUSE", format!("render-opened:{}", s(&go)))
-        .args([
-            "render",
-            &server.url,
-            "--camera",
-            "46.5,8,300000,0,-30,60",
-            "--size",
-            "64x36",
-            "--out",
-            s(&dir.path().join("gone.png")),
-        ]);
-    let waiting = dir.path().join("go.waiting");
+    let go = pause_at(&mut c, "render-opened", dir.path());
+    c.env("XDG_RUNTIME_DIR", xdg()).args([
+        "render",
+        &server.url,
+        "--camera",
+        "46.5,8,300000,0,-30,60",
+        "--size",
+        "64x36",
+        "--out",
+        s(&dir.path().join("gone.png")),
+    ]);
     let child = std::thread::spawn(move || run_within(c, Duration::from_secs(120)));
-    while !waiting.exists() {
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    wait_until_paused("render-opened", dir.path());
     drop(server);
     std::fs::write(&go, b"").expect("go");
     let o = child.join().expect("render ran");

@@ -435,11 +435,22 @@ pub fn edit_json(path: &Path, f: impl FnOnce(&mut serde_json::Value)) {
 /// Starts `c` with `SPHERECLIP_PAUSE=POINT:DIR/go` and returns once it waits at `point`; it goes
 /// on when `DIR/go` exists (the returned path).
 pub fn spawn_paused(mut c: Command, point: &str, dir: &Path) -> (std::process::Child, PathBuf) {
-    let go = dir.join("go");
-    c.env("SPHERECLIP_PAUSE", format!("{point}:{}", s(&go)))
-        .stdout(Stdio::null())
-        .stderr(Stdio::null());
+    let go = pause_at(&mut c, point, dir);
+    c.stdout(Stdio::null()).stderr(Stdio::null());
     let child = c.spawn().expect("spawn");
+    wait_until_paused(point, dir);
+    (child, go)
+}
+
+/// Makes `c` wait at pause point `point` until `DIR/go` (the returned path) exists.
+pub fn pause_at(c: &mut Command, point: &str, dir: &Path) -> PathBuf {
+    let go = dir.join("go");
+    c.env("SPHERECLIP_PAUSE", format!("{point}:{}", s(&go)));
+    go
+}
+
+/// Returns once a process made with [`pause_at`] waits at `point`; fails the test after 120 s.
+pub fn wait_until_paused(point: &str, dir: &Path) {
     let waiting = dir.join("go.waiting");
     let start = Instant::now();
     while !waiting.exists() {
@@ -449,5 +460,4 @@ pub fn spawn_paused(mut c: Command, point: &str, dir: &Path) -> (std::process::C
         );
         std::thread::sleep(Duration::from_millis(20));
     }
-    (child, go)
 }

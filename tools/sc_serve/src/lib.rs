@@ -103,7 +103,10 @@ fn plain_component(c: &str) -> bool {
 /// first: a missing or damaged store is an error here, not a server that answers 404s.
 /// `on_signal`: stop on SIGINT/SIGTERM (the command line), not only on [`Server::stop`].
 pub fn start(store: &Path, addr: SocketAddr, on_signal: bool) -> Result<Server, ServeError> {
-    sc_store::StoreReader::open(store)?;
+    let id = std::fs::symlink_metadata(store.join("zarr.json"))
+        .ok()
+        .map(|m| file_id(&m));
+    let first = Health::of(&sc_store::StoreReader::open(store)?);
     let std_listener =
         std::net::TcpListener::bind(addr).map_err(|source| ServeError::Bind { addr, source })?;
     std_listener.set_nonblocking(true)?;
@@ -112,7 +115,8 @@ pub fn start(store: &Path, addr: SocketAddr, on_signal: bool) -> Result<Server, 
     let state = Arc::new(State {
         root: store.to_path_buf(),
         name: name.clone(),
-        seen: Mutex::new(None),
+        // what the check above found, for the first requests
+        seen: Mutex::new(id.map(|id| (id, first))),
         counts: Arc::default(),
     });
     let counts = state.counts.clone();
@@ -204,6 +208,46 @@ enum Health {
     Broken(String),
 }
 
+impl Health {
+    /// What an opened store is: ready, or INCOMPLETE.
+    fn of(r: &sc_store::StoreReader) -> Self {
+        if !r.meta().complete {
+            return Self::Incomplete;
+        }
+        Self::Ready {
+            levels: r
+                .meta()
+                .layers
+                .iter()
+                .map(|(k, l)| {
+                    let mut keys: Vec<String> = l.levels.keys().cloned().collect();
+                    keys.sort();
+                    format!("{k}: {}", keys.join(" "))
+                })
+                .collect(),
+        }
+    }
+}
+
+impl Health {
+    /// The page that answers every request while the store cannot be served.
+    fn refusal(&self) -> Option<Response> {
+        match self {
+            Self::Ready { .. } => None,
+            Self::Incomplete => Some(page(
+                StatusCode::SERVICE_UNAVAILABLE,
+                "The store is INCOMPLETE",
+                "A writer is working on this store or stopped before it committed, so its tiles may be missing or old. Rerun (or let finish) the command that was writing it, then reload.",
+            )),
+            Self::Broken(why) => Some(page(
+                StatusCode::NOT_FOUND,
+                "No store",
+                &format!("The store cannot be read: {why}"),
+            )),
+        }
+    }
+}
+
 impl State {
     /// The store's health now: re-read when its root metadata changed (a stat a request).
     fn health(&self) -> Health {
@@ -222,19 +266,7 @@ impl State {
             return h.clone();
         }
         let h = match sc_store::StoreReader::open(&self.root) {
-            Ok(r) if !r.meta().complete => Health::Incomplete,
-            Ok(r) => Health::Ready {
-                levels: r
-                    .meta()
-                    .layers
-                    .iter()
-                    .map(|(k, l)| {
-                        let mut keys: Vec<String> = l.levels.keys().cloned().collect();
-                        keys.sort();
-                        format!("{k}: {}", keys.join(" "))
-                    })
-                    .collect(),
-            },
+            Ok(r) => Health::of(&r),
             Err(e) => Health::Broken(e.to_string()),
         };
         *seen = Some((id, h.clone()));
@@ -315,22 +347,8 @@ async fn answer(state: Arc<State>, method: Method, uri: Uri, headers: HeaderMap)
             "Only the store's data and metadata are served: no hidden files (the lock, .sphereclip/), no temp files, no `..`, no percent-encoded or unusual names.",
         );
     };
-    match health {
-        Health::Ready { .. } => {}
-        Health::Incomplete => {
-            return page(
-                StatusCode::SERVICE_UNAVAILABLE,
-                "The store is INCOMPLETE",
-                "A writer is working on this store or stopped before it committed, so its tiles may be missing or old. Rerun (or let finish) the command that was writing it, then reload.",
-            );
-        }
-        Health::Broken(why) => {
-            return page(
-                StatusCode::NOT_FOUND,
-                "No store",
-                &format!("The store cannot be read: {why}"),
-            );
-        }
+    if let Some(refused) = health.refusal() {
+        return refused;
     }
     let root = state.root.clone();
     let file = tokio::task::spawn_blocking(move || open_inside(&root, &key)).await;
@@ -669,28 +687,18 @@ fn page(status: StatusCode, title: &str, text: &str) -> Response {
 
 /// The page at `/`: what is served and how to open it.
 fn index(state: &State, health: &Health) -> Response {
-    let (status, title, text) = match health {
-        Health::Ready { levels } => (
+    match health {
+        Health::Ready { levels } => page(
             StatusCode::OK,
-            format!("sphereclip: {}", state.name),
-            format!(
+            &format!("sphereclip: {}", state.name),
+            &format!(
                 "The store {name} is served at /{name}/ (levels: {}). Open it with: sphereclip view URL/{name} (or render, info, export), or any Zarr v3 reader.",
                 levels.join("; "),
                 name = state.name
             ),
         ),
-        Health::Incomplete => (
-            StatusCode::SERVICE_UNAVAILABLE,
-            "The store is INCOMPLETE".to_string(),
-            "A writer is working on this store or stopped before it committed. Rerun (or let finish) the command that was writing it, then reload.".to_string(),
-        ),
-        Health::Broken(why) => (
-            StatusCode::NOT_FOUND,
-            "No store".to_string(),
-            format!("The store cannot be read: {why}"),
-        ),
-    };
-    page(status, &title, &text)
+        _ => health.refusal().unwrap_or_default(),
+    }
 }
 
 #[cfg(test)]

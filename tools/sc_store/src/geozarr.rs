@@ -332,9 +332,9 @@ pub(crate) fn consolidated(dir: &Path) -> Result<Value, String> {
     Ok(json!({"kind": "inline", "must_understand": false, "metadata": out}))
 }
 
-#[cfg(not(target_arch = "wasm32"))]
 /// Writes a group's `zarr.json` atomically and durably: `attrs`, and the inline consolidated
 /// metadata when given.
+#[cfg(not(target_arch = "wasm32"))]
 pub(crate) fn write_group(
     path: &Path,
     attrs: serde_json::Map<String, Value>,
@@ -348,9 +348,9 @@ pub(crate) fn write_group(
     crate::fault::write_atomic(path, &bytes)
 }
 
-#[cfg(not(target_arch = "wasm32"))]
 /// Rewrites a level group with its consolidated metadata, once its data array exists (readers
 /// that open the level alone, like `xarray.open_zarr(STORE/LAYER/LEVEL)`, then list nothing).
+#[cfg(not(target_arch = "wasm32"))]
 pub(crate) fn consolidate_level_group(
     root: &Path,
     kind: LayerKind,
@@ -368,9 +368,9 @@ pub(crate) fn consolidate_level_group(
     .map_err(|e| format!("cannot write the level group: {e}"))
 }
 
-#[cfg(not(target_arch = "wasm32"))]
 /// Writes the group of a new level with everything but its data array: the group's attributes,
 /// the `lat` and `lon` coordinates (f64 texel centres) and the `spatial_ref` grid mapping.
+#[cfg(not(target_arch = "wasm32"))]
 pub(crate) fn write_level_group(
     durable: &std::sync::Arc<crate::durable::DurableFs>,
     root: &Path,
@@ -445,10 +445,10 @@ fn build_kernel(meta: &crate::StoreMeta) -> String {
         .unwrap_or_else(|| "none (levels ingested)".into())
 }
 
-#[cfg(not(target_arch = "wasm32"))]
 /// Writes each level group with its consolidated metadata, then each layer group with its
 /// `multiscales` attributes and its consolidated metadata (all from what is on disk, so a
 /// resumed writer publishes the same bytes as an uninterrupted one).
+#[cfg(not(target_arch = "wasm32"))]
 pub(crate) fn publish_layers(root: &Path, meta: &crate::StoreMeta) -> crate::Result<()> {
     let kernel = build_kernel(meta);
     for &kind in meta.layers.keys() {

@@ -284,6 +284,11 @@ impl StoreReader {
         self.inner.source.local_root()
     }
 
+    /// Where the store's bytes come from.
+    pub(crate) fn source(&self) -> &dyn StoreSource {
+        self.inner.source.as_ref()
+    }
+
     /// Where `key` (a path inside the store) lives, for messages.
     pub(crate) fn name_of(&self, key: &str) -> PathBuf {
         self.inner.source.name_of(key)
@@ -346,7 +351,7 @@ impl StoreReader {
         }
         tracing::trace!(layer = %kind, %shard, "store: reading shard index");
         let key = self.shard_key(kind, shard)?;
-        let index = ShardIndex::read(self.inner.source.as_ref(), &key, (s * s) as usize)
+        let index = ShardIndex::read(self.source(), &key, (s * s) as usize)
             .map_err(|e| self.shard_error(kind, tile, None, e))?;
         if index.is_none() && self.listed_as_present(kind, shard) {
             return Err(self.corrupt(kind, tile, None, MISSING_SHARD));
@@ -438,7 +443,7 @@ impl StoreReader {
         let what = || Some(format!("{kind} {tile}"));
         let key = self.shard_key(kind, tile.shard(s))?;
         let bytes = index
-            .tile_bytes(self.inner.source.as_ref(), &key, local_tile_number(tile, s))
+            .tile_bytes(self.source(), &key, local_tile_number(tile, s))
             .map_err(|e| self.shard_error(kind, tile, what(), e))?;
         let lr = self.level(kind, tile.level)?;
         lr.tiles

@@ -29,12 +29,6 @@ impl std::fmt::Display for ShardError {
     }
 }
 
-impl From<String> for ShardError {
-    fn from(d: String) -> Self {
-        Self::Damaged(d)
-    }
-}
-
 /// The decoded index of one shard: `(offset, nbytes)` per tile, row-major over the shard's tiles.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub(crate) struct ShardIndex {
@@ -128,10 +122,14 @@ impl ShardIndex {
         i: usize,
     ) -> Result<Vec<u8>, ShardError> {
         let Some(&(offset, nbytes)) = self.entries.get(i) else {
-            return Err(format!("tile {i} is not in the shard index").into());
+            return Err(ShardError::Damaged(format!(
+                "tile {i} is not in the shard index"
+            )));
         };
         if nbytes < 4 {
-            return Err(format!("tile {i} has {nbytes} bytes, too few for its checksum").into());
+            return Err(ShardError::Damaged(format!(
+                "tile {i} has {nbytes} bytes, too few for its checksum"
+            )));
         }
         let buf = source
             .get_range(key, offset, nbytes)

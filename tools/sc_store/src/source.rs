@@ -112,10 +112,15 @@ impl FolderSource {
         }
     }
 
-    fn open(&self, key: &str) -> io::Result<Option<std::fs::File>> {
+    /// The path of `key`, with no symlinked folder between it and the store folder.
+    fn inside(&self, key: &str) -> io::Result<PathBuf> {
         let path = self.name_of(key);
         crate::files::check_inside(&self.root, &path)?;
-        match crate::files::open_regular(&path) {
+        Ok(path)
+    }
+
+    fn open(&self, key: &str) -> io::Result<Option<std::fs::File>> {
+        match crate::files::open_regular(&self.inside(key)?) {
             Ok(f) => Ok(Some(f)),
             Err(e) if e.kind() == io::ErrorKind::NotFound => Ok(None),
             Err(e) => Err(e),
@@ -129,9 +134,7 @@ impl StoreSource for FolderSource {
     }
 
     fn get(&self, key: &str, limit: u64) -> io::Result<Option<Vec<u8>>> {
-        let path = self.name_of(key);
-        crate::files::check_inside(&self.root, &path)?;
-        match crate::files::read_regular(&path, limit) {
+        match crate::files::read_regular(&self.inside(key)?, limit) {
             Ok(b) => Ok(Some(b)),
             Err(e) if e.kind() == io::ErrorKind::NotFound => Ok(None),
             Err(e) => Err(e),
@@ -175,17 +178,18 @@ mod http {
 
     /// A store over HTTP(S): metadata with GET, shard indexes with a suffix Range, tiles with a
     /// Range each. Bounded everywhere: a connect timeout, a timeout per request, a size limit per
-    /// answer; transient failures (connection errors, 5xx) are retried twice.
+    /// answer; transient failures (a lost connection, 502, 504, 503 with Retry-After) are tried
+    /// twice more, a refused connection is not.
     #[derive(Debug, Clone)]
     pub struct HttpSource {
         base: String,
         agent: ureq::Agent,
-        /// When the server last failed to answer at all (connection refused, reset, timed out):
+        /// When a request last failed through every try (no connection, or a gateway's errors):
         /// for [`DOWN_FOR`] after, requests fail at once instead of each waiting out its retries.
         down_since: std::sync::Arc<std::sync::Mutex<Option<std::time::Instant>>>,
     }
 
-    /// How long a server that did not answer is taken to be down.
+    /// How long a server whose request failed through every try is taken to be down.
     const DOWN_FOR: Duration = Duration::from_secs(5);
 
     /// How long one request may take, start to end.
@@ -214,14 +218,14 @@ mod http {
             format!("{}/{}", self.base, key.trim_start_matches('/'))
         }
 
-        /// One GET (with a Range header when given), retried on transient failures; the status and
-        /// the response. `limit`: the most body bytes accepted.
+        /// One GET (with a Range header when given), retried on transient failures; `None` when
+        /// the server has no such object (404, 410). `limit`: the most body bytes accepted.
         fn fetch(
             &self,
             key: &str,
             range: Option<String>,
             limit: u64,
-        ) -> io::Result<(u16, Option<String>, Vec<u8>)> {
+        ) -> io::Result<Option<Answer>> {
             let url = self.url(key);
             let down = || {
                 self.down_since
@@ -268,14 +272,14 @@ mod http {
                     last = Some(http_error(&url, &format!("HTTP {status}")));
                     continue;
                 }
+                if status == 404 || status == 410 {
+                    return Ok(None);
+                }
                 let content_range = resp
                     .headers()
                     .get("content-range")
                     .and_then(|v| v.to_str().ok())
                     .map(str::to_string);
-                if status == 404 || status == 410 {
-                    return Ok((status, None, Vec::new()));
-                }
                 if !(200..300).contains(&status) {
                     let why = resp
                         .into_body()
@@ -292,11 +296,22 @@ mod http {
                     .limit(limit)
                     .read_to_vec()
                     .map_err(|e| http_error(&url, &e.to_string()))?;
-                return Ok((status, content_range, body));
+                return Ok(Some(Answer {
+                    partial: status == 206,
+                    content_range,
+                    body,
+                }));
             }
             *down() = Some(std::time::Instant::now());
             Err(last.unwrap_or_else(|| http_error(&url, "no answer")))
         }
+    }
+
+    /// A successful answer: whether it is the range asked (206), its Content-Range, its body.
+    struct Answer {
+        partial: bool,
+        content_range: Option<String>,
+        body: Vec<u8>,
     }
 
     /// What an error page says in its first heading (or its first line of text), as `: …`.
@@ -328,28 +343,29 @@ mod http {
         }
 
         fn get(&self, key: &str, limit: u64) -> io::Result<Option<Vec<u8>>> {
-            let (status, _, body) = self.fetch(key, None, limit)?;
-            Ok((status != 404 && status != 410).then_some(body))
+            Ok(self.fetch(key, None, limit)?.map(|a| a.body))
         }
 
         fn get_suffix(&self, key: &str, len: u64) -> io::Result<Option<(u64, Vec<u8>)>> {
             // a shard is at most a few hundred MiB; a server that ignores Range sends all of it
-            let (status, cr, mut body) =
-                self.fetch(key, Some(format!("bytes=-{len}")), crate::MAX_SHARD_BYTES)?;
-            match status {
-                404 | 410 => Ok(None),
-                206 => {
-                    let total = cr.as_deref().and_then(range_total).ok_or_else(|| {
+            let Some(mut a) =
+                self.fetch(key, Some(format!("bytes=-{len}")), crate::MAX_SHARD_BYTES)?
+            else {
+                return Ok(None);
+            };
+            if a.partial {
+                let total = a
+                    .content_range
+                    .as_deref()
+                    .and_then(range_total)
+                    .ok_or_else(|| {
                         http_error(&self.url(key), "a partial answer without its total size")
                     })?;
-                    Ok(Some((total, body)))
-                }
-                _ => {
-                    let total = body.len() as u64;
-                    let keep = body.len() - (len.min(total) as usize);
-                    Ok(Some((total, body.split_off(keep))))
-                }
+                return Ok(Some((total, a.body)));
             }
+            let total = a.body.len() as u64;
+            let keep = a.body.len() - (len.min(total) as usize);
+            Ok(Some((total, a.body.split_off(keep))))
         }
 
         fn get_range(&self, key: &str, offset: u64, len: u64) -> io::Result<Vec<u8>> {
@@ -359,7 +375,7 @@ mod http {
             let last = offset
                 .checked_add(len - 1)
                 .ok_or_else(|| http_error(&self.url(key), "a byte range past 2^64"))?;
-            let (status, _, body) = self.fetch(
+            let answer = self.fetch(
                 key,
                 Some(format!("bytes={offset}-{last}")),
                 crate::MAX_SHARD_BYTES,
@@ -370,20 +386,25 @@ mod http {
                     format!("{}: the answer ends before the range asked", self.url(key)),
                 )
             };
-            match status {
-                404 | 410 => Err(io::Error::new(
+            let Some(a) = answer else {
+                return Err(io::Error::new(
                     io::ErrorKind::NotFound,
                     format!("{}: not found", self.url(key)),
-                )),
-                206 if body.len() as u64 == len => Ok(body),
-                206 => Err(short()),
-                _ => {
-                    let start = usize::try_from(offset).map_err(|_| short())?;
-                    body.get(start..start + len as usize)
-                        .map(<[u8]>::to_vec)
-                        .ok_or_else(short)
-                }
+                ));
+            };
+            if a.partial {
+                return if a.body.len() as u64 == len {
+                    Ok(a.body)
+                } else {
+                    Err(short())
+                };
             }
+            // a server that ignores Range sends the whole object
+            let start = usize::try_from(offset).map_err(|_| short())?;
+            a.body
+                .get(start..start + len as usize)
+                .map(<[u8]>::to_vec)
+                .ok_or_else(short)
         }
     }
 }

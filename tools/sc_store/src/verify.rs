@@ -185,16 +185,27 @@ impl StoreReader {
     /// once per shard checked (for progress).
     pub fn verify(&self, on_shard: &(dyn Fn() + Sync)) -> Result<VerifyReport> {
         let meta = self.meta();
+        let root = self.folder()?;
         let mut report = VerifyReport::default();
-        self.verify_file_types(self.folder()?, &mut report);
-        self.verify_listing(&mut report);
+        self.verify_file_types(root, root, &mut report);
+        self.verify_listing(root, &mut report);
         if meta.format_major() >= 2 {
-            self.verify_consolidated(&mut report);
-            self.verify_coordinates(&mut report);
+            self.verify_consolidated(root, &mut report);
+            self.verify_coordinates(root, &mut report);
         }
         for &kind in meta.layers.keys() {
             for level in meta.levels(kind) {
                 let lr = self.level(kind, level)?;
+                // the level's array over the folder: verification decodes the bytes on disk
+                // through zarrs' own reading of a shard
+                let array = crate::reader::open_fs(root).and_then(|fs| {
+                    Array::open(fs, lr.array.path().as_str()).map_err(|e| {
+                        crate::StoreError::Format {
+                            what: e.to_string(),
+                            path: self.array_dir(root, lr),
+                        }
+                    })
+                });
                 for shard in self.missing_shards(kind, level)? {
                     report.problems.push(Problem {
                         path: self.shard_file(kind, shard)?,
@@ -216,7 +227,14 @@ impl StoreReader {
                             detail: "on disk but not listed in the store's metadata (not written by the last commit)".into(),
                         });
                     }
-                    self.verify_shard(kind, lr, shard, &mut report);
+                    match &array {
+                        Ok(array) => self.verify_shard(kind, array, shard, &mut report),
+                        Err(e) => report.problems.push(Problem {
+                            path: self.array_dir(root, lr),
+                            what: format!("{kind} {shard}"),
+                            detail: e.to_string(),
+                        }),
+                    }
                     on_shard();
                 }
             }
@@ -226,7 +244,7 @@ impl StoreReader {
 
     /// Everything in the store is a regular file or a folder: a symlink (which no reader here
     /// follows, but other readers would), a FIFO, a device or a socket is damage.
-    fn verify_file_types(&self, dir: &Path, report: &mut VerifyReport) {
+    fn verify_file_types(&self, root: &Path, dir: &Path, report: &mut VerifyReport) {
         let Ok(rd) = std::fs::read_dir(dir) else {
             return;
         };
@@ -235,8 +253,8 @@ impl StoreReader {
         for e in entries {
             let Ok(t) = e.file_type() else { continue };
             if t.is_dir() {
-                self.verify_file_types(&e.path(), report);
-            } else if !t.is_file() && !self.is_shard_file(&e.path()) {
+                self.verify_file_types(root, &e.path(), report);
+            } else if !t.is_file() && !self.is_shard_file(root, &e.path()) {
                 report.problems.push(Problem {
                     path: e.path(),
                     what: "store file".into(),
@@ -251,10 +269,7 @@ impl StoreReader {
 
     /// Whether `path` names a shard file of a data array (`LAYER/LEVEL/LAYER/c/Y/X[/0]`, or
     /// `LAYER/LEVEL/c/…` in format 1): those the shard checks report.
-    fn is_shard_file(&self, path: &Path) -> bool {
-        let Ok(root) = self.folder() else {
-            return false;
-        };
+    fn is_shard_file(&self, root: &Path, path: &Path) -> bool {
         let Ok(rel) = path.strip_prefix(root) else {
             return false;
         };
@@ -281,10 +296,7 @@ impl StoreReader {
 
     /// Every level array on disk must be listed in the group metadata (a level key renamed or
     /// dropped there would silently hide its data from every reader).
-    fn verify_listing(&self, report: &mut VerifyReport) {
-        let Ok(root) = self.folder() else {
-            return;
-        };
+    fn verify_listing(&self, root: &Path, report: &mut VerifyReport) {
         let meta = self.meta();
         for (kind, name, path) in unlisted_arrays(root, meta) {
             report.problems.push(Problem {
@@ -297,10 +309,7 @@ impl StoreReader {
 
     /// The consolidated metadata of the root, each layer and each level group must be what the arrays' own
     /// `zarr.json` say (readers that trust it, like xarray, would get other shapes or codecs).
-    fn verify_consolidated(&self, report: &mut VerifyReport) {
-        let Ok(root) = self.folder() else {
-            return;
-        };
+    fn verify_consolidated(&self, root: &Path, report: &mut VerifyReport) {
         let meta = self.meta();
         let mut groups = vec![root.to_path_buf()];
         for &kind in meta.layers.keys() {
@@ -362,10 +371,7 @@ impl StoreReader {
 
     /// Each level's `lat` and `lon` coordinates must have the level's shape and hold the texel
     /// centres of its grid, value for value (they are what xarray and GDAL place the data by).
-    fn verify_coordinates(&self, report: &mut VerifyReport) {
-        let Ok(root) = self.folder() else {
-            return;
-        };
+    fn verify_coordinates(&self, root: &Path, report: &mut VerifyReport) {
         let meta = self.meta();
         let grid = meta.grid;
         let Ok(fs) = crate::reader::open_fs(root) else {
@@ -468,50 +474,23 @@ impl StoreReader {
     fn verify_shard(
         &self,
         kind: LayerKind,
-        lr: &LevelReader,
+        array: &Array<zarrs::filesystem::FilesystemStore>,
         shard: ShardId,
         report: &mut VerifyReport,
     ) {
         let meta = self.meta();
-        let Ok(root) = self.folder() else { return };
-        // the level's array over the folder, and a fresh cache: verification decodes the bytes
-        // on disk now, through zarrs' own reading of a shard
-        let array = match crate::reader::open_fs(root).and_then(|fs| {
-            Array::open(fs, lr.array.path().as_str()).map_err(|e| crate::StoreError::Format {
-                what: e.to_string(),
-                path: self.array_dir(root, lr),
-            })
-        }) {
-            Ok(a) => a,
-            Err(e) => {
-                report.problems.push(Problem {
-                    path: self.array_dir(root, lr),
-                    what: format!("{kind} {shard}"),
-                    detail: e.to_string(),
-                });
-                return;
-            }
-        };
-        let cache = ArrayShardedReadableExtCache::new(&array);
+        // a fresh cache: verification must read the bytes on disk now
+        let cache = ArrayShardedReadableExtCache::new(array);
         report.shards_checked += 1;
         let tiles: Vec<TileId> = shard.tiles(meta.grid, meta.shard_tiles).collect();
         let Some(&first) = tiles.first() else { return };
         let path = self.shard_path(kind, first).unwrap_or_default();
         let s = meta.shard_tiles;
-        if let Err(e) = crate::files::check_inside(root, &path) {
-            report.problems.push(Problem {
-                path,
-                what: format!("{kind} {shard} index"),
-                detail: e.to_string(),
-            });
+        // the reader's own source: files opened as untrusted, no symlinked folder followed
+        let Ok(key) = self.shard_key(kind, shard) else {
             return;
-        }
-        let key = path
-            .strip_prefix(root)
-            .map(|k| k.to_string_lossy().into_owned())
-            .unwrap_or_default();
-        let folder = crate::source::FolderSource::new(root);
-        let index = match ShardIndex::read(&folder, &key, (s * s) as usize) {
+        };
+        let index = match ShardIndex::read(self.source(), &key, (s * s) as usize) {
             Ok(Some(index)) => index,
             Ok(None) => {
                 // a multi-band shard's folder without its file
@@ -539,7 +518,7 @@ impl StoreReader {
             }
             let idx = Self::tile_indices(kind, tile);
             report.tiles_checked += 1;
-            if let Err(e) = index.check_tile(&folder, &key, local_tile_number(tile, s)) {
+            if let Err(e) = index.check_tile(self.source(), &key, local_tile_number(tile, s)) {
                 report.problems.push(Problem {
                     path: path.clone(),
                     what: format!("{kind} {tile}"),

@@ -554,9 +554,9 @@ impl GraphBuilder {
         let (store, detail_input) = match d {
             Decl::Store { path, layer, .. } => {
                 // a URL is a store over HTTP(S); a path is relative to the graph file
-                let at = match path.to_str() {
-                    Some(u) if sc_store::is_url(u) => Location::parse(path.as_os_str()),
-                    _ => Location::Local(here.join(path)),
+                let at = match Location::parse(path.as_os_str()) {
+                    Location::Local(p) => Location::Local(here.join(p)),
+                    remote => remote,
                 };
                 (self.store(&name, &at, &layer)?, None)
             }
