@@ -167,6 +167,7 @@ fn a_served_store_renders_byte_for_byte_as_its_folder_and_info_reads_it() {
     {
         let local = dir.path().join(format!("local{i}.png"));
         let remote = dir.path().join(format!("remote{i}.png"));
+        let mut said = String::new();
         for (at, out) in [(s(&store), &local), (server.url.as_str(), &remote)] {
             let mut c = bin();
             c.env("XDG_RUNTIME_DIR", xdg()).args([
@@ -179,11 +180,13 @@ fn a_served_store_renders_byte_for_byte_as_its_folder_and_info_reads_it() {
                 "--out",
                 s(out),
             ]);
-            ok(&run_within(c, Duration::from_secs(300)));
+            let o = run_within(c, Duration::from_secs(300));
+            ok(&o);
+            said += &format!("{at}: {}{}", text(&o.stdout), text(&o.stderr));
         }
         assert!(
             std::fs::read(&local).expect("png") == std::fs::read(&remote).expect("png"),
-            "camera {camera}: the render over HTTP differs from the folder's"
+            "camera {camera}: the render over HTTP differs from the folder's\n{said}"
         );
     }
     let o = run(&["info", &server.url]);

@@ -709,6 +709,8 @@ impl Task {
 struct State {
     /// The newest task list from the render thread (one slot).
     mailbox: Option<Vec<Task>>,
+    /// The tasks of the last list taken not yet handed to a worker, first to start first.
+    pending: Vec<Task>,
     in_flight: HashSet<TileKey>,
     idle: usize,
     shutdown: bool,
@@ -801,10 +803,11 @@ impl Streamer {
         self.shared.wake.notify_all();
     }
 
-    /// Whether nothing is queued or being made.
+    /// Whether nothing is queued or being made: every tile of the last list is made or failed
+    /// (or was cancelled by a newer list).
     pub fn idle(&self) -> bool {
         let s = self.shared.state();
-        s.mailbox.is_none() && s.in_flight.is_empty()
+        s.mailbox.is_none() && s.pending.is_empty() && s.in_flight.is_empty()
     }
 
     /// Blocks until `key` is made or failed, or `timeout` passes; the tile if made.
@@ -927,7 +930,6 @@ fn expand(sources: &[Box<dyn TileSource>], mut tasks: Vec<Task>) -> Vec<Task> {
 }
 
 fn manager(shared: &Shared, tx: &SyncSender<Task>) {
-    let mut pending: Vec<Task> = Vec::new();
     let mut s = shared.state();
     loop {
         if s.shutdown {
@@ -935,29 +937,39 @@ fn manager(shared: &Shared, tx: &SyncSender<Task>) {
         }
         if let Some(list) = s.mailbox.take() {
             // the new list replaces what was queued: cancellation
-            pending = expand(&shared.sources, list);
+            s.pending = expand(&shared.sources, list);
         }
         let cache = &shared.cache;
-        pending.retain(|t| !cache.contains(&t.key) && !cache.is_failed(&t.key));
+        s.pending
+            .retain(|t| !cache.contains(&t.key) && !cache.is_failed(&t.key));
+        // a task starts once its inputs are made; an input that will not be (failed, or pruned
+        // since) is made again by the task's worker, so every task starts and `idle` comes
+        let coming: HashSet<TileKey> = s
+            .pending
+            .iter()
+            .map(|t| t.key)
+            .chain(s.in_flight.iter().copied())
+            .collect();
         let ready = |t: &Task| {
             !s.in_flight.contains(&t.key)
                 && shared
                     .sources
                     .get(t.key.source as usize)
                     .is_some_and(|src| {
-                        src.inputs()
-                            .iter()
-                            .all(|&i| cache.contains(&t.key.with_source(i)))
+                        src.inputs().iter().all(|&i| {
+                            let k = t.key.with_source(i);
+                            cache.contains(&k) || !coming.contains(&k)
+                        })
                     })
         };
         let pick = if s.idle > 0 {
-            pending.iter().position(ready)
+            s.pending.iter().position(ready)
         } else {
             None
         };
         match pick {
             Some(i) => {
-                let t = pending.remove(i);
+                let t = s.pending.remove(i);
                 s.in_flight.insert(t.key);
                 s.idle -= 1;
                 // an idle worker is waiting on the channel: this does not block for long
@@ -1264,6 +1276,47 @@ mod tests {
         std::thread::sleep(Duration::from_millis(50));
         assert_eq!(s.errors().len(), 1, "{:?}", s.errors());
         assert_eq!(s.dependents(0), [0, 1]);
+    }
+
+    #[test]
+    fn the_streamer_is_idle_only_once_every_tile_asked_for_is_made_or_failed() {
+        // derived tiles wait in the manager's queue for their inputs, between one worker
+        // finishing and the next starting: idle must not be seen in between
+        let s = Streamer::new(
+            vec![
+                Box::new(FnHeightTiles(|lon: f64, _: f64| lon as f32)),
+                Box::new(Double),
+            ],
+            8,
+            2,
+            1 << 24,
+        );
+        for round in 0..40 {
+            let keys: Vec<TileKey> = (0..16)
+                .map(|x| {
+                    let i = round * 16 + x;
+                    TileKey {
+                        y: i / 256,
+                        ..key(6, i % 256)
+                    }
+                    .with_source(1)
+                })
+                .collect();
+            s.request(keys.iter().copied().map(Task::visible).collect());
+            let end = Instant::now() + Duration::from_secs(20);
+            while !s.idle() {
+                assert!(Instant::now() < end, "round {round}: never idle");
+                std::hint::spin_loop();
+            }
+            let undone: Vec<&TileKey> = keys
+                .iter()
+                .filter(|k| !s.cache().contains(k) && !s.cache().is_failed(k))
+                .collect();
+            assert!(
+                undone.is_empty(),
+                "round {round}: idle with {undone:?} not made"
+            );
+        }
     }
 
     /// Derives from source 2 (colours) and fails on them.
