@@ -794,3 +794,42 @@ fn the_warped_mesh_shows_the_same_detail_as_the_clipmaps() {
         "detail should change the picture more than the geometry does: {mean_bare:.2} vs {mean:.2}"
     );
 }
+
+/// The browser has no threads: its streamer makes the tiles on the render thread between
+/// frames (`SPHERECLIP_WORKERS=0` does the same natively). The picture is the one the worker
+/// threads give, byte for byte, with detail and colour derived from the heights.
+#[test]
+fn tiles_made_on_the_render_thread_give_the_picture_of_the_worker_threads() {
+    let store = crate::util::sample_planet();
+    let dir = tempfile::tempdir().expect("tempdir");
+    for (i, camera) in ["46.5,8,300000,0,-30,60", "-89,0,400000,0,-60,60"]
+        .iter()
+        .enumerate()
+    {
+        let shot = |workers: &str| {
+            let out = dir.path().join(format!("{i}-{workers}.png"));
+            let mut c = bin();
+            c.env("XDG_RUNTIME_DIR", crate::util::xdg())
+                .env("SPHERECLIP_WORKERS", workers)
+                .args([
+                    "render",
+                    s(&store),
+                    "--camera",
+                    camera,
+                    "--size",
+                    "160x90",
+                    "--out",
+                    s(&out),
+                ]);
+            let o = crate::util::run_within(c, std::time::Duration::from_secs(300));
+            crate::util::ok(&o);
+            (std::fs::read(&out).expect("png"), text(&o.stdout))
+        };
+        let (threads, said) = shot("2");
+        let (caller, said0) = shot("0");
+        assert!(
+            threads == caller,
+            "camera {camera}: the render thread's tiles give another picture\n{said}\n{said0}"
+        );
+    }
+}

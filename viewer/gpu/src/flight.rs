@@ -107,7 +107,7 @@ pub fn fly(
                 if s.level_hi == s.level_wanted && streamer.idle() {
                     break;
                 }
-                std::thread::sleep(Duration::from_millis(5));
+                streamer.work_for(Duration::from_millis(5));
             }
             let v = speed * alt;
             let (mut frame_ms, mut cpu_ms, mut finest) = (Vec::new(), Vec::new(), 0usize);
@@ -131,6 +131,9 @@ pub fn fly(
                     let s = r.stream_only(streamer, sources, &camera, Some(now + budget));
                     (s, now.elapsed().as_secs_f64())
                 };
+                if streamer.on_caller() {
+                    streamer.work_for(budget.saturating_sub(now.elapsed()));
+                }
                 frame_ms.push(now.elapsed().as_secs_f64() * 1e3);
                 cpu_ms.push(cpu * 1e3);
                 finest += usize::from(s.level_hi == s.level_wanted);

@@ -40,7 +40,7 @@
 
 use std::f64::consts::PI;
 use std::sync::OnceLock;
-use std::time::Instant;
+use web_time::Instant;
 
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;

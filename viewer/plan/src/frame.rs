@@ -6,7 +6,8 @@
 
 use std::collections::HashMap;
 use std::f64::consts::PI;
-use std::time::{Duration, Instant};
+use std::time::Duration;
+use web_time::Instant;
 
 use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec3};

@@ -331,12 +331,13 @@ pub struct Graph {
 pub const TILE_CACHE_BUDGET: usize = 192 << 20;
 
 /// Worker threads of a viewer's streamer: one per core but one (the render thread's);
-/// `SPHERECLIP_WORKERS=N` (1..64) overrides it.
+/// `SPHERECLIP_WORKERS=N` (0..64) overrides it, 0 making the tiles on the render thread between
+/// frames, as the browser does.
 pub fn default_workers() -> usize {
     if let Some(n) = std::env::var("SPHERECLIP_WORKERS")
         .ok()
         .and_then(|v| v.parse::<usize>().ok())
-        .filter(|n| (1..=64).contains(n))
+        .filter(|n| (0..=64).contains(n))
     {
         return n;
     }

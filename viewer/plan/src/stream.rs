@@ -16,17 +16,19 @@
 //!   prefetch, coarse before fine), resolves inputs, and hands a task to a worker only when one is
 //!   idle, through a bounded channel; N workers make tiles and put them in the cache. Nothing in
 //!   here is unbounded: the mailbox holds one list, the pending list is at most one frame's
-//!   tasks and their inputs, the channel holds at most one task per worker.
+//!   tasks and their inputs, the channel holds at most one task per worker. A streamer without
+//!   workers (a browser has no threads) has no manager either: the caller makes the tiles in the
+//!   order the manager would hand them out ([`Streamer::work_for`]).
 
 use std::collections::{HashMap, HashSet};
 use std::f64::consts::PI;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use sc_store::StoreReader;
+use web_time::Instant;
 
 use crate::clipmap::{CLIPMAP_N, LevelWindow, Placement, StoreColors, StoreHeights};
 use crate::detail::Detail;
@@ -147,8 +149,21 @@ impl TileData {
 /// An immutable tile, shared.
 pub type Tile = Arc<TileData>;
 
+/// What a tile source must be to be shared: `Send + Sync` where worker threads make tiles; no
+/// bound in a browser (wasm32), whose streamer makes them on the one thread it has.
+#[cfg(not(target_arch = "wasm32"))]
+pub trait Shareable: Send + Sync {}
+#[cfg(not(target_arch = "wasm32"))]
+impl<T: Send + Sync + ?Sized> Shareable for T {}
+/// What a tile source must be to be shared: `Send + Sync` where worker threads make tiles; no
+/// bound in a browser (wasm32), whose streamer makes them on the one thread it has.
+#[cfg(target_arch = "wasm32")]
+pub trait Shareable {}
+#[cfg(target_arch = "wasm32")]
+impl<T: ?Sized> Shareable for T {}
+
 /// Makes tiles.
-pub trait TileSource: Send + Sync + std::fmt::Debug {
+pub trait TileSource: Shareable + std::fmt::Debug {
     /// Sources whose tile at the same place this one derives from (made first).
     fn inputs(&self) -> Vec<u32> {
         Vec::new()
@@ -748,16 +763,23 @@ pub struct Streamer {
 const MAX_ERRORS: usize = 64;
 
 impl Streamer {
-    /// Starts `workers` worker threads (at least one) and the manager for `sources`, tiles of
-    /// `n × n`, a cache pruned to `budget` bytes.
+    /// Starts `workers` worker threads and the manager for `sources`, tiles of `n × n`, a cache
+    /// pruned to `budget` bytes. With no workers (and always in a browser, where there are no
+    /// threads) nothing runs by itself: tiles are made by [`Self::work_for`] on the caller's
+    /// thread, in the order the manager would hand them out.
     pub fn new(sources: Vec<Box<dyn TileSource>>, n: u32, workers: usize, budget: usize) -> Self {
-        let workers = workers.max(1);
+        let workers = if cfg!(target_arch = "wasm32") {
+            0
+        } else {
+            workers
+        };
         let shared = Arc::new(Shared {
             sources,
             cache: TileCache::new(budget),
             n,
             state: Mutex::new(State {
-                idle: workers,
+                // the caller's thread is the one worker of a streamer without threads
+                idle: workers.max(1),
                 ..State::default()
             }),
             wake: Condvar::new(),
@@ -765,26 +787,40 @@ impl Streamer {
             made: AtomicU64::new(0),
             busy_ns: AtomicU64::new(0),
         });
-        let (tx, rx) = sync_channel::<Task>(workers);
-        let rx = Arc::new(Mutex::new(rx));
-        let mut threads = Vec::new();
-        for i in 0..workers {
-            let (shared, rx) = (shared.clone(), rx.clone());
-            threads.push(
-                std::thread::Builder::new()
-                    .name(format!("sc-tile-worker-{i}"))
-                    .spawn(move || worker(&shared, &rx))
-                    .unwrap_or_else(|e| panic!("cannot start a worker thread: {e}")),
-            );
-        }
-        let m = shared.clone();
-        threads.push(
-            std::thread::Builder::new()
-                .name("sc-tile-manager".into())
-                .spawn(move || manager(&m, &tx))
-                .unwrap_or_else(|e| panic!("cannot start the manager thread: {e}")),
-        );
+        let threads = start_threads(&shared, workers);
         Self { shared, threads }
+    }
+
+    /// Whether tiles are made only by [`Self::work_for`] (no worker threads).
+    pub fn on_caller(&self) -> bool {
+        self.threads.is_empty()
+    }
+
+    /// Gives the tiles `for_at_most` to be made: without worker threads, makes them here, one
+    /// after another in the manager's order, until none is left or the time is up (a tile
+    /// begun is finished); with threads, waits until the workers are done or the time is up.
+    /// Returns the tiles made here.
+    pub fn work_for(&self, for_at_most: Duration) -> usize {
+        let end = Instant::now() + for_at_most;
+        if !self.on_caller() {
+            while !self.idle() && Instant::now() < end {
+                std::thread::sleep(Duration::from_millis(2));
+            }
+            return 0;
+        }
+        let mut made = 0;
+        loop {
+            let next = next_task(&self.shared, &mut self.shared.state());
+            let Some(task) = next else {
+                break;
+            };
+            run_task(&self.shared, task);
+            made += 1;
+            if Instant::now() >= end {
+                break;
+            }
+        }
+        made
     }
 
     /// Tiles a side.
@@ -810,9 +846,22 @@ impl Streamer {
         s.mailbox.is_none() && s.pending.is_empty() && s.in_flight.is_empty()
     }
 
-    /// Blocks until `key` is made or failed, or `timeout` passes; the tile if made.
+    /// Blocks until `key` is made or failed, or `timeout` passes; the tile if made. Without
+    /// worker threads the tiles are made here meanwhile.
     pub fn wait_for(&self, key: &TileKey, timeout: Duration) -> Option<Tile> {
         let end = Instant::now() + timeout;
+        if self.on_caller() {
+            loop {
+                if let Some(t) = self.shared.cache.get(key) {
+                    return Some(t);
+                }
+                if self.shared.cache.is_failed(key) || Instant::now() >= end {
+                    return None;
+                }
+                let task = next_task(&self.shared, &mut self.shared.state())?;
+                run_task(&self.shared, task);
+            }
+        }
         let mut s = self.shared.state();
         loop {
             if let Some(t) = self.shared.cache.get(key) {
@@ -929,49 +978,49 @@ fn expand(sources: &[Box<dyn TileSource>], mut tasks: Vec<Task>) -> Vec<Task> {
     out
 }
 
-fn manager(shared: &Shared, tx: &SyncSender<Task>) {
+/// The manager and `workers` worker threads over `shared` (none for no workers).
+#[cfg(not(target_arch = "wasm32"))]
+fn start_threads(shared: &Arc<Shared>, workers: usize) -> Vec<JoinHandle<()>> {
+    let mut threads = Vec::new();
+    if workers == 0 {
+        return threads;
+    }
+    let (tx, rx) = std::sync::mpsc::sync_channel::<Task>(workers);
+    let rx = Arc::new(Mutex::new(rx));
+    for i in 0..workers {
+        let (shared, rx) = (shared.clone(), rx.clone());
+        threads.push(
+            std::thread::Builder::new()
+                .name(format!("sc-tile-worker-{i}"))
+                .spawn(move || worker(&shared, &rx))
+                .unwrap_or_else(|e| panic!("cannot start a worker thread: {e}")),
+        );
+    }
+    let m = shared.clone();
+    threads.push(
+        std::thread::Builder::new()
+            .name("sc-tile-manager".into())
+            .spawn(move || manager(&m, &tx))
+            .unwrap_or_else(|e| panic!("cannot start the manager thread: {e}")),
+    );
+    threads
+}
+
+/// No threads in a browser: the caller makes the tiles ([`Streamer::work_for`]).
+#[cfg(target_arch = "wasm32")]
+fn start_threads(_: &Arc<Shared>, _: usize) -> Vec<JoinHandle<()>> {
+    Vec::new()
+}
+
+#[cfg(not(target_arch = "wasm32"))]
+fn manager(shared: &Shared, tx: &std::sync::mpsc::SyncSender<Task>) {
     let mut s = shared.state();
     loop {
         if s.shutdown {
             return;
         }
-        if let Some(list) = s.mailbox.take() {
-            // the new list replaces what was queued: cancellation
-            s.pending = expand(&shared.sources, list);
-        }
-        let cache = &shared.cache;
-        s.pending
-            .retain(|t| !cache.contains(&t.key) && !cache.is_failed(&t.key));
-        // a task starts once its inputs are made; an input that will not be (failed, or pruned
-        // since) is made again by the task's worker, so every task starts and `idle` comes
-        let coming: HashSet<TileKey> = s
-            .pending
-            .iter()
-            .map(|t| t.key)
-            .chain(s.in_flight.iter().copied())
-            .collect();
-        let ready = |t: &Task| {
-            !s.in_flight.contains(&t.key)
-                && shared
-                    .sources
-                    .get(t.key.source as usize)
-                    .is_some_and(|src| {
-                        src.inputs().iter().all(|&i| {
-                            let k = t.key.with_source(i);
-                            cache.contains(&k) || !coming.contains(&k)
-                        })
-                    })
-        };
-        let pick = if s.idle > 0 {
-            s.pending.iter().position(ready)
-        } else {
-            None
-        };
-        match pick {
-            Some(i) => {
-                let t = s.pending.remove(i);
-                s.in_flight.insert(t.key);
-                s.idle -= 1;
+        match next_task(shared, &mut s) {
+            Some(t) => {
                 // an idle worker is waiting on the channel: this does not block for long
                 drop(s);
                 if tx.send(t).is_err() {
@@ -984,6 +1033,46 @@ fn manager(shared: &Shared, tx: &SyncSender<Task>) {
             }
         }
     }
+}
+
+/// The manager's next task for an idle worker, marked in flight (None when no worker is idle or
+/// no task is ready): takes a newer list from the mailbox first, drops the tasks made since.
+fn next_task(shared: &Shared, s: &mut State) -> Option<Task> {
+    if let Some(list) = s.mailbox.take() {
+        // the new list replaces what was queued: cancellation
+        s.pending = expand(&shared.sources, list);
+    }
+    let cache = &shared.cache;
+    s.pending
+        .retain(|t| !cache.contains(&t.key) && !cache.is_failed(&t.key));
+    if s.idle == 0 {
+        return None;
+    }
+    // a task starts once its inputs are made; an input that will not be (failed, or pruned
+    // since) is made again by the task's worker, so every task starts and `idle` comes
+    let coming: HashSet<TileKey> = s
+        .pending
+        .iter()
+        .map(|t| t.key)
+        .chain(s.in_flight.iter().copied())
+        .collect();
+    let ready = |t: &Task| {
+        !s.in_flight.contains(&t.key)
+            && shared
+                .sources
+                .get(t.key.source as usize)
+                .is_some_and(|src| {
+                    src.inputs().iter().all(|&i| {
+                        let k = t.key.with_source(i);
+                        cache.contains(&k) || !coming.contains(&k)
+                    })
+                })
+    };
+    let i = s.pending.iter().position(ready)?;
+    let t = s.pending.remove(i);
+    s.in_flight.insert(t.key);
+    s.idle -= 1;
+    Some(t)
 }
 
 /// Makes a tile from its inputs in the cache; an input that is not there (pruned since the
@@ -1019,7 +1108,8 @@ fn make(shared: &Shared, key: TileKey, depth: usize) -> Result<TileData, TileErr
     tile
 }
 
-fn worker(shared: &Shared, rx: &Mutex<Receiver<Task>>) {
+#[cfg(not(target_arch = "wasm32"))]
+fn worker(shared: &Shared, rx: &Mutex<std::sync::mpsc::Receiver<Task>>) {
     loop {
         let task = {
             let rx = rx.lock().unwrap_or_else(|e| e.into_inner());
@@ -1028,55 +1118,61 @@ fn worker(shared: &Shared, rx: &Mutex<Receiver<Task>>) {
                 Err(_) => return,
             }
         };
-        let key = task.key;
-        let start = Instant::now();
-        // a source that panics (a bug, or data no check foresaw) fails its tile, not the worker:
-        // a dead worker would leave its tile in flight forever and the view waiting on it
-        let made = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| make(shared, key, 0)))
-            .unwrap_or_else(|p| {
-                let what = p
-                    .downcast_ref::<&str>()
-                    .map(|s| s.to_string())
-                    .or_else(|| p.downcast_ref::<String>().cloned())
-                    .unwrap_or_else(|| "unknown".into());
-                Err(TileError::Panicked(what))
-            });
-        let took = start.elapsed();
-        shared
-            .busy_ns
-            .fetch_add(took.as_nanos() as u64, Ordering::Relaxed);
-        tracing::debug!(
-            "tile source {} level {} ({}, {}) in {:.1} ms{}",
-            key.source,
-            key.grid.level,
-            key.x,
-            key.y,
-            took.as_secs_f64() * 1e3,
-            if task.prefetch {
-                format!(", prefetch {} ms ahead", task.ahead)
-            } else {
-                String::new()
-            }
-        );
-        match made {
-            Ok(tile) => shared.cache.insert(key, tile),
-            Err(e) => {
-                if shared.cache.fail(key) {
-                    let mut log = shared.errors.lock().unwrap_or_else(|e| e.into_inner());
-                    if log.len() < MAX_ERRORS {
-                        log.push(format!(
-                            "tile {key:?}: {e} (coarser data shows instead; a plain sphere where there is none)"
-                        ));
-                    }
+        run_task(shared, task);
+    }
+}
+
+/// Makes a task's tile (a panic fails the tile), puts it or its failure in the cache, and
+/// frees the worker that made it.
+fn run_task(shared: &Shared, task: Task) {
+    let key = task.key;
+    let start = Instant::now();
+    // a source that panics (a bug, or data no check foresaw) fails its tile, not the worker:
+    // a dead worker would leave its tile in flight forever and the view waiting on it
+    let made = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| make(shared, key, 0)))
+        .unwrap_or_else(|p| {
+            let what = p
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| p.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "unknown".into());
+            Err(TileError::Panicked(what))
+        });
+    let took = start.elapsed();
+    shared
+        .busy_ns
+        .fetch_add(took.as_nanos() as u64, Ordering::Relaxed);
+    tracing::debug!(
+        "tile source {} level {} ({}, {}) in {:.1} ms{}",
+        key.source,
+        key.grid.level,
+        key.x,
+        key.y,
+        took.as_secs_f64() * 1e3,
+        if task.prefetch {
+            format!(", prefetch {} ms ahead", task.ahead)
+        } else {
+            String::new()
+        }
+    );
+    match made {
+        Ok(tile) => shared.cache.insert(key, tile),
+        Err(e) => {
+            if shared.cache.fail(key) {
+                let mut log = shared.errors.lock().unwrap_or_else(|e| e.into_inner());
+                if log.len() < MAX_ERRORS {
+                    log.push(format!(
+                        "tile {key:?}: {e} (coarser data shows instead; a plain sphere where there is none)"
+                    ));
                 }
             }
         }
-        let mut s = shared.state();
-        s.in_flight.remove(&key);
-        s.idle += 1;
-        drop(s);
-        shared.wake.notify_all();
     }
+    let mut s = shared.state();
+    s.in_flight.remove(&key);
+    s.idle += 1;
+    drop(s);
+    shared.wake.notify_all();
 }
 
 #[cfg(test)]
@@ -1186,6 +1282,39 @@ mod tests {
         for x in 1..4 {
             assert!(!s.cache().contains(&key(1, x)));
         }
+    }
+
+    #[test]
+    fn without_threads_the_caller_makes_the_tiles_in_the_managers_order() {
+        let (s, started, release) = gated(0);
+        assert!(s.on_caller());
+        s.request(vec![
+            Task::prefetch(key(2, 6), 30),
+            Task::visible(key(7, 2)),
+            Task::prefetch(key(9, 7), 1),
+            Task::visible(key(3, 4)),
+        ]);
+        std::thread::sleep(Duration::from_millis(50));
+        assert!(started.try_recv().is_err(), "nothing is made by itself");
+        assert!(!s.idle());
+        for _ in 0..4 {
+            release.send(()).expect("release");
+        }
+        // no time at all still makes one tile
+        assert_eq!(s.work_for(Duration::ZERO), 1);
+        assert_eq!(s.work_for(Duration::from_secs(10)), 3);
+        let order: Vec<TileKey> = started.try_iter().collect();
+        assert_eq!(order, [key(3, 4), key(7, 2), key(9, 7), key(2, 6)]);
+        assert!(s.idle());
+        assert_eq!(s.work_for(Duration::from_secs(10)), 0);
+        // waiting for a tile makes it, and what comes before it
+        s.request(vec![Task::visible(key(4, 1)), Task::visible(key(5, 1))]);
+        for _ in 0..2 {
+            release.send(()).expect("release");
+        }
+        assert!(s.wait_for(&key(5, 1), Duration::from_secs(10)).is_some());
+        assert!(s.cache().contains(&key(4, 1)));
+        assert!(s.idle());
     }
 
     /// Panics on every tile of level 2 (like a decoder meeting data no check foresaw).

@@ -317,6 +317,11 @@ impl App<'_> {
             },
             std::time::Duration::from_secs(10),
         );
+        if self.streamer.on_caller() {
+            // no worker threads: the tiles are made here, in what is left of the frame's budget
+            let left = (cpu_start + UPDATE_BUDGET).saturating_duration_since(Instant::now());
+            self.streamer.work_for(left);
+        }
         self.report.last = stats;
         self.report.finest_frames += u64::from(stats.level_hi == stats.level_wanted);
         // the panel

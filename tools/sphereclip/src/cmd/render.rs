@@ -85,12 +85,9 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
         if frames >= 10_000 {
             bail!("the view did not complete in 10000 frames");
         }
-        // give the tile workers the cores (a frame on a CPU adapter takes them all) until they
-        // are done or a quarter second has passed, then look again
-        let wait = Instant::now();
-        while !streamer.idle() && wait.elapsed() < std::time::Duration::from_millis(250) {
-            std::thread::sleep(std::time::Duration::from_millis(2));
-        }
+        // give the tiles the cores (a frame on a CPU adapter takes them all) until they are
+        // made or a quarter second has passed, then look again
+        streamer.work_for(std::time::Duration::from_millis(250));
     };
     let complete_ms = start.elapsed().as_secs_f64() * 1e3;
     for e in streamer.errors() {
