@@ -35,7 +35,7 @@ unit: deps
 
 # what the browser viewer is built from compiles for wasm32
 wasm: deps
-	$(CARGO) build --locked --profile checked --target wasm32-unknown-unknown -p sc_core -p sc_store -p sc_view_plan
+	$(CARGO) build --locked --profile checked --target wasm32-unknown-unknown -p sc_core -p sc_store -p sc_view_plan -p sc_view_gpu
 
 test: deps fmt-check clippy wasm unit
 

@@ -4,7 +4,8 @@
 //! (Alg. 1 draws a coarser one while tiles are missing) and the frame times. The result per
 //! altitude is the highest speed at which the finest level was there in ≥ 95 % of frames.
 
-use std::time::{Duration, Instant};
+use std::time::Duration;
+use web_time::Instant;
 
 use sc_core::stats::percentile;
 use sc_view_plan::camera::move_along;

@@ -4,7 +4,8 @@
 //! target and its read-back; any adapter, the CPU one — lavapipe — included). Reversed-Z float
 //! depth with an infinite far plane serves orbit and the ground alike.
 
-use std::time::{Duration, Instant};
+use std::time::Duration;
+use web_time::Instant;
 
 use bytemuck::Zeroable;
 use sc_store::LayerKind;
@@ -811,7 +812,7 @@ impl Renderer {
         colors: Option<&mut dyn ColorSource>,
         camera: &Camera,
     ) -> Result<(image::RgbaImage, FrameStats, f64), RenderError> {
-        let start = std::time::Instant::now();
+        let start = Instant::now();
         self.pass.space = self.clear;
         let (ground, stats) = self.pass.prepare(heights, colors, camera, self.size);
         self.ground = ground;

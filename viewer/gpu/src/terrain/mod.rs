@@ -13,7 +13,7 @@ use sc_view_plan::terrain::GeometryFrame;
 use crate::device::DEPTH_FORMAT;
 
 /// What the renderer of one geometry does each frame.
-pub trait TerrainRenderer: std::fmt::Debug + Send + Sync {
+pub trait TerrainRenderer: std::fmt::Debug + sc_view_plan::stream::Shareable {
     /// Takes a frame's geometry: uploads it when it is this renderer's. Returns whether this
     /// renderer draws the frame.
     fn upload(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, frame: &GeometryFrame)
