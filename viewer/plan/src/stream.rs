@@ -764,34 +764,56 @@ const MAX_ERRORS: usize = 64;
 
 impl Streamer {
     /// Starts `workers` worker threads and the manager for `sources`, tiles of `n × n`, a cache
-    /// pruned to `budget` bytes. With no workers (and always in a browser, where there are no
-    /// threads) nothing runs by itself: tiles are made by [`Self::work_for`] on the caller's
-    /// thread, in the order the manager would hand them out.
+    /// pruned to `budget` bytes. With no workers, and always in a browser (no threads there),
+    /// [`Self::without_threads`] with `workers.max(1)` makers.
     pub fn new(sources: Vec<Box<dyn TileSource>>, n: u32, workers: usize, budget: usize) -> Self {
-        let workers = if cfg!(target_arch = "wasm32") {
-            0
-        } else {
-            workers
-        };
-        let shared = Arc::new(Shared {
+        if workers == 0 || cfg!(target_arch = "wasm32") {
+            return Self::without_threads(sources, n, workers.max(1), budget);
+        }
+        let shared = Self::shared(sources, n, workers, budget);
+        let threads = start_threads(&shared, workers);
+        Self { shared, threads }
+    }
+
+    /// A streamer that runs nothing by itself: the caller makes the tiles between frames
+    /// ([`Self::work_for`]), or hands them to up to `makers` makers elsewhere (a browser's web
+    /// workers: [`Self::take_task`], [`Self::make_tile`] there, [`Self::finish`]), in the order
+    /// the manager would hand them to worker threads.
+    pub fn without_threads(
+        sources: Vec<Box<dyn TileSource>>,
+        n: u32,
+        makers: usize,
+        budget: usize,
+    ) -> Self {
+        Self {
+            shared: Self::shared(sources, n, makers.max(1), budget),
+            threads: Vec::new(),
+        }
+    }
+
+    fn shared(
+        sources: Vec<Box<dyn TileSource>>,
+        n: u32,
+        idle: usize,
+        budget: usize,
+    ) -> Arc<Shared> {
+        Arc::new(Shared {
             sources,
             cache: TileCache::new(budget),
             n,
             state: Mutex::new(State {
-                // the caller's thread is the one worker of a streamer without threads
-                idle: workers.max(1),
+                idle,
                 ..State::default()
             }),
             wake: Condvar::new(),
             errors: Mutex::new(Vec::new()),
             made: AtomicU64::new(0),
             busy_ns: AtomicU64::new(0),
-        });
-        let threads = start_threads(&shared, workers);
-        Self { shared, threads }
+        })
     }
 
-    /// Whether tiles are made only by [`Self::work_for`] (no worker threads).
+    /// Whether tiles are made only by the caller (no worker threads): [`Self::work_for`], or
+    /// [`Self::take_task`] and [`Self::finish`].
     pub fn on_caller(&self) -> bool {
         self.threads.is_empty()
     }
@@ -809,18 +831,38 @@ impl Streamer {
             return 0;
         }
         let mut made = 0;
-        loop {
-            let next = next_task(&self.shared, &mut self.shared.state());
-            let Some(task) = next else {
-                break;
-            };
-            run_task(&self.shared, task);
+        while let Some(task) = self.take_task() {
+            let tile = self.make_tile(&task);
+            self.finish(task.key, tile);
             made += 1;
             if Instant::now() >= end {
                 break;
             }
         }
         made
+    }
+
+    /// The next tile to make, in the manager's order, once its inputs are made; marked as being
+    /// made until [`Self::finish`]. None while every maker is busy, when nothing is ready, and
+    /// always when worker threads make the tiles.
+    pub fn take_task(&self) -> Option<Task> {
+        if !self.on_caller() {
+            return None;
+        }
+        next_task(&self.shared, &mut self.shared.state())
+    }
+
+    /// Makes `task`'s tile here from its inputs in this streamer's cache (inputs not there are
+    /// made here first, and kept); a panicking source fails the tile. The tile itself is not
+    /// cached: a maker elsewhere sends it to the streamer that asked ([`Self::finish`]).
+    pub fn make_tile(&self, task: &Task) -> Result<TileData, TileError> {
+        make_task(&self.shared, task)
+    }
+
+    /// Ends the task of `key` with its tile or failure (logged once per tile): the tile goes
+    /// into the cache and its maker is free again.
+    pub fn finish(&self, key: TileKey, made: Result<TileData, TileError>) {
+        finish(&self.shared, key, made);
     }
 
     /// Tiles a side.
@@ -859,7 +901,8 @@ impl Streamer {
                     return None;
                 }
                 let task = next_task(&self.shared, &mut self.shared.state())?;
-                run_task(&self.shared, task);
+                let tile = make_task(&self.shared, &task);
+                finish(&self.shared, task.key, tile);
             }
         }
         let mut s = self.shared.state();
@@ -1118,13 +1161,13 @@ fn worker(shared: &Shared, rx: &Mutex<std::sync::mpsc::Receiver<Task>>) {
                 Err(_) => return,
             }
         };
-        run_task(shared, task);
+        let tile = make_task(shared, &task);
+        finish(shared, task.key, tile);
     }
 }
 
-/// Makes a task's tile (a panic fails the tile), puts it or its failure in the cache, and
-/// frees the worker that made it.
-fn run_task(shared: &Shared, task: Task) {
+/// A task's tile made from its inputs in the cache (made first when missing); a panic fails it.
+fn make_task(shared: &Shared, task: &Task) -> Result<TileData, TileError> {
     let key = task.key;
     let start = Instant::now();
     // a source that panics (a bug, or data no check foresaw) fails its tile, not the worker:
@@ -1155,6 +1198,11 @@ fn run_task(shared: &Shared, task: Task) {
             String::new()
         }
     );
+    made
+}
+
+/// Puts a made tile or its failure (logged once) in the cache and frees its maker.
+fn finish(shared: &Shared, key: TileKey, made: Result<TileData, TileError>) {
     match made {
         Ok(tile) => shared.cache.insert(key, tile),
         Err(e) => {
@@ -1169,8 +1217,10 @@ fn run_task(shared: &Shared, task: Task) {
         }
     }
     let mut s = shared.state();
-    s.in_flight.remove(&key);
-    s.idle += 1;
+    // a key not in flight (a maker's answer for a list replaced meanwhile, or twice) frees no one
+    if s.in_flight.remove(&key) {
+        s.idle += 1;
+    }
     drop(s);
     shared.wake.notify_all();
 }
@@ -1315,6 +1365,51 @@ mod tests {
         assert!(s.wait_for(&key(5, 1), Duration::from_secs(10)).is_some());
         assert!(s.cache().contains(&key(4, 1)));
         assert!(s.idle());
+    }
+
+    #[test]
+    fn makers_elsewhere_take_tasks_in_order_and_never_more_than_there_are() {
+        let sources = || -> Vec<Box<dyn TileSource>> {
+            vec![
+                Box::new(FnHeightTiles(|lon: f64, _: f64| lon as f32)),
+                Box::new(Double),
+            ]
+        };
+        // the page's streamer, and a web worker's (its own sources and cache)
+        let s = Streamer::without_threads(sources(), 8, 2, 1 << 20);
+        let maker = Streamer::without_threads(sources(), 8, 1, 1 << 20);
+        let derived: Vec<TileKey> = (0..5).map(|x| key(4, x).with_source(1)).collect();
+        s.request(derived.iter().copied().map(Task::visible).collect());
+        let (a, b) = (s.take_task().expect("a"), s.take_task().expect("b"));
+        // inputs first; a derived tile waits for its input, the next input does not
+        assert_eq!((a.key, b.key), (key(4, 0), key(4, 1)));
+        assert!(s.take_task().is_none(), "two makers, both busy");
+        s.finish(a.key, maker.make_tile(&a));
+        // an answer given twice frees no second maker
+        s.finish(a.key, maker.make_tile(&a));
+        let c = s.take_task().expect("c");
+        assert_eq!(c.key, derived[0]);
+        assert!(s.take_task().is_none());
+        s.finish(b.key, maker.make_tile(&b));
+        s.finish(c.key, maker.make_tile(&c));
+        let mut made = 3;
+        while !s.idle() {
+            let t = s.take_task().expect("a task while not idle");
+            // a maker without the input makes it itself
+            let fresh = Streamer::without_threads(sources(), 8, 1, 1 << 20);
+            s.finish(t.key, fresh.make_tile(&t));
+            made += 1;
+        }
+        assert_eq!(made, 10, "five tiles and their inputs");
+        let direct = Streamer::without_threads(sources(), 8, 1, 1 << 20);
+        for k in &derived {
+            let want = direct.make_tile(&Task::visible(*k)).expect("made");
+            assert_eq!(*s.cache().get(k).expect("cached"), want, "{k:?}");
+        }
+        // with worker threads the tasks are theirs
+        let threaded = Streamer::new(sources(), 8, 1, 1 << 20);
+        threaded.request(vec![Task::visible(derived[0])]);
+        assert!(threaded.take_task().is_none());
     }
 
     /// Panics on every tile of level 2 (like a decoder meeting data no check foresaw).
