@@ -360,7 +360,7 @@ pub struct LookArgs {
     /// The sun as AZIMUTH,ELEVATION in degrees (azimuth clockwise from north) seen from the point
     /// under the camera at the start; fixed in the world from then on [default: 135,50].
     #[arg(long, allow_hyphen_values = true, conflicts_with = "time", value_parser = sun_arg)]
-    pub sun: Option<String>,
+    pub sun: Option<sc_view_plan::sun::SunAngles>,
     /// Put the sun where it stands at this UTC time (e.g. 2026-06-21T12:00:00Z): straight above
     /// its subsolar point.
     #[arg(long, value_parser = time_arg)]
@@ -762,11 +762,9 @@ fn exaggeration_arg(s: &str) -> Result<f64, String> {
     }
 }
 
-/// Checked by the rule that later places the sun (which needs the camera).
-fn sun_arg(s: &str) -> Result<String, String> {
-    sc_view_plan::sun::Sun::parse_az_el(s, 0.0, 0.0)
-        .map(|_| s.to_string())
-        .map_err(|e| e.to_string())
+/// The sun's angles, placed once the camera is known.
+fn sun_arg(s: &str) -> Result<sc_view_plan::sun::SunAngles, String> {
+    sc_view_plan::sun::SunAngles::parse(s).map_err(|e| e.to_string())
 }
 
 /// Seconds since the Unix epoch.

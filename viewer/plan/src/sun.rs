@@ -72,9 +72,21 @@ impl Sun {
         let (sn, se, su) = (dot(self.0, n), dot(self.0, e), dot(self.0, u));
         [(-o * sn) as f32, (o * se) as f32, su as f32]
     }
+}
 
-    /// Parses `--sun AZIMUTH,ELEVATION` (degrees) as seen from `lat`, `lon`.
-    pub fn parse_az_el(s: &str, lat_deg: f64, lon_deg: f64) -> Result<Self, ViewError> {
+/// The sun's azimuth (degrees clockwise from north) and elevation (degrees above the horizon)
+/// as seen from a place not yet known: `--sun`, placed by [`SunAngles::seen_from`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SunAngles {
+    /// Degrees clockwise from north.
+    pub azimuth_deg: f64,
+    /// Degrees above the horizon, −90..90.
+    pub elevation_deg: f64,
+}
+
+impl SunAngles {
+    /// Parses `AZIMUTH,ELEVATION` (degrees).
+    pub fn parse(s: &str) -> Result<Self, ViewError> {
         let bad = || {
             ViewError::Camera(format!(
                 "expected the sun as AZIMUTH,ELEVATION in degrees (elevation −90..90), found `{s}`"
@@ -85,11 +97,17 @@ impl Sun {
             .map(|x| x.trim().parse::<f64>().map_err(|_| bad()))
             .collect::<Result<_, _>>()?;
         match v[..] {
-            [az, el] if az.is_finite() && (-90.0..=90.0).contains(&el) => {
-                Ok(Self::from_az_el(lat_deg, lon_deg, az, el))
-            }
+            [az, el] if az.is_finite() && (-90.0..=90.0).contains(&el) => Ok(Self {
+                azimuth_deg: az,
+                elevation_deg: el,
+            }),
             _ => Err(bad()),
         }
+    }
+
+    /// The sun at these angles seen from `lat`, `lon` (degrees).
+    pub fn seen_from(&self, lat_deg: f64, lon_deg: f64) -> Sun {
+        Sun::from_az_el(lat_deg, lon_deg, self.azimuth_deg, self.elevation_deg)
     }
 }
 
@@ -200,13 +218,17 @@ mod tests {
     #[test]
     fn bad_sun_positions_are_refused_in_one_line() {
         for bad in ["90", "90,100", "x,10", "10,-91", "nan,10", "1,2,3"] {
-            let e = Sun::parse_az_el(bad, 0.0, 0.0).expect_err(bad).to_string();
+            let e = SunAngles::parse(bad).expect_err(bad).to_string();
             assert!(
                 e.contains("AZIMUTH,ELEVATION") && !e.contains('\n'),
                 "{bad}: {e}"
             );
         }
-        assert!(Sun::parse_az_el("270,-5", 0.0, 0.0).is_ok());
+        let a = SunAngles::parse("270,-5").expect("angles");
+        assert_eq!(
+            a.seen_from(10.0, 20.0),
+            Sun::from_az_el(10.0, 20.0, 270.0, -5.0)
+        );
     }
 
     #[test]

@@ -15,7 +15,7 @@ mod view;
 
 use std::process::ExitCode;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 
 use crate::cli::{Cli, Command};
 
@@ -170,7 +170,7 @@ pub fn draw_options(
     use sc_view_plan::sun::Sun;
     let k = look.exaggeration;
     let sun = match (&look.sun, look.time) {
-        (Some(s), _) => Sun::parse_az_el(s, camera.lat_deg, camera.lon_deg).context("--sun")?,
+        (Some(a), _) => a.seen_from(camera.lat_deg, camera.lon_deg),
         (None, Some(t)) => Sun::at_unix_time(t),
         (None, None) => Sun::default_for(camera.lat_deg, camera.lon_deg),
     };
