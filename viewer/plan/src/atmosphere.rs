@@ -12,6 +12,7 @@
 //! and longest possible distance, so that the grazing rays near the horizon, whose transmittance
 //! changes fastest, get most of the texels.
 
+use glam::DVec3;
 use serde::Deserialize;
 
 /// The atmosphere: geometry, scatterers and absorbers. Reads from a `[atmosphere]` TOML table
@@ -70,14 +71,6 @@ pub const TRANSMITTANCE_STEPS: usize = 500;
 
 /// Size of the transmittance table: columns (view direction), rows (altitude).
 pub const TRANSMITTANCE_SIZE: (usize, usize) = (256, 64);
-
-fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
-
-fn scale(a: [f64; 3], s: f64) -> [f64; 3] {
-    [a[0] * s, a[1] * s, a[2] * s]
-}
 
 impl Atmosphere {
     /// Checks the parameters describe an atmosphere (a shell, non-negative coefficients, finite
@@ -157,13 +150,10 @@ impl Atmosphere {
     /// Extinction coefficient per metre at altitude `h` metres.
     pub fn extinction(&self, h: f64) -> [f64; 3] {
         let (r, m, o) = self.densities(h);
-        add(
-            add(
-                scale(self.rayleigh_scattering, r),
-                scale(self.mie_extinction, m),
-            ),
-            scale(self.ozone_absorption, o),
-        )
+        (DVec3::from(self.rayleigh_scattering) * r
+            + DVec3::from(self.mie_extinction) * m
+            + DVec3::from(self.ozone_absorption) * o)
+            .into()
     }
 
     /// Distance from radius `r` along a ray of cosine `mu` (to the local zenith) to the top of
@@ -191,17 +181,14 @@ impl Atmosphere {
         let d = self.distance_to_top(r, mu);
         let n = TRANSMITTANCE_STEPS;
         let dx = d / n as f64;
-        let mut sum = [0.0; 3];
+        let mut sum = DVec3::ZERO;
         for i in 0..=n {
             let t = i as f64 * dx;
             let ri = (t * t + 2.0 * r * mu * t + r * r).sqrt();
             let w = if i == 0 || i == n { 0.5 } else { 1.0 };
-            sum = add(
-                sum,
-                scale(self.extinction(ri - self.bottom_radius_m), w * dx),
-            );
+            sum += DVec3::from(self.extinction(ri - self.bottom_radius_m)) * (w * dx);
         }
-        sum
+        sum.into()
     }
 
     /// Transmittance from radius `r` along cosine `mu` to the top of the atmosphere (rays into
@@ -348,8 +335,8 @@ impl Atmosphere {
     pub fn scattering(&self, h: f64) -> ([f64; 3], [f64; 3]) {
         let (r, m, _) = self.densities(h);
         (
-            scale(self.rayleigh_scattering, r),
-            scale(self.mie_scattering, m),
+            (DVec3::from(self.rayleigh_scattering) * r).into(),
+            (DVec3::from(self.mie_scattering) * m).into(),
         )
     }
 }

@@ -9,6 +9,8 @@
 
 use std::f64::consts::PI;
 
+use glam::DVec3;
+
 use crate::camera::Camera;
 use crate::clipmap::{HeightSource, LevelWindow, StoreColors, StoreHeights};
 use crate::sun::unit_of;
@@ -32,34 +34,10 @@ pub struct RayCaster {
     exaggeration: f64,
 }
 
-fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
-
-fn scale(a: [f64; 3], k: f64) -> [f64; 3] {
-    [a[0] * k, a[1] * k, a[2] * k]
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn normalize(a: [f64; 3]) -> [f64; 3] {
-    scale(a, 1.0 / dot(a, a).sqrt())
-}
-
 /// The nearer positive distance along the unit ray `d` from `o` to the sphere of radius `r`.
-fn hit_sphere(o: [f64; 3], d: [f64; 3], r: f64) -> Option<f64> {
-    let b = dot(o, d);
-    let c = dot(o, o) - r * r;
+fn hit_sphere(o: DVec3, d: DVec3, r: f64) -> Option<f64> {
+    let b = o.dot(d);
+    let c = o.dot(o) - r * r;
     let disc = b * b - c;
     if disc < 0.0 {
         return None;
@@ -75,22 +53,20 @@ fn hit_sphere(o: [f64; 3], d: [f64; 3], r: f64) -> Option<f64> {
 #[derive(Debug, Clone, Copy)]
 pub struct ViewFrame {
     /// The eye, metres from the planet's centre.
-    pub eye: [f64; 3],
+    pub eye: DVec3,
     /// The direction through the picture's centre.
-    pub forward: [f64; 3],
+    pub forward: DVec3,
     /// The picture's right.
-    pub right: [f64; 3],
+    pub right: DVec3,
     /// The picture's up.
-    pub up: [f64; 3],
+    pub up: DVec3,
 }
 
 impl ViewFrame {
     /// For `camera` over ground at `ground_radius` metres from the centre.
     pub fn new(camera: &Camera, ground_radius: f64) -> Self {
-        let eye = scale(
-            unit_of(camera.lat_deg, camera.lon_deg),
-            ground_radius + camera.alt,
-        );
+        let eye = DVec3::from_array(unit_of(camera.lat_deg, camera.lon_deg))
+            * (ground_radius + camera.alt);
         let local = LocalAxes::at(camera.lat_deg, camera.lon_deg);
         let axes = view_axes(
             local.north,
@@ -99,13 +75,13 @@ impl ViewFrame {
             camera.heading.to_radians(),
             camera.pitch.to_radians(),
         );
-        let (forward, screen_up) = (axes.forward.to_array(), axes.screen_up.to_array());
-        let right = normalize(cross(forward, screen_up));
+        let (forward, screen_up) = (axes.forward, axes.screen_up);
+        let right = forward.cross(screen_up).normalize();
         Self {
             eye,
             forward,
             right,
-            up: cross(right, forward),
+            up: right.cross(forward),
         }
     }
 }
@@ -127,13 +103,13 @@ impl RayCaster {
         }
     }
 
-    fn height_at(&mut self, p: [f64; 3]) -> f64 {
+    fn height_at(&mut self, p: DVec3) -> f64 {
         let Some(h) = self.heights.as_mut() else {
             return 0.0;
         };
-        let colat = p[2].atan2(p[0].hypot(p[1]));
+        let colat = p.z.atan2(p.x.hypot(p.y));
         let colat = PI / 2.0 - colat;
-        let lon = p[1].atan2(p[0]);
+        let lon = p.y.atan2(p.x);
         f64::from(h.height(lon, colat, FINEST)) * self.exaggeration
     }
 
@@ -162,7 +138,7 @@ impl RayCaster {
     ) -> Vec<u8> {
         let ground = {
             let p = unit_of(camera.lat_deg, camera.lon_deg);
-            self.height_at(p)
+            self.height_at(DVec3::from_array(p))
         };
         let ViewFrame {
             eye,
@@ -187,13 +163,10 @@ impl RayCaster {
                             (f64::from(x) + (f64::from(sx) + 0.5) / f64::from(s)) / f64::from(w);
                         let fy =
                             (f64::from(y) + (f64::from(sy) + 0.5) / f64::from(s)) / f64::from(h);
-                        let d = normalize(add(
-                            forward,
-                            add(
-                                scale(right, (2.0 * fx - 1.0) * tx),
-                                scale(true_up, (1.0 - 2.0 * fy) * ty),
-                            ),
-                        ));
+                        let d = (forward
+                            + (right * ((2.0 * fx - 1.0) * tx)
+                                + true_up * ((1.0 - 2.0 * fy) * ty)))
+                            .normalize();
                         let c = self.shade(eye, d).unwrap_or(bg);
                         for k in 0..3 {
                             acc[k] += c[k] / n;
@@ -211,17 +184,17 @@ impl RayCaster {
     }
 
     /// The colour (linear light) where a ray meets the planet, or `None` if it misses.
-    fn shade(&mut self, eye: [f64; 3], d: [f64; 3]) -> Option<[f64; 3]> {
+    fn shade(&mut self, eye: DVec3, d: DVec3) -> Option<[f64; 3]> {
         let mut r = self.radius;
         let mut t = hit_sphere(eye, d, r)?;
         for _ in 0..HEIGHT_STEPS {
-            let p = add(eye, scale(d, t));
+            let p = eye + d * t;
             r = self.radius + self.height_at(p);
             t = hit_sphere(eye, d, r)?;
         }
-        let p = add(eye, scale(d, t));
-        let colat = PI / 2.0 - (p[2] / r).clamp(-1.0, 1.0).asin();
-        let lon = p[1].atan2(p[0]);
+        let p = eye + d * t;
+        let colat = PI / 2.0 - (p.z / r).clamp(-1.0, 1.0).asin();
+        let lon = p.y.atan2(p.x);
         let c = self.colors.color_linear(lon, colat, FINEST);
         // where the colour is not opaque the renderer shows its height tint; the tests use
         // opaque colour, and so does the comparison

@@ -15,26 +15,14 @@ pub fn unit_of(lat_deg: f64, lon_deg: f64) -> [f64; 3] {
     LocalAxes::at(lat_deg, lon_deg).up.to_array()
 }
 
-/// The local frame at `lat`, `lon` (degrees): north, east and up unit vectors.
-fn local_frame(lat_deg: f64, lon_deg: f64) -> [[f64; 3]; 3] {
-    let a = LocalAxes::at(lat_deg, lon_deg);
-    [a.north.to_array(), a.east.to_array(), a.up.to_array()]
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
 impl Sun {
     /// The sun seen from `lat`, `lon` (degrees) at `azimuth` (degrees clockwise from north) and
     /// `elevation` (degrees above the horizon).
     pub fn from_az_el(lat_deg: f64, lon_deg: f64, azimuth_deg: f64, elevation_deg: f64) -> Self {
-        let [n, e, u] = local_frame(lat_deg, lon_deg);
+        let a = LocalAxes::at(lat_deg, lon_deg);
         let (sa, ca) = azimuth_deg.to_radians().sin_cos();
         let (se, ce) = elevation_deg.to_radians().sin_cos();
-        Self(std::array::from_fn(|k| {
-            ce * (ca * n[k] + sa * e[k]) + se * u[k]
-        }))
+        Self(((a.north * ca + a.east * sa) * ce + a.up * se).to_array())
     }
 
     /// The sun at a UTC time (seconds since 1970-01-01T00:00:00Z): straight above its
@@ -53,12 +41,17 @@ impl Sun {
 
     /// Azimuth and elevation (degrees) of the sun seen from `lat`, `lon`.
     pub fn az_el_at(&self, lat_deg: f64, lon_deg: f64) -> (f64, f64) {
-        let [n, e, u] = local_frame(lat_deg, lon_deg);
-        let (sn, se, su) = (dot(self.0, n), dot(self.0, e), dot(self.0, u));
+        let (sn, se, su) = self.along(&LocalAxes::at(lat_deg, lon_deg));
         (
             se.atan2(sn).to_degrees().rem_euclid(360.0),
             su.clamp(-1.0, 1.0).asin().to_degrees(),
         )
+    }
+
+    /// The direction's components along a place's north, east and up.
+    fn along(&self, a: &LocalAxes) -> (f64, f64, f64) {
+        let s = glam::DVec3::from_array(self.0);
+        (s.dot(a.north), s.dot(a.east), s.dot(a.up))
     }
 
     /// The direction in the view space of `viewer` (viewer at the north pole: its local north,
@@ -67,9 +60,8 @@ impl Sun {
     pub fn in_view(&self, viewer: &Viewer) -> [f32; 3] {
         let lat = 90.0 - viewer.colat_rad.to_degrees();
         let lon = viewer.lon_rad.to_degrees();
-        let [n, e, u] = local_frame(lat, lon);
         let o = viewer.orient();
-        let (sn, se, su) = (dot(self.0, n), dot(self.0, e), dot(self.0, u));
+        let (sn, se, su) = self.along(&LocalAxes::at(lat, lon));
         [(-o * sn) as f32, (o * se) as f32, su as f32]
     }
 }
