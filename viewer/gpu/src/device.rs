@@ -37,16 +37,27 @@ pub fn device_for(
     instance: &wgpu::Instance,
     surface: Option<&wgpu::Surface<'_>>,
 ) -> Result<(wgpu::Adapter, wgpu::Device, wgpu::Queue, String), RenderError> {
-    let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
-        power_preference: wgpu::PowerPreference::HighPerformance,
-        force_fallback_adapter: false,
-        compatible_surface: surface,
-    }))
-    .map_err(|_| RenderError::NoAdapter)?;
+    pollster::block_on(device_for_async(instance, surface))
+}
+
+/// [`device_for`] for a caller that cannot block (a browser, where the adapter and device come
+/// from promises).
+pub async fn device_for_async(
+    instance: &wgpu::Instance,
+    surface: Option<&wgpu::Surface<'_>>,
+) -> Result<(wgpu::Adapter, wgpu::Device, wgpu::Queue, String), RenderError> {
+    let adapter = instance
+        .request_adapter(&wgpu::RequestAdapterOptions {
+            power_preference: wgpu::PowerPreference::HighPerformance,
+            force_fallback_adapter: false,
+            compatible_surface: surface,
+        })
+        .await
+        .map_err(|_| RenderError::NoAdapter)?;
     let info = adapter.get_info();
     let levels = HemisphereSpec::default().levels;
-    let (device, queue) = pollster::block_on(
-        adapter.request_device(&wgpu::DeviceDescriptor {
+    let (device, queue) = adapter
+        .request_device(&wgpu::DeviceDescriptor {
             label: Some("sphereclip"),
             // wireframe where the adapter has it (lavapipe does)
             // and the GPU's clock for timing the render pass where it has one
@@ -61,9 +72,9 @@ pub fn device_for(
             }
             .using_resolution(adapter.limits()),
             ..Default::default()
-        }),
-    )
-    .map_err(|e| RenderError::Device(e.to_string()))?;
+        })
+        .await
+        .map_err(|e| RenderError::Device(e.to_string()))?;
     let name = format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type);
     Ok((adapter, device, queue, name))
 }

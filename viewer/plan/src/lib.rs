@@ -13,6 +13,7 @@ pub mod flight;
 pub mod frame;
 pub mod geometry;
 pub mod graph;
+pub mod link;
 pub mod reference;
 pub mod stream;
 pub mod sun;
