@@ -19,13 +19,13 @@ use sc_view_gpu::render::{
     ClipmapPass, ImageReadback, RenderError, background, begin_pass, depth_target, device_for,
 };
 use sc_view_plan::camera::{Camera, CameraScript, Controller, Input, Mode};
-use sc_view_plan::cdlod::CdlodSpec;
 use sc_view_plan::frame::{DrawOptions, FrameClock, FrameStats, StreamSources};
 use sc_view_plan::graph::{FilterHandle, FilterParams};
 use sc_view_plan::stream::Streamer;
-use sc_view_plan::sun::Sun;
-use sc_view_plan::terrain::Geometry;
-use sc_view_plan::warp::WarpSpec;
+
+mod panel;
+
+use panel::{PanelEdits, PanelFacts};
 
 /// How long a frame may spend updating clipmap levels before it draws what it has (Alg. 1).
 const UPDATE_BUDGET: std::time::Duration = std::time::Duration::from_millis(12);
@@ -272,24 +272,7 @@ impl App<'_> {
     }
 
     fn frame(&mut self, event_loop: &ActiveEventLoop) -> Result<(), RenderError> {
-        let now = Instant::now();
-        let dt = self
-            .last_frame
-            .map_or(0.0, |t| now.duration_since(t).as_secs_f64())
-            .min(0.25);
-        if let Some(t) = self.last_frame {
-            self.report
-                .frame_ms
-                .push(now.duration_since(t).as_secs_f64() * 1e3);
-        }
-        self.last_frame = Some(now);
-        if dt > 0.0 {
-            self.fps = if self.fps == 0.0 {
-                1.0 / dt
-            } else {
-                0.9 * self.fps + 0.1 / dt
-            };
-        }
+        let dt = self.tick();
         let input = self.input.take(dt);
         self.controller.update(&input);
         let mut script_over = false;
@@ -324,155 +307,84 @@ impl App<'_> {
         }
         self.report.last = stats;
         self.report.finest_frames += u64::from(stats.level_hi == stats.level_wanted);
-        // the panel
         let raw = gpu.egui_state.take_egui_input(&gpu.window);
-        let mut mode = self.controller.mode;
-        let mut speed = self.controller.speed;
-        let mut options = gpu.pass.options;
-        // the atmosphere's model stays that of the view's start; the panel only switches it
-        let air_model = self.opts.draw.atmosphere.unwrap_or_default();
-        let has_wire = gpu.pass.has_wireframe();
-        let memory_mb = gpu.pass.clipmap_bytes() as f64 / (1u64 << 20) as f64;
-        let cache_mb = self.streamer.cache().bytes() as f64 / (1u64 << 20) as f64;
-        let tiles = self.streamer.cache().len();
-        let errors = self.streamer.errors();
-        let mut filters: Vec<(String, FilterParams)> = self
-            .opts
-            .filters
-            .iter()
-            .map(|f| {
-                let p = f.params.read().map(|p| *p).unwrap_or_default();
-                (f.name.clone(), p)
-            })
-            .collect();
-        let before: Vec<FilterParams> = filters.iter().map(|f| f.1).collect();
-        let (fps, cpu_avg, adapter) = (self.fps, self.cpu_avg, self.report.adapter.clone());
-        let detail_sources = self.opts.detail;
-        let mut detail = detail_sources.is_some_and(|(on, _)| on == self.sources);
+        let facts = PanelFacts {
+            fps: self.fps,
+            cpu_avg: self.cpu_avg,
+            adapter: self.report.adapter.clone(),
+            stats,
+            camera,
+            memory_mb: gpu.pass.clipmap_bytes() as f64 / (1u64 << 20) as f64,
+            cache_mb: self.streamer.cache().bytes() as f64 / (1u64 << 20) as f64,
+            tiles: self.streamer.cache().len(),
+            errors: self.streamer.errors(),
+            has_wire: gpu.pass.has_wireframe(),
+            // the atmosphere's model stays that of the view's start; the panel only switches it
+            air_model: self.opts.draw.atmosphere.unwrap_or_default(),
+            detail_available: self.opts.detail.is_some(),
+        };
+        let mut edits = PanelEdits {
+            mode: self.controller.mode,
+            speed: self.controller.speed,
+            options: gpu.pass.options,
+            detail: self.opts.detail.is_some_and(|(on, _)| on == self.sources),
+            filters: self
+                .opts
+                .filters
+                .iter()
+                .map(|f| {
+                    let p = f.params.read().map(|p| *p).unwrap_or_default();
+                    (f.name.clone(), p)
+                })
+                .collect(),
+        };
+        let before: Vec<FilterParams> = edits.filters.iter().map(|f| f.1).collect();
         let out = gpu.egui_ctx.run_ui(raw, |ui| {
             egui::Window::new("sphereclip")
                 .default_pos((10.0, 10.0))
-                .show(ui.ctx(), |ui| {
-                    ui.label(format!("{fps:.1} fps · CPU {cpu_avg:.1} ms/frame"));
-                    ui.label(format!(
-                        "levels {}..{} of {}..{} · {} triangles",
-                        stats.level_lo,
-                        stats.level_hi,
-                        stats.level_lo,
-                        stats.level_wanted,
-                        stats.triangles
-                    ));
-                    if let Geometry::Cdlod(_) = options.geometry {
-                        ui.label(format!(
-                            "CDLOD: {} leaves drawn · culled: {} by frustum, {} by horizon",
-                            stats.leaves, stats.culled_frustum, stats.culled_horizon
-                        ));
-                    }
-                    ui.label(format!(
-                        "clipmaps {memory_mb:.1} MiB · {} updated this frame",
-                        stats.levels_filled
-                    ));
-                    ui.label(format!("tile cache {cache_mb:.0} MiB, {tiles} tiles"));
-                    if let Some(e) = errors.last() {
-                        ui.colored_label(
-                            egui::Color32::LIGHT_RED,
-                            format!("{} tile errors; last: {e}", errors.len()),
-                        );
-                    }
-                    ui.label(format!(
-                        "{:.5}°, {:.5}° · {:.1} m above ground · heading {:.0}°",
-                        camera.lat_deg, camera.lon_deg, camera.alt, camera.heading
-                    ));
-                    ui.horizontal(|ui| {
-                        ui.radio_value(&mut mode, Mode::Orbit, "orbit (1)");
-                        ui.radio_value(&mut mode, Mode::Fly, "fly (2)");
-                        ui.radio_value(&mut mode, Mode::Walk, "walk (3)");
-                    });
-                    ui.add(
-                        egui::Slider::new(&mut speed, 0.01..=100.0)
-                            .logarithmic(true)
-                            .text("speed"),
-                    );
-                    ui.add_enabled(
-                        has_wire,
-                        egui::Checkbox::new(&mut options.wireframe, "wireframe (F)"),
-                    );
-                    ui.checkbox(&mut options.level_colors, "level colours (L)");
-                    ui.horizontal(|ui| {
-                        let cdlod = match options.geometry {
-                            Geometry::Cdlod(spec) => spec,
-                            _ => CdlodSpec::default(),
-                        };
-                        let warp = match options.geometry {
-                            Geometry::Warp(spec) => spec,
-                            _ => WarpSpec::default(),
-                        };
-                        ui.radio_value(&mut options.geometry, Geometry::Clipmap, "clipmaps");
-                        ui.radio_value(&mut options.geometry, Geometry::Cdlod(cdlod), "CDLOD");
-                        ui.radio_value(&mut options.geometry, Geometry::Warp(warp), "warp");
-                    });
-                    if let Geometry::Warp(spec) = &mut options.geometry {
-                        let old = spec.mesh.ilog2();
-                        let mut bits = old;
-                        ui.add(egui::Slider::new(&mut bits, 6..=10).text("mesh: 2^n cells a side"));
-                        if bits != old {
-                            spec.mesh = 1 << bits;
-                        }
-                    }
-                    if let Geometry::Cdlod(spec) = &mut options.geometry {
-                        let mut bits = spec.bits();
-                        ui.add(egui::Slider::new(&mut bits, 1..=4).text("patch: 2^n segments"));
-                        spec.patch = 1 << bits;
-                        ui.add(
-                            egui::Slider::new(&mut spec.pixel_error, 1.0..=32.0)
-                                .logarithmic(true)
-                                .text("triangle pixels"),
-                        );
-                    }
-                    ui.checkbox(&mut options.lit, "lit (off: colour as stored)");
-                    let mut air = options.atmosphere.is_some();
-                    ui.add_enabled(options.lit, egui::Checkbox::new(&mut air, "atmosphere"));
-                    options.atmosphere = (air && options.lit).then_some(air_model);
-                    ui.add_enabled(
-                        detail_sources.is_some(),
-                        egui::Checkbox::new(&mut detail, "detail below the data"),
-                    );
-                    ui.add(
-                        egui::Slider::new(&mut options.exaggeration, 0.1..=50.0)
-                            .logarithmic(true)
-                            .text("vertical exaggeration"),
-                    );
-                    // the sun is fixed in the world; its sliders show and set where it stands
-                    // seen from the point under the camera
-                    let (mut az, mut el) = options.sun.az_el_at(camera.lat_deg, camera.lon_deg);
-                    let (az0, el0) = (az, el);
-                    ui.add(egui::Slider::new(&mut az, 0.0..=360.0).text("sun azimuth °"));
-                    ui.add(egui::Slider::new(&mut el, -90.0..=90.0).text("sun elevation °"));
-                    if az != az0 || el != el0 {
-                        options.sun = Sun::from_az_el(camera.lat_deg, camera.lon_deg, az, el);
-                    }
-                    for (name, p) in &mut filters {
-                        ui.collapsing(name.as_str(), |ui| {
-                            ui.add(
-                                egui::Slider::new(&mut p.brightness, -1.0..=1.0).text("brightness"),
-                            );
-                            ui.add(egui::Slider::new(&mut p.contrast, 0.0..=4.0).text("contrast"));
-                            ui.add(
-                                egui::Slider::new(&mut p.gamma, 0.1..=10.0)
-                                    .logarithmic(true)
-                                    .text("gamma"),
-                            );
-                            ui.add(
-                                egui::Slider::new(&mut p.saturation, 0.0..=4.0).text("saturation"),
-                            );
-                            if ui.button("reset").clicked() {
-                                *p = FilterParams::default();
-                            }
-                        });
-                    }
-                    ui.small(adapter.as_str());
-                });
+                .show(ui.ctx(), |ui| panel::show(ui, &mut edits, &facts));
         });
+        self.apply(edits, &before);
+        self.present(out, (w, h), cpu_start, script_over, event_loop)
+    }
+
+    /// The time since the last frame, seconds (at most a quarter second); keeps the frame rate.
+    fn tick(&mut self) -> f64 {
+        let now = Instant::now();
+        let dt = self
+            .last_frame
+            .map_or(0.0, |t| now.duration_since(t).as_secs_f64())
+            .min(0.25);
+        if let Some(t) = self.last_frame {
+            self.report
+                .frame_ms
+                .push(now.duration_since(t).as_secs_f64() * 1e3);
+        }
+        self.last_frame = Some(now);
+        if dt > 0.0 {
+            self.fps = if self.fps == 0.0 {
+                1.0 / dt
+            } else {
+                0.9 * self.fps + 0.1 / dt
+            };
+        }
+        dt
+    }
+
+    /// What the panel changed: the camera's mode and speed, the drawing options, detail (the
+    /// clipmaps refill) and the filters (their tiles are made again).
+    fn apply(&mut self, edits: PanelEdits, before: &[FilterParams]) {
+        let Some(gpu) = self.gpu.as_mut() else {
+            return;
+        };
+        let PanelEdits {
+            mode,
+            speed,
+            options,
+            detail,
+            filters,
+        } = edits;
+        let detail_sources = self.opts.detail;
         if mode != self.controller.mode {
             self.controller.set_mode(mode);
         }
@@ -488,7 +400,7 @@ impl App<'_> {
         }
         // an edited filter: drop its tiles and what derives from them; only the visible ones
         // are made again (the next frames ask for them)
-        for (f, ((_, new), old)) in self.opts.filters.iter().zip(filters.iter().zip(&before)) {
+        for (f, ((_, new), old)) in self.opts.filters.iter().zip(filters.iter().zip(before)) {
             if new != old {
                 if let Ok(mut p) = f.params.write() {
                     *p = *new;
@@ -505,6 +417,21 @@ impl App<'_> {
                 gpu.pass.invalidate(&layers);
             }
         }
+    }
+
+    /// Draws the prepared frame and the panel's output `out` to the window, saves the
+    /// screenshot of the last frame, presents, and asks for the next frame (or ends).
+    fn present(
+        &mut self,
+        out: egui::FullOutput,
+        (w, h): (u32, u32),
+        cpu_start: Instant,
+        script_over: bool,
+        event_loop: &ActiveEventLoop,
+    ) -> Result<(), RenderError> {
+        let Some(gpu) = self.gpu.as_mut() else {
+            return Ok(());
+        };
         gpu.egui_state
             .handle_platform_output(&gpu.window, out.platform_output);
         let prims = gpu.egui_ctx.tessellate(out.shapes, out.pixels_per_point);
