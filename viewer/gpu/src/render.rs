@@ -102,6 +102,161 @@ fn array_view(t: &wgpu::Texture) -> wgpu::TextureView {
     })
 }
 
+/// The clipmaps' bind group (group 0): the frame's uniform, the levels' uniforms (a storage
+/// buffer of `levels`), the height and colour clipmap arrays; its layout and buffers.
+fn clipmap_bindings(
+    device: &wgpu::Device,
+    heights: &wgpu::Texture,
+    colors: &wgpu::Texture,
+    levels: u32,
+) -> (
+    wgpu::BindGroupLayout,
+    wgpu::Buffer,
+    wgpu::Buffer,
+    wgpu::BindGroup,
+) {
+    let texture = wgpu::BindingType::Texture {
+        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+        view_dimension: wgpu::TextureViewDimension::D2Array,
+        multisampled: false,
+    };
+    let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("clipmap"),
+        entries: &[
+            layout_entry(
+                0,
+                wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+            ),
+            layout_entry(
+                1,
+                wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Storage { read_only: true },
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+            ),
+            layout_entry(2, texture),
+            layout_entry(3, texture),
+        ],
+    });
+    let frame_buf = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("frame"),
+        size: std::mem::size_of::<FrameUniform>() as u64,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let level_buf = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("levels"),
+        size: (std::mem::size_of::<LevelUniform>() * levels as usize) as u64,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("clipmap"),
+        layout: &layout,
+        entries: &[
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: frame_buf.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: level_buf.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 2,
+                resource: wgpu::BindingResource::TextureView(&array_view(heights)),
+            },
+            wgpu::BindGroupEntry {
+                binding: 3,
+                resource: wgpu::BindingResource::TextureView(&array_view(colors)),
+            },
+        ],
+    });
+    (layout, frame_buf, level_buf, bind)
+}
+
+/// The atmosphere's passes and the bind group (group 1) the draw reads their tables through,
+/// with its layout; the atmosphere starts switched off.
+fn atmosphere_bindings(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+) -> (AtmospherePasses, wgpu::BindGroupLayout, wgpu::BindGroup) {
+    let mut atmosphere = AtmospherePasses::new(device);
+    let resources = atmosphere.resources();
+    let air_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("atmosphere"),
+        entries: &resources
+            .iter()
+            .map(|(b, _)| wgpu::BindGroupLayoutEntry {
+                binding: *b,
+                visibility: wgpu::ShaderStages::FRAGMENT,
+                ty: wgpu::BindingType::Buffer {
+                    ty: if AtmospherePasses::is_uniform(*b) {
+                        wgpu::BufferBindingType::Uniform
+                    } else {
+                        wgpu::BufferBindingType::Storage { read_only: true }
+                    },
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            })
+            .collect::<Vec<_>>(),
+    });
+    let atmosphere_bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("atmosphere"),
+        layout: &air_layout,
+        entries: &resources
+            .into_iter()
+            .map(|(binding, resource)| wgpu::BindGroupEntry { binding, resource })
+            .collect::<Vec<_>>(),
+    });
+    atmosphere.disable(queue);
+    (atmosphere, air_layout, atmosphere_bind)
+}
+
+/// The sky: a screen-filling triangle drawn where the terrain left the far plane.
+fn sky_pipeline(
+    device: &wgpu::Device,
+    layout: &wgpu::PipelineLayout,
+    shader: &wgpu::ShaderModule,
+    format: wgpu::TextureFormat,
+) -> wgpu::RenderPipeline {
+    // the sky: a screen-filling triangle where the terrain left the far plane
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("sky"),
+        layout: Some(layout),
+        vertex: wgpu::VertexState {
+            module: shader,
+            entry_point: Some("sky_vs"),
+            compilation_options: Default::default(),
+            buffers: &[],
+        },
+        primitive: Default::default(),
+        depth_stencil: Some(wgpu::DepthStencilState {
+            format: DEPTH_FORMAT,
+            depth_write_enabled: Some(false),
+            depth_compare: Some(wgpu::CompareFunction::Equal),
+            stencil: Default::default(),
+            bias: Default::default(),
+        }),
+        multisample: Default::default(),
+        fragment: Some(wgpu::FragmentState {
+            module: shader,
+            entry_point: Some("sky_fs"),
+            compilation_options: Default::default(),
+            targets: &[Some(format.into())],
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
+}
+
 impl ClipmapPass {
     /// The pass on `device`, drawing into targets of `format` with a [`DEPTH_FORMAT`] depth
     /// buffer (reversed Z: clear to 0), for a sphere of `radius_m`.
@@ -125,103 +280,13 @@ impl ClipmapPass {
             wgpu::TextureFormat::Rgba8UnormSrgb,
             COLOR_N,
         );
-        let texture = wgpu::BindingType::Texture {
-            sample_type: wgpu::TextureSampleType::Float { filterable: false },
-            view_dimension: wgpu::TextureViewDimension::D2Array,
-            multisampled: false,
-        };
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("clipmap"),
-            entries: &[
-                layout_entry(
-                    0,
-                    wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                ),
-                layout_entry(
-                    1,
-                    wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Storage { read_only: true },
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                ),
-                layout_entry(2, texture),
-                layout_entry(3, texture),
-            ],
-        });
-        let frame_buf = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("frame"),
-            size: std::mem::size_of::<FrameUniform>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let level_buf = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("levels"),
-            size: (std::mem::size_of::<LevelUniform>() * levels as usize) as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("clipmap"),
-            layout: &layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: frame_buf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: level_buf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: wgpu::BindingResource::TextureView(&array_view(&heights)),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 3,
-                    resource: wgpu::BindingResource::TextureView(&array_view(&colors)),
-                },
-            ],
-        });
+        let (layout, frame_buf, level_buf, bind) =
+            clipmap_bindings(device, &heights, &colors, levels);
         let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("clipmap.wgsl"),
             source: wgpu::ShaderSource::Wgsl(crate::CLIPMAP_WGSL.into()),
         });
-        let mut atmosphere = AtmospherePasses::new(device);
-        let resources = atmosphere.resources();
-        let air_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("atmosphere"),
-            entries: &resources
-                .iter()
-                .map(|(b, _)| wgpu::BindGroupLayoutEntry {
-                    binding: *b,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: if AtmospherePasses::is_uniform(*b) {
-                            wgpu::BufferBindingType::Uniform
-                        } else {
-                            wgpu::BufferBindingType::Storage { read_only: true }
-                        },
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                })
-                .collect::<Vec<_>>(),
-        });
-        let atmosphere_bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("atmosphere"),
-            layout: &air_layout,
-            entries: &resources
-                .into_iter()
-                .map(|(binding, resource)| wgpu::BindGroupEntry { binding, resource })
-                .collect::<Vec<_>>(),
-        });
-        atmosphere.disable(queue);
+        let (atmosphere, air_layout, atmosphere_bind) = atmosphere_bindings(device, queue);
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("clipmap"),
             bind_group_layouts: &[Some(&layout), Some(&air_layout)],
@@ -236,34 +301,7 @@ impl ClipmapPass {
         };
         let terrain = crate::terrain::renderers(&setup);
         let line_mode = setup.line_mode();
-        // the sky: a screen-filling triangle where the terrain left the far plane
-        let sky = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("sky"),
-            layout: Some(&pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &shader,
-                entry_point: Some("sky_vs"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            primitive: Default::default(),
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: DEPTH_FORMAT,
-                depth_write_enabled: Some(false),
-                depth_compare: Some(wgpu::CompareFunction::Equal),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &shader,
-                entry_point: Some("sky_fs"),
-                compilation_options: Default::default(),
-                targets: &[Some(format.into())],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        let sky = sky_pipeline(device, &pipeline_layout, &shader, format);
         Self {
             device: device.clone(),
             queue: queue.clone(),
