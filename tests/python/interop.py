@@ -18,6 +18,7 @@ import sys
 import warnings
 
 import numpy as np
+import pyproj
 import rioxarray  # noqa: F401  (registers .rio)
 import xarray as xr
 import zarr
@@ -52,6 +53,11 @@ def main() -> None:
             crs = var.rio.crs
             assert crs is not None and crs.is_geographic, (key, crs)
             assert "sphere" in crs.to_wkt(), crs.to_wkt()
+            # the CF attributes alone (no WKT) say a sphere of the store's radius, as CF spells it
+            cf = {k: v for k, v in ds.spatial_ref.attrs.items() if k not in ("crs_wkt", "spatial_ref")}
+            assert "inverse_flattening" not in cf, cf
+            sphere = pyproj.CRS.from_cf(cf).ellipsoid
+            assert sphere.inverse_flattening == 0.0 and sphere.semi_major_metre == cf["earth_radius"], (cf, sphere)
             if layer == "height":
                 assert var.attrs["units"] == "m", var.attrs
                 assert np.isnan(var.rio.nodata), var.rio.nodata

@@ -184,8 +184,8 @@ pub(crate) fn grid_mapping_attrs(
     let gt = grid.geotransform(level);
     let v = json!({
         "grid_mapping_name": "latitude_longitude",
-        "semi_major_axis": radius_m,
-        "inverse_flattening": 0.0,
+        // CF's spelling of a sphere (semi-axes are for ellipsoids)
+        "earth_radius": radius_m,
         "longitude_of_prime_meridian": 0.0,
         "crs_wkt": wkt,
         "spatial_ref": wkt,
