@@ -87,6 +87,14 @@ def main() -> None:
     np.testing.assert_allclose(
         gdal.x.values[[x0, x0 + 255]], ours.lon.values[[x0, x0 + 255]], rtol=0, atol=1e-9
     )
+    # written by rioxarray as README shows (GIS tools want the band first): the export's texels
+    written = export + ".rioxarray.tif"
+    ours.transpose("band", "lat", "lon").rio.to_raster(written)
+    back = rioxarray.open_rasterio(written)
+    assert back.shape == gdal.shape and back.rio.crs.is_geographic, (back.shape, back.rio.crs)
+    window = dict(y=slice(y0, y0 + 256), x=slice(x0, x0 + 256))
+    assert np.array_equal(back.isel(**window).values, gdal.isel(**window).values)
+    np.testing.assert_allclose(back.rio.transform(), gdal.rio.transform(), rtol=0, atol=1e-9)
 
     print(json.dumps({"levels_opened": opened, "everest_m": everest, "finest": finest}))
 
