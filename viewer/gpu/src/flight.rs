@@ -132,9 +132,7 @@ pub fn fly(
                     let s = r.stream_only(streamer, sources, &camera, Some(now + budget));
                     (s, now.elapsed().as_secs_f64())
                 };
-                if streamer.on_caller() {
-                    streamer.work_for(budget.saturating_sub(now.elapsed()));
-                }
+                streamer.work_until(now + budget);
                 frame_ms.push(now.elapsed().as_secs_f64() * 1e3);
                 cpu_ms.push(cpu * 1e3);
                 finest += usize::from(s.level_hi == s.level_wanted);

@@ -831,15 +831,31 @@ impl Streamer {
             return 0;
         }
         let mut made = 0;
-        while let Some(task) = self.take_task() {
-            let tile = self.make_tile(&task);
-            self.finish(task.key, tile);
+        while self.make_one() {
             made += 1;
             if Instant::now() >= end {
                 break;
             }
         }
         made
+    }
+
+    /// Without worker threads, makes tiles here until `deadline` (at least one, if one is
+    /// ready): a frame's leftover time. With threads, returns at once: the workers make them.
+    pub fn work_until(&self, deadline: Instant) {
+        if self.on_caller() {
+            self.work_for(deadline.saturating_duration_since(Instant::now()));
+        }
+    }
+
+    /// Makes the next ready tile here, if there is one; whether there was.
+    fn make_one(&self) -> bool {
+        let Some(task) = self.take_task() else {
+            return false;
+        };
+        let tile = self.make_tile(&task);
+        self.finish(task.key, tile);
+        true
     }
 
     /// The next tile to make, in the manager's order, once its inputs are made; marked as being
@@ -897,12 +913,9 @@ impl Streamer {
                 if let Some(t) = self.shared.cache.get(key) {
                     return Some(t);
                 }
-                if self.shared.cache.is_failed(key) || Instant::now() >= end {
+                if self.shared.cache.is_failed(key) || Instant::now() >= end || !self.make_one() {
                     return None;
                 }
-                let task = next_task(&self.shared, &mut self.shared.state())?;
-                let tile = make_task(&self.shared, &task);
-                finish(&self.shared, task.key, tile);
             }
         }
         let mut s = self.shared.state();
@@ -1021,13 +1034,10 @@ fn expand(sources: &[Box<dyn TileSource>], mut tasks: Vec<Task>) -> Vec<Task> {
     out
 }
 
-/// The manager and `workers` worker threads over `shared` (none for no workers).
+/// The manager and `workers` (at least one) worker threads over `shared`.
 #[cfg(not(target_arch = "wasm32"))]
 fn start_threads(shared: &Arc<Shared>, workers: usize) -> Vec<JoinHandle<()>> {
     let mut threads = Vec::new();
-    if workers == 0 {
-        return threads;
-    }
     let (tx, rx) = std::sync::mpsc::sync_channel::<Task>(workers);
     let rx = Arc::new(Mutex::new(rx));
     for i in 0..workers {
@@ -1092,13 +1102,18 @@ fn next_task(shared: &Shared, s: &mut State) -> Option<Task> {
         return None;
     }
     // a task starts once its inputs are made; an input that will not be (failed, or pruned
-    // since) is made again by the task's worker, so every task starts and `idle` comes
-    let coming: HashSet<TileKey> = s
-        .pending
-        .iter()
-        .map(|t| t.key)
-        .chain(s.in_flight.iter().copied())
-        .collect();
+    // since) is made again by the task's worker, so every task starts and `idle` comes. What is
+    // still coming is gathered only when a task with an unmade input is looked at.
+    let coming = std::cell::OnceCell::new();
+    let coming = || -> &HashSet<TileKey> {
+        coming.get_or_init(|| {
+            s.pending
+                .iter()
+                .map(|t| t.key)
+                .chain(s.in_flight.iter().copied())
+                .collect()
+        })
+    };
     let ready = |t: &Task| {
         !s.in_flight.contains(&t.key)
             && shared
@@ -1107,7 +1122,7 @@ fn next_task(shared: &Shared, s: &mut State) -> Option<Task> {
                 .is_some_and(|src| {
                     src.inputs().iter().all(|&i| {
                         let k = t.key.with_source(i);
-                        cache.contains(&k) || !coming.contains(&k)
+                        cache.contains(&k) || !coming().contains(&k)
                     })
                 })
     };

@@ -20,7 +20,7 @@ use sc_view_gpu::render::{
 };
 use sc_view_plan::camera::{Camera, CameraScript, Controller, Input, Mode};
 use sc_view_plan::frame::{DrawOptions, FrameClock, FrameStats, StreamSources};
-use sc_view_plan::graph::{FilterHandle, FilterParams};
+use sc_view_plan::graph::FilterHandle;
 use sc_view_plan::stream::Streamer;
 
 mod panel;
@@ -300,11 +300,8 @@ impl App<'_> {
             },
             std::time::Duration::from_secs(10),
         );
-        if self.streamer.on_caller() {
-            // no worker threads: the tiles are made here, in what is left of the frame's budget
-            let left = (cpu_start + UPDATE_BUDGET).saturating_duration_since(Instant::now());
-            self.streamer.work_for(left);
-        }
+        // without worker threads the tiles are made here, in what is left of the frame's budget
+        self.streamer.work_until(cpu_start + UPDATE_BUDGET);
         self.report.last = stats;
         self.report.finest_frames += u64::from(stats.level_hi == stats.level_wanted);
         let raw = gpu.egui_state.take_egui_input(&gpu.window);
@@ -338,13 +335,12 @@ impl App<'_> {
                 })
                 .collect(),
         };
-        let before: Vec<FilterParams> = edits.filters.iter().map(|f| f.1).collect();
         let out = gpu.egui_ctx.run_ui(raw, |ui| {
             egui::Window::new("sphereclip")
                 .default_pos((10.0, 10.0))
                 .show(ui.ctx(), |ui| panel::show(ui, &mut edits, &facts));
         });
-        self.apply(edits, &before);
+        self.apply(edits);
         self.present(out, (w, h), cpu_start, script_over, event_loop)
     }
 
@@ -373,26 +369,18 @@ impl App<'_> {
 
     /// What the panel changed: the camera's mode and speed, the drawing options, detail (the
     /// clipmaps refill) and the filters (their tiles are made again).
-    fn apply(&mut self, edits: PanelEdits, before: &[FilterParams]) {
+    fn apply(&mut self, edits: PanelEdits) {
         let Some(gpu) = self.gpu.as_mut() else {
             return;
         };
-        let PanelEdits {
-            mode,
-            speed,
-            options,
-            detail,
-            filters,
-        } = edits;
-        let detail_sources = self.opts.detail;
-        if mode != self.controller.mode {
-            self.controller.set_mode(mode);
+        if edits.mode != self.controller.mode {
+            self.controller.set_mode(edits.mode);
         }
-        self.controller.speed = speed;
-        gpu.pass.options = options;
+        self.controller.speed = edits.speed;
+        gpu.pass.options = edits.options;
         // detail switched: the clipmaps refill from the other sources (their tiles may be cached)
-        if let Some((on, off)) = detail_sources {
-            let want = if detail { on } else { off };
+        if let Some((on, off)) = self.opts.detail {
+            let want = if edits.detail { on } else { off };
             if want != self.sources {
                 self.sources = want;
                 gpu.pass.invalidate(&[LayerKind::Height, LayerKind::Color]);
@@ -400,8 +388,9 @@ impl App<'_> {
         }
         // an edited filter: drop its tiles and what derives from them; only the visible ones
         // are made again (the next frames ask for them)
-        for (f, ((_, new), old)) in self.opts.filters.iter().zip(filters.iter().zip(before)) {
-            if new != old {
+        for (f, (_, new)) in self.opts.filters.iter().zip(&edits.filters) {
+            let old = f.params.read().map(|p| *p).unwrap_or_default();
+            if *new != old {
                 if let Ok(mut p) = f.params.write() {
                     *p = *new;
                 }
