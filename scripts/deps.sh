@@ -9,8 +9,9 @@ set -euo pipefail
 # CPU Vulkan adapter the headless renderer and GPU tests use; xvfb + xauth: a display for the
 # windowed viewer on machines without one; time: /usr/bin/time, which the memory-bound test reads;
 # python3 + python3-venv: the environment (scripts/pyenv.sh) the interoperability test reads stores with;
-# clang: compiles the C codecs (zstd) for wasm32, the browser's target.
-PACKAGES=(pkg-config libgdal-dev gdal-bin mesa-vulkan-drivers libvulkan1 xvfb xauth time python3 python3-venv clang)
+# clang: compiles the C codecs (zstd) for wasm32, the browser's target; chromium: the browser the
+# web viewer's tests run headless.
+PACKAGES=(pkg-config libgdal-dev gdal-bin mesa-vulkan-drivers libvulkan1 xvfb xauth time python3 python3-venv clang chromium)
 
 missing=()
 for p in "${PACKAGES[@]}"; do
@@ -42,4 +43,12 @@ done
 if command -v rustup >/dev/null && ! rustup target list --installed 2>/dev/null | grep -qx wasm32-unknown-unknown; then
   echo "adding the Rust target wasm32-unknown-unknown" >&2
   rustup target add wasm32-unknown-unknown >&2
+fi
+# wasm-bindgen's command line, of the version Cargo.lock pins the wasm-bindgen crate at (the two
+# must match): it writes the web viewer's JavaScript glue (scripts/web.sh)
+want=$(awk '/^name = "wasm-bindgen"$/ {getline; gsub(/[^0-9.]/, ""); print; exit}' "$(dirname "$0")/../Cargo.lock")
+have=$(wasm-bindgen --version 2>/dev/null | awk '{print $2}' || true)
+if [ -n "$want" ] && [ "$have" != "$want" ]; then
+  echo "installing wasm-bindgen-cli $want (was: ${have:-none})" >&2
+  cargo install --quiet wasm-bindgen-cli --version "$want" >&2
 fi

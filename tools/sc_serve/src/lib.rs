@@ -21,6 +21,8 @@ use axum::body::Body;
 use axum::http::{HeaderMap, HeaderValue, Method, StatusCode, Uri, header};
 use axum::response::{IntoResponse, Response};
 
+pub mod site;
+
 /// Why the server could not run.
 #[derive(Debug, thiserror::Error)]
 pub enum ServeError {
@@ -324,7 +326,13 @@ async fn answer(state: Arc<State>, method: Method, uri: Uri, headers: HeaderMap)
         .await
         .unwrap_or_else(|_| Health::Broken("the server failed to read the store".into()));
     if path == "/" || path == "/index.html" {
-        return index(&state, &health);
+        return index(&state, &health, &headers, head);
+    }
+    if let Some(name) = path.strip_prefix('/')
+        && name != "index.html"
+        && let Some(bytes) = site::file(name, &state.name)
+    {
+        return send_viewer_file(name, &bytes, &headers, head);
     }
     let Some(rest) = path
         .strip_prefix('/')
@@ -685,20 +693,81 @@ fn page(status: StatusCode, title: &str, text: &str) -> Response {
     )
 }
 
-/// The page at `/`: what is served and how to open it.
-fn index(state: &State, health: &Health) -> Response {
+/// The page at `/`: the web viewer opening the store; where the viewer is not built in, what is
+/// served and how to open it.
+fn index(state: &State, health: &Health, headers: &HeaderMap, head: bool) -> Response {
     match health {
+        Health::Ready { .. } if site::has_viewer() => match site::file("index.html", &state.name) {
+            Some(page) => send_viewer_file("index.html", &page, headers, head),
+            None => page(StatusCode::NOT_FOUND, "Not found", site::NOT_BUILT),
+        },
         Health::Ready { levels } => page(
             StatusCode::OK,
             &format!("sphereclip: {}", state.name),
             &format!(
-                "The store {name} is served at /{name}/ (levels: {}). Open it with: sphereclip view URL/{name} (or render, info, export), or any Zarr v3 reader.",
+                "The store {name} is served at /{name}/ (levels: {}). Open it with: sphereclip view URL/{name} (or render, info, export), or any Zarr v3 reader. The web viewer is not here: {}.",
                 levels.join("; "),
+                site::NOT_BUILT,
                 name = state.name
             ),
         ),
         _ => health.refusal().unwrap_or_default(),
     }
+}
+
+/// A file of the web viewer: ETag (its checksum), gzip when the client takes it and it is worth
+/// it (the compressed forms are made once).
+fn send_viewer_file(name: &str, bytes: &[u8], headers: &HeaderMap, head: bool) -> Response {
+    let tag = format!("\"{:08x}-{:x}\"", crc32c::crc32c(bytes), bytes.len());
+    let base = || {
+        Response::builder()
+            .header(header::ETAG, &tag)
+            .header(header::CONTENT_TYPE, site::content_type(name))
+            .header(header::CACHE_CONTROL, "no-cache")
+            .header(header::VARY, "Accept-Encoding")
+    };
+    if header_str(headers, header::IF_NONE_MATCH).is_some_and(|l| none_match(l, &tag)) {
+        return cors(base().status(StatusCode::NOT_MODIFIED).body(Body::empty()));
+    }
+    let gzip = header_str(headers, header::ACCEPT_ENCODING)
+        .is_some_and(|a| a.split(',').any(|e| e.trim().starts_with("gzip")))
+        && bytes.len() > 1024;
+    let (body, encoding) = if gzip {
+        (gzipped(name, bytes), Some("gzip"))
+    } else {
+        (Arc::new(bytes.to_vec()), None)
+    };
+    let mut r = base().header(header::CONTENT_LENGTH, body.len());
+    if let Some(e) = encoding {
+        r = r.header(header::CONTENT_ENCODING, e);
+    }
+    let body = if head {
+        Body::empty()
+    } else {
+        Body::from(body.as_ref().clone())
+    };
+    cors(r.status(StatusCode::OK).body(body))
+}
+
+/// `bytes` of the viewer file `name` gzipped, made on first use and kept.
+fn gzipped(name: &str, bytes: &[u8]) -> Arc<Vec<u8>> {
+    use std::collections::HashMap;
+    use std::sync::OnceLock;
+    static DONE: OnceLock<Mutex<HashMap<(String, u32), Arc<Vec<u8>>>>> = OnceLock::new();
+    let key = (name.to_string(), crc32c::crc32c(bytes));
+    let done = DONE.get_or_init(Mutex::default);
+    if let Some(z) = done.lock().unwrap_or_else(PoisonError::into_inner).get(&key) {
+        return z.clone();
+    }
+    let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+    let z = std::io::Write::write_all(&mut e, bytes)
+        .and_then(|()| e.finish())
+        .unwrap_or_else(|_| bytes.to_vec());
+    let z = Arc::new(z);
+    done.lock()
+        .unwrap_or_else(PoisonError::into_inner)
+        .insert(key, z.clone());
+    z
 }
 
 #[cfg(test)]

@@ -378,20 +378,28 @@ pub fn store_streamer(
         Some(file) => Graph::load(&file)?,
         None => Graph::for_store(store)?,
     };
-    Ok(StoreStreamer {
-        streamer: Streamer::new(
-            graph.sources,
-            crate::clipmap::CLIPMAP_N,
-            default_workers(),
-            TILE_CACHE_BUDGET,
-        ),
-        sources: graph.clipmaps,
-        without_detail: graph.without_detail,
-        radius: graph.radius,
-        filters: graph.filters,
-        atmosphere: graph.atmosphere,
-        warnings: graph.warnings,
-    })
+    Ok(StoreStreamer::of(graph, default_workers()))
+}
+
+impl StoreStreamer {
+    /// Streams `graph` with `workers` worker threads (0: the caller makes the tiles, as in a
+    /// browser) within [`TILE_CACHE_BUDGET`].
+    pub fn of(graph: Graph, workers: usize) -> Self {
+        StoreStreamer {
+            streamer: Streamer::new(
+                graph.sources,
+                crate::clipmap::CLIPMAP_N,
+                workers,
+                TILE_CACHE_BUDGET,
+            ),
+            sources: graph.clipmaps,
+            without_detail: graph.without_detail,
+            radius: graph.radius,
+            filters: graph.filters,
+            atmosphere: graph.atmosphere,
+            warnings: graph.warnings,
+        }
+    }
 }
 
 /// Most sources a graph may declare.
@@ -433,6 +441,13 @@ impl Graph {
     pub fn for_store(store: &Location) -> Result<Self, ViewError> {
         let mut warnings = Vec::new();
         let reader = open(store, &mut warnings).map_err(ViewError::Graph)?;
+        Ok(Self::for_reader(reader, warnings))
+    }
+
+    /// [`Self::for_store`] of a store opened already (a browser opens it through the page's own
+    /// fetching), with the warnings its opening gave.
+    pub fn for_reader(reader: StoreReader, warnings: Vec<String>) -> Self {
+        let store = reader.location().clone();
         let meta = reader.meta();
         let radius = meta.radius_m;
         let has = |k| !meta.levels(k).is_empty();
@@ -483,7 +498,7 @@ impl Graph {
                 g.names.push("color detail".into());
             }
         }
-        Ok(g)
+        g
     }
 
     /// The graph declared in the TOML file `path` (store paths relative to it).

@@ -12,7 +12,12 @@ pub fn run(a: &ServeArgs) -> Result<ExitCode> {
         .with_context(|| format!("cannot serve {}", a.store.display()))?;
     let page = format!("http://{}/", server.addr);
     crate::outln!("serving {} at {}", a.store.display(), server.store_url);
-    crate::outln!("page: {page}  (Ctrl-C stops)");
+    if sc_serve::site::has_viewer() {
+        crate::outln!("page: {page}  (the web viewer; Ctrl-C stops)");
+    } else {
+        crate::outln!("page: {page}  (Ctrl-C stops)");
+        eprintln!("warning: {}", sc_serve::site::NOT_BUILT);
+    }
     if !server.addr.ip().is_loopback() {
         eprintln!(
             "warning: listening on {}: every machine that can reach it can read the store",

@@ -1,0 +1,503 @@
+//! The page's viewer: the store opened over HTTP, the native viewer's streamer and clipmap pass on
+//! the page's WebGPU canvas, one frame per animation frame, the camera moved by mouse, wheel and
+//! keys as in the desktop viewer and written back to the URL fragment.
+//!
+//! A browser gives wasm one thread: the streamer has no workers, and the tiles are made on the
+//! page's thread in what is left of each frame ([`Streamer::work_until`]), each read a
+//! synchronous request ([`crate::xhr`]).
+#![allow(unsafe_code)] // wasm-bindgen's exports are unsafe glue the macros write
+
+use std::cell::RefCell;
+use std::collections::HashSet;
+use std::rc::Rc;
+use std::sync::Arc;
+use std::sync::atomic::Ordering::Relaxed;
+
+use sc_store::{Location, StoreReader};
+use sc_view_gpu::render::{ClipmapPass, background, begin_pass, depth_target};
+use sc_view_plan::camera::{Camera, Controller, Input, Mode};
+use sc_view_plan::frame::{DrawOptions, FrameClock, FrameStats};
+use sc_view_plan::graph::{Graph, StoreStreamer};
+use sc_view_plan::link::{RendererName, ViewLink};
+use sc_view_plan::sun::Sun;
+use sc_view_plan::terrain::Geometry;
+use wasm_bindgen::JsCast;
+use wasm_bindgen::prelude::*;
+use web_time::{Duration, Instant};
+
+use crate::xhr::{COUNTS, XhrSource};
+
+/// A frame's time for planning, uploads and making tiles (the rest of a 60 Hz frame is the
+/// browser's and the GPU's).
+const UPDATE_BUDGET: Duration = Duration::from_millis(10);
+
+/// How often at most the address bar is rewritten while the camera moves.
+const LINK_EVERY: Duration = Duration::from_millis(250);
+
+/// The viewer of a page, for its script: whether the view is complete, a picture of it, counts.
+#[wasm_bindgen]
+#[derive(Debug)]
+pub struct Viewer {
+    app: Rc<RefCell<App>>,
+}
+
+#[wasm_bindgen]
+impl Viewer {
+    /// Whether the view is complete: every level it wants drawn (or failed), faded in, and no
+    /// tile left to make.
+    pub fn complete(&self) -> bool {
+        self.app.borrow().complete
+    }
+
+    /// Draws a frame and returns the canvas as a PNG data URL (the picture the page shows).
+    pub fn snapshot(&self) -> Result<String, JsValue> {
+        let mut app = self.app.borrow_mut();
+        app.frame()?;
+        app.canvas.to_data_url_with_type("image/png")
+    }
+
+    /// What the viewer has done, as JSON: frames, the levels drawn and wanted, tiles made,
+    /// requests, failed requests and bytes fetched, the adapter.
+    pub fn status(&self) -> String {
+        self.app.borrow().status()
+    }
+
+    /// The link of the view on screen (its URL fragment).
+    pub fn link(&self) -> String {
+        self.app.borrow().link().fragment()
+    }
+}
+
+/// The keys held and the mouse's motion since the last frame.
+#[derive(Debug, Default)]
+struct InputState {
+    keys: HashSet<String>,
+    drag: (f64, f64),
+    scroll: f64,
+    dragging: bool,
+    mode: Option<Mode>,
+}
+
+impl InputState {
+    fn axis(&self, plus: &str, minus: &str) -> f64 {
+        f64::from(u8::from(self.keys.contains(plus))) - f64::from(u8::from(self.keys.contains(minus)))
+    }
+
+    fn take(&mut self, dt: f64) -> Input {
+        let input = Input {
+            dt,
+            forward: self.axis("KeyW", "KeyS") + self.axis("ArrowUp", "ArrowDown"),
+            right: self.axis("KeyD", "KeyA") + self.axis("ArrowRight", "ArrowLeft"),
+            up: self.axis("KeyE", "KeyQ"),
+            drag: self.drag,
+            scroll: self.scroll,
+            fast: self.keys.contains("ShiftLeft") || self.keys.contains("ShiftRight"),
+        };
+        self.drag = (0.0, 0.0);
+        self.scroll = 0.0;
+        input
+    }
+}
+
+#[derive(Debug)]
+struct App {
+    canvas: web_sys::HtmlCanvasElement,
+    status_line: Option<web_sys::HtmlElement>,
+    surface: wgpu::Surface<'static>,
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    config: wgpu::SurfaceConfiguration,
+    view_format: wgpu::TextureFormat,
+    pass: ClipmapPass,
+    depth: wgpu::TextureView,
+    store: StoreStreamer,
+    controller: Controller,
+    link: ViewLink,
+    input: Rc<RefCell<InputState>>,
+    clear: [f64; 4],
+    adapter: String,
+    frames: u64,
+    last: Instant,
+    last_link: Instant,
+    stats: FrameStats,
+    complete: bool,
+}
+
+fn js_error(e: impl std::fmt::Display) -> JsValue {
+    JsValue::from_str(&e.to_string())
+}
+
+fn window() -> Result<web_sys::Window, JsValue> {
+    web_sys::window().ok_or_else(|| js_error("no window"))
+}
+
+/// The draw options of a link, as `render` takes them from its command line (the sun of the
+/// camera's place, `--sun` unset).
+fn draw_options(link: &ViewLink, graph_air: Option<sc_view_plan::atmosphere::Atmosphere>) -> DrawOptions {
+    DrawOptions {
+        lit: link.lit,
+        geometry: match link.renderer {
+            RendererName::Clipmap => Geometry::Clipmap,
+            RendererName::Cdlod => Geometry::Cdlod(Default::default()),
+            RendererName::Warp => Geometry::Warp(Default::default()),
+        },
+        sun: Sun::default_for(link.camera.lat_deg, link.camera.lon_deg),
+        atmosphere: (link.lit && link.atmosphere).then(|| graph_air.unwrap_or_default()),
+        ..Default::default()
+    }
+}
+
+/// Opens the store at `store_url`, shows the view of the page's URL fragment in `canvas`, and
+/// keeps drawing it, one frame per animation frame. An element with id `status`, if any,
+/// shows what is loading and what failed.
+#[wasm_bindgen]
+pub async fn start(
+    canvas: web_sys::HtmlCanvasElement,
+    store_url: String,
+) -> Result<Viewer, JsValue> {
+    let win = window()?;
+    let fragment = win.location().hash()?;
+    let link = ViewLink::parse(&fragment).map_err(js_error)?;
+    let source = Arc::new(XhrSource::new(&store_url));
+    let location = Location::Remote(store_url.trim_end_matches('/').to_string());
+    let reader = StoreReader::open_source(location.clone(), source, None)
+        .map_err(|e| js_error(format!("cannot read store {location}: {e}")))?;
+    let mut warnings = Vec::new();
+    if !reader.meta().complete {
+        warnings.push(format!(
+            "store {location} is INCOMPLETE (a writer did not commit): some tiles may be missing or old"
+        ));
+    }
+    let store = StoreStreamer::of(Graph::for_reader(reader, warnings), 0);
+    for w in &store.warnings {
+        web_sys::console::warn_1(&JsValue::from_str(w));
+    }
+    fit_canvas(&canvas)?;
+    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle());
+    let surface = instance
+        .create_surface(wgpu::SurfaceTarget::Canvas(canvas.clone()))
+        .map_err(|e| js_error(format!("cannot draw into the canvas: {e}")))?;
+    let (adapter, device, queue, adapter_name) =
+        sc_view_gpu::device::device_for_async(&instance, Some(&surface))
+            .await
+            .map_err(|e| {
+                js_error(format!(
+                    "{e}: this browser offers no WebGPU adapter (Chrome and Edge 113+, Firefox 141+, Safari 26+ have one; Chromium on Linux needs --enable-unsafe-webgpu)"
+                ))
+            })?;
+    let caps = surface.get_capabilities(&adapter);
+    let format = *caps
+        .formats
+        .first()
+        .ok_or_else(|| js_error("the canvas offers no format"))?;
+    // the pass writes linear colour into an sRGB view, as the native renderer's target
+    let view_format = format.add_srgb_suffix();
+    let config = wgpu::SurfaceConfiguration {
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+        format,
+        width: canvas.width(),
+        height: canvas.height(),
+        present_mode: wgpu::PresentMode::Fifo,
+        desired_maximum_frame_latency: 2,
+        alpha_mode: wgpu::CompositeAlphaMode::Opaque,
+        view_formats: if view_format == format {
+            vec![]
+        } else {
+            vec![view_format]
+        },
+    };
+    surface.configure(&device, &config);
+    let mut pass = ClipmapPass::new(&device, &queue, view_format, store.radius);
+    let options = draw_options(&link, store.atmosphere);
+    pass.options = options;
+    let depth = depth_target(&device, config.width, config.height);
+    let input = Rc::new(RefCell::new(InputState::default()));
+    listen(&canvas, &input)?;
+    let status_line = win
+        .document()
+        .and_then(|d| d.get_element_by_id("status"))
+        .and_then(|e| e.dyn_into::<web_sys::HtmlElement>().ok());
+    let now = Instant::now();
+    let app = Rc::new(RefCell::new(App {
+        controller: Controller::new(link.camera, store.radius),
+        canvas,
+        status_line,
+        surface,
+        device,
+        queue,
+        config,
+        view_format,
+        pass,
+        depth,
+        store,
+        link,
+        input,
+        clear: background(&options),
+        adapter: adapter_name,
+        frames: 0,
+        last: now,
+        last_link: now,
+        stats: FrameStats::default(),
+        complete: false,
+    }));
+    run_frames(app.clone())?;
+    Ok(Viewer { app })
+}
+
+/// Sizes the canvas's drawing buffer to its size on the page in device pixels.
+fn fit_canvas(canvas: &web_sys::HtmlCanvasElement) -> Result<bool, JsValue> {
+    let dpr = window()?.device_pixel_ratio();
+    let w = ((f64::from(canvas.client_width()) * dpr).round() as u32).clamp(16, 8192);
+    let h = ((f64::from(canvas.client_height()) * dpr).round() as u32).clamp(16, 8192);
+    let changed = canvas.width() != w || canvas.height() != h;
+    if changed {
+        canvas.set_width(w);
+        canvas.set_height(h);
+    }
+    Ok(changed)
+}
+
+/// Calls [`App::frame`] on every animation frame, for as long as the page lives; an error is
+/// shown and stops the drawing.
+fn run_frames(app: Rc<RefCell<App>>) -> Result<(), JsValue> {
+    type Tick = Closure<dyn FnMut(f64)>;
+    let tick: Rc<RefCell<Option<Tick>>> = Rc::new(RefCell::new(None));
+    let again = tick.clone();
+    *tick.borrow_mut() = Some(Closure::new(move |_t: f64| {
+        let result = app.borrow_mut().frame();
+        match result {
+            Ok(()) => {
+                if let (Ok(w), Some(f)) = (window(), again.borrow().as_ref()) {
+                    let _ = w.request_animation_frame(f.as_ref().unchecked_ref());
+                }
+            }
+            Err(e) => {
+                web_sys::console::error_1(&e);
+                app.borrow().show(&format!("stopped: {}", e.as_string().unwrap_or_default()));
+            }
+        }
+    }));
+    let first = tick.borrow();
+    let f = first.as_ref().ok_or_else(|| js_error("no frame callback"))?;
+    window()?.request_animation_frame(f.as_ref().unchecked_ref())?;
+    Ok(())
+}
+
+/// Mouse, wheel and keys on `canvas` into `input`.
+fn listen(
+    canvas: &web_sys::HtmlCanvasElement,
+    input: &Rc<RefCell<InputState>>,
+) -> Result<(), JsValue> {
+    let target: &web_sys::EventTarget = canvas.as_ref();
+    let i = input.clone();
+    let down = Closure::<dyn FnMut(web_sys::PointerEvent)>::new(move |e: web_sys::PointerEvent| {
+        i.borrow_mut().dragging = true;
+        if let Some(t) = e.target().and_then(|t| t.dyn_into::<web_sys::Element>().ok()) {
+            let _ = t.set_pointer_capture(e.pointer_id());
+        }
+    });
+    target.add_event_listener_with_callback("pointerdown", down.as_ref().unchecked_ref())?;
+    down.forget();
+    let i = input.clone();
+    let up = Closure::<dyn FnMut(web_sys::PointerEvent)>::new(move |_e: web_sys::PointerEvent| {
+        i.borrow_mut().dragging = false;
+    });
+    target.add_event_listener_with_callback("pointerup", up.as_ref().unchecked_ref())?;
+    target.add_event_listener_with_callback("pointercancel", up.as_ref().unchecked_ref())?;
+    up.forget();
+    let i = input.clone();
+    let moved = Closure::<dyn FnMut(web_sys::PointerEvent)>::new(move |e: web_sys::PointerEvent| {
+        let mut s = i.borrow_mut();
+        if s.dragging {
+            s.drag.0 += f64::from(e.movement_x());
+            s.drag.1 += f64::from(e.movement_y());
+        }
+    });
+    target.add_event_listener_with_callback("pointermove", moved.as_ref().unchecked_ref())?;
+    moved.forget();
+    let i = input.clone();
+    let wheel = Closure::<dyn FnMut(web_sys::WheelEvent)>::new(move |e: web_sys::WheelEvent| {
+        e.prevent_default();
+        // a notch is about 100 pixels (or 3 lines) of wheel
+        let notches = match e.delta_mode() {
+            0 => e.delta_y() / 100.0,
+            1 => e.delta_y() / 3.0,
+            _ => e.delta_y(),
+        };
+        i.borrow_mut().scroll -= notches;
+    });
+    let opts = web_sys::AddEventListenerOptions::new();
+    opts.set_passive(false);
+    target.add_event_listener_with_callback_and_add_event_listener_options(
+        "wheel",
+        wheel.as_ref().unchecked_ref(),
+        &opts,
+    )?;
+    wheel.forget();
+    let win = window()?;
+    let i = input.clone();
+    let key_down = Closure::<dyn FnMut(web_sys::KeyboardEvent)>::new(move |e: web_sys::KeyboardEvent| {
+        let code = e.code();
+        let mut s = i.borrow_mut();
+        match code.as_str() {
+            "Digit1" => s.mode = Some(Mode::Orbit),
+            "Digit2" => s.mode = Some(Mode::Fly),
+            "Digit3" => s.mode = Some(Mode::Walk),
+            _ => {}
+        }
+        s.keys.insert(code);
+    });
+    win.add_event_listener_with_callback("keydown", key_down.as_ref().unchecked_ref())?;
+    key_down.forget();
+    let i = input.clone();
+    let key_up = Closure::<dyn FnMut(web_sys::KeyboardEvent)>::new(move |e: web_sys::KeyboardEvent| {
+        i.borrow_mut().keys.remove(&e.code());
+    });
+    win.add_event_listener_with_callback("keyup", key_up.as_ref().unchecked_ref())?;
+    key_up.forget();
+    // keys held when the page loses the focus are let go
+    let i = input.clone();
+    let blur = Closure::<dyn FnMut(web_sys::Event)>::new(move |_e: web_sys::Event| {
+        i.borrow_mut().keys.clear();
+    });
+    win.add_event_listener_with_callback("blur", blur.as_ref().unchecked_ref())?;
+    blur.forget();
+    Ok(())
+}
+
+impl App {
+    /// The view on screen as a link.
+    fn link(&self) -> ViewLink {
+        ViewLink {
+            camera: self.controller.camera,
+            ..self.link
+        }
+    }
+
+    /// One frame: input, the streamed plan and its uploads, the draw, then tiles until the
+    /// frame's budget is spent.
+    fn frame(&mut self) -> Result<(), JsValue> {
+        let now = Instant::now();
+        let dt = now.duration_since(self.last).as_secs_f64().min(0.25);
+        self.last = now;
+        if fit_canvas(&self.canvas)? {
+            self.config.width = self.canvas.width();
+            self.config.height = self.canvas.height();
+            self.surface.configure(&self.device, &self.config);
+            self.depth = depth_target(&self.device, self.config.width, self.config.height);
+        }
+        let input = {
+            let mut s = self.input.borrow_mut();
+            if let Some(m) = s.mode.take() {
+                self.controller.set_mode(m);
+            }
+            s.take(dt)
+        };
+        let before: Camera = self.controller.camera;
+        self.controller.update(&input);
+        if self.controller.camera != before && now.duration_since(self.last_link) >= LINK_EVERY {
+            self.last_link = now;
+            let fragment = self.link().fragment();
+            window()?
+                .history()?
+                .replace_state_with_url(&JsValue::NULL, "", Some(&fragment))?;
+        }
+        let camera = self.controller.camera;
+        let size = (self.config.width, self.config.height);
+        let (_, stats) = self.pass.prepare_streamed(
+            &self.store.streamer,
+            self.store.sources,
+            &camera,
+            size,
+            FrameClock {
+                now,
+                deadline: Some(now + UPDATE_BUDGET),
+            },
+            Duration::from_secs(10),
+        );
+        self.stats = stats;
+        self.draw()?;
+        self.frames += 1;
+        self.complete = (stats.level_hi == stats.level_wanted || stats.level_failed)
+            && !stats.fading
+            && self.store.streamer.idle();
+        self.store.streamer.work_until(now + UPDATE_BUDGET);
+        if self.frames % 15 == 1 || self.complete {
+            let line = self.status_text();
+            self.show(&line);
+        }
+        Ok(())
+    }
+
+    fn draw(&mut self) -> Result<(), JsValue> {
+        let frame = match self.surface.get_current_texture() {
+            wgpu::CurrentSurfaceTexture::Success(t) | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
+            wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost => {
+                self.surface.configure(&self.device, &self.config);
+                return Ok(());
+            }
+            wgpu::CurrentSurfaceTexture::Validation => {
+                return Err(js_error("the canvas's surface failed"));
+            }
+            _ => return Ok(()),
+        };
+        let view = frame.texture.create_view(&wgpu::TextureViewDescriptor {
+            format: Some(self.view_format),
+            ..Default::default()
+        });
+        let mut enc = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+        {
+            let mut pass = begin_pass(&mut enc, &view, &self.depth, self.clear);
+            self.pass.draw(&mut pass);
+        }
+        self.queue.submit([enc.finish()]);
+        frame.present();
+        Ok(())
+    }
+
+    fn status_text(&self) -> String {
+        let s = &self.stats;
+        let failed = COUNTS.failed.load(Relaxed);
+        format!(
+            "levels {}..{} of {}{} · {} tiles made · {} requests, {:.1} MiB{}",
+            s.level_lo,
+            s.level_hi,
+            s.level_wanted,
+            if self.complete { " · complete" } else { "" },
+            self.store.streamer.work().0,
+            COUNTS.requests.load(Relaxed),
+            COUNTS.bytes.load(Relaxed) as f64 / 1048576.0,
+            if failed > 0 {
+                format!(" · {failed} FAILED")
+            } else {
+                String::new()
+            },
+        )
+    }
+
+    fn show(&self, line: &str) {
+        if let Some(e) = &self.status_line {
+            e.set_text_content(Some(line));
+        }
+    }
+
+    fn status(&self) -> String {
+        let s = &self.stats;
+        format!(
+            "{{\"frames\":{},\"complete\":{},\"level_lo\":{},\"level_hi\":{},\"level_wanted\":{},\"tiles\":{},\"requests\":{},\"failed\":{},\"bytes\":{},\"errors\":{},\"adapter\":{:?}}}",
+            self.frames,
+            self.complete,
+            s.level_lo,
+            s.level_hi,
+            s.level_wanted,
+            self.store.streamer.work().0,
+            COUNTS.requests.load(Relaxed),
+            COUNTS.failed.load(Relaxed),
+            COUNTS.bytes.load(Relaxed),
+            self.store.streamer.errors().len(),
+            self.adapter,
+        )
+    }
+}
