@@ -13,7 +13,9 @@ deps:
 	@bash scripts/deps.sh
 	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 0700 $(XDG_RUNTIME_DIR)
 
+# the web viewer first: the binary embeds it (scripts/web.sh writes target/web/)
 build: deps
+	bash scripts/web.sh release
 	$(CARGO) build --locked --release --bin sphereclip --bin sphereclip-gdal
 
 demo: build
@@ -24,6 +26,7 @@ fmt-check:
 
 clippy: deps
 	$(CARGO) clippy --locked --all-targets -- -D warnings
+	$(CARGO) clippy --locked --target wasm32-unknown-unknown -p sc_view_web -- -D warnings
 
 unit: deps
 	@if command -v cargo-nextest >/dev/null; then \
@@ -33,9 +36,10 @@ unit: deps
 	fi
 	$(CARGO) test --locked --profile checked --doc
 
-# what the browser viewer is built from compiles for wasm32
+# the web viewer (viewer/web for wasm32, its glue and page in target/web/), before the tests
+# build the binary that embeds it and the browser tests load
 wasm: deps
-	$(CARGO) build --locked --profile checked --target wasm32-unknown-unknown -p sc_core -p sc_store -p sc_view_plan -p sc_view_gpu
+	bash scripts/web.sh checked
 
 test: deps fmt-check clippy wasm unit
 

@@ -1,6 +1,7 @@
 //! The end-to-end tests of the `sphereclip` command, one test binary (the layout of ripgrep's
 //! `tests/`): each module a command or a promise, `util` their shared helpers and fixtures.
 
+mod browser;
 mod build;
 mod cluster;
 mod detail;

@@ -14,14 +14,14 @@ use std::time::Duration;
 use crate::util::*;
 
 /// `sphereclip serve STORE --addr 127.0.0.1:0`, stopped (SIGTERM) when dropped.
-struct Served {
+pub(crate) struct Served {
     child: Child,
-    addr: SocketAddr,
-    url: String,
+    pub(crate) addr: SocketAddr,
+    pub(crate) url: String,
 }
 
 impl Served {
-    fn start(store: &Path) -> Self {
+    pub(crate) fn start(store: &Path) -> Self {
         let mut child = bin()
             .args(["serve", s(store), "--addr", "127.0.0.1:0"])
             .stdout(Stdio::piped())

@@ -26,13 +26,19 @@ fn main() {
         })
         .unwrap_or_default();
     files.sort();
-    let mut out = String::from("/// The web viewer's files: name and bytes.\npub static WEB_FILES: &[(&str, &[u8])] = &[\n");
+    let mut out = String::from(
+        "/// The web viewer's files: name and bytes.\npub static WEB_FILES: &[(&str, &[u8])] = &[\n",
+    );
     for (name, path) in &files {
         let path = path.canonicalize().expect("a listed file");
         println!("cargo:rerun-if-changed={}", path.display());
-        out.push_str(&format!("    ({name:?}, include_bytes!({:?})),\n", path.display().to_string()));
+        out.push_str(&format!(
+            "    ({name:?}, include_bytes!({:?})),\n",
+            path.display().to_string()
+        ));
     }
     out.push_str("];\n");
-    let dest = PathBuf::from(std::env::var_os("OUT_DIR").expect("cargo sets it")).join("web_files.rs");
+    let dest =
+        PathBuf::from(std::env::var_os("OUT_DIR").expect("cargo sets it")).join("web_files.rs");
     std::fs::write(dest, out).expect("OUT_DIR is writable");
 }

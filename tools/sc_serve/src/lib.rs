@@ -753,10 +753,16 @@ fn send_viewer_file(name: &str, bytes: &[u8], headers: &HeaderMap, head: bool) -
 fn gzipped(name: &str, bytes: &[u8]) -> Arc<Vec<u8>> {
     use std::collections::HashMap;
     use std::sync::OnceLock;
-    static DONE: OnceLock<Mutex<HashMap<(String, u32), Arc<Vec<u8>>>>> = OnceLock::new();
+    /// Gzipped files by name and checksum.
+    type Made = HashMap<(String, u32), Arc<Vec<u8>>>;
+    static DONE: OnceLock<Mutex<Made>> = OnceLock::new();
     let key = (name.to_string(), crc32c::crc32c(bytes));
     let done = DONE.get_or_init(Mutex::default);
-    if let Some(z) = done.lock().unwrap_or_else(PoisonError::into_inner).get(&key) {
+    if let Some(z) = done
+        .lock()
+        .unwrap_or_else(PoisonError::into_inner)
+        .get(&key)
+    {
         return z.clone();
     }
     let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());

@@ -11,8 +11,12 @@
 //! - one [`ShardWriter`] owns a shard: shards are written whole, atomically (temp file, fsync, rename);
 //! - `meta.complete` turns true only in [`StoreWriter::commit`], after every shard is durable.
 
-// in a browser only the reading half is used
-#![cfg_attr(target_arch = "wasm32", allow(dead_code))]
+// in a browser only the reading half is used, files are never opened, and zarrs' arrays are not
+// Send (a page has one thread)
+#![cfg_attr(
+    target_arch = "wasm32",
+    allow(dead_code, clippy::drop_non_drop, clippy::arc_with_non_send_sync)
+)]
 
 mod codec;
 #[cfg(not(target_arch = "wasm32"))]

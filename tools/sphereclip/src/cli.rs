@@ -37,9 +37,13 @@ pub enum Command {
     Render(RenderArgs),
     /// Show a store's layers, levels, tiles, sizes and value ranges; --verify checks every checksum.
     Info(InfoArgs),
-    /// Serve a store over HTTP, read-only, with Range requests (for `view http://…`, other hosts'
-    /// pages and any Zarr reader); loopback only unless --addr says otherwise.
+    /// Serve a store over HTTP, read-only, with Range requests, and the web viewer at / (also
+    /// for `view http://…`, other hosts' pages and any Zarr reader); loopback only unless --addr
+    /// says otherwise.
     Serve(ServeArgs),
+    /// Write the web viewer's static files into a folder, for any static host (nginx, an S3
+    /// bucket, GitHub Pages) to serve beside a store.
+    Web(WebArgs),
     /// Write one level of a store as a GeoTIFF (EPSG:4326) or an f32 OpenEXR heightmap.
     Export(ExportArgs),
     /// Run the demo on the bundled samples (what exists so far).
@@ -466,6 +470,18 @@ pub struct InfoArgs {
     /// Print JSON instead of text.
     #[arg(long)]
     pub json: bool,
+}
+
+/// `sphereclip web`.
+#[derive(Debug, clap::Args)]
+pub struct WebArgs {
+    /// The folder to write (made if missing; the viewer's files in it are replaced).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// The store the page opens: a URL, or a path relative to the page (a page's address may
+    /// name another with ?store=URL).
+    #[arg(long, default_value = "planet.zarr")]
+    pub store: String,
 }
 
 /// `sphereclip serve`.

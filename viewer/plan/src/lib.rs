@@ -4,6 +4,9 @@
 //! visibility, clipmap windows and their fill from a store, tile streaming, the image-source
 //! graph, camera control, and the [`frame::FramePlan`] a GPU backend draws (`sc_view_gpu`).
 
+// in a browser the sources need not be Send (a page has one thread: stream::Shareable)
+#![cfg_attr(target_arch = "wasm32", allow(clippy::arc_with_non_send_sync))]
+
 pub mod atmosphere;
 pub mod camera;
 pub mod cdlod;

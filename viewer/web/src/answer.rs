@@ -76,7 +76,9 @@ pub fn suffix(url: &str, a: Answer, len: u64) -> io::Result<Option<(u64, Vec<u8>
                 .and_then(content_range)
                 .ok_or_else(|| bad(url, "a range answer without a valid Content-Range".into()))?;
             let total = total.ok_or_else(|| bad(url, "a range answer of unknown size".into()))?;
-            if end + 1 != total || end - start + 1 != a.body.len() as u64 || a.body.len() as u64 > len
+            if end + 1 != total
+                || end - start + 1 != a.body.len() as u64
+                || a.body.len() as u64 > len
             {
                 return Err(bad(url, "the range answer is not the object's end".into()));
             }
@@ -90,7 +92,9 @@ pub fn suffix(url: &str, a: Answer, len: u64) -> io::Result<Option<(u64, Vec<u8>
 pub fn range(url: &str, a: Answer, offset: u64, len: u64) -> io::Result<Vec<u8>> {
     match a.status {
         200 => {
-            let end = offset.checked_add(len).filter(|&e| e <= a.body.len() as u64);
+            let end = offset
+                .checked_add(len)
+                .filter(|&e| e <= a.body.len() as u64);
             let end = end.ok_or_else(|| bad(url, "the object ends before the range".into()))?;
             Ok(a.body[offset as usize..end as usize].to_vec())
         }
@@ -101,7 +105,10 @@ pub fn range(url: &str, a: Answer, offset: u64, len: u64) -> io::Result<Vec<u8>>
                 .and_then(content_range)
                 .ok_or_else(|| bad(url, "a range answer without a valid Content-Range".into()))?;
             if start != offset || end - start + 1 != len || a.body.len() as u64 != len {
-                return Err(bad(url, "the range answer is not the range asked for".into()));
+                return Err(bad(
+                    url,
+                    "the range answer is not the range asked for".into(),
+                ));
             }
             Ok(a.body)
         }
@@ -129,7 +136,13 @@ mod tests {
     fn content_ranges_parse_and_nonsense_does_not() {
         assert_eq!(content_range("bytes 0-9/100"), Some((0, 9, Some(100))));
         assert_eq!(content_range("bytes 5-5/*"), Some((5, 5, None)));
-        for v in ["bytes 9-0/100", "bytes 0-100/100", "0-9/100", "bytes a-9/100", "bytes 0-9"] {
+        for v in [
+            "bytes 9-0/100",
+            "bytes 0-100/100",
+            "0-9/100",
+            "bytes a-9/100",
+            "bytes 0-9",
+        ] {
             assert_eq!(content_range(v), None, "{v}");
         }
     }
@@ -144,12 +157,34 @@ mod tests {
         );
         assert!(range("u", answer(200, None, &body), 98, 5).is_err());
         assert_eq!(
-            range("u", answer(206, Some("bytes 10-14/100"), &body[10..15]), 10, 5).expect("206"),
+            range(
+                "u",
+                answer(206, Some("bytes 10-14/100"), &body[10..15]),
+                10,
+                5
+            )
+            .expect("206"),
             body[10..15]
         );
         // another range than asked, a short body, no header
-        assert!(range("u", answer(206, Some("bytes 11-15/100"), &body[11..16]), 10, 5).is_err());
-        assert!(range("u", answer(206, Some("bytes 10-14/100"), &body[10..13]), 10, 5).is_err());
+        assert!(
+            range(
+                "u",
+                answer(206, Some("bytes 11-15/100"), &body[11..16]),
+                10,
+                5
+            )
+            .is_err()
+        );
+        assert!(
+            range(
+                "u",
+                answer(206, Some("bytes 10-14/100"), &body[10..13]),
+                10,
+                5
+            )
+            .is_err()
+        );
         assert!(range("u", answer(206, None, &body[10..15]), 10, 5).is_err());
         assert_eq!(
             range("u", answer(404, None, b""), 0, 1)

@@ -80,7 +80,8 @@ struct InputState {
 
 impl InputState {
     fn axis(&self, plus: &str, minus: &str) -> f64 {
-        f64::from(u8::from(self.keys.contains(plus))) - f64::from(u8::from(self.keys.contains(minus)))
+        f64::from(u8::from(self.keys.contains(plus)))
+            - f64::from(u8::from(self.keys.contains(minus)))
     }
 
     fn take(&mut self, dt: f64) -> Input {
@@ -114,7 +115,6 @@ struct App {
     controller: Controller,
     link: ViewLink,
     input: Rc<RefCell<InputState>>,
-    clear: [f64; 4],
     adapter: String,
     frames: u64,
     last: Instant,
@@ -133,7 +133,10 @@ fn window() -> Result<web_sys::Window, JsValue> {
 
 /// The draw options of a link, as `render` takes them from its command line (the sun of the
 /// camera's place, `--sun` unset).
-fn draw_options(link: &ViewLink, graph_air: Option<sc_view_plan::atmosphere::Atmosphere>) -> DrawOptions {
+fn draw_options(
+    link: &ViewLink,
+    graph_air: Option<sc_view_plan::atmosphere::Atmosphere>,
+) -> DrawOptions {
     DrawOptions {
         lit: link.lit,
         geometry: match link.renderer {
@@ -210,6 +213,8 @@ pub async fn start(
     let mut pass = ClipmapPass::new(&device, &queue, view_format, store.radius);
     let options = draw_options(&link, store.atmosphere);
     pass.options = options;
+    // the clear colour, and the sky's space behind the atmosphere
+    pass.space = background(&options);
     let depth = depth_target(&device, config.width, config.height);
     let input = Rc::new(RefCell::new(InputState::default()));
     listen(&canvas, &input)?;
@@ -232,7 +237,6 @@ pub async fn start(
         store,
         link,
         input,
-        clear: background(&options),
         adapter: adapter_name,
         frames: 0,
         last: now,
@@ -273,12 +277,15 @@ fn run_frames(app: Rc<RefCell<App>>) -> Result<(), JsValue> {
             }
             Err(e) => {
                 web_sys::console::error_1(&e);
-                app.borrow().show(&format!("stopped: {}", e.as_string().unwrap_or_default()));
+                app.borrow()
+                    .show(&format!("stopped: {}", e.as_string().unwrap_or_default()));
             }
         }
     }));
     let first = tick.borrow();
-    let f = first.as_ref().ok_or_else(|| js_error("no frame callback"))?;
+    let f = first
+        .as_ref()
+        .ok_or_else(|| js_error("no frame callback"))?;
     window()?.request_animation_frame(f.as_ref().unchecked_ref())?;
     Ok(())
 }
@@ -292,7 +299,10 @@ fn listen(
     let i = input.clone();
     let down = Closure::<dyn FnMut(web_sys::PointerEvent)>::new(move |e: web_sys::PointerEvent| {
         i.borrow_mut().dragging = true;
-        if let Some(t) = e.target().and_then(|t| t.dyn_into::<web_sys::Element>().ok()) {
+        if let Some(t) = e
+            .target()
+            .and_then(|t| t.dyn_into::<web_sys::Element>().ok())
+        {
             let _ = t.set_pointer_capture(e.pointer_id());
         }
     });
@@ -306,13 +316,14 @@ fn listen(
     target.add_event_listener_with_callback("pointercancel", up.as_ref().unchecked_ref())?;
     up.forget();
     let i = input.clone();
-    let moved = Closure::<dyn FnMut(web_sys::PointerEvent)>::new(move |e: web_sys::PointerEvent| {
-        let mut s = i.borrow_mut();
-        if s.dragging {
-            s.drag.0 += f64::from(e.movement_x());
-            s.drag.1 += f64::from(e.movement_y());
-        }
-    });
+    let moved =
+        Closure::<dyn FnMut(web_sys::PointerEvent)>::new(move |e: web_sys::PointerEvent| {
+            let mut s = i.borrow_mut();
+            if s.dragging {
+                s.drag.0 += f64::from(e.movement_x());
+                s.drag.1 += f64::from(e.movement_y());
+            }
+        });
     target.add_event_listener_with_callback("pointermove", moved.as_ref().unchecked_ref())?;
     moved.forget();
     let i = input.clone();
@@ -336,23 +347,25 @@ fn listen(
     wheel.forget();
     let win = window()?;
     let i = input.clone();
-    let key_down = Closure::<dyn FnMut(web_sys::KeyboardEvent)>::new(move |e: web_sys::KeyboardEvent| {
-        let code = e.code();
-        let mut s = i.borrow_mut();
-        match code.as_str() {
-            "Digit1" => s.mode = Some(Mode::Orbit),
-            "Digit2" => s.mode = Some(Mode::Fly),
-            "Digit3" => s.mode = Some(Mode::Walk),
-            _ => {}
-        }
-        s.keys.insert(code);
-    });
+    let key_down =
+        Closure::<dyn FnMut(web_sys::KeyboardEvent)>::new(move |e: web_sys::KeyboardEvent| {
+            let code = e.code();
+            let mut s = i.borrow_mut();
+            match code.as_str() {
+                "Digit1" => s.mode = Some(Mode::Orbit),
+                "Digit2" => s.mode = Some(Mode::Fly),
+                "Digit3" => s.mode = Some(Mode::Walk),
+                _ => {}
+            }
+            s.keys.insert(code);
+        });
     win.add_event_listener_with_callback("keydown", key_down.as_ref().unchecked_ref())?;
     key_down.forget();
     let i = input.clone();
-    let key_up = Closure::<dyn FnMut(web_sys::KeyboardEvent)>::new(move |e: web_sys::KeyboardEvent| {
-        i.borrow_mut().keys.remove(&e.code());
-    });
+    let key_up =
+        Closure::<dyn FnMut(web_sys::KeyboardEvent)>::new(move |e: web_sys::KeyboardEvent| {
+            i.borrow_mut().keys.remove(&e.code());
+        });
     win.add_event_listener_with_callback("keyup", key_up.as_ref().unchecked_ref())?;
     key_up.forget();
     // keys held when the page loses the focus are let go
@@ -431,7 +444,8 @@ impl App {
 
     fn draw(&mut self) -> Result<(), JsValue> {
         let frame = match self.surface.get_current_texture() {
-            wgpu::CurrentSurfaceTexture::Success(t) | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
+            wgpu::CurrentSurfaceTexture::Success(t)
+            | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
             wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost => {
                 self.surface.configure(&self.device, &self.config);
                 return Ok(());
@@ -449,7 +463,7 @@ impl App {
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
         {
-            let mut pass = begin_pass(&mut enc, &view, &self.depth, self.clear);
+            let mut pass = begin_pass(&mut enc, &view, &self.depth, self.pass.space);
             self.pass.draw(&mut pass);
         }
         self.queue.submit([enc.finish()]);

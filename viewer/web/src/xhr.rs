@@ -91,7 +91,9 @@ impl StoreSource for XhrSource {
     fn get_suffix(&self, key: &str, len: u64) -> io::Result<Option<(u64, Vec<u8>)>> {
         let url = self.url(key);
         if len == 0 {
-            return Err(io::Error::other(format!("{url}: an empty suffix asked for")));
+            return Err(io::Error::other(format!(
+                "{url}: an empty suffix asked for"
+            )));
         }
         answer::suffix(&url, Self::fetch(&url, Some(format!("bytes=-{len}")))?, len)
     }

@@ -44,6 +44,7 @@ pub fn run_without_gdal(cli: Cli) -> Result<ExitCode> {
         Command::View(a) => view::run(&a),
         Command::Render(a) => render::run(&a),
         Command::Serve(a) => serve::run(&a),
+        Command::Web(a) => serve::web(&a),
         Command::Upgrade(a) => upgrade::run(&a),
         Command::Completions(a) => {
             let mut cmd = <Cli as clap::CommandFactory>::command();

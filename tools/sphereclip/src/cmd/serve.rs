@@ -1,10 +1,10 @@
-//! `sphereclip serve`.
+//! `sphereclip serve` and `sphereclip web`.
 
 use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 
-use crate::cli::ServeArgs;
+use crate::cli::{ServeArgs, WebArgs};
 
 /// Runs `serve` until SIGINT or SIGTERM.
 pub fn run(a: &ServeArgs) -> Result<ExitCode> {
@@ -40,6 +40,26 @@ pub fn run(a: &ServeArgs) -> Result<ExitCode> {
         "served {} requests, {}",
         counts.requests.load(Relaxed),
         super::human_bytes(counts.bytes.load(Relaxed))
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Runs `web`: the viewer's files into `--out`.
+pub fn web(a: &WebArgs) -> Result<ExitCode> {
+    if a.store.is_empty() || a.store.chars().any(char::is_control) {
+        anyhow::bail!("--store must be a URL or a path, found {:?}", a.store);
+    }
+    let written = sc_serve::site::write_site(&a.out, &a.store)
+        .with_context(|| format!("cannot write the web viewer into {}", a.out.display()))?;
+    crate::outln!(
+        "wrote the web viewer ({} files) into {}; the page opens {} (relative to the page unless a URL).",
+        written.len(),
+        a.out.display(),
+        a.store
+    );
+    crate::outln!(
+        "Serve the folder with the store beside it from any static host, e.g. python3 -m http.server -d {}",
+        a.out.display()
     );
     Ok(ExitCode::SUCCESS)
 }

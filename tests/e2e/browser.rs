@@ -1,0 +1,364 @@
+//! The web viewer in headless Chromium: `serve` on a loopback port, the page loaded with a view
+//! in its URL fragment, its canvas read back through the page once the view is complete, and
+//! compared with native `render` of the same camera and size: space, a pole, the antimeridian
+//! and a ground view unlit (mean ≤ 2/255, ≤ 0.5 % of pixels off by more than 30/255), lit with
+//! the atmosphere within the golden pictures' tolerance. The browser is driven through the
+//! DevTools protocol (a WebSocket); a failing page says why on the page and to the test.
+
+use std::io::Read;
+use std::net::TcpStream;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use base64::Engine;
+use serde_json::{Value, json};
+
+use crate::serve::Served;
+use crate::util::*;
+
+/// Chromium's flags for a WebGPU canvas headless on a machine without a GPU: SwiftShader's
+/// Vulkan under WebGPU (Dawn) and ANGLE.
+const WEBGPU: &[&str] = &[
+    "--enable-unsafe-webgpu",
+    "--enable-features=Vulkan",
+    "--use-vulkan=swiftshader",
+    "--use-angle=vulkan",
+];
+
+/// Longest a page may take to complete a view.
+const VIEW_LIMIT: Duration = Duration::from_secs(300);
+
+/// Headless Chromium with one page, driven over the DevTools protocol; killed when dropped.
+struct Chromium {
+    child: Child,
+    ws: tungstenite::WebSocket<TcpStream>,
+    next: u64,
+    _profile: tempfile::TempDir,
+}
+
+impl Chromium {
+    fn start(flags: &[&str]) -> Self {
+        let profile = tempfile::tempdir().expect("tmp");
+        let child = Command::new("chromium")
+            .args([
+                "--headless=new",
+                "--no-sandbox",
+                "--no-first-run",
+                "--no-default-browser-check",
+                "--hide-scrollbars",
+                "--remote-debugging-port=0",
+            ])
+            .arg(format!("--user-data-dir={}", profile.path().display()))
+            .args(flags)
+            .arg("about:blank")
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("chromium runs (scripts/deps.sh installs it)");
+        let active = profile.path().join("DevToolsActivePort");
+        let start = Instant::now();
+        let port = loop {
+            if let Some(p) = std::fs::read_to_string(&active)
+                .ok()
+                .and_then(|t| t.lines().next().and_then(|l| l.trim().parse::<u16>().ok()))
+            {
+                break p;
+            }
+            assert!(
+                start.elapsed() < Duration::from_secs(60),
+                "chromium opened no DevTools port"
+            );
+            std::thread::sleep(Duration::from_millis(50));
+        };
+        let list: Value = serde_json::from_str(
+            &ureq::get(&format!("http://127.0.0.1:{port}/json/list"))
+                .call()
+                .expect("the DevTools list")
+                .body_mut()
+                .read_to_string()
+                .expect("text"),
+        )
+        .expect("JSON");
+        let url = list
+            .as_array()
+            .and_then(|l| l.iter().find(|t| t["type"] == "page"))
+            .and_then(|t| t["webSocketDebuggerUrl"].as_str())
+            .expect("a page")
+            .to_string();
+        let stream = TcpStream::connect(("127.0.0.1", port)).expect("connects");
+        stream
+            .set_read_timeout(Some(VIEW_LIMIT + Duration::from_secs(60)))
+            .expect("timeout");
+        let (ws, _) = tungstenite::client(url.as_str(), stream).expect("a WebSocket");
+        let mut c = Self {
+            child,
+            ws,
+            next: 0,
+            _profile: profile,
+        };
+        c.call("Runtime.enable", json!({}));
+        c.call("Page.enable", json!({}));
+        c
+    }
+
+    /// The next message from the browser.
+    fn message(&mut self) -> Value {
+        loop {
+            let m = self.ws.read().expect("a message from chromium");
+            if let Ok(t) = m.to_text()
+                && !t.is_empty()
+            {
+                return serde_json::from_str(t).expect("JSON");
+            }
+        }
+    }
+
+    /// Calls `method`; its result (events meanwhile are skipped).
+    fn call(&mut self, method: &str, params: Value) -> Value {
+        self.next += 1;
+        let id = self.next;
+        let msg = json!({"id": id, "method": method, "params": params}).to_string();
+        self.ws.send(msg.into()).expect("sends");
+        loop {
+            let v = self.message();
+            if v["id"] == id {
+                assert!(v.get("error").is_none(), "{method}: {v}");
+                return v["result"].clone();
+            }
+        }
+    }
+
+    /// Loads `url` as a new document and waits for its load event.
+    fn navigate(&mut self, url: &str) {
+        self.call("Page.navigate", json!({"url": url}));
+        while self.message()["method"] != "Page.loadEventFired" {}
+    }
+
+    /// Evaluates `expr` in the page (a promise waited for); its value.
+    fn eval(&mut self, expr: &str) -> Value {
+        let r = self.call(
+            "Runtime.evaluate",
+            json!({"expression": expr, "awaitPromise": true, "returnByValue": true}),
+        );
+        assert!(
+            r.get("exceptionDetails").is_none(),
+            "{expr}: {}",
+            r["exceptionDetails"]
+        );
+        r["result"]["value"].clone()
+    }
+
+    /// Loads `url` in a `w × h` viewport (device pixels) and waits for the viewer to complete
+    /// its view; the canvas's picture and the viewer's status, or what the page said went wrong.
+    fn view(&mut self, url: &str, (w, h): (u32, u32)) -> Result<(image::RgbaImage, Value), String> {
+        self.call(
+            "Emulation.setDeviceMetricsOverride",
+            json!({"width": w, "height": h, "deviceScaleFactor": 1, "mobile": false}),
+        );
+        // a new document each time (another fragment alone would not load the page again)
+        self.navigate("about:blank");
+        self.navigate(url);
+        let limit = VIEW_LIMIT.as_millis();
+        let said = self.eval(&format!(
+            "new Promise((done) => {{ const t0 = performance.now(); const look = () => {{
+                if (window.sphereclipError) done('error: ' + window.sphereclipError);
+                else if (window.sphereclip && window.sphereclip.complete()) done('complete');
+                else if (performance.now() - t0 > {limit}) done('timeout: ' + (window.sphereclip ? window.sphereclip.status() : 'never started'));
+                else setTimeout(look, 50); }}; look(); }})"
+        ));
+        let said = said.as_str().unwrap_or_default().to_string();
+        if said != "complete" {
+            return Err(said);
+        }
+        let status: Value = serde_json::from_str(
+            self.eval("window.sphereclip.status()")
+                .as_str()
+                .expect("text"),
+        )
+        .expect("status JSON");
+        let png = self.eval("window.sphereclip.snapshot()");
+        let png = png
+            .as_str()
+            .and_then(|u| u.strip_prefix("data:image/png;base64,"))
+            .expect("a PNG data URL");
+        let bytes = base64::engine::general_purpose::STANDARD
+            .decode(png)
+            .expect("base64");
+        let img = image::load_from_memory(&bytes).expect("PNG").to_rgba8();
+        Ok((img, status))
+    }
+}
+
+impl Drop for Chromium {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Native `render` of `store` from `camera` at `size` with `look` (e.g. `--shading none`).
+fn native(
+    store: &str,
+    camera: &str,
+    (w, h): (u32, u32),
+    look: &[&str],
+    out: &Path,
+) -> image::RgbaImage {
+    let mut c = bin();
+    c.env("XDG_RUNTIME_DIR", xdg())
+        .args(["render", store, &format!("--camera={camera}")])
+        .args(["--size", &format!("{w}x{h}"), "--out", s(out)])
+        .args(look);
+    ok(&run_within(c, Duration::from_secs(300)));
+    image::open(out).expect("png").to_rgba8()
+}
+
+/// Mean absolute difference per channel (0–255), the share of pixels with a channel off by more
+/// than 30, and the 99th percentile of the channel differences.
+fn difference(a: &image::RgbaImage, b: &image::RgbaImage) -> (f64, f64, u8) {
+    assert_eq!(a.dimensions(), b.dimensions());
+    let mut diffs = Vec::new();
+    let mut far = 0usize;
+    for (p, q) in a.pixels().zip(b.pixels()) {
+        let d: Vec<u8> = (0..3).map(|i| p[i].abs_diff(q[i])).collect();
+        far += usize::from(d.iter().any(|&x| x > 30));
+        diffs.extend(d);
+    }
+    let mean = diffs.iter().map(|&d| f64::from(d)).sum::<f64>() / diffs.len() as f64;
+    diffs.sort_unstable();
+    let p99 = diffs[diffs.len() * 99 / 100];
+    (mean, far as f64 / a.pixels().len() as f64, p99)
+}
+
+/// Where a failing comparison leaves its pictures.
+fn keep(name: &str, page: &image::RgbaImage) -> PathBuf {
+    let dir = std::env::temp_dir().join("sphereclip-browser");
+    let _ = std::fs::create_dir_all(&dir);
+    let path = dir.join(format!("{name}.page.png"));
+    let _ = page.save(&path);
+    path
+}
+
+#[test]
+fn the_web_viewer_draws_the_views_of_native_render_on_webgpu() {
+    let store = sample_planet();
+    let server = Served::start(&store);
+    let page = format!("http://{}/", server.addr);
+    let dir = tempfile::tempdir().expect("tmp");
+    let mut chromium = Chromium::start(WEBGPU);
+    let size = (480, 270);
+    let mut report = String::new();
+    let mut failed = false;
+    // (name, camera, lit with air): space, a pole, the antimeridian, the ground
+    let views = [
+        ("space", "30,10,12000000", false),
+        ("pole", "90,0,3000000,0,-90,50", false),
+        ("antimeridian", "-17,179.9,20000,270,-15,60", false),
+        ("ground", "46.5,8.0,300,30,-4,60", false),
+        ("lit", "46.5,8,300000,0,-30,60", true),
+    ];
+    for (name, camera, lit) in views {
+        let look: &[&str] = if lit {
+            &["--shading", "lit", "--atmosphere", "on"]
+        } else {
+            &["--shading", "none"]
+        };
+        let want = native(
+            s(&store),
+            camera,
+            size,
+            look,
+            &dir.path().join(format!("{name}.png")),
+        );
+        let fragment = format!(
+            "#camera={camera}&shading={}&atmosphere=on",
+            if lit { "lit" } else { "none" }
+        );
+        let (got, status) = chromium
+            .view(&format!("{page}{fragment}"), size)
+            .unwrap_or_else(|e| panic!("{name}: the page did not complete its view: {e}"));
+        assert_eq!(status["failed"], 0, "{name}: failed requests: {status}");
+        assert!(
+            status["adapter"].as_str().unwrap_or("").contains("WebGpu"),
+            "{name}: not on WebGPU: {status}"
+        );
+        let (mean, far, p99) = difference(&got, &want);
+        let good = if lit {
+            mean <= 3.0 && p99 <= 40
+        } else {
+            mean <= 2.0 && far <= 0.005
+        };
+        report += &format!(
+            "{name}: mean {mean:.3}, {:.3} % off by > 30, p99 {p99}; levels {}..{}, {} requests, {} bytes{}\n",
+            far * 100.0,
+            status["level_lo"],
+            status["level_hi"],
+            status["requests"],
+            status["bytes"],
+            if good {
+                String::new()
+            } else {
+                format!(" — page: {}", keep(name, &got).display())
+            }
+        );
+        failed |= !good;
+    }
+    eprint!("{report}");
+    assert!(!failed, "the page differs from native render:\n{report}");
+}
+
+#[test]
+fn a_page_whose_store_is_not_there_says_so() {
+    let store = sample_planet();
+    let server = Served::start(&store);
+    let mut chromium = Chromium::start(WEBGPU);
+    // a store name nothing answers, and a link the viewer cannot read
+    let page = format!(
+        "http://{}/?store=nothing.zarr#camera=30,10,1e7",
+        server.addr
+    );
+    let said = chromium.view(&page, (160, 90)).expect_err("no store");
+    assert!(
+        said.contains("cannot read store") && said.contains("nothing.zarr"),
+        "{said}"
+    );
+    let page = format!("http://{}/#camera=95,10,1e7", server.addr);
+    let said = chromium.view(&page, (160, 90)).expect_err("a bad link");
+    assert!(said.contains("camera"), "{said}");
+    let shown = chromium.eval("document.getElementById('status').textContent");
+    assert_eq!(shown.as_str(), Some(said.trim_start_matches("error: ")));
+}
+
+#[test]
+fn the_page_and_its_files_are_served_with_their_types() {
+    let store = sample_planet();
+    let server = Served::start(&store);
+    let base = format!("http://{}", server.addr);
+    let mut r = ureq::get(&format!("{base}/")).call().expect("the page");
+    let page = r.body_mut().read_to_string().expect("text");
+    assert!(
+        page.contains(r#"<meta name="sphereclip-store" content="planet.zarr">"#),
+        "{page}"
+    );
+    let wasm = ureq::get(&format!("{base}/sc_view_web_bg.wasm"))
+        .header("Accept-Encoding", "identity")
+        .call()
+        .expect("the wasm");
+    assert_eq!(wasm.headers()["content-type"], "application/wasm");
+    let mut head = [0u8; 4];
+    wasm.into_body()
+        .into_reader()
+        .read_exact(&mut head)
+        .expect("bytes");
+    assert_eq!(&head, b"\0asm");
+    let js = ureq::get(&format!("{base}/main.js"))
+        .call()
+        .expect("main.js");
+    assert!(
+        js.headers()["content-type"]
+            .to_str()
+            .unwrap_or("")
+            .starts_with("text/javascript")
+    );
+}
