@@ -13,6 +13,14 @@
 @group(0) @binding(6) var<storage, read_write> aerial_transmittance: array<vec4<f32>>;
 @group(0) @binding(7) var<storage, read_write> irradiance_table: array<vec4<f32>>;
 
+// the reads of atmosphere_model.wgsl
+fn transmittance_table_at(i: u32) -> vec3<f32> { return transmittance_table[i].xyz; }
+fn multiple_scattering_table_at(i: u32) -> vec3<f32> { return multiple_scattering_table[i].xyz; }
+fn sky_view_table_at(i: u32) -> vec3<f32> { return sky_view_table[i].xyz; }
+fn aerial_inscatter_at(i: u32) -> vec3<f32> { return aerial_inscatter[i].xyz; }
+fn aerial_transmittance_at(i: u32) -> vec3<f32> { return aerial_transmittance[i].xyz; }
+fn irradiance_table_at(i: u32) -> vec3<f32> { return irradiance_table[i].xyz; }
+
 // Each texel: the transmittance to the top of the atmosphere of its ray, by the trapezoidal rule.
 @compute @workgroup_size(8, 8)
 fn transmittance_lut(@builtin(global_invocation_id) id: vec3<u32>) {

@@ -118,8 +118,8 @@ fn transmittance_to_top(r: f32, mu: f32) -> vec3<f32> {
     let v = texcoord_from_unit(clamp(rho / big_h, 0.0, 1.0), f32(TRANSMITTANCE_H));
     let k = taps(u, v, TRANSMITTANCE_W, TRANSMITTANCE_H);
     let w = TRANSMITTANCE_W;
-    let a = mix(transmittance_table[k.j0 * w + k.i0].xyz, transmittance_table[k.j0 * w + k.i1].xyz, k.f.x);
-    let b = mix(transmittance_table[k.j1 * w + k.i0].xyz, transmittance_table[k.j1 * w + k.i1].xyz, k.f.x);
+    let a = mix(transmittance_table_at(k.j0 * w + k.i0), transmittance_table_at(k.j0 * w + k.i1), k.f.x);
+    let b = mix(transmittance_table_at(k.j1 * w + k.i0), transmittance_table_at(k.j1 * w + k.i1), k.f.x);
     return mix(a, b, k.f.y);
 }
 
@@ -140,8 +140,8 @@ fn scattering_at(h_in: f32) -> vec3<f32> {
 fn multiple_scattering_at(r: f32, mu_s: f32) -> vec3<f32> {
     let k = taps((mu_s + 1.0) / 2.0, (r - atm.radii.x) / (atm.radii.y - atm.radii.x), MS_SIZE, MS_SIZE);
     let n = MS_SIZE;
-    let a = mix(multiple_scattering_table[k.j0 * n + k.i0].xyz, multiple_scattering_table[k.j0 * n + k.i1].xyz, k.f.x);
-    let b = mix(multiple_scattering_table[k.j1 * n + k.i0].xyz, multiple_scattering_table[k.j1 * n + k.i1].xyz, k.f.x);
+    let a = mix(multiple_scattering_table_at(k.j0 * n + k.i0), multiple_scattering_table_at(k.j0 * n + k.i1), k.f.x);
+    let b = mix(multiple_scattering_table_at(k.j1 * n + k.i0), multiple_scattering_table_at(k.j1 * n + k.i1), k.f.x);
     return mix(a, b, k.f.y);
 }
 
@@ -150,8 +150,8 @@ fn multiple_scattering_at(r: f32, mu_s: f32) -> vec3<f32> {
 fn irradiance_at(r: f32, mu_s: f32) -> vec3<f32> {
     let k = taps((mu_s + 1.0) / 2.0, (r - atm.radii.x) / (atm.radii.y - atm.radii.x), IRRADIANCE_W, IRRADIANCE_H);
     let w = IRRADIANCE_W;
-    let a = mix(irradiance_table[k.j0 * w + k.i0].xyz, irradiance_table[k.j0 * w + k.i1].xyz, k.f.x);
-    let b = mix(irradiance_table[k.j1 * w + k.i0].xyz, irradiance_table[k.j1 * w + k.i1].xyz, k.f.x);
+    let a = mix(irradiance_table_at(k.j0 * w + k.i0), irradiance_table_at(k.j0 * w + k.i1), k.f.x);
+    let b = mix(irradiance_table_at(k.j1 * w + k.i0), irradiance_table_at(k.j1 * w + k.i1), k.f.x);
     return mix(a, b, k.f.y);
 }
 
@@ -303,8 +303,8 @@ fn sky_view_at(r_in: f32, mu: f32, cos_az: f32) -> vec3<f32> {
     }
     let k = taps(sqrt((1.0 - clamp(cos_az, -1.0, 1.0)) / 2.0), v, SKY_VIEW_W, SKY_VIEW_H);
     let w = SKY_VIEW_W;
-    let a = mix(sky_view_table[k.j0 * w + k.i0].xyz, sky_view_table[k.j0 * w + k.i1].xyz, k.f.x);
-    let b = mix(sky_view_table[k.j1 * w + k.i0].xyz, sky_view_table[k.j1 * w + k.i1].xyz, k.f.x);
+    let a = mix(sky_view_table_at(k.j0 * w + k.i0), sky_view_table_at(k.j0 * w + k.i1), k.f.x);
+    let b = mix(sky_view_table_at(k.j1 * w + k.i0), sky_view_table_at(k.j1 * w + k.i1), k.f.x);
     return mix(a, b, k.f.y);
 }
 
@@ -313,8 +313,8 @@ fn aerial_slice(k: u32, c: Taps) -> array<vec3<f32>, 2> {
     let a = k * n * n + c.j0 * n;
     let b = k * n * n + c.j1 * n;
     let f = c.f;
-    let l = mix(mix(aerial_inscatter[a + c.i0].xyz, aerial_inscatter[a + c.i1].xyz, f.x), mix(aerial_inscatter[b + c.i0].xyz, aerial_inscatter[b + c.i1].xyz, f.x), f.y);
-    let t = mix(mix(aerial_transmittance[a + c.i0].xyz, aerial_transmittance[a + c.i1].xyz, f.x), mix(aerial_transmittance[b + c.i0].xyz, aerial_transmittance[b + c.i1].xyz, f.x), f.y);
+    let l = mix(mix(aerial_inscatter_at(a + c.i0), aerial_inscatter_at(a + c.i1), f.x), mix(aerial_inscatter_at(b + c.i0), aerial_inscatter_at(b + c.i1), f.x), f.y);
+    let t = mix(mix(aerial_transmittance_at(a + c.i0), aerial_transmittance_at(a + c.i1), f.x), mix(aerial_transmittance_at(b + c.i0), aerial_transmittance_at(b + c.i1), f.x), f.y);
     return array<vec3<f32>, 2>(l, t);
 }
 

@@ -49,22 +49,16 @@ struct Level {
     color_texels_per_rad: vec2<f32>,
     color_size: vec2<u32>,
     color_origin: vec2<u32>,
+    // to the 16-byte stride of a uniform array
+    pad: vec2<u32>,
 };
 
 @group(0) @binding(0) var<uniform> frame: Frame;
-@group(0) @binding(1) var<storage, read> levels: array<Level>;
+@group(0) @binding(1) var<uniform> levels: array<Level, MAX_RING + 1u>;
 @group(0) @binding(2) var heights: texture_2d_array<f32>;
 @group(0) @binding(3) var colors: texture_2d_array<f32>;
 
-// the atmosphere's tables, made by the compute passes of atmosphere.wgsl this frame
-@group(1) @binding(0) var<uniform> atm: Atmosphere;
-@group(1) @binding(1) var<storage, read> transmittance_table: array<vec4<f32>>;
-@group(1) @binding(2) var<storage, read> multiple_scattering_table: array<vec4<f32>>;
-@group(1) @binding(3) var<uniform> atmo: AtmosphereFrame;
-@group(1) @binding(4) var<storage, read> sky_view_table: array<vec4<f32>>;
-@group(1) @binding(5) var<storage, read> aerial_inscatter: array<vec4<f32>>;
-@group(1) @binding(6) var<storage, read> aerial_transmittance: array<vec4<f32>>;
-@group(1) @binding(7) var<storage, read> irradiance_table: array<vec4<f32>>;
+// the atmosphere's tables (group 1) and their reads: air_tables.wgsl, which comes first
 
 struct VertexIn {
     @location(0) pxy: vec2<f32>,

@@ -2,7 +2,7 @@
 //! in its URL fragment, its canvas read back through the page once the view is complete, and
 //! compared with native `render` of the same camera and size: space, a pole, the antimeridian
 //! and a ground view unlit (mean ≤ 2/255, ≤ 0.5 % of pixels off by more than 30/255), lit with
-//! the atmosphere within the golden pictures' tolerance. The browser is driven through the
+//! the atmosphere within the golden pictures' tolerance; on WebGPU and on the WebGL2 fallback. The browser is driven through the
 //! DevTools protocol (a WebSocket); a failing page says why on the page and to the test.
 
 use std::io::Read;
@@ -241,15 +241,12 @@ fn keep(name: &str, page: &image::RgbaImage) -> PathBuf {
 }
 
 #[test]
-fn the_web_viewer_draws_the_views_of_native_render_on_webgpu() {
+fn the_web_viewer_draws_the_views_of_native_render_on_webgpu_and_webgl2() {
     let store = sample_planet();
     let server = Served::start(&store);
     let page = format!("http://{}/", server.addr);
     let dir = tempfile::tempdir().expect("tmp");
-    let mut chromium = Chromium::start(WEBGPU);
     let size = (480, 270);
-    let mut report = String::new();
-    let mut failed = false;
     // (name, camera, lit with air): space, a pole, the antimeridian, the ground
     let views = [
         ("space", "30,10,12000000", false),
@@ -258,51 +255,73 @@ fn the_web_viewer_draws_the_views_of_native_render_on_webgpu() {
         ("ground", "46.5,8.0,300,30,-4,60", false),
         ("lit", "46.5,8,300000,0,-30,60", true),
     ];
-    for (name, camera, lit) in views {
-        let look: &[&str] = if lit {
+    let look = |lit: bool| -> &'static [&'static str] {
+        if lit {
             &["--shading", "lit", "--atmosphere", "on"]
         } else {
             &["--shading", "none"]
-        };
-        let want = native(
-            s(&store),
-            camera,
-            size,
-            look,
-            &dir.path().join(format!("{name}.png")),
-        );
-        let fragment = format!(
-            "#camera={camera}&shading={}&atmosphere=on",
-            if lit { "lit" } else { "none" }
-        );
-        let (got, status) = chromium
-            .view(&format!("{page}{fragment}"), size)
-            .unwrap_or_else(|e| panic!("{name}: the page did not complete its view: {e}"));
-        assert_eq!(status["failed"], 0, "{name}: failed requests: {status}");
-        assert!(
-            status["adapter"].as_str().unwrap_or("").contains("WebGpu"),
-            "{name}: not on WebGPU: {status}"
-        );
-        let (mean, far, p99) = difference(&got, &want);
-        let good = if lit {
-            mean <= 3.0 && p99 <= 40
-        } else {
-            mean <= 2.0 && far <= 0.005
-        };
-        report += &format!(
-            "{name}: mean {mean:.3}, {:.3} % off by > 30, p99 {p99}; levels {}..{}, {} requests, {} bytes{}\n",
-            far * 100.0,
-            status["level_lo"],
-            status["level_hi"],
-            status["requests"],
-            status["bytes"],
-            if good {
-                String::new()
+        }
+    };
+    let natives: Vec<image::RgbaImage> = views
+        .iter()
+        .map(|(name, camera, lit)| {
+            native(
+                s(&store),
+                camera,
+                size,
+                look(*lit),
+                &dir.path().join(format!("{name}.png")),
+            )
+        })
+        .collect();
+    let mut report = String::new();
+    let mut failed = false;
+    // WebGPU (SwiftShader's Vulkan under Dawn), and the WebGL2 fallback the page asks for
+    for (backend, flags, query, adapter) in [
+        ("WebGPU", WEBGPU, "", "BrowserWebGpu"),
+        ("WebGL2", &[][..], "?gpu=webgl2", "(Gl,"),
+    ] {
+        let mut chromium = Chromium::start(flags);
+        for ((name, camera, lit), want) in views.iter().zip(&natives) {
+            let fragment = format!(
+                "#camera={camera}&shading={}&atmosphere=on",
+                if *lit { "lit" } else { "none" }
+            );
+            let (got, status) = chromium
+                .view(&format!("{page}{query}{fragment}"), size)
+                .unwrap_or_else(|e| panic!("{backend} {name}: the page did not complete: {e}"));
+            assert_eq!(
+                status["failed"], 0,
+                "{backend} {name}: failed requests: {status}"
+            );
+            assert!(
+                status["adapter"].as_str().unwrap_or("").contains(adapter),
+                "{backend} {name}: not on {backend}: {status}"
+            );
+            let (mean, far, p99) = difference(&got, want);
+            let good = if *lit {
+                mean <= 3.0 && p99 <= 40
             } else {
-                format!(" — page: {}", keep(name, &got).display())
-            }
-        );
-        failed |= !good;
+                mean <= 2.0 && far <= 0.005
+            };
+            report += &format!(
+                "{backend} {name}: mean {mean:.3}, {:.3} % off by > 30, p99 {p99}; levels {}..{}, {} requests, {} bytes{}\n",
+                far * 100.0,
+                status["level_lo"],
+                status["level_hi"],
+                status["requests"],
+                status["bytes"],
+                if good {
+                    String::new()
+                } else {
+                    format!(
+                        " — page: {}",
+                        keep(&format!("{backend}-{name}"), &got).display()
+                    )
+                }
+            );
+            failed |= !good;
+        }
     }
     eprint!("{report}");
     assert!(!failed, "the page differs from native render:\n{report}");

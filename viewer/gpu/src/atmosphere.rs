@@ -8,8 +8,9 @@
 
 use crate::device::{RenderError, gpu_device, read_back};
 use sc_view_plan::atmosphere::{
-    AERIAL_SIZE, Atmosphere, AtmosphereFrame, AtmosphereUniforms, IRRADIANCE_SIZE,
-    MULTIPLE_SCATTERING_SIZE, SKY_VIEW_SIZE, TRANSMITTANCE_SIZE,
+    AERIAL_SIZE, AerialPerspectiveLut, Atmosphere, AtmosphereFrame, AtmosphereUniforms,
+    IRRADIANCE_SIZE, IrradianceLut, MULTIPLE_SCATTERING_SIZE, MultipleScatteringLut, SKY_VIEW_SIZE,
+    SkyViewLut, TRANSMITTANCE_SIZE, TransmittanceLut,
 };
 
 /// The tables read back: RGB per texel.
@@ -347,4 +348,233 @@ impl AtmosphereTables {
         let frame = AtmosphereFrame::looking_up(atmosphere, r, mu_s);
         self.frame_tables(atmosphere, &frame)
     }
+}
+
+/// The tables' sizes as textures where they are uploaded (width, rows): a table's rows as rows
+/// of texels, the aerial volume's slices one below the other.
+fn texture_size(k: usize) -> (u32, u32) {
+    let (w, h) = match k {
+        0 => TRANSMITTANCE_SIZE,
+        1 => (MULTIPLE_SCATTERING_SIZE, MULTIPLE_SCATTERING_SIZE),
+        2 => SKY_VIEW_SIZE,
+        5 => IRRADIANCE_SIZE,
+        _ => (AERIAL_SIZE, AERIAL_SIZE * AERIAL_SIZE),
+    };
+    (w as u32, h as u32)
+}
+
+/// The tables made on the CPU by their twins (`sc_view_plan::atmosphere`) and uploaded as
+/// RGBA32F textures: for a device without compute shaders or storage buffers (WebGL2), whose
+/// clipmap pass reads them through `shaders/air_tables_webgl.wgsl`.
+#[derive(Debug)]
+pub struct UploadedTables {
+    atm: wgpu::Buffer,
+    frame: wgpu::Buffer,
+    textures: Vec<(wgpu::Texture, wgpu::TextureView)>,
+    /// The atmosphere the fixed tables were made of, and its transmittance and
+    /// multiple-scattering tables (the per-frame ones are made from them).
+    fixed: Option<(Atmosphere, TransmittanceLut, MultipleScatteringLut)>,
+    last_frame: Option<AtmosphereFrame>,
+}
+
+impl UploadedTables {
+    fn new(device: &wgpu::Device) -> Self {
+        let uniform = |label: &str, size: usize| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: size as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        let textures = TABLES
+            .iter()
+            .enumerate()
+            .map(|(k, (label, _))| {
+                let (width, height) = texture_size(k);
+                let t = device.create_texture(&wgpu::TextureDescriptor {
+                    label: Some(label),
+                    size: wgpu::Extent3d {
+                        width,
+                        height,
+                        depth_or_array_layers: 1,
+                    },
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: wgpu::TextureDimension::D2,
+                    format: wgpu::TextureFormat::Rgba32Float,
+                    usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+                    view_formats: &[],
+                });
+                let v = t.create_view(&Default::default());
+                (t, v)
+            })
+            .collect();
+        Self {
+            atm: uniform("atmosphere", std::mem::size_of::<AtmosphereUniforms>()),
+            frame: uniform("atmosphere frame", std::mem::size_of::<AtmosphereFrame>()),
+            textures,
+            fixed: None,
+            last_frame: None,
+        }
+    }
+
+    fn upload(&self, queue: &wgpu::Queue, k: usize, texels: &[[f32; 3]]) {
+        let (width, height) = texture_size(k);
+        let rgba: Vec<[f32; 4]> = texels.iter().map(|t| [t[0], t[1], t[2], 0.0]).collect();
+        queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture: &self.textures[k].0,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            bytemuck::cast_slice(&rgba),
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(width * 16),
+                rows_per_image: Some(height),
+            },
+            wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+        );
+    }
+
+    /// [`AtmospherePasses::encode`] on the CPU: the same tables, made when the atmosphere or
+    /// the frame changes.
+    fn make(&mut self, queue: &wgpu::Queue, atmosphere: &Atmosphere, frame: &AtmosphereFrame) {
+        if self.fixed.as_ref().map(|f| f.0) != Some(*atmosphere) {
+            queue.write_buffer(
+                &self.atm,
+                0,
+                bytemuck::bytes_of(&AtmosphereUniforms::new(atmosphere)),
+            );
+            let t = TransmittanceLut::compute(atmosphere);
+            let ms = MultipleScatteringLut::compute(atmosphere, &t);
+            let e = IrradianceLut::compute(atmosphere, &t, &ms);
+            self.upload(queue, 0, &t.texels);
+            self.upload(queue, 1, &ms.texels);
+            self.upload(queue, 5, &e.texels);
+            self.fixed = Some((*atmosphere, t, ms));
+            self.last_frame = None;
+        }
+        let Some((_, t, ms)) = &self.fixed else {
+            return;
+        };
+        if self.last_frame != Some(*frame) {
+            queue.write_buffer(&self.frame, 0, bytemuck::bytes_of(frame));
+            self.last_frame = Some(*frame);
+            if !frame.above_air(atmosphere) {
+                let r = frame.radius_m(atmosphere);
+                let sky = SkyViewLut::compute(atmosphere, t, ms, r, frame.sun_dir()[2]);
+                self.upload(queue, 2, &sky.texels);
+            }
+            let aerial = AerialPerspectiveLut::compute(atmosphere, t, ms, frame);
+            self.upload(queue, 3, &aerial.inscatter);
+            self.upload(queue, 4, &aerial.transmittance);
+        }
+    }
+}
+
+/// The atmosphere's tables as the clipmap pass binds them (its group 1): made by compute passes
+/// into storage buffers, or where the device has neither (WebGL2) by the CPU twins into
+/// textures.
+#[derive(Debug)]
+pub enum AirTables {
+    /// Compute passes, storage buffers.
+    Computed(Box<AtmospherePasses>),
+    /// CPU twins, textures.
+    Uploaded(Box<UploadedTables>),
+}
+
+impl AirTables {
+    /// The tables on `device`: computed where it has compute shaders and storage buffers in the
+    /// fragment stage, else uploaded.
+    pub fn new(device: &wgpu::Device) -> Self {
+        if uploads_tables(device) {
+            Self::Uploaded(Box::new(UploadedTables::new(device)))
+        } else {
+            Self::Computed(Box::new(AtmospherePasses::new(device)))
+        }
+    }
+
+    /// Makes the tables of `atmosphere` for the viewer of `frame` (the passes into `enc`).
+    pub fn encode(
+        &mut self,
+        queue: &wgpu::Queue,
+        enc: &mut wgpu::CommandEncoder,
+        atmosphere: &Atmosphere,
+        frame: &AtmosphereFrame,
+    ) {
+        match self {
+            Self::Computed(p) => p.encode(queue, enc, atmosphere, frame),
+            Self::Uploaded(u) => u.make(queue, atmosphere, frame),
+        }
+    }
+
+    /// Marks the frame as drawn without the atmosphere.
+    pub fn disable(&mut self, queue: &wgpu::Queue) {
+        match self {
+            Self::Computed(p) => p.disable(queue),
+            Self::Uploaded(u) => {
+                let off = <AtmosphereFrame as bytemuck::Zeroable>::zeroed();
+                if u.last_frame != Some(off) {
+                    queue.write_buffer(&u.frame, 0, bytemuck::bytes_of(&off));
+                    u.last_frame = Some(off);
+                }
+            }
+        }
+    }
+
+    /// The bindings of the group, each with its type and resource.
+    pub fn bindings(&self) -> Vec<(u32, wgpu::BindingType, wgpu::BindingResource<'_>)> {
+        let buffer = |ty| wgpu::BindingType::Buffer {
+            ty,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        };
+        let uniform = buffer(wgpu::BufferBindingType::Uniform);
+        match self {
+            Self::Computed(p) => p
+                .resources()
+                .into_iter()
+                .map(|(b, r)| {
+                    let ty = if AtmospherePasses::is_uniform(b) {
+                        uniform
+                    } else {
+                        buffer(wgpu::BufferBindingType::Storage { read_only: true })
+                    };
+                    (b, ty, r)
+                })
+                .collect(),
+            Self::Uploaded(u) => {
+                let mut out = vec![
+                    (0, uniform, u.atm.as_entire_binding()),
+                    (3, uniform, u.frame.as_entire_binding()),
+                ];
+                for (k, (_, b)) in TABLES.iter().enumerate() {
+                    out.push((
+                        *b,
+                        wgpu::BindingType::Texture {
+                            sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                            view_dimension: wgpu::TextureViewDimension::D2,
+                            multisampled: false,
+                        },
+                        wgpu::BindingResource::TextureView(&u.textures[k].1),
+                    ));
+                }
+                out
+            }
+        }
+    }
+}
+
+/// Whether `device` lacks what the computed tables need (compute shaders, storage buffers in
+/// the fragment stage): WebGL2. Its renderers then read the tables from textures
+/// ([`crate::for_webgl`]) and draw no geometry that needs storage buffers.
+pub fn uploads_tables(device: &wgpu::Device) -> bool {
+    device.limits().max_storage_buffers_per_shader_stage == 0
 }

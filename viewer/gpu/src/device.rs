@@ -63,12 +63,23 @@ pub async fn device_for_async(
             // and the GPU's clock for timing the render pass where it has one
             required_features: adapter.features()
                 & (wgpu::Features::POLYGON_MODE_LINE | wgpu::Features::TIMESTAMP_QUERY),
-            required_limits: wgpu::Limits {
-                max_texture_array_layers: levels.max(256),
-                // the clipmap levels and the atmosphere's six tables in the fragment stage
-                // (WebGPU's default)
-                max_storage_buffers_per_shader_stage: 8,
-                ..wgpu::Limits::downlevel_defaults()
+            required_limits: if adapter
+                .get_downlevel_capabilities()
+                .flags
+                .contains(wgpu::DownlevelFlags::COMPUTE_SHADERS)
+            {
+                wgpu::Limits {
+                    max_texture_array_layers: levels.max(256),
+                    // the atmosphere's six tables in the fragment stage (WebGPU's default)
+                    max_storage_buffers_per_shader_stage: 8,
+                    ..wgpu::Limits::downlevel_defaults()
+                }
+            } else {
+                // WebGL2: the tables are textures (`atmosphere::uploads_tables`)
+                wgpu::Limits {
+                    max_texture_array_layers: levels.max(256),
+                    ..wgpu::Limits::downlevel_webgl2_defaults()
+                }
             }
             .using_resolution(adapter.limits()),
             ..Default::default()

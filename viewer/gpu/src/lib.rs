@@ -54,6 +54,7 @@ pub const CLIPMAP_WGSL: &str = concat!(
     include_str!("../../../shaders/constants.wgsl"),
     include_str!("../../../shaders/map_transform.wgsl"),
     include_str!("../../../shaders/atmosphere_model.wgsl"),
+    include_str!("../../../shaders/air_tables.wgsl"),
     include_str!("../../../shaders/clipmap.wgsl")
 );
 
@@ -63,6 +64,7 @@ pub const CDLOD_WGSL: &str = concat!(
     include_str!("../../../shaders/constants.wgsl"),
     include_str!("../../../shaders/map_transform.wgsl"),
     include_str!("../../../shaders/atmosphere_model.wgsl"),
+    include_str!("../../../shaders/air_tables.wgsl"),
     include_str!("../../../shaders/clipmap.wgsl"),
     include_str!("../../../shaders/cdlod_geometry.wgsl"),
     include_str!("../../../shaders/cdlod.wgsl")
@@ -74,10 +76,20 @@ pub const WARP_WGSL: &str = concat!(
     include_str!("../../../shaders/constants.wgsl"),
     include_str!("../../../shaders/map_transform.wgsl"),
     include_str!("../../../shaders/atmosphere_model.wgsl"),
+    include_str!("../../../shaders/air_tables.wgsl"),
     include_str!("../../../shaders/clipmap.wgsl"),
     include_str!("../../../shaders/warp_geometry.wgsl"),
     include_str!("../../../shaders/warp.wgsl")
 );
+
+/// `wgsl` (one of the renderers' shaders) for WebGL2: the atmosphere's tables read from
+/// textures (`shaders/air_tables_webgl.wgsl`) instead of storage buffers.
+pub fn for_webgl(wgsl: &str) -> String {
+    wgsl.replace(
+        include_str!("../../../shaders/air_tables.wgsl"),
+        include_str!("../../../shaders/air_tables_webgl.wgsl"),
+    )
+}
 
 /// The WGSL of the warped mesh's geometry probe (a compute pass over its vertices).
 pub const WARP_PROBE_WGSL: &str = concat!(

@@ -19,7 +19,7 @@ use sc_view_plan::frame::{
 use sc_view_plan::geometry::HemisphereSpec;
 use sc_view_plan::stream::Streamer;
 
-use crate::atmosphere::AtmospherePasses;
+use crate::atmosphere::{AirTables, uploads_tables};
 use crate::device::DEPTH_FORMAT;
 pub use crate::device::{RenderError, device_for, gpu_device, read_back};
 use crate::terrain::{TerrainDraw, TerrainRenderer, TerrainSetup};
@@ -43,7 +43,7 @@ pub struct ClipmapPass {
     shared_layouts: [wgpu::BindGroupLayout; 2],
     clipmap_shader: wgpu::ShaderModule,
     sky: wgpu::RenderPipeline,
-    atmosphere: AtmospherePasses,
+    atmosphere: AirTables,
     atmosphere_bind: wgpu::BindGroup,
     radius_m: f64,
     size: (u32, u32),
@@ -102,8 +102,8 @@ fn array_view(t: &wgpu::Texture) -> wgpu::TextureView {
     })
 }
 
-/// The clipmaps' bind group (group 0): the frame's uniform, the levels' uniforms (a storage
-/// buffer of `levels`), the height and colour clipmap arrays; its layout and buffers.
+/// The clipmaps' bind group (group 0): the frame's uniform, the levels' uniforms (an array of
+/// `levels`), the height and colour clipmap arrays; its layout and buffers.
 fn clipmap_bindings(
     device: &wgpu::Device,
     heights: &wgpu::Texture,
@@ -134,7 +134,7 @@ fn clipmap_bindings(
             layout_entry(
                 1,
                 wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Storage { read_only: true },
+                    ty: wgpu::BufferBindingType::Uniform,
                     has_dynamic_offset: false,
                     min_binding_size: None,
                 },
@@ -152,7 +152,7 @@ fn clipmap_bindings(
     let level_buf = device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("levels"),
         size: (std::mem::size_of::<LevelUniform>() * levels as usize) as u64,
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
     });
     let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -180,30 +180,22 @@ fn clipmap_bindings(
     (layout, frame_buf, level_buf, bind)
 }
 
-/// The atmosphere's passes and the bind group (group 1) the draw reads their tables through,
-/// with its layout; the atmosphere starts switched off.
+/// The atmosphere's tables and the bind group (group 1) the draw reads them through, with its
+/// layout; the atmosphere starts switched off.
 fn atmosphere_bindings(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
-) -> (AtmospherePasses, wgpu::BindGroupLayout, wgpu::BindGroup) {
-    let mut atmosphere = AtmospherePasses::new(device);
-    let resources = atmosphere.resources();
+) -> (AirTables, wgpu::BindGroupLayout, wgpu::BindGroup) {
+    let mut atmosphere = AirTables::new(device);
+    let bindings = atmosphere.bindings();
     let air_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some("atmosphere"),
-        entries: &resources
+        entries: &bindings
             .iter()
-            .map(|(b, _)| wgpu::BindGroupLayoutEntry {
+            .map(|(b, ty, _)| wgpu::BindGroupLayoutEntry {
                 binding: *b,
                 visibility: wgpu::ShaderStages::FRAGMENT,
-                ty: wgpu::BindingType::Buffer {
-                    ty: if AtmospherePasses::is_uniform(*b) {
-                        wgpu::BufferBindingType::Uniform
-                    } else {
-                        wgpu::BufferBindingType::Storage { read_only: true }
-                    },
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
+                ty: *ty,
                 count: None,
             })
             .collect::<Vec<_>>(),
@@ -211,9 +203,9 @@ fn atmosphere_bindings(
     let atmosphere_bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("atmosphere"),
         layout: &air_layout,
-        entries: &resources
+        entries: &bindings
             .into_iter()
-            .map(|(binding, resource)| wgpu::BindGroupEntry { binding, resource })
+            .map(|(binding, _, resource)| wgpu::BindGroupEntry { binding, resource })
             .collect::<Vec<_>>(),
     });
     atmosphere.disable(queue);
@@ -282,9 +274,14 @@ impl ClipmapPass {
         );
         let (layout, frame_buf, level_buf, bind) =
             clipmap_bindings(device, &heights, &colors, levels);
+        let webgl = uploads_tables(device);
         let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("clipmap.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(crate::CLIPMAP_WGSL.into()),
+            source: wgpu::ShaderSource::Wgsl(if webgl {
+                crate::for_webgl(crate::CLIPMAP_WGSL).into()
+            } else {
+                crate::CLIPMAP_WGSL.into()
+            }),
         });
         let (atmosphere, air_layout, atmosphere_bind) = atmosphere_bindings(device, queue);
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -347,6 +344,13 @@ impl ClipmapPass {
         };
         self.terrain.push(make(&setup));
         self.planner.use_geometry(planner);
+    }
+
+    /// Whether the device has compute shaders and storage buffers (WebGPU, Vulkan, Metal, DX12;
+    /// not WebGL2, where the atmosphere's tables are made on the CPU and the warped mesh is not
+    /// drawn).
+    pub fn has_compute(&self) -> bool {
+        !uploads_tables(&self.device)
     }
 
     /// Whether the device draws wireframes.

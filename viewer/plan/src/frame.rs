@@ -74,6 +74,9 @@ pub struct LevelUniform {
     pub color_size: [u32; 2],
     /// See `color_viewer_texel`.
     pub color_origin: [u32; 2],
+    /// Up to a multiple of 16 bytes, the stride of a uniform array (the levels are one, which
+    /// WebGL2 reads as well as WebGPU).
+    pub pad: [u32; 2],
 }
 
 /// `LevelUniform::color_open`: the window goes round the whole circle (no longitude edge).
@@ -1040,6 +1043,7 @@ fn level_uniform(p: &Placement, pc: &Placement) -> LevelUniform {
         color_texels_per_rad: tpr(pc),
         color_size: pc.size,
         color_origin: pc.origin(),
+        pad: [0; 2],
     }
 }
 

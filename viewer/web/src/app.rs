@@ -150,13 +150,27 @@ fn draw_options(
     }
 }
 
+/// The page's display, which WebGL2 surfaces are made with (a web page has one, with no data).
+#[derive(Debug)]
+struct WebDisplay;
+
+impl raw_window_handle::HasDisplayHandle for WebDisplay {
+    fn display_handle(
+        &self,
+    ) -> Result<raw_window_handle::DisplayHandle<'_>, raw_window_handle::HandleError> {
+        Ok(raw_window_handle::DisplayHandle::web())
+    }
+}
+
 /// Opens the store at `store_url`, shows the view of the page's URL fragment in `canvas`, and
-/// keeps drawing it, one frame per animation frame. An element with id `status`, if any,
-/// shows what is loading and what failed.
+/// keeps drawing it, one frame per animation frame, on WebGPU where the browser has it and on
+/// WebGL2 otherwise (`gpu`: `webgpu` or `webgl2` asks for one). An element with id `status`, if
+/// any, shows what is loading and what failed.
 #[wasm_bindgen]
 pub async fn start(
     canvas: web_sys::HtmlCanvasElement,
     store_url: String,
+    gpu: Option<String>,
 ) -> Result<Viewer, JsValue> {
     let win = window()?;
     let fragment = win.location().hash()?;
@@ -176,7 +190,19 @@ pub async fn start(
         web_sys::console::warn_1(&JsValue::from_str(w));
     }
     fit_canvas(&canvas)?;
-    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle());
+    // WebGPU where the browser has it, else WebGL2; `gpu` may ask for either
+    let mut desc = wgpu::InstanceDescriptor::new_with_display_handle(Box::new(WebDisplay));
+    match gpu.as_deref() {
+        None | Some("") => {}
+        Some("webgpu") => desc.backends = wgpu::Backends::BROWSER_WEBGPU,
+        Some("webgl2") => desc.backends = wgpu::Backends::GL,
+        Some(other) => {
+            return Err(js_error(format!(
+                "the page's gpu={other:?} is neither webgpu nor webgl2"
+            )));
+        }
+    }
+    let instance = wgpu::util::new_instance_with_webgpu_detection(desc).await;
     let surface = instance
         .create_surface(wgpu::SurfaceTarget::Canvas(canvas.clone()))
         .map_err(|e| js_error(format!("cannot draw into the canvas: {e}")))?;
@@ -185,7 +211,7 @@ pub async fn start(
             .await
             .map_err(|e| {
                 js_error(format!(
-                    "{e}: this browser offers no WebGPU adapter (Chrome and Edge 113+, Firefox 141+, Safari 26+ have one; Chromium on Linux needs --enable-unsafe-webgpu)"
+                    "{e}: this browser offers neither WebGPU nor WebGL2"
                 ))
             })?;
     let caps = surface.get_capabilities(&adapter);
@@ -211,7 +237,14 @@ pub async fn start(
     };
     surface.configure(&device, &config);
     let mut pass = ClipmapPass::new(&device, &queue, view_format, store.radius);
-    let options = draw_options(&link, store.atmosphere);
+    let mut options = draw_options(&link, store.atmosphere);
+    if !pass.has_compute() && matches!(options.geometry, Geometry::Warp(_)) {
+        // the warped mesh needs storage buffers
+        web_sys::console::warn_1(&JsValue::from_str(
+            "geometry-image warping needs WebGPU; drawing spherical clipmaps on WebGL2",
+        ));
+        options.geometry = Geometry::Clipmap;
+    }
     pass.options = options;
     // the clear colour, and the sky's space behind the atmosphere
     pass.space = background(&options);

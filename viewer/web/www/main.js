@@ -1,15 +1,17 @@
 // Starts the viewer: the store of ?store=URL (else the page's sphereclip-store), the view of the
-// URL fragment (#camera=LAT,LON,ALT,HEADING,PITCH,FOV&shading=lit|none&atmosphere=on|off&renderer=…).
+// URL fragment (#camera=LAT,LON,ALT,HEADING,PITCH,FOV&shading=lit|none&atmosphere=on|off&renderer=…),
+// on WebGPU if the browser has it, else WebGL2 (?gpu=webgpu or ?gpu=webgl2 asks for one).
 import init, { start } from './sc_view_web.js';
 
 const status = document.getElementById('status');
-const named = new URLSearchParams(location.search).get('store')
+const query = new URLSearchParams(location.search);
+const named = query.get('store')
   ?? document.querySelector('meta[name="sphereclip-store"]').content;
 const store = new URL(named, location.href).href.replace(/\/+$/, '');
 
 try {
   await init();
-  window.sphereclip = await start(document.getElementById('planet'), store);
+  window.sphereclip = await start(document.getElementById('planet'), store, query.get('gpu'));
 } catch (e) {
   const text = String(e?.message ?? e);
   status.textContent = text;

@@ -91,11 +91,15 @@ impl TerrainSetup<'_> {
 
 /// Every terrain renderer, each registered by one line.
 pub fn renderers(setup: &TerrainSetup<'_>) -> Vec<Box<dyn TerrainRenderer>> {
-    vec![
+    let mut all: Vec<Box<dyn TerrainRenderer>> = vec![
         Box::new(clipmap::HemisphereRenderer::new(setup)),
         Box::new(cdlod::CdlodRenderer::new(setup)),
-        Box::new(warp::WarpRenderer::new(setup)),
-    ]
+    ];
+    // the warped mesh's lines are a storage buffer, which WebGL2 has not
+    if !crate::atmosphere::uploads_tables(setup.device) {
+        all.push(Box::new(warp::WarpRenderer::new(setup)));
+    }
+    all
 }
 
 /// The fill or wireframe pipeline, as asked.
