@@ -381,3 +381,111 @@ fn the_page_and_its_files_are_served_with_their_types() {
             .starts_with("text/javascript")
     );
 }
+
+/// A plain static host (Python's, which ignores Range and sends whole files) serving what
+/// `sphereclip web --out` wrote beside a copy of the store; stopped when dropped.
+struct StaticHost {
+    child: Child,
+    port: u16,
+}
+
+impl StaticHost {
+    fn start(dir: &Path) -> Self {
+        let port = std::net::TcpListener::bind("127.0.0.1:0")
+            .and_then(|l| l.local_addr())
+            .expect("a free port")
+            .port();
+        let child = Command::new("python3")
+            .args([
+                "-m",
+                "http.server",
+                "--bind",
+                "127.0.0.1",
+                &port.to_string(),
+            ])
+            .current_dir(dir)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("python3 runs");
+        let start = Instant::now();
+        while TcpStream::connect(("127.0.0.1", port)).is_err() {
+            assert!(start.elapsed() < Duration::from_secs(30), "no static host");
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        Self { child, port }
+    }
+}
+
+impl Drop for StaticHost {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Copies the store folder `from` to `to` as a user publishing it would: without the lock and
+/// `.sphereclip/`.
+fn publish(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).expect("mkdir");
+    for e in std::fs::read_dir(from).expect("store") {
+        let e = e.expect("entry");
+        let name = e.file_name();
+        if name.to_string_lossy().starts_with('.') {
+            continue;
+        }
+        if e.file_type().expect("type").is_dir() {
+            publish(&e.path(), &to.join(&name));
+        } else {
+            std::fs::copy(e.path(), to.join(&name)).expect("copy");
+        }
+    }
+}
+
+#[test]
+fn web_writes_a_site_that_a_static_host_serves_with_the_store() {
+    let store = sample_planet();
+    let site = tempfile::tempdir().expect("tmp");
+    let out = site.path().join("site");
+    ok(&run(&["web", "--out", s(&out)]));
+    let page = std::fs::read_to_string(out.join("index.html")).expect("index.html");
+    assert!(page.contains(r#"content="planet.zarr""#), "{page}");
+    for f in ["main.js", "sc_view_web.js", "sc_view_web_bg.wasm"] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+    // written again over itself: the same files
+    ok(&run(&["web", "--out", s(&out), "--store", "planet.zarr"]));
+    // a file, or a symlink, where the folder or a file should be: refused, nothing written
+    let file = site.path().join("a-file");
+    std::fs::write(&file, "mine").expect("write");
+    one_line_failure(&run(&["web", "--out", s(&file)]), "a file as --out");
+    assert_eq!(std::fs::read_to_string(&file).expect("read"), "mine");
+    let other = site.path().join("other");
+    std::fs::create_dir(&other).expect("mkdir");
+    std::os::unix::fs::symlink(&file, other.join("main.js")).expect("symlink");
+    one_line_failure(&run(&["web", "--out", s(&other)]), "a symlink in --out");
+    assert_eq!(std::fs::read_to_string(&file).expect("read"), "mine");
+    // the site and the store on a host that ignores Range
+    publish(&store, &out.join("planet.zarr"));
+    let host = StaticHost::start(&out);
+    let mut chromium = Chromium::start(WEBGPU);
+    let (img, status) = chromium
+        .view(
+            &format!(
+                "http://127.0.0.1:{}/#camera=30,10,12000000&shading=none",
+                host.port
+            ),
+            (160, 90),
+        )
+        .unwrap_or_else(|e| panic!("the static site did not complete its view: {e}"));
+    assert_eq!(status["failed"], 0, "{status}");
+    let want = native(
+        s(&store),
+        "30,10,12000000",
+        (160, 90),
+        &["--shading", "none"],
+        &site.path().join("native.png"),
+    );
+    let (mean, far, _) = difference(&img, &want);
+    assert!(mean <= 2.0 && far <= 0.005, "mean {mean}, {far} off");
+}

@@ -1,6 +1,6 @@
-//! The page's viewer: the store opened over HTTP, the native viewer's streamer and clipmap pass on
-//! the page's WebGPU canvas, one frame per animation frame, the camera moved by mouse, wheel and
-//! keys as in the desktop viewer and written back to the URL fragment.
+//! The page's viewer: the store opened over HTTP, the native viewer's streamer and clipmap pass
+//! on the page's canvas (WebGPU, else WebGL2), one frame per animation frame, the camera moved by
+//! mouse, wheel and keys as in the desktop viewer and written back to the URL fragment.
 //!
 //! A browser gives wasm one thread: the streamer has no workers, and the tiles are made on the
 //! page's thread in what is left of each frame ([`Streamer::work_until`]), each read a

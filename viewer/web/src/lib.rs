@@ -3,7 +3,7 @@
 //! the view (the URL fragment of [`sc_view_plan::link`]), and [`start`] opens the store over
 //! HTTP, builds the same image-source graph and streamer as the native viewer (tiles made on the
 //! page's thread between frames: a browser gives wasm no threads) and draws the same clipmap
-//! pass into the page's WebGPU canvas.
+//! pass into the page's canvas (WebGPU, else WebGL2).
 //!
 //! Natively the crate holds only what has no browser in it (the HTTP answers' rules), so the
 //! workspace builds and tests it like any other.
