@@ -37,9 +37,11 @@ pub enum Command {
     Render(RenderArgs),
     /// Show a store's layers, levels, tiles, sizes and value ranges; --verify checks every checksum.
     Info(InfoArgs),
-    /// Serve a store over HTTP, read-only, with Range requests, and the web viewer at / (also
-    /// for `view http://…`, other hosts' pages and any Zarr reader); loopback only unless --addr
-    /// says otherwise.
+    /// Serve a store over HTTP (read-only, Range requests) with the web viewer at /; loopback
+    /// only unless --addr says otherwise.
+    ///
+    /// The store is also read by `view http://…`, `render`, `info` and `export`, other hosts'
+    /// pages and any Zarr v3 reader.
     Serve(ServeArgs),
     /// Write the web viewer's static files into a folder, for any static host (nginx, an S3
     /// bucket, GitHub Pages) to serve beside a store.
