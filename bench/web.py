@@ -1,7 +1,8 @@
 """The web viewer in headless Chromium, driven over the DevTools protocol: for each view, the time
 from asking for the page to its complete view (the wasm fetched and compiled, the store's tiles
 fetched and made), the requests and bytes the page fetched, and then the steady frame time
-(requestAnimationFrame intervals over 120 frames of the complete view). One line of JSON a view.
+(requestAnimationFrame intervals over 120 frames flying sideways from the complete view, D held:
+a still view is not drawn again). One line of JSON a view.
 
 Usage: python bench/web.py PAGE_URL WxH FLAGS NAME=CAMERA...   (FLAGS: Chromium's, space-separated)
 """
@@ -61,9 +62,13 @@ try:
             print(json.dumps({"view": name, "error": said}), flush=True)
             continue
         status = json.loads(js("window.sphereclip.status()"))
+        # a still, complete view is not drawn again: fly sideways (D held) while measuring
+        key = dict(key="d", code="KeyD", windowsVirtualKeyCode=68)
+        call("Input.dispatchKeyEvent", type="keyDown", **key)
         frames = js("""new Promise((done) => { const t = []; const tick = (now) => { t.push(now);
             if (t.length > 120) done(t.slice(1).map((v, i) => v - t[i])); else requestAnimationFrame(tick); };
             requestAnimationFrame(tick); })""")
+        call("Input.dispatchKeyEvent", type="keyUp", **key)
         frames.sort()
         print(json.dumps({
             "view": name, "complete_ms": round(complete_ms), "bytes": status["bytes"],

@@ -489,3 +489,62 @@ fn web_writes_a_site_that_a_static_host_serves_with_the_store() {
     let (mean, far, _) = difference(&img, &want);
     assert!(mean <= 2.0 && far <= 0.005, "mean {mean}, {far} off");
 }
+
+#[test]
+fn a_server_that_goes_away_is_counted_and_shown_and_the_page_keeps_drawing() {
+    let store = sample_planet();
+    let server = Served::start(&store);
+    let page = format!("http://{}/#camera=30,10,12000000&shading=none", server.addr);
+    let mut chromium = Chromium::start(WEBGPU);
+    let (_, before) = chromium.view(&page, (320, 180)).expect("the first view");
+    assert_eq!(before["failed"], 0, "{before}");
+    drop(server);
+    // zoom in (the wheel on the canvas): finer levels, whose tiles can no longer be fetched
+    for _ in 0..8 {
+        chromium.call(
+            "Input.dispatchMouseEvent",
+            json!({"type": "mouseWheel", "x": 160, "y": 90, "deltaX": 0, "deltaY": -400}),
+        );
+    }
+    let said = chromium.eval(
+        "new Promise((done) => { const t0 = performance.now(); const look = () => {
+            const s = JSON.parse(window.sphereclip.status());
+            if (s.failed > 0 && window.sphereclip.complete()) done(s);
+            else if (performance.now() - t0 > 120000) done({timeout: s});
+            else setTimeout(look, 50); }; look(); })",
+    );
+    assert!(
+        said.get("timeout").is_none(),
+        "the page did not settle: {said}"
+    );
+    assert!(
+        said["level_wanted"].as_u64() > before["level_wanted"].as_u64(),
+        "the wheel did not zoom: {said}"
+    );
+    // shown on the page, and the page still draws when the view moves
+    let line = chromium.eval("document.getElementById('status').textContent");
+    assert!(line.as_str().unwrap_or("").contains("FAILED"), "{line}");
+    let frames = |c: &mut Chromium| {
+        let s: Value = serde_json::from_str(
+            c.eval("window.sphereclip.status()")
+                .as_str()
+                .expect("status"),
+        )
+        .expect("JSON");
+        s["frames"].as_u64().expect("frames")
+    };
+    let n = frames(&mut chromium);
+    chromium.call(
+        "Input.dispatchMouseEvent",
+        json!({"type": "mouseWheel", "x": 160, "y": 90, "deltaX": 0, "deltaY": 400}),
+    );
+    chromium.eval("new Promise((done) => setTimeout(done, 1000))");
+    assert!(frames(&mut chromium) > n, "the page stopped drawing");
+    // the address holds the new view
+    let link = chromium.eval("location.hash");
+    assert!(
+        link.as_str().unwrap_or("").starts_with("#camera=")
+            && !link.as_str().unwrap_or("").contains("12000000"),
+        "{link}"
+    );
+}

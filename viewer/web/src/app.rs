@@ -52,7 +52,7 @@ impl Viewer {
     /// Draws a frame and returns the canvas as a PNG data URL (the picture the page shows).
     pub fn snapshot(&self) -> Result<String, JsValue> {
         let mut app = self.app.borrow_mut();
-        app.frame()?;
+        app.frame(true)?;
         app.canvas.to_data_url_with_type("image/png")
     }
 
@@ -119,6 +119,8 @@ struct App {
     frames: u64,
     last: Instant,
     last_link: Instant,
+    /// Whether the camera moved since the address was last written.
+    link_behind: bool,
     stats: FrameStats,
     complete: bool,
 }
@@ -274,6 +276,7 @@ pub async fn start(
         frames: 0,
         last: now,
         last_link: now,
+        link_behind: false,
         stats: FrameStats::default(),
         complete: false,
     }));
@@ -301,7 +304,7 @@ fn run_frames(app: Rc<RefCell<App>>) -> Result<(), JsValue> {
     let tick: Rc<RefCell<Option<Tick>>> = Rc::new(RefCell::new(None));
     let again = tick.clone();
     *tick.borrow_mut() = Some(Closure::new(move |_t: f64| {
-        let result = app.borrow_mut().frame();
+        let result = app.borrow_mut().frame(false);
         match result {
             Ok(()) => {
                 if let (Ok(w), Some(f)) = (window(), again.borrow().as_ref()) {
@@ -421,12 +424,14 @@ impl App {
     }
 
     /// One frame: input, the streamed plan and its uploads, the draw, then tiles until the
-    /// frame's budget is spent.
-    fn frame(&mut self) -> Result<(), JsValue> {
+    /// frame's budget is spent. A complete view that did not move is not drawn again (the
+    /// canvas keeps it) unless `force`.
+    fn frame(&mut self, force: bool) -> Result<(), JsValue> {
         let now = Instant::now();
         let dt = now.duration_since(self.last).as_secs_f64().min(0.25);
         self.last = now;
-        if fit_canvas(&self.canvas)? {
+        let resized = fit_canvas(&self.canvas)?;
+        if resized {
             self.config.width = self.canvas.width();
             self.config.height = self.canvas.height();
             self.surface.configure(&self.device, &self.config);
@@ -441,12 +446,18 @@ impl App {
         };
         let before: Camera = self.controller.camera;
         self.controller.update(&input);
-        if self.controller.camera != before && now.duration_since(self.last_link) >= LINK_EVERY {
+        self.link_behind |= self.controller.camera != before;
+        // the address follows the camera, at most every LINK_EVERY (browsers limit rewrites)
+        if self.link_behind && now.duration_since(self.last_link) >= LINK_EVERY {
             self.last_link = now;
+            self.link_behind = false;
             let fragment = self.link().fragment();
             window()?
                 .history()?
                 .replace_state_with_url(&JsValue::NULL, "", Some(&fragment))?;
+        }
+        if self.complete && !force && !resized && self.controller.camera == before {
+            return Ok(());
         }
         let camera = self.controller.camera;
         let size = (self.config.width, self.config.height);
