@@ -332,7 +332,7 @@ async fn answer(state: Arc<State>, method: Method, uri: Uri, headers: HeaderMap)
         && name != "index.html"
         && let Some(bytes) = site::file(name, &state.name)
     {
-        return send_viewer_file(name, &bytes, &headers, head);
+        return send_viewer_file(name, bytes, &headers, head);
     }
     let Some(rest) = path
         .strip_prefix('/')
@@ -697,28 +697,33 @@ fn page(status: StatusCode, title: &str, text: &str) -> Response {
 /// served and how to open it.
 fn index(state: &State, health: &Health, headers: &HeaderMap, head: bool) -> Response {
     match health {
-        Health::Ready { .. } if site::has_viewer() => match site::file("index.html", &state.name) {
-            Some(page) => send_viewer_file("index.html", &page, headers, head),
-            None => page(StatusCode::NOT_FOUND, "Not found", site::NOT_BUILT),
-        },
-        Health::Ready { levels } => page(
-            StatusCode::OK,
-            &format!("sphereclip: {}", state.name),
-            &format!(
-                "The store {name} is served at /{name}/ (levels: {}). Open it with: sphereclip view URL/{name} (or render, info, export), or any Zarr v3 reader. The web viewer is not here: {}.",
-                levels.join("; "),
-                site::NOT_BUILT,
-                name = state.name
+        Health::Ready { levels } => match site::file("index.html", &state.name) {
+            Some(viewer) => send_viewer_file("index.html", viewer, headers, head),
+            None => page(
+                StatusCode::OK,
+                &format!("sphereclip: {}", state.name),
+                &format!(
+                    "The store {name} is served at /{name}/ (levels: {}). Open it with: sphereclip view URL/{name} (or render, info, export), or any Zarr v3 reader. The web viewer is not here: {}.",
+                    levels.join("; "),
+                    site::NOT_BUILT,
+                    name = state.name
+                ),
             ),
-        ),
+        },
         _ => health.refusal().unwrap_or_default(),
     }
 }
 
 /// A file of the web viewer: ETag (its checksum), gzip when the client takes it and it is worth
-/// it (the compressed forms are made once).
-fn send_viewer_file(name: &str, bytes: &[u8], headers: &HeaderMap, head: bool) -> Response {
-    let tag = format!("\"{:08x}-{:x}\"", crc32c::crc32c(bytes), bytes.len());
+/// it (the compressed forms are made once); the bytes are not copied.
+fn send_viewer_file(
+    name: &str,
+    bytes: std::borrow::Cow<'static, [u8]>,
+    headers: &HeaderMap,
+    head: bool,
+) -> Response {
+    let crc = crc32c::crc32c(&bytes);
+    let tag = format!("\"{crc:08x}-{:x}\"", bytes.len());
     let base = || {
         Response::builder()
             .header(header::ETAG, &tag)
@@ -733,30 +738,33 @@ fn send_viewer_file(name: &str, bytes: &[u8], headers: &HeaderMap, head: bool) -
         .is_some_and(|a| a.split(',').any(|e| e.trim().starts_with("gzip")))
         && bytes.len() > 1024;
     let (body, encoding) = if gzip {
-        (gzipped(name, bytes), Some("gzip"))
+        (gzipped(name, crc, &bytes), Some("gzip"))
     } else {
-        (Arc::new(bytes.to_vec()), None)
+        let body = match bytes {
+            std::borrow::Cow::Borrowed(b) => axum::body::Bytes::from_static(b),
+            std::borrow::Cow::Owned(v) => axum::body::Bytes::from(v),
+        };
+        (body, None)
     };
     let mut r = base().header(header::CONTENT_LENGTH, body.len());
     if let Some(e) = encoding {
         r = r.header(header::CONTENT_ENCODING, e);
     }
-    let body = if head {
+    cors(r.status(StatusCode::OK).body(if head {
         Body::empty()
     } else {
-        Body::from(body.as_ref().clone())
-    };
-    cors(r.status(StatusCode::OK).body(body))
+        Body::from(body)
+    }))
 }
 
-/// `bytes` of the viewer file `name` gzipped, made on first use and kept.
-fn gzipped(name: &str, bytes: &[u8]) -> Arc<Vec<u8>> {
+/// `bytes` of the viewer file `name` (checksum `crc`) gzipped, made on first use and kept.
+fn gzipped(name: &str, crc: u32, bytes: &[u8]) -> axum::body::Bytes {
     use std::collections::HashMap;
     use std::sync::OnceLock;
     /// Gzipped files by name and checksum.
-    type Made = HashMap<(String, u32), Arc<Vec<u8>>>;
+    type Made = HashMap<(String, u32), axum::body::Bytes>;
     static DONE: OnceLock<Mutex<Made>> = OnceLock::new();
-    let key = (name.to_string(), crc32c::crc32c(bytes));
+    let key = (name.to_string(), crc);
     let done = DONE.get_or_init(Mutex::default);
     if let Some(z) = done
         .lock()
@@ -769,7 +777,7 @@ fn gzipped(name: &str, bytes: &[u8]) -> Arc<Vec<u8>> {
     let z = std::io::Write::write_all(&mut e, bytes)
         .and_then(|()| e.finish())
         .unwrap_or_else(|_| bytes.to_vec());
-    let z = Arc::new(z);
+    let z = axum::body::Bytes::from(z);
     done.lock()
         .unwrap_or_else(PoisonError::into_inner)
         .insert(key, z.clone());

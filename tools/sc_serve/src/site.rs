@@ -38,32 +38,35 @@ fn escape_attr(s: &str) -> String {
         .replace('>', "&gt;")
 }
 
+/// A viewer file's bytes, the page's with its store set to `store`.
+fn for_store(name: &str, bytes: &'static [u8], store: &str) -> Cow<'static, [u8]> {
+    if name != "index.html" {
+        return Cow::Borrowed(bytes);
+    }
+    let page = String::from_utf8_lossy(bytes).replace(
+        STORE_META,
+        &format!(
+            r#"<meta name="sphereclip-store" content="{}">"#,
+            escape_attr(store)
+        ),
+    );
+    Cow::Owned(page.into_bytes())
+}
+
 /// The viewer's files with the page opening `store` (a URL, or a path relative to the page).
 pub fn files(store: &str) -> Vec<(&'static str, Cow<'static, [u8]>)> {
     WEB_FILES
         .iter()
-        .map(|&(name, bytes)| {
-            if name != "index.html" {
-                return (name, Cow::Borrowed(bytes));
-            }
-            let page = String::from_utf8_lossy(bytes).replace(
-                STORE_META,
-                &format!(
-                    r#"<meta name="sphereclip-store" content="{}">"#,
-                    escape_attr(store)
-                ),
-            );
-            (name, Cow::Owned(page.into_bytes()))
-        })
+        .map(|&(name, bytes)| (name, for_store(name, bytes, store)))
         .collect()
 }
 
 /// A viewer file by name (the page opening `store`), if there is one.
 pub fn file(name: &str, store: &str) -> Option<Cow<'static, [u8]>> {
-    files(store)
-        .into_iter()
+    WEB_FILES
+        .iter()
         .find(|(n, _)| *n == name)
-        .map(|(_, b)| b)
+        .map(|&(name, bytes)| for_store(name, bytes, store))
 }
 
 /// Writes the viewer's files into the folder `out` (made if missing; its parent must exist),

@@ -41,12 +41,26 @@ const TABLES: [(&str, u32); 6] = [
 ];
 
 fn texels(k: usize) -> usize {
-    match k {
-        0 => TRANSMITTANCE_SIZE.0 * TRANSMITTANCE_SIZE.1,
-        1 => MULTIPLE_SCATTERING_SIZE * MULTIPLE_SCATTERING_SIZE,
-        2 => SKY_VIEW_SIZE.0 * SKY_VIEW_SIZE.1,
-        5 => IRRADIANCE_SIZE.0 * IRRADIANCE_SIZE.1,
-        _ => AERIAL_SIZE * AERIAL_SIZE * AERIAL_SIZE,
+    let (w, h) = texture_size(k);
+    w as usize * h as usize
+}
+
+/// A uniform buffer of `size` bytes the queue writes.
+fn uniform_buffer(device: &wgpu::Device, label: &str, size: usize) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: size as u64,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
+/// Writes the "no atmosphere" frame into `frame` unless `last` says it holds it already.
+fn write_off(queue: &wgpu::Queue, frame: &wgpu::Buffer, last: &mut Option<AtmosphereFrame>) {
+    let off = <AtmosphereFrame as bytemuck::Zeroable>::zeroed();
+    if *last != Some(off) {
+        queue.write_buffer(frame, 0, bytemuck::bytes_of(&off));
+        *last = Some(off);
     }
 }
 
@@ -80,14 +94,7 @@ impl AtmospherePasses {
             label: Some("atmosphere.wgsl"),
             source: wgpu::ShaderSource::Wgsl(crate::ATMOSPHERE_WGSL.into()),
         });
-        let uniform = |label: &str, size: usize| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: size as u64,
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            })
-        };
+        let uniform = |label: &str, size: usize| uniform_buffer(device, label, size);
         let atm = uniform("atmosphere", std::mem::size_of::<AtmosphereUniforms>());
         let frame = uniform("atmosphere frame", std::mem::size_of::<AtmosphereFrame>());
         let tables: Vec<wgpu::Buffer> = TABLES
@@ -214,11 +221,7 @@ impl AtmospherePasses {
     /// Marks the frame as drawn without the atmosphere (the renderer's fragment stage then
     /// lights the terrain as without air).
     pub fn disable(&mut self, queue: &wgpu::Queue) {
-        let off = <AtmosphereFrame as bytemuck::Zeroable>::zeroed();
-        if self.last_frame != Some(off) {
-            queue.write_buffer(&self.frame, 0, bytemuck::bytes_of(&off));
-            self.last_frame = Some(off);
-        }
+        write_off(queue, &self.frame, &mut self.last_frame);
     }
 
     /// The uniforms and tables as the renderer binds them: binding 0 the atmosphere, 3 the
@@ -379,14 +382,7 @@ pub struct UploadedTables {
 
 impl UploadedTables {
     fn new(device: &wgpu::Device) -> Self {
-        let uniform = |label: &str, size: usize| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: size as u64,
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            })
-        };
+        let uniform = |label: &str, size: usize| uniform_buffer(device, label, size);
         let textures = TABLES
             .iter()
             .enumerate()
@@ -519,13 +515,7 @@ impl AirTables {
     pub fn disable(&mut self, queue: &wgpu::Queue) {
         match self {
             Self::Computed(p) => p.disable(queue),
-            Self::Uploaded(u) => {
-                let off = <AtmosphereFrame as bytemuck::Zeroable>::zeroed();
-                if u.last_frame != Some(off) {
-                    queue.write_buffer(&u.frame, 0, bytemuck::bytes_of(&off));
-                    u.last_frame = Some(off);
-                }
-            }
+            Self::Uploaded(u) => write_off(queue, &u.frame, &mut u.last_frame),
         }
     }
 

@@ -82,6 +82,16 @@ pub const WARP_WGSL: &str = concat!(
     include_str!("../../../shaders/warp.wgsl")
 );
 
+/// A renderer's shader `wgsl` as `device` takes it: [`for_webgl`] where the device has no
+/// storage buffers ([`atmosphere::uploads_tables`]), else as it is.
+pub fn wgsl_for(device: &wgpu::Device, wgsl: &'static str) -> std::borrow::Cow<'static, str> {
+    if atmosphere::uploads_tables(device) {
+        for_webgl(wgsl).into()
+    } else {
+        wgsl.into()
+    }
+}
+
 /// `wgsl` (one of the renderers' shaders) for WebGL2: the atmosphere's tables read from
 /// textures (`shaders/air_tables_webgl.wgsl`) instead of storage buffers.
 pub fn for_webgl(wgsl: &str) -> String {

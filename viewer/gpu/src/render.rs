@@ -274,14 +274,9 @@ impl ClipmapPass {
         );
         let (layout, frame_buf, level_buf, bind) =
             clipmap_bindings(device, &heights, &colors, levels);
-        let webgl = uploads_tables(device);
         let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("clipmap.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(if webgl {
-                crate::for_webgl(crate::CLIPMAP_WGSL).into()
-            } else {
-                crate::CLIPMAP_WGSL.into()
-            }),
+            source: wgpu::ShaderSource::Wgsl(crate::wgsl_for(device, crate::CLIPMAP_WGSL)),
         });
         let (atmosphere, air_layout, atmosphere_bind) = atmosphere_bindings(device, queue);
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {

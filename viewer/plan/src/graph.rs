@@ -407,12 +407,18 @@ pub const MAX_SOURCES: usize = 64;
 
 fn open(at: &Location, warnings: &mut Vec<String>) -> Result<StoreReader, String> {
     let r = StoreReader::open_at(at).map_err(|e| format!("cannot read store {at}: {e}"))?;
-    if !r.meta().complete {
-        warnings.push(format!(
-            "store {at} is INCOMPLETE (a writer did not commit): some tiles may be missing or old"
-        ));
-    }
+    warnings.extend(incomplete(&r));
     Ok(r)
+}
+
+/// The warning an INCOMPLETE store gets, if `r` is one.
+fn incomplete(r: &StoreReader) -> Option<String> {
+    (!r.meta().complete).then(|| {
+        format!(
+            "store {} is INCOMPLETE (a writer did not commit): some tiles may be missing or old",
+            r.location()
+        )
+    })
 }
 
 impl Graph {
@@ -439,14 +445,15 @@ impl Graph {
     /// The default graph of `store`: its heights (a smooth sphere if it has none) and its
     /// colours through a neutral filter.
     pub fn for_store(store: &Location) -> Result<Self, ViewError> {
-        let mut warnings = Vec::new();
-        let reader = open(store, &mut warnings).map_err(ViewError::Graph)?;
-        Ok(Self::for_reader(reader, warnings))
+        let reader = StoreReader::open_at(store)
+            .map_err(|e| ViewError::Graph(format!("cannot read store {store}: {e}")))?;
+        Ok(Self::for_reader(reader))
     }
 
     /// [`Self::for_store`] of a store opened already (a browser opens it through the page's own
-    /// fetching), with the warnings its opening gave.
-    pub fn for_reader(reader: StoreReader, warnings: Vec<String>) -> Self {
+    /// fetching); an INCOMPLETE store is warned of.
+    pub fn for_reader(reader: StoreReader) -> Self {
+        let warnings = incomplete(&reader).into_iter().collect();
         let store = reader.location().clone();
         let meta = reader.meta();
         let radius = meta.radius_m;

@@ -181,13 +181,7 @@ pub async fn start(
     let location = Location::Remote(store_url.trim_end_matches('/').to_string());
     let reader = StoreReader::open_source(location.clone(), source, None)
         .map_err(|e| js_error(format!("cannot read store {location}: {e}")))?;
-    let mut warnings = Vec::new();
-    if !reader.meta().complete {
-        warnings.push(format!(
-            "store {location} is INCOMPLETE (a writer did not commit): some tiles may be missing or old"
-        ));
-    }
-    let store = StoreStreamer::of(Graph::for_reader(reader, warnings), 0);
+    let store = StoreStreamer::of(Graph::for_reader(reader), 0);
     for w in &store.warnings {
         web_sys::console::warn_1(&JsValue::from_str(w));
     }

@@ -86,11 +86,7 @@ impl CdlodRenderer {
         let pipeline_layout = setup.pipeline_layout("cdlod", Some(&layout));
         let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("cdlod.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(if crate::atmosphere::uploads_tables(setup.device) {
-                crate::for_webgl(crate::CDLOD_WGSL).into()
-            } else {
-                crate::CDLOD_WGSL.into()
-            }),
+            source: wgpu::ShaderSource::Wgsl(crate::wgsl_for(setup.device, crate::CDLOD_WGSL)),
         });
         let buffers = [
             wgpu::VertexBufferLayout {
