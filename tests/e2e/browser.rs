@@ -450,7 +450,12 @@ fn web_writes_a_site_that_a_static_host_serves_with_the_store() {
     ok(&run(&["web", "--out", s(&out)]));
     let page = std::fs::read_to_string(out.join("index.html")).expect("index.html");
     assert!(page.contains(r#"content="planet.zarr""#), "{page}");
-    for f in ["main.js", "sc_view_web.js", "sc_view_web_bg.wasm"] {
+    for f in [
+        "main.js",
+        "worker.js",
+        "sc_view_web.js",
+        "sc_view_web_bg.wasm",
+    ] {
         assert!(out.join(f).is_file(), "{f}");
     }
     // written again over itself: the same files
@@ -524,15 +529,7 @@ fn a_server_that_goes_away_is_counted_and_shown_and_the_page_keeps_drawing() {
     // shown on the page, and the page still draws when the view moves
     let line = chromium.eval("document.getElementById('status').textContent");
     assert!(line.as_str().unwrap_or("").contains("FAILED"), "{line}");
-    let frames = |c: &mut Chromium| {
-        let s: Value = serde_json::from_str(
-            c.eval("window.sphereclip.status()")
-                .as_str()
-                .expect("status"),
-        )
-        .expect("JSON");
-        s["frames"].as_u64().expect("frames")
-    };
+    let frames = |c: &mut Chromium| status(c)["frames"].as_u64().expect("frames");
     let n = frames(&mut chromium);
     chromium.call(
         "Input.dispatchMouseEvent",
@@ -546,5 +543,151 @@ fn a_server_that_goes_away_is_counted_and_shown_and_the_page_keeps_drawing() {
         link.as_str().unwrap_or("").starts_with("#camera=")
             && !link.as_str().unwrap_or("").contains("12000000"),
         "{link}"
+    );
+}
+
+/// A server in front of `serve` that answers the page, its files and the store's metadata, and
+/// takes every request for a shard (a `/c/` key) without ever answering it: a server that hangs.
+/// Its listener and the connections it holds close when it is dropped.
+struct Silent {
+    addr: std::net::SocketAddr,
+    held: std::sync::Arc<std::sync::Mutex<Vec<TcpStream>>>,
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+}
+
+impl Silent {
+    fn start(upstream: std::net::SocketAddr) -> Self {
+        use std::io::Write;
+        use std::sync::atomic::{AtomicBool, Ordering};
+        use std::sync::{Arc, Mutex};
+        let listener = std::net::TcpListener::bind("127.0.0.1:0").expect("binds");
+        let addr = listener.local_addr().expect("addr");
+        let held: Arc<Mutex<Vec<TcpStream>>> = Arc::default();
+        let stop = Arc::new(AtomicBool::new(false));
+        let (h, st) = (held.clone(), stop.clone());
+        std::thread::spawn(move || {
+            for conn in listener.incoming() {
+                if st.load(Ordering::SeqCst) {
+                    return;
+                }
+                let Ok(mut conn) = conn else { continue };
+                let h = h.clone();
+                std::thread::spawn(move || {
+                    // one request per connection: its head, up to the empty line
+                    let mut head = Vec::new();
+                    let mut b = [0u8; 1];
+                    while !head.ends_with(b"\r\n\r\n") && head.len() < 65536 {
+                        if conn.read(&mut b).unwrap_or(0) == 0 {
+                            return;
+                        }
+                        head.push(b[0]);
+                    }
+                    let head = String::from_utf8_lossy(&head).into_owned();
+                    let path = head.split(' ').nth(1).unwrap_or("");
+                    if path.contains("/c/") {
+                        h.lock().expect("lock").push(conn);
+                        return;
+                    }
+                    let mut lines: Vec<&str> = head
+                        .trim_end()
+                        .lines()
+                        .filter(|l| !l.to_ascii_lowercase().starts_with("connection:"))
+                        .collect();
+                    lines.push("Connection: close");
+                    let Ok(mut up) = TcpStream::connect(upstream) else {
+                        return;
+                    };
+                    let mut answer = Vec::new();
+                    if up
+                        .write_all(format!("{}\r\n\r\n", lines.join("\r\n")).as_bytes())
+                        .is_ok()
+                        && up.read_to_end(&mut answer).is_ok()
+                    {
+                        let _ = conn.write_all(&answer);
+                    }
+                });
+            }
+        });
+        Self { addr, held, stop }
+    }
+
+    /// Shard requests taken and never answered so far.
+    fn hanging(&self) -> usize {
+        self.held.lock().expect("lock").len()
+    }
+}
+
+impl Drop for Silent {
+    fn drop(&mut self) {
+        self.stop.store(true, std::sync::atomic::Ordering::SeqCst);
+        // wakes the listener, which then stops
+        let _ = TcpStream::connect(self.addr);
+        self.held.lock().expect("lock").clear();
+    }
+}
+
+/// The viewer's status, as JSON.
+fn status(c: &mut Chromium) -> Value {
+    serde_json::from_str(
+        c.eval("window.sphereclip.status()")
+            .as_str()
+            .expect("status"),
+    )
+    .expect("JSON")
+}
+
+#[test]
+fn a_server_that_never_answers_slows_the_view_not_the_page() {
+    let store = sample_planet();
+    let server = Served::start(&store);
+    let silent = Silent::start(server.addr);
+    let mut chromium = Chromium::start(WEBGPU);
+    chromium.call(
+        "Emulation.setDeviceMetricsOverride",
+        json!({"width": 160, "height": 90, "deviceScaleFactor": 1, "mobile": false}),
+    );
+    // each request given up after 2 s
+    chromium.navigate(&format!(
+        "http://{}/?timeout=2#camera=30,10,12000000&shading=none",
+        silent.addr
+    ));
+    let opened = chromium.eval(
+        "new Promise((done) => { const t0 = performance.now(); const look = () => {
+            if (window.sphereclip || window.sphereclipError) done(window.sphereclipError ?? 'open');
+            else if (performance.now() - t0 > 60000) done('never opened');
+            else setTimeout(look, 20); }; look(); })",
+    );
+    assert_eq!(opened, "open", "the store's metadata is answered");
+    // while the shards' requests hang, the page draws frames and answers at once
+    let start = Instant::now();
+    while silent.hanging() == 0 {
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "no shard asked for"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    // animation frames go on (none would while the page's thread waited on the network)
+    let frames = chromium.eval(
+        "new Promise((done) => { let n = 0; const t0 = performance.now(); const tick = () => {
+            n += 1; if (n < 5 && performance.now() - t0 < 30000) requestAnimationFrame(tick);
+            else done(n); }; requestAnimationFrame(tick); })",
+    );
+    assert!(silent.hanging() > 0);
+    assert_eq!(frames, 5, "animation frames while the server hangs");
+    // the silent requests are given up, counted and shown
+    let said = chromium.eval(
+        "new Promise((done) => { const t0 = performance.now(); const look = () => {
+            const s = JSON.parse(window.sphereclip.status());
+            const line = document.getElementById('status').textContent;
+            if (s.failed > 0 && s.errors > 0 && line.includes('FAILED')) done(s);
+            else if (performance.now() - t0 > 120000) done({timeout: s, line});
+            else setTimeout(look, 50); }; look(); })",
+    );
+    assert!(said.get("timeout").is_none(), "no failure shown: {said}");
+    let why = said["last_error"].as_str().unwrap_or("");
+    assert!(
+        why.contains("/c/") && why.contains("no answer (none in 2 s)"),
+        "{said}"
     );
 }

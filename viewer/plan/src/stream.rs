@@ -616,6 +616,14 @@ impl TileCache {
         self.len() == 0
     }
 
+    /// Drops every tile, and forgets every failure.
+    pub fn clear(&self) {
+        let mut c = self.lock();
+        c.tiles.clear();
+        c.failed.clear();
+        c.bytes = 0;
+    }
+
     /// Drops every tile of the given sources (their parameters changed).
     pub fn invalidate(&self, sources: &[u32]) {
         let mut c = self.lock();
@@ -873,6 +881,31 @@ impl Streamer {
     /// cached: a maker elsewhere sends it to the streamer that asked ([`Self::finish`]).
     pub fn make_tile(&self, task: &Task) -> Result<TileData, TileError> {
         make_task(&self.shared, task)
+    }
+
+    /// The tiles `key`'s source makes it from, in the order the source takes them.
+    pub fn inputs_of(&self, key: &TileKey) -> Vec<TileKey> {
+        self.shared
+            .sources
+            .get(key.source as usize)
+            .map(|s| s.inputs().into_iter().map(|i| key.with_source(i)).collect())
+            .unwrap_or_default()
+    }
+
+    /// Makes `task`'s tile from `inputs`, tiles another streamer made (inputs not among them
+    /// are made here), and keeps nothing: this streamer is a maker for another one (a browser's
+    /// web worker for the page's streamer), which caches what it sends and gets.
+    pub fn make_tile_from(
+        &self,
+        task: &Task,
+        inputs: Vec<(TileKey, TileData)>,
+    ) -> Result<TileData, TileError> {
+        for (k, t) in inputs {
+            self.shared.cache.insert(k, t);
+        }
+        let made = make_task(&self.shared, task);
+        self.shared.cache.clear();
+        made
     }
 
     /// Ends the task of `key` with its tile or failure (logged once per tile): the tile goes
@@ -1425,6 +1458,33 @@ mod tests {
         let threaded = Streamer::new(sources(), 8, 1, 1 << 20);
         threaded.request(vec![Task::visible(derived[0])]);
         assert!(threaded.take_task().is_none());
+    }
+
+    #[test]
+    fn a_maker_for_another_streamer_uses_the_inputs_it_is_given_and_keeps_nothing() {
+        let maker = Streamer::without_threads(
+            vec![
+                Box::new(FnHeightTiles(|lon: f64, _: f64| lon as f32)),
+                Box::new(Double),
+            ],
+            8,
+            1,
+            1 << 20,
+        );
+        let k = key(4, 3).with_source(1);
+        assert_eq!(maker.inputs_of(&k), [key(4, 3)]);
+        assert!(maker.inputs_of(&key(4, 3)).is_empty());
+        assert!(maker.inputs_of(&k.with_source(9)).is_empty());
+        // the input as the page's streamer has it, not as this maker's source would make it
+        let given = TileData::Height(vec![7.0; 64]);
+        let made = maker.make_tile_from(&Task::visible(k), vec![(key(4, 3), given)]);
+        assert_eq!(made, Ok(TileData::Height(vec![14.0; 64])));
+        assert!(maker.cache().is_empty(), "nothing kept");
+        // an input not given is made here
+        let alone = maker.make_tile_from(&Task::visible(k), Vec::new());
+        let direct = maker.make_tile(&Task::visible(k));
+        assert_eq!(alone, direct);
+        assert_ne!(alone, made);
     }
 
     /// Panics on every tile of level 2 (like a decoder meeting data no check foresaw).

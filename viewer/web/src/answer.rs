@@ -7,12 +7,23 @@ use std::io;
 /// An HTTP answer: its status, its `Content-Range` header and its body.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Answer {
-    /// The status code; 0 when no answer came (the browser's network error).
+    /// The status code; 0 when no answer came (the browser's network error; the body says why).
     pub status: u16,
     /// The `Content-Range` header, if any.
     pub content_range: Option<String>,
     /// The body.
     pub body: Vec<u8>,
+}
+
+impl Answer {
+    /// No answer came: `why` (the server is unreachable, or did not answer in time).
+    pub fn none(why: String) -> Self {
+        Self {
+            status: 0,
+            content_range: None,
+            body: why.into_bytes(),
+        }
+    }
 }
 
 fn bad(url: &str, what: String) -> io::Error {
@@ -21,9 +32,15 @@ fn bad(url: &str, what: String) -> io::Error {
 
 fn failed(url: &str, a: &Answer) -> io::Error {
     if a.status == 0 {
+        let why = String::from_utf8_lossy(&a.body);
+        let why = if why.is_empty() {
+            "the server is unreachable or refused the request"
+        } else {
+            &why
+        };
         io::Error::new(
             io::ErrorKind::ConnectionRefused,
-            format!("{url}: no answer (the server is unreachable or refused the request)"),
+            format!("{url}: no answer ({why})"),
         )
     } else {
         bad(url, format!("HTTP {}", a.status))
@@ -198,6 +215,8 @@ mod tests {
                 .kind(),
             io::ErrorKind::ConnectionRefused
         );
+        let late = range("u", Answer::none("none in 20 s".into()), 0, 1).expect_err("late");
+        assert_eq!(late.to_string(), "u: no answer (none in 20 s)");
         assert!(range("u", answer(500, None, b""), 0, 1).is_err());
     }
 

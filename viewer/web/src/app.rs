@@ -2,22 +2,19 @@
 //! on the page's canvas (WebGPU, else WebGL2), one frame per animation frame, the camera moved by
 //! mouse, wheel and keys as in the desktop viewer and written back to the URL fragment.
 //!
-//! A browser gives wasm one thread: the streamer has no workers, and the tiles are made on the
-//! page's thread in what is left of each frame ([`Streamer::work_until`]), each read a
-//! synchronous request ([`crate::xhr`]).
+//! The page's thread never reads the store: web workers make the tiles ([`crate::pool`]), and
+//! each frame draws what has arrived (coarser levels until finer ones come).
 #![allow(unsafe_code)] // wasm-bindgen's exports are unsafe glue the macros write
 
 use std::cell::RefCell;
 use std::collections::HashSet;
 use std::rc::Rc;
 use std::sync::Arc;
-use std::sync::atomic::Ordering::Relaxed;
 
-use sc_store::{Location, StoreReader};
 use sc_view_gpu::render::{ClipmapPass, background, begin_pass, depth_target};
 use sc_view_plan::camera::{Camera, Controller, Input, Mode};
 use sc_view_plan::frame::{DrawOptions, FrameClock, FrameStats};
-use sc_view_plan::graph::{Graph, StoreStreamer};
+use sc_view_plan::graph::StoreStreamer;
 use sc_view_plan::link::{RendererName, ViewLink};
 use sc_view_plan::sun::Sun;
 use sc_view_plan::terrain::Geometry;
@@ -25,10 +22,12 @@ use wasm_bindgen::JsCast;
 use wasm_bindgen::prelude::*;
 use web_time::{Duration, Instant};
 
-use crate::xhr::{COUNTS, XhrSource};
+use crate::pool::{self, Pool};
+use crate::recorded::Recorded;
+use crate::wire;
 
-/// A frame's time for planning, uploads and making tiles (the rest of a 60 Hz frame is the
-/// browser's and the GPU's).
+/// A frame's time for planning and uploads (the rest of a 60 Hz frame is the browser's and the
+/// GPU's).
 const UPDATE_BUDGET: Duration = Duration::from_millis(10);
 
 /// How often at most the address bar is rewritten while the camera moves.
@@ -111,7 +110,8 @@ struct App {
     view_format: wgpu::TextureFormat,
     pass: ClipmapPass,
     depth: wgpu::TextureView,
-    store: StoreStreamer,
+    store: Rc<StoreStreamer>,
+    makers: Rc<RefCell<Pool>>,
     controller: Controller,
     link: ViewLink,
     input: Rc<RefCell<InputState>>,
@@ -166,22 +166,43 @@ impl raw_window_handle::HasDisplayHandle for WebDisplay {
 
 /// Opens the store at `store_url`, shows the view of the page's URL fragment in `canvas`, and
 /// keeps drawing it, one frame per animation frame, on WebGPU where the browser has it and on
-/// WebGL2 otherwise (`gpu`: `webgpu` or `webgl2` asks for one). An element with id `status`, if
-/// any, shows what is loading and what failed.
+/// WebGL2 otherwise (`gpu`: `webgpu` or `webgl2` asks for one). The tiles are made by `makers`
+/// web workers (default: one per core but one, 2 to 6) running `worker_url`, each request given
+/// up after `timeout_s` seconds (default 20). An element with id `status`, if any, shows what is
+/// loading and what failed.
 #[wasm_bindgen]
 pub async fn start(
     canvas: web_sys::HtmlCanvasElement,
     store_url: String,
     gpu: Option<String>,
+    worker_url: String,
+    makers: Option<u32>,
+    timeout_s: Option<f64>,
 ) -> Result<Viewer, JsValue> {
     let win = window()?;
     let fragment = win.location().hash()?;
     let link = ViewLink::parse(&fragment).map_err(js_error)?;
-    let source = Arc::new(XhrSource::new(&store_url));
-    let location = Location::Remote(store_url.trim_end_matches('/').to_string());
-    let reader = StoreReader::open_source(location.clone(), source, None)
-        .map_err(|e| js_error(format!("cannot read store {location}: {e}")))?;
-    let store = StoreStreamer::of(Graph::for_reader(reader), 0);
+    let store_url = store_url.trim_end_matches('/').to_string();
+    let timeout_ms = (timeout_s.unwrap_or(20.0).clamp(1.0, 600.0) * 1000.0) as u32;
+    let makers = match makers {
+        Some(n) => n.clamp(1, 16) as usize,
+        None => (win.navigator().hardware_concurrency() as usize)
+            .saturating_sub(1)
+            .clamp(2, 6),
+    };
+    let first = pool::first(&worker_url, &store_url, timeout_ms).await?;
+    // the page's graph, opened from what the first worker read
+    let record = Recorded::new(&store_url, None, Some(&first.1)).map_err(js_error)?;
+    let graph = crate::maker::open_graph(&store_url, Arc::new(record))?;
+    let store = Rc::new(StoreStreamer::of(graph, makers));
+    let makers = Pool::start(
+        store.clone(),
+        makers,
+        first,
+        &worker_url,
+        &store_url,
+        timeout_ms,
+    )?;
     for w in &store.warnings {
         web_sys::console::warn_1(&JsValue::from_str(w));
     }
@@ -264,6 +285,7 @@ pub async fn start(
         pass,
         depth,
         store,
+        makers,
         link,
         input,
         adapter: adapter_name,
@@ -464,15 +486,21 @@ impl App {
                 now,
                 deadline: Some(now + UPDATE_BUDGET),
             },
-            Duration::from_secs(10),
+            // nothing is waited for: what has not arrived is drawn coarser
+            Duration::ZERO,
         );
+        // the plan's tasks to the idle workers; a worker silent too long is given up
+        {
+            let mut makers = self.makers.borrow_mut();
+            makers.dispatch();
+            makers.check(now);
+        }
         self.stats = stats;
         self.draw()?;
         self.frames += 1;
         self.complete = (stats.level_hi == stats.level_wanted || stats.level_failed)
             && !stats.fading
             && self.store.streamer.idle();
-        self.store.streamer.work_until(now + UPDATE_BUDGET);
         if self.frames % 15 == 1 || self.complete {
             let line = self.status_text();
             self.show(&line);
@@ -511,17 +539,18 @@ impl App {
 
     fn status_text(&self) -> String {
         let s = &self.stats;
-        let failed = COUNTS.failed.load(Relaxed);
+        let makers = self.makers.borrow();
+        let [requests, failed, bytes] = makers.counts();
         format!(
             "levels {}..{} of {}{} · {} tiles made · {} requests, {:.1} MiB{}",
             s.level_lo,
             s.level_hi,
             s.level_wanted,
             if self.complete { " · complete" } else { "" },
-            self.store.streamer.work().0,
-            COUNTS.requests.load(Relaxed),
-            COUNTS.bytes.load(Relaxed) as f64 / 1048576.0,
-            if failed > 0 {
+            makers.made(),
+            requests,
+            bytes / 1048576.0,
+            if failed > 0.0 {
                 format!(" · {failed} FAILED")
             } else {
                 String::new()
@@ -529,27 +558,41 @@ impl App {
         )
     }
 
+    /// Shows `line`; the last failure, if any, when the pointer rests on it.
     fn show(&self, line: &str) {
         if let Some(e) = &self.status_line {
             e.set_text_content(Some(line));
+            if let Some(why) = self.store.streamer.errors().last() {
+                e.set_title(why);
+            }
         }
     }
 
     fn status(&self) -> String {
         let s = &self.stats;
+        let makers = self.makers.borrow();
+        let [requests, failed, bytes] = makers.counts();
         format!(
-            "{{\"frames\":{},\"complete\":{},\"level_lo\":{},\"level_hi\":{},\"level_wanted\":{},\"tiles\":{},\"requests\":{},\"failed\":{},\"bytes\":{},\"errors\":{},\"adapter\":{:?}}}",
+            "{{\"frames\":{},\"complete\":{},\"level_lo\":{},\"level_hi\":{},\"level_wanted\":{},\"tiles\":{},\"requests\":{},\"failed\":{},\"bytes\":{},\"errors\":{},\"makers\":{},\"last_error\":{},\"adapter\":{}}}",
             self.frames,
             self.complete,
             s.level_lo,
             s.level_hi,
             s.level_wanted,
-            self.store.streamer.work().0,
-            COUNTS.requests.load(Relaxed),
-            COUNTS.failed.load(Relaxed),
-            COUNTS.bytes.load(Relaxed),
+            makers.made(),
+            requests,
+            failed,
+            bytes,
             self.store.streamer.errors().len(),
-            self.adapter,
+            makers.working(),
+            wire::json_string(
+                self.store
+                    .streamer
+                    .errors()
+                    .last()
+                    .map_or("", |e| e.as_str())
+            ),
+            wire::json_string(&self.adapter),
         )
     }
 }

@@ -1,6 +1,8 @@
 // Starts the viewer: the store of ?store=URL (else the page's sphereclip-store), the view of the
 // URL fragment (#camera=LAT,LON,ALT,HEADING,PITCH,FOV&shading=lit|none&atmosphere=on|off&renderer=…),
-// on WebGPU if the browser has it, else WebGL2 (?gpu=webgpu or ?gpu=webgl2 asks for one).
+// on WebGPU if the browser has it, else WebGL2 (?gpu=webgpu or ?gpu=webgl2 asks for one); the
+// tiles made by web workers (worker.js; ?workers=N of them, each request given up after
+// ?timeout=SECONDS).
 import init, { start } from './sc_view_web.js';
 
 const status = document.getElementById('status');
@@ -11,7 +13,9 @@ const store = new URL(named, location.href).href.replace(/\/+$/, '');
 
 try {
   await init();
-  window.sphereclip = await start(document.getElementById('planet'), store, query.get('gpu'));
+  const number = (name) => (query.has(name) ? Number(query.get(name)) : undefined);
+  window.sphereclip = await start(document.getElementById('planet'), store, query.get('gpu'),
+    new URL('worker.js', import.meta.url).href, number('workers'), number('timeout'));
 } catch (e) {
   const text = String(e?.message ?? e);
   status.textContent = text;
