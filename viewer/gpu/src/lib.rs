@@ -5,6 +5,7 @@
 
 pub mod atmosphere;
 pub mod device;
+pub mod edits;
 pub mod flight;
 pub mod measure;
 pub mod probe;

@@ -372,9 +372,31 @@ fn a_filter_edit_remakes_only_the_visible_tiles() {
     let cached = streamer.cache().tiles_of(2);
     let count = made.load(Ordering::SeqCst);
     // the panel's edit: new settings, the filter's tiles (and what derives from them) dropped
-    params.write().expect("lock").brightness = 0.3;
-    streamer.cache().invalidate(&streamer.dependents(2));
-    r.pass_mut().invalidate(&[sc_store::LayerKind::Color]);
+    let filters = [sc_view_plan::graph::FilterHandle {
+        name: "filter".into(),
+        source: 2,
+        params: params.clone(),
+    }];
+    let mut controller = sc_view_plan::camera::Controller::new(b, R);
+    let mut sources = SOURCES_FILTERED;
+    let mut view = sc_view_gpu::edits::Edited {
+        controller: &mut controller,
+        pass: r.pass_mut(),
+        streamer: &streamer,
+        sources: &mut sources,
+        detail: None,
+        filters: &filters,
+    };
+    let mut edits = view.edits();
+    edits.filters[0].1.brightness = 0.3;
+    assert_eq!(view.apply(edits.clone()), [2], "the filter's tiles dropped");
+    assert_eq!(view.apply(edits.clone()), [] as [u32; 0], "nothing changed");
+    // air lies over a lit planet only
+    let mut unlit = edits;
+    unlit.options.lit = false;
+    unlit.options.atmosphere = Some(Default::default());
+    view.apply(unlit);
+    assert!(view.edits().options.atmosphere.is_none());
     let after_edit = converge(&mut r, &streamer, &b);
     let remade = made.load(Ordering::SeqCst) - count;
     let visible = streamer.cache().tiles_of(2);

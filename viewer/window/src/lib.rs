@@ -14,7 +14,6 @@ use winit::event_loop::{ActiveEventLoop, EventLoop};
 use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::{Window, WindowId};
 
-use sc_store::LayerKind;
 use sc_view_gpu::render::{
     ClipmapPass, ImageReadback, RenderError, background, begin_pass, depth_target, device_for,
 };
@@ -25,7 +24,8 @@ use sc_view_plan::stream::Streamer;
 
 mod panel;
 
-use panel::{PanelEdits, PanelFacts};
+use panel::PanelFacts;
+use sc_view_gpu::edits::Edited;
 
 /// How long a frame may spend updating clipmap levels before it draws what it has (Alg. 1).
 const UPDATE_BUDGET: std::time::Duration = std::time::Duration::from_millis(12);
@@ -190,6 +190,24 @@ pub fn view(
     Ok(app.report)
 }
 
+/// The view as the panel edits it.
+fn edited<'a>(
+    controller: &'a mut Controller,
+    pass: &'a mut ClipmapPass,
+    streamer: &'a Streamer,
+    sources: &'a mut StreamSources,
+    opts: &'a ViewOptions,
+) -> Edited<'a> {
+    Edited {
+        controller,
+        pass,
+        streamer,
+        sources,
+        detail: opts.detail,
+        filters: &opts.filters,
+    }
+}
+
 impl App<'_> {
     fn start(&mut self, event_loop: &ActiveEventLoop) -> Result<(), RenderError> {
         let (w, h) = self.opts.size;
@@ -320,27 +338,27 @@ impl App<'_> {
             air_model: self.opts.draw.atmosphere.unwrap_or_default(),
             detail_available: self.opts.detail.is_some(),
         };
-        let mut edits = PanelEdits {
-            mode: self.controller.mode,
-            speed: self.controller.speed,
-            options: gpu.pass.options,
-            detail: self.opts.detail.is_some_and(|(on, _)| on == self.sources),
-            filters: self
-                .opts
-                .filters
-                .iter()
-                .map(|f| {
-                    let p = f.params.read().map(|p| *p).unwrap_or_default();
-                    (f.name.clone(), p)
-                })
-                .collect(),
-        };
+        let mut edits = edited(
+            &mut self.controller,
+            &mut gpu.pass,
+            self.streamer,
+            &mut self.sources,
+            &self.opts,
+        )
+        .edits();
         let out = gpu.egui_ctx.run_ui(raw, |ui| {
             egui::Window::new("sphereclip")
                 .default_pos((10.0, 10.0))
                 .show(ui.ctx(), |ui| panel::show(ui, &mut edits, &facts));
         });
-        self.apply(edits);
+        edited(
+            &mut self.controller,
+            &mut gpu.pass,
+            self.streamer,
+            &mut self.sources,
+            &self.opts,
+        )
+        .apply(edits);
         self.present(out, (w, h), cpu_start, script_over, event_loop)
     }
 
@@ -365,47 +383,6 @@ impl App<'_> {
             };
         }
         dt
-    }
-
-    /// What the panel changed: the camera's mode and speed, the drawing options, detail (the
-    /// clipmaps refill) and the filters (their tiles are made again).
-    fn apply(&mut self, edits: PanelEdits) {
-        let Some(gpu) = self.gpu.as_mut() else {
-            return;
-        };
-        if edits.mode != self.controller.mode {
-            self.controller.set_mode(edits.mode);
-        }
-        self.controller.speed = edits.speed;
-        gpu.pass.options = edits.options;
-        // detail switched: the clipmaps refill from the other sources (their tiles may be cached)
-        if let Some((on, off)) = self.opts.detail {
-            let want = if edits.detail { on } else { off };
-            if want != self.sources {
-                self.sources = want;
-                gpu.pass.invalidate(&[LayerKind::Height, LayerKind::Color]);
-            }
-        }
-        // an edited filter: drop its tiles and what derives from them; only the visible ones
-        // are made again (the next frames ask for them)
-        for (f, (_, new)) in self.opts.filters.iter().zip(&edits.filters) {
-            let old = f.params.read().map(|p| *p).unwrap_or_default();
-            if *new != old {
-                if let Ok(mut p) = f.params.write() {
-                    *p = *new;
-                }
-                let stale = self.streamer.dependents(f.source);
-                self.streamer.cache().invalidate(&stale);
-                let mut layers = Vec::new();
-                if stale.contains(&self.sources.height) {
-                    layers.push(LayerKind::Height);
-                }
-                if self.sources.color.is_some_and(|c| stale.contains(&c)) {
-                    layers.push(LayerKind::Color);
-                }
-                gpu.pass.invalidate(&layers);
-            }
-        }
     }
 
     /// Draws the prepared frame and the panel's output `out` to the window, saves the

@@ -2,10 +2,11 @@
 //! camera) and what it lets a user change (camera mode and speed, geometry, shading, detail,
 //! exaggeration, the sun, the graph's colour filters).
 
+use sc_view_gpu::edits::Edits;
 use sc_view_plan::atmosphere::Atmosphere;
 use sc_view_plan::camera::{Camera, Mode};
 use sc_view_plan::cdlod::CdlodSpec;
-use sc_view_plan::frame::{DrawOptions, FrameStats};
+use sc_view_plan::frame::FrameStats;
 use sc_view_plan::graph::FilterParams;
 use sc_view_plan::sun::Sun;
 use sc_view_plan::terrain::Geometry;
@@ -39,22 +40,8 @@ pub(crate) struct PanelFacts {
     pub detail_available: bool,
 }
 
-/// What the panel edits: read from the viewer before the panel is drawn, applied after.
-pub(crate) struct PanelEdits {
-    /// The camera's mode.
-    pub mode: Mode,
-    /// The camera's speed.
-    pub speed: f64,
-    /// How the view is drawn.
-    pub options: DrawOptions,
-    /// Detail on.
-    pub detail: bool,
-    /// The graph's colour filters, by name.
-    pub filters: Vec<(String, FilterParams)>,
-}
-
 /// Draws the panel's contents into `ui`, editing `e`.
-pub(crate) fn show(ui: &mut egui::Ui, e: &mut PanelEdits, f: &PanelFacts) {
+pub(crate) fn show(ui: &mut egui::Ui, e: &mut Edits, f: &PanelFacts) {
     let PanelFacts {
         fps,
         cpu_avg,
@@ -69,7 +56,7 @@ pub(crate) fn show(ui: &mut egui::Ui, e: &mut PanelEdits, f: &PanelFacts) {
         air_model,
         detail_available,
     } = f;
-    let PanelEdits {
+    let Edits {
         mode,
         speed,
         options,
@@ -151,7 +138,7 @@ pub(crate) fn show(ui: &mut egui::Ui, e: &mut PanelEdits, f: &PanelFacts) {
     ui.checkbox(&mut options.lit, "lit (off: colour as stored)");
     let mut air = options.atmosphere.is_some();
     ui.add_enabled(options.lit, egui::Checkbox::new(&mut air, "atmosphere"));
-    options.atmosphere = (air && options.lit).then_some(*air_model);
+    options.atmosphere = air.then_some(*air_model);
     ui.add_enabled(
         *detail_available,
         egui::Checkbox::new(detail, "detail below the data"),
