@@ -691,3 +691,90 @@ fn a_server_that_never_answers_slows_the_view_not_the_page() {
         "{said}"
     );
 }
+
+#[test]
+fn the_panel_edits_the_view_by_the_windows_rules() {
+    let store = sample_planet();
+    let server = Served::start(&store);
+    let dir = tempfile::tempdir().expect("tmp");
+    let mut chromium = Chromium::start(WEBGPU);
+    let size = (160, 90);
+    let camera = "46.5,8,300000,0,-30,60";
+    let (lit, _) = chromium
+        .view(&format!("http://{}/#camera={camera}", server.addr), size)
+        .unwrap_or_else(|e| panic!("the lit view: {e}"));
+    let settle = |c: &mut Chromium| {
+        let said = c.eval(
+            "new Promise((done) => { const t0 = performance.now(); const look = () => {
+                if (window.sphereclip.complete()) done('complete');
+                else if (performance.now() - t0 > 120000) done(window.sphereclip.status());
+                else setTimeout(look, 50); }; look(); })",
+        );
+        assert_eq!(said, "complete");
+        let png = c.eval("window.sphereclip.snapshot()");
+        let png = png
+            .as_str()
+            .and_then(|u| u.strip_prefix("data:image/png;base64,"))
+            .expect("a PNG data URL");
+        let bytes = base64::engine::general_purpose::STANDARD
+            .decode(png)
+            .expect("base64");
+        image::load_from_memory(&bytes).expect("PNG").to_rgba8()
+    };
+    // the panel's "lit" switched off, as a user clicks it: the colour as stored, and no air
+    let clicked = chromium.eval(
+        "(() => { const l = [...document.querySelectorAll('#panel label')]
+            .find((l) => l.textContent.startsWith(' lit'));
+          l.querySelector('input').click(); return l.querySelector('input').checked; })()",
+    );
+    assert_eq!(clicked, false);
+    let unlit = settle(&mut chromium);
+    let want = native(
+        s(&store),
+        camera,
+        size,
+        &["--shading", "none"],
+        &dir.path().join("none.png"),
+    );
+    let (mean, far, _) = difference(&unlit, &want);
+    assert!(mean <= 2.0 && far <= 0.005, "unlit: mean {mean}, {far} off");
+    assert!(
+        difference(&unlit, &lit).0 > 2.0,
+        "the switch changed nothing"
+    );
+    let panel: Value = serde_json::from_str(
+        chromium
+            .eval("window.sphereclip.panel()")
+            .as_str()
+            .expect("text"),
+    )
+    .expect("JSON");
+    assert_eq!(
+        panel["atmosphere"], false,
+        "air only over a lit planet: {panel}"
+    );
+    let link = chromium.eval("location.hash");
+    assert!(
+        link.as_str().unwrap_or("").contains("shading=none"),
+        "{link}"
+    );
+    // the colour filter's brightness slider: tiles made again by the workers, brighter
+    chromium.eval(
+        "(() => { const r = [...document.querySelectorAll('#panel label')]
+            .find((l) => l.textContent.includes('brightness')).querySelector('input');
+          r.value = 650; r.dispatchEvent(new Event('input')); })()",
+    );
+    let bright = settle(&mut chromium);
+    let sum = |img: &image::RgbaImage| {
+        img.pixels()
+            .map(|p| f64::from(p.0[0]) + f64::from(p.0[1]) + f64::from(p.0[2]))
+            .sum::<f64>()
+            / (3.0 * f64::from(img.width() * img.height()))
+    };
+    assert!(
+        sum(&bright) > sum(&unlit) + 40.0,
+        "brightness 0.3: {} then {}",
+        sum(&unlit),
+        sum(&bright)
+    );
+}

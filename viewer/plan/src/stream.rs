@@ -616,6 +616,14 @@ impl TileCache {
         self.len() == 0
     }
 
+    /// Drops the tile of `key`, if held.
+    pub fn remove(&self, key: &TileKey) {
+        let mut c = self.lock();
+        if let Some(old) = c.tiles.remove(key) {
+            c.bytes -= old.bytes();
+        }
+    }
+
     /// Drops every tile, and forgets every failure.
     pub fn clear(&self) {
         let mut c = self.lock();

@@ -11,9 +11,10 @@ use std::collections::HashSet;
 use std::rc::Rc;
 use std::sync::Arc;
 
+use sc_view_gpu::edits::Edited;
 use sc_view_gpu::render::{ClipmapPass, background, begin_pass, depth_target};
 use sc_view_plan::camera::{Camera, Controller, Input, Mode};
-use sc_view_plan::frame::{DrawOptions, FrameClock, FrameStats};
+use sc_view_plan::frame::{DrawOptions, FrameClock, FrameStats, StreamSources};
 use sc_view_plan::graph::StoreStreamer;
 use sc_view_plan::link::{RendererName, ViewLink};
 use sc_view_plan::sun::Sun;
@@ -65,6 +66,19 @@ impl Viewer {
     pub fn link(&self) -> String {
         self.app.borrow().link().fragment()
     }
+
+    /// What the page's panel shows and edits, as JSON: the frame rate, the camera, levels,
+    /// tiles, requests and failures; the camera's mode and speed, the geometry, shading,
+    /// atmosphere, detail, exaggeration, the sun, the colour filters.
+    pub fn panel(&self) -> String {
+        self.app.borrow().panel()
+    }
+
+    /// Sets one of the panel's settings (see [`Self::panel`] for names; a switch is 0 or 1, a
+    /// choice its index, a filter's value `filter.N.brightness|contrast|gamma|saturation|reset`).
+    pub fn set(&self, name: &str, value: f64) -> Result<(), JsValue> {
+        self.app.borrow_mut().set(name, value)
+    }
 }
 
 /// The keys held and the mouse's motion since the last frame.
@@ -75,6 +89,8 @@ struct InputState {
     scroll: f64,
     dragging: bool,
     mode: Option<Mode>,
+    /// The level colours switched (L).
+    level_colors: bool,
 }
 
 impl InputState {
@@ -112,6 +128,13 @@ struct App {
     depth: wgpu::TextureView,
     store: Rc<StoreStreamer>,
     makers: Rc<RefCell<Pool>>,
+    /// The sources drawn now.
+    sources: StreamSources,
+    /// With detail and without, when the graph synthesizes detail.
+    detail: Option<(StreamSources, StreamSources)>,
+    /// Frames a second and milliseconds of the page's thread a frame, smoothed.
+    fps: f64,
+    cpu_ms: f64,
     controller: Controller,
     link: ViewLink,
     input: Rc<RefCell<InputState>>,
@@ -284,6 +307,11 @@ pub async fn start(
         view_format,
         pass,
         depth,
+        sources: store.sources,
+        detail: (store.sources != store.without_detail)
+            .then_some((store.sources, store.without_detail)),
+        fps: 0.0,
+        cpu_ms: 0.0,
         store,
         makers,
         link,
@@ -401,12 +429,26 @@ fn listen(
     let i = input.clone();
     let key_down =
         Closure::<dyn FnMut(web_sys::KeyboardEvent)>::new(move |e: web_sys::KeyboardEvent| {
+            // keys typed into the panel's controls are theirs
+            let in_control = e
+                .target()
+                .and_then(|t| t.dyn_into::<web_sys::Element>().ok())
+                .is_some_and(|el| {
+                    matches!(
+                        el.tag_name().as_str(),
+                        "INPUT" | "SELECT" | "BUTTON" | "TEXTAREA"
+                    )
+                });
+            if in_control {
+                return;
+            }
             let code = e.code();
             let mut s = i.borrow_mut();
             match code.as_str() {
                 "Digit1" => s.mode = Some(Mode::Orbit),
                 "Digit2" => s.mode = Some(Mode::Fly),
                 "Digit3" => s.mode = Some(Mode::Walk),
+                "KeyL" if !e.repeat() => s.level_colors ^= true,
                 _ => {}
             }
             s.keys.insert(code);
@@ -431,6 +473,201 @@ fn listen(
 }
 
 impl App {
+    /// The view as the panel edits it.
+    fn edited(&mut self) -> Edited<'_> {
+        Edited {
+            controller: &mut self.controller,
+            pass: &mut self.pass,
+            streamer: &self.store.streamer,
+            sources: &mut self.sources,
+            detail: self.detail,
+            filters: &self.store.filters,
+        }
+    }
+
+    /// See [`Viewer::panel`].
+    fn panel(&self) -> String {
+        let o = &self.pass.options;
+        let c = &self.controller.camera;
+        let s = &self.stats;
+        let makers = self.makers.borrow();
+        let [requests, failed, bytes] = makers.counts();
+        let (az, el) = o.sun.az_el_at(c.lat_deg, c.lon_deg);
+        let geometry = match o.geometry {
+            Geometry::Clipmap => 0,
+            Geometry::Cdlod(_) => 1,
+            Geometry::Warp(_) => 2,
+        };
+        let filters: Vec<String> = self
+            .store
+            .filters
+            .iter()
+            .map(|f| {
+                let p = f.params.read().map(|p| *p).unwrap_or_default();
+                format!(
+                    "{{\"name\":{},\"brightness\":{},\"contrast\":{},\"gamma\":{},\"saturation\":{}}}",
+                    wire::json_string(&f.name),
+                    p.brightness,
+                    p.contrast,
+                    p.gamma,
+                    p.saturation
+                )
+            })
+            .collect();
+        let detail = self.detail.is_some_and(|(on, _)| on == self.sources);
+        format!(
+            concat!(
+                "{{\"fps\":{:.1},\"cpu_ms\":{:.1},\"lat\":{:.5},\"lon\":{:.5},\"alt\":{:.1},",
+                "\"heading\":{:.0},\"level_lo\":{},\"level_hi\":{},\"level_wanted\":{},",
+                "\"tiles\":{},\"cache_mb\":{:.1},\"requests\":{},\"mib\":{:.1},\"failed\":{},",
+                "\"errors\":{},\"last_error\":{},\"adapter\":{},\"makers\":{},",
+                "\"mode\":{},\"speed\":{},\"geometry\":{},\"compute\":{},",
+                "\"level_colors\":{},\"lit\":{},\"atmosphere\":{},\"detail\":{},",
+                "\"detail_available\":{},\"exaggeration\":{},\"sun_azimuth\":{:.1},",
+                "\"sun_elevation\":{:.1},\"filters\":[{}]}}"
+            ),
+            self.fps,
+            self.cpu_ms,
+            c.lat_deg,
+            c.lon_deg,
+            c.alt,
+            c.heading,
+            s.level_lo,
+            s.level_hi,
+            s.level_wanted,
+            makers.made(),
+            self.store.streamer.cache().bytes() as f64 / 1048576.0,
+            requests,
+            bytes / 1048576.0,
+            failed,
+            self.store.streamer.errors().len(),
+            wire::json_string(
+                self.store
+                    .streamer
+                    .errors()
+                    .last()
+                    .map_or("", |e| e.as_str())
+            ),
+            wire::json_string(&self.adapter),
+            makers.working(),
+            match self.controller.mode {
+                Mode::Orbit => 0,
+                Mode::Fly => 1,
+                Mode::Walk => 2,
+            },
+            self.controller.speed,
+            geometry,
+            self.pass.has_compute(),
+            o.level_colors,
+            o.lit,
+            o.atmosphere.is_some(),
+            detail,
+            self.detail.is_some(),
+            o.exaggeration,
+            az,
+            el,
+            filters.join(","),
+        )
+    }
+
+    /// See [`Viewer::set`]: the edit applied by the window's rules ([`Edited::apply`]), the
+    /// workers told of edited filters, the link and the picture brought up to date.
+    fn set(&mut self, name: &str, value: f64) -> Result<(), JsValue> {
+        let bad = || js_error(format!("the panel has no setting {name} = {value}"));
+        if !value.is_finite() {
+            return Err(bad());
+        }
+        let on = value != 0.0;
+        let air = self.store.atmosphere.unwrap_or_default();
+        let compute = self.pass.has_compute();
+        let camera = self.controller.camera;
+        let mut e = self.edited().edits();
+        match name {
+            "mode" => {
+                e.mode = *[Mode::Orbit, Mode::Fly, Mode::Walk]
+                    .get(value as usize)
+                    .ok_or_else(bad)?;
+            }
+            "speed" => e.speed = value.clamp(0.01, 100.0),
+            "geometry" => {
+                e.options.geometry = match value as u32 {
+                    0 => Geometry::Clipmap,
+                    1 => Geometry::Cdlod(Default::default()),
+                    2 if compute => Geometry::Warp(Default::default()),
+                    _ => return Err(bad()),
+                }
+            }
+            "level_colors" => e.options.level_colors = on,
+            "lit" => e.options.lit = on,
+            "atmosphere" => e.options.atmosphere = on.then_some(air),
+            "detail" => e.detail = on,
+            "exaggeration" => e.options.exaggeration = value.clamp(0.1, 50.0),
+            "sun_azimuth" | "sun_elevation" => {
+                let (mut az, mut el) = e.options.sun.az_el_at(camera.lat_deg, camera.lon_deg);
+                if name == "sun_azimuth" {
+                    az = value.rem_euclid(360.0);
+                } else {
+                    el = value.clamp(-90.0, 90.0);
+                }
+                e.options.sun = Sun::from_az_el(camera.lat_deg, camera.lon_deg, az, el);
+            }
+            _ => {
+                let mut parts = name.split('.');
+                let (Some("filter"), Some(i), Some(what), None) =
+                    (parts.next(), parts.next(), parts.next(), parts.next())
+                else {
+                    return Err(bad());
+                };
+                let p = i
+                    .parse::<usize>()
+                    .ok()
+                    .and_then(|i| e.filters.get_mut(i))
+                    .map(|f| &mut f.1)
+                    .ok_or_else(bad)?;
+                let v = value as f32;
+                match what {
+                    "brightness" => p.brightness = v.clamp(-1.0, 1.0),
+                    "contrast" => p.contrast = v.clamp(0.0, 4.0),
+                    "gamma" => p.gamma = v.clamp(0.1, 10.0),
+                    "saturation" => p.saturation = v.clamp(0.0, 4.0),
+                    "reset" => *p = Default::default(),
+                    _ => return Err(bad()),
+                }
+            }
+        }
+        let dropped = self.edited().apply(e);
+        if !dropped.is_empty() {
+            let params: Vec<f32> = self
+                .store
+                .filters
+                .iter()
+                .flat_map(|f| {
+                    let p = f.params.read().map(|p| *p).unwrap_or_default();
+                    [p.brightness, p.contrast, p.gamma, p.saturation]
+                })
+                .collect();
+            self.makers.borrow_mut().filters_changed(params, &dropped);
+        }
+        let o = self.pass.options;
+        self.link.lit = o.lit;
+        if name == "atmosphere" {
+            self.link.atmosphere = on;
+        }
+        self.link.renderer = match o.geometry {
+            Geometry::Clipmap => RendererName::Clipmap,
+            Geometry::Cdlod(_) => RendererName::Cdlod,
+            Geometry::Warp(_) => RendererName::Warp,
+        };
+        // a lit view switched on gets the air its link asks for
+        if name == "lit" && on && self.link.atmosphere {
+            self.pass.options.atmosphere = Some(air);
+        }
+        self.pass.space = background(&self.pass.options);
+        self.link_behind = true;
+        self.complete = false;
+        Ok(())
+    }
+
     /// The view on screen as a link.
     fn link(&self) -> ViewLink {
         ViewLink {
@@ -453,10 +690,21 @@ impl App {
             self.surface.configure(&self.device, &self.config);
             self.depth = depth_target(&self.device, self.config.width, self.config.height);
         }
+        if dt > 0.0 {
+            self.fps = if self.fps == 0.0 {
+                1.0 / dt
+            } else {
+                0.9 * self.fps + 0.1 / dt
+            };
+        }
         let input = {
             let mut s = self.input.borrow_mut();
             if let Some(m) = s.mode.take() {
                 self.controller.set_mode(m);
+            }
+            if std::mem::take(&mut s.level_colors) {
+                self.pass.options.level_colors ^= true;
+                self.complete = false;
             }
             s.take(dt)
         };
@@ -479,7 +727,7 @@ impl App {
         let size = (self.config.width, self.config.height);
         let (_, stats) = self.pass.prepare_streamed(
             &self.store.streamer,
-            self.store.sources,
+            self.sources,
             &camera,
             size,
             FrameClock {
@@ -498,6 +746,12 @@ impl App {
         self.stats = stats;
         self.draw()?;
         self.frames += 1;
+        let took = now.elapsed().as_secs_f64() * 1e3;
+        self.cpu_ms = if self.frames == 1 {
+            took
+        } else {
+            0.9 * self.cpu_ms + 0.1 * took
+        };
         self.complete = (stats.level_hi == stats.level_wanted || stats.level_failed)
             && !stats.fading
             && self.store.streamer.idle();

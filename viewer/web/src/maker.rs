@@ -10,7 +10,7 @@ use std::sync::atomic::Ordering::Relaxed;
 
 use sc_store::{Location, StoreReader};
 use sc_view_plan::clipmap::CLIPMAP_N;
-use sc_view_plan::graph::Graph;
+use sc_view_plan::graph::{FilterHandle, FilterParams, Graph};
 use sc_view_plan::stream::{Streamer, Task};
 use wasm_bindgen::prelude::*;
 
@@ -24,6 +24,7 @@ use crate::xhr::{COUNTS, XhrSource};
 pub struct TileMaker {
     streamer: Streamer,
     source: Arc<Recorded>,
+    filters: Vec<FilterHandle>,
 }
 
 /// The graph of `store` read through `source`, and what it warned about.
@@ -54,6 +55,7 @@ impl TileMaker {
         Ok(TileMaker {
             streamer: Streamer::without_threads(graph.sources, CLIPMAP_N, 1, 0),
             source,
+            filters: graph.filters,
         })
     }
 
@@ -68,6 +70,21 @@ impl TileMaker {
         let (key, inputs) = wire::read_task(task).map_err(|e| JsValue::from_str(&e))?;
         let made = self.streamer.make_tile_from(&Task::visible(key), inputs);
         Ok(wire::made(&key, &made))
+    }
+
+    /// The colour filters' settings, four numbers each (brightness, contrast, gamma,
+    /// saturation) in the graph's order, as the page's panel set them.
+    pub fn set_filters(&self, values: &[f32]) {
+        for (f, v) in self.filters.iter().zip(values.chunks_exact(4)) {
+            if let Ok(mut p) = f.params.write() {
+                *p = FilterParams {
+                    brightness: v[0],
+                    contrast: v[1],
+                    gamma: v[2],
+                    saturation: v[3],
+                };
+            }
+        }
     }
 
     /// Requests made, failed, and bytes received, since the maker started.

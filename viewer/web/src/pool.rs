@@ -66,6 +66,10 @@ pub struct Pool {
     given_up: f64,
     /// Tiles received.
     made: u64,
+    /// The colour filters' settings (four numbers each), as the workers must have them.
+    filters: Vec<f32>,
+    /// Tiles being made with settings edited since: their answers are not kept.
+    stale: std::collections::HashSet<TileKey>,
     me: Weak<RefCell<Pool>>,
 }
 
@@ -225,6 +229,8 @@ impl Pool {
                 asking: vec![String::new(); makers.max(1)],
                 given_up: 0.0,
                 made: 0,
+                filters: Vec::new(),
+                stale: Default::default(),
                 me: me.clone(),
             })
         });
@@ -269,6 +275,10 @@ impl Pool {
             ("store", JsValue::from_str(&self.url)),
             ("timeout", JsValue::from(self.timeout_ms)),
             ("record", Uint8Array::from(&self.record[..]).into()),
+            (
+                "filters",
+                js_sys::Float32Array::from(&self.filters[..]).into(),
+            ),
         ])?;
         worker.post_message(&open)?;
         Ok(worker)
@@ -331,6 +341,10 @@ impl Pool {
                 };
                 self.made += u64::from(made.is_ok());
                 self.store.streamer.finish(key, made);
+                if self.stale.remove(&key) {
+                    // made with the old settings: the next frames ask for it again
+                    self.store.streamer.cache().remove(&key);
+                }
             }
         } else if field(data, "record").is_none() {
             return;
@@ -356,6 +370,7 @@ impl Pool {
         self.retire(i);
         match doing {
             Doing::Making(key, _) => {
+                self.stale.remove(&key);
                 self.store.streamer.finish(key, Err(error));
                 self.replace(i, crash);
             }
@@ -429,6 +444,29 @@ impl Pool {
                     let why = format!("cannot hand the tile maker a task: {e:?}");
                     streamer.finish(task.key, Err(TileError::Other(why)));
                 }
+            }
+        }
+    }
+
+    /// The colour filters were edited (`filters`: four numbers each, in the graph's order), and
+    /// the tiles of the sources `dropped` with them: the workers take the new settings, and
+    /// tiles being made with the old ones are not kept.
+    pub fn filters_changed(&mut self, filters: Vec<f32>, dropped: &[u32]) {
+        self.filters = filters;
+        let to_all = message(&[(
+            "filters",
+            js_sys::Float32Array::from(&self.filters[..]).into(),
+        )]);
+        for slot in &mut self.slots {
+            if let Doing::Making(key, _) = slot.doing
+                && dropped.contains(&key.source)
+            {
+                self.stale.insert(key);
+            }
+            if slot.doing != Doing::Gone
+                && let Ok(m) = &to_all
+            {
+                let _ = slot.worker.post_message(m);
             }
         }
     }

@@ -4,6 +4,7 @@
 // tiles made by web workers (worker.js; ?workers=N of them, each request given up after
 // ?timeout=SECONDS).
 import init, { start } from './sc_view_web.js';
+import { panel } from './panel.js';
 
 const status = document.getElementById('status');
 const query = new URLSearchParams(location.search);
@@ -16,6 +17,7 @@ try {
   const number = (name) => (query.has(name) ? Number(query.get(name)) : undefined);
   window.sphereclip = await start(document.getElementById('planet'), store, query.get('gpu'),
     new URL('worker.js', import.meta.url).href, number('workers'), number('timeout'));
+  panel(window.sphereclip, document.getElementById('panel'));
 } catch (e) {
   const text = String(e?.message ?? e);
   status.textContent = text;
