@@ -36,3 +36,15 @@ covers_globe() {
     done
   done
 }
+
+# serve_start STORE DIR: `$BIN serve STORE` on a free loopback port, its output in DIR/serve.txt;
+# sets server (its PID), url (the store's URL) and page (the web viewer's). serve_stop stops it
+# (the server prints what it served as it stops: `served N requests, BYTES`).
+serve_start() {
+  "$BIN" serve "$1" --addr 127.0.0.1:0 > "$2/serve.txt" &
+  server=$!
+  for _ in $(seq 100); do grep -q '^serving' "$2/serve.txt" 2>/dev/null && break; sleep 0.1; done
+  url=$(awk '/^serving/ {print $NF}' "$2/serve.txt")
+  page=${url%/*}/
+}
+serve_stop() { kill "$server"; wait "$server" 2>/dev/null || true; server=; }

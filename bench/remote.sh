@@ -19,14 +19,8 @@ cleanup() { [ -n "$server" ] && kill "$server" 2>/dev/null; wait 2>/dev/null; rm
 trap cleanup EXIT
 export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp/sphereclip-xdg}
 mkdir -p -m 700 "$XDG_RUNTIME_DIR"
-# one server per HTTP render: it prints what it served when it stops
-start_server() {
-  "$BIN" serve "$store" --addr 127.0.0.1:0 > "$out/serve.txt" &
-  server=$!
-  for _ in $(seq 100); do grep -q '^serving' "$out/serve.txt" 2>/dev/null && break; sleep 0.1; done
-  url=$(awk '/^serving/ {print $NF}' "$out/serve.txt")
-}
-stop_server() { kill "$server"; wait "$server" 2>/dev/null || true; server=; }
+# shellcheck source=bench/lib.sh
+source bench/lib.sh
 views=("ground 46.5,8.0,1.7,30,-4,60" "aircraft 28.0,86.9,9000,200,-10,60" "space 30,80,8000000,0,-90,40" "pole 90,0,3000000,0,-90,50")
 median() { sort -n | awk '{a[NR]=$1} END {print (NR % 2) ? a[(NR+1)/2] : (a[NR/2] + a[NR/2+1]) / 2}'; }
 complete_ms() { sed -n 's/.*complete after \([0-9]*\) ms.*/\1/p' "$1"; }
@@ -38,10 +32,10 @@ for v in "${views[@]}"; do
   for _ in $(seq "$reps"); do
     "$BIN" render "$store" --camera "$cam" --size "$size" --out "$out/f.png" > "$out/f.txt"
     complete_ms "$out/f.txt" >> "$out/f.ms"
-    start_server
+    serve_start "$store" "$out"
     "$BIN" render "$url" --camera "$cam" --size "$size" --out "$out/h.png" > "$out/h.txt"
     complete_ms "$out/h.txt" >> "$out/h.ms"
-    stop_server
+    serve_stop
     read -r n bytes < <(sed -n 's/^served \([0-9]*\) requests, \(.*\)$/\1 \2/p' "$out/serve.txt")
     echo "$n" >> "$out/req"
     cmp -s "$out/f.png" "$out/h.png" && same=$((same + 1))

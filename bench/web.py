@@ -4,6 +4,9 @@ fetched and made), the requests and bytes the page fetched, and then the steady 
 (requestAnimationFrame intervals over 120 frames flying sideways from the complete view, D held:
 a still view is not drawn again). One line of JSON a view.
 
+With PAGE_URL `cesium:URL`, the page is bench/cesium/index.html (CesiumJS), which measures
+itself: the same numbers from its `window.bench`.
+
 Usage: python bench/web.py PAGE_URL WxH FLAGS NAME=CAMERA...   (FLAGS: Chromium's, space-separated)
 """
 import json, os, subprocess, sys, tempfile, time, urllib.request
@@ -51,6 +54,10 @@ try:
     for view in sys.argv[4:]:
         name, camera = view.split("=", 1)
         call("Page.navigate", "Page.loadEventFired", url="about:blank")
+        if page.startswith("cesium:"):
+            call("Page.navigate", "Page.loadEventFired", url=f"{page[7:]}#camera={camera}")
+            print(json.dumps({"view": name, **js("window.bench")}), flush=True)
+            continue
         t0 = time.monotonic()
         call("Page.navigate", url=f"{page}#camera={camera}&shading=lit&atmosphere=on")
         said = js("""new Promise((done) => { const look = () => {

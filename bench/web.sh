@@ -3,7 +3,11 @@
 # the time to the complete first view and the bytes fetched (native: `render URL`, the server's
 # count; the browser: from asking for the page — the wasm included — to its complete view, the
 # page's count), and the browser's steady frame time, on WebGPU and on WebGL2 (headless Chromium,
-# SwiftShader: a CPU renderer, like lavapipe for native). Lit with the atmosphere.
+# SwiftShader: a CPU renderer, like lavapipe for native). Lit with the atmosphere. Then, in the
+# same browser, CesiumJS (npm `cesium`, installed once under target/bench/cesium) drawing the
+# store's finest colour level, exported to PNG, on its ellipsoid with its own lighting and
+# atmosphere at the same cameras and size (bench/cesium/index.html): time to its complete view
+# (every tile and the image loaded) and its frame time flying sideways.
 # Usage: bash bench/web.sh STORE [SIZE]   (BIN=… to time another binary; make build first, which
 # builds the web viewer into the binary)
 set -euo pipefail
@@ -15,25 +19,24 @@ py=$(bash scripts/pyenv.sh)
 "$py" -c 'import websocket' 2>/dev/null || "$py" -m pip install --quiet websocket-client >&2
 out=$(mktemp -d)
 server=
-cleanup() { [ -n "$server" ] && kill "$server" 2>/dev/null; wait 2>/dev/null; rm -rf "$out"; }
+static=
+cleanup() {
+  [ -n "$server" ] && kill "$server" 2>/dev/null
+  [ -n "$static" ] && kill "$static" 2>/dev/null
+  wait 2>/dev/null; rm -rf "$out"
+}
 trap cleanup EXIT
 export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp/sphereclip-xdg}
 mkdir -p -m 700 "$XDG_RUNTIME_DIR"
-start_server() {
-  "$BIN" serve "$store" --addr 127.0.0.1:0 > "$out/serve.txt" &
-  server=$!
-  for _ in $(seq 100); do grep -q '^serving' "$out/serve.txt" 2>/dev/null && break; sleep 0.1; done
-  url=$(awk '/^serving/ {print $NF}' "$out/serve.txt")
-  page=${url%/*}/
-}
-stop_server() { kill "$server"; wait "$server" 2>/dev/null || true; server=; }
+# shellcheck source=bench/lib.sh
+source bench/lib.sh
 views=("aircraft=28.0,86.9,9000,200,-10,60" "space=30,80,8000000,0,-90,40" "pole=90,0,3000000,0,-90,50")
 echo "store $store, $size, lit with the atmosphere; $(nproc) cores"
 for v in "${views[@]}"; do
   name=${v%%=*}; cam=${v#*=}
-  start_server
+  serve_start "$store" "$out"
   "$BIN" render "$url" --camera "$cam" --size "$size" --out "$out/n.png" > "$out/n.txt"
-  stop_server
+  serve_stop
   ms=$(sed -n 's/.*complete after \([0-9]*\) ms.*/\1/p' "$out/n.txt")
   bytes=$(sed -n 's/^served [0-9]* requests, \(.*\)$/\1/p' "$out/serve.txt")
   echo "native $name: complete after $ms ms, $bytes"
@@ -41,8 +44,25 @@ done
 for gpu in webgpu webgl2; do
   flags=""
   [ $gpu = webgpu ] && flags="--enable-unsafe-webgpu --enable-features=Vulkan --use-vulkan=swiftshader --use-angle=vulkan"
-  start_server
+  serve_start "$store" "$out"
   "$py" bench/web.py "${page}?gpu=$gpu" "$size" "$flags" "${views[@]}" | sed "s/^/$gpu /"
-  stop_server
+  serve_stop
   echo "$gpu: the server sent $(sed -n 's/^served \(.*\)$/\1/p' "$out/serve.txt") in all"
 done
+# CesiumJS on the same cameras, from a static host (Python's) beside it
+site=target/bench/cesium
+mkdir -p "$site"
+if [ ! -f "$site/node_modules/cesium/Build/Cesium/Cesium.js" ]; then
+  (cd "$site" && npm install --no-audit --no-fund --silent cesium@1.140.0)
+fi
+ln -sfn node_modules/cesium/Build/Cesium "$site/Cesium"
+cp bench/cesium/index.html "$site/index.html"
+level=$("$BIN" info "$store" | sed -n 's/^  color: levels 0\.\.\([0-9]*\).*/\1/p')
+"$BIN" export "$store" --layer color --level "$level" --no-overviews "$out/color.tif" > /dev/null
+gdal_translate -q -of PNG "$out/color.tif" "$site/color.png"
+port=$("$py" -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
+"$py" -m http.server --bind 127.0.0.1 "$port" -d "$site" > /dev/null 2>&1 &
+static=$!
+for _ in $(seq 100); do (echo > "/dev/tcp/127.0.0.1/$port") 2>/dev/null && break; sleep 0.1; done
+echo "cesium: colour level $level as a $(stat -c %s "$site/color.png")-byte PNG"
+"$py" bench/web.py "cesium:http://127.0.0.1:$port/index.html" "$size" "" "${views[@]}" | sed "s/^/cesium /"

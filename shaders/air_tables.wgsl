@@ -10,10 +10,3 @@
 @group(1) @binding(5) var<storage, read> aerial_inscatter: array<vec4<f32>>;
 @group(1) @binding(6) var<storage, read> aerial_transmittance: array<vec4<f32>>;
 @group(1) @binding(7) var<storage, read> irradiance_table: array<vec4<f32>>;
-
-fn transmittance_table_at(i: u32) -> vec3<f32> { return transmittance_table[i].xyz; }
-fn multiple_scattering_table_at(i: u32) -> vec3<f32> { return multiple_scattering_table[i].xyz; }
-fn sky_view_table_at(i: u32) -> vec3<f32> { return sky_view_table[i].xyz; }
-fn aerial_inscatter_at(i: u32) -> vec3<f32> { return aerial_inscatter[i].xyz; }
-fn aerial_transmittance_at(i: u32) -> vec3<f32> { return aerial_transmittance[i].xyz; }
-fn irradiance_table_at(i: u32) -> vec3<f32> { return irradiance_table[i].xyz; }

@@ -1,5 +1,6 @@
 // The atmosphere's lookup tables as compute passes (the CPU twins: sc_view_plan::atmosphere);
-// atmosphere_model.wgsl, which comes first, has the model and the tables' reads. Each pass writes
+// atmosphere_model.wgsl, which comes first, has the model, and air_table_reads.wgsl the tables'
+// reads from the buffers declared here. Each pass writes
 // one table from the ones before it: transmittance, multiple scattering, the sky's irradiance
 // (once per atmosphere), then per frame the sky-view table and the aerial-perspective volume of
 // the frame's viewer.
@@ -12,14 +13,6 @@
 @group(0) @binding(5) var<storage, read_write> aerial_inscatter: array<vec4<f32>>;
 @group(0) @binding(6) var<storage, read_write> aerial_transmittance: array<vec4<f32>>;
 @group(0) @binding(7) var<storage, read_write> irradiance_table: array<vec4<f32>>;
-
-// the reads of atmosphere_model.wgsl
-fn transmittance_table_at(i: u32) -> vec3<f32> { return transmittance_table[i].xyz; }
-fn multiple_scattering_table_at(i: u32) -> vec3<f32> { return multiple_scattering_table[i].xyz; }
-fn sky_view_table_at(i: u32) -> vec3<f32> { return sky_view_table[i].xyz; }
-fn aerial_inscatter_at(i: u32) -> vec3<f32> { return aerial_inscatter[i].xyz; }
-fn aerial_transmittance_at(i: u32) -> vec3<f32> { return aerial_transmittance[i].xyz; }
-fn irradiance_table_at(i: u32) -> vec3<f32> { return irradiance_table[i].xyz; }
 
 // Each texel: the transmittance to the top of the atmosphere of its ray, by the trapezoidal rule.
 @compute @workgroup_size(8, 8)

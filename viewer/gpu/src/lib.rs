@@ -56,6 +56,7 @@ pub const CLIPMAP_WGSL: &str = concat!(
     include_str!("../../../shaders/map_transform.wgsl"),
     include_str!("../../../shaders/atmosphere_model.wgsl"),
     include_str!("../../../shaders/air_tables.wgsl"),
+    include_str!("../../../shaders/air_table_reads.wgsl"),
     include_str!("../../../shaders/clipmap.wgsl")
 );
 
@@ -66,6 +67,7 @@ pub const CDLOD_WGSL: &str = concat!(
     include_str!("../../../shaders/map_transform.wgsl"),
     include_str!("../../../shaders/atmosphere_model.wgsl"),
     include_str!("../../../shaders/air_tables.wgsl"),
+    include_str!("../../../shaders/air_table_reads.wgsl"),
     include_str!("../../../shaders/clipmap.wgsl"),
     include_str!("../../../shaders/cdlod_geometry.wgsl"),
     include_str!("../../../shaders/cdlod.wgsl")
@@ -78,6 +80,7 @@ pub const WARP_WGSL: &str = concat!(
     include_str!("../../../shaders/map_transform.wgsl"),
     include_str!("../../../shaders/atmosphere_model.wgsl"),
     include_str!("../../../shaders/air_tables.wgsl"),
+    include_str!("../../../shaders/air_table_reads.wgsl"),
     include_str!("../../../shaders/clipmap.wgsl"),
     include_str!("../../../shaders/warp_geometry.wgsl"),
     include_str!("../../../shaders/warp.wgsl")
@@ -100,6 +103,7 @@ pub fn for_webgl(wgsl: &str) -> String {
         include_str!("../../../shaders/air_tables.wgsl"),
         include_str!("../../../shaders/air_tables_webgl.wgsl"),
     )
+    .replace(include_str!("../../../shaders/air_table_reads.wgsl"), "")
 }
 
 /// The WGSL of the warped mesh's geometry probe (a compute pass over its vertices).
@@ -120,6 +124,7 @@ pub const CDLOD_PROBE_WGSL: &str = concat!(
 pub const ATMOSPHERE_WGSL: &str = concat!(
     include_str!("../../../shaders/constants.wgsl"),
     include_str!("../../../shaders/atmosphere_model.wgsl"),
+    include_str!("../../../shaders/air_table_reads.wgsl"),
     include_str!("../../../shaders/atmosphere.wgsl")
 );
 

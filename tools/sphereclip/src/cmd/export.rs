@@ -45,10 +45,14 @@ pub fn run(a: &ExportArgs) -> Result<ExitCode> {
                 overviews.join(" "),
                 crate::cmd::human_bytes(bytes)
             );
+            let from = if overviews.is_empty() {
+                String::new()
+            } else {
+                format!(" from the store's levels {}", overviews.join(" "))
+            };
             overview_note = format!(
-                ", {} overview(s) from the store's levels {}, {} before compression",
+                ", {} overview(s){from}, {} before compression",
                 overviews.len(),
-                overviews.join(" "),
                 crate::cmd::human_bytes(bytes)
             );
             if bytes > EXPORT_LIMIT_BYTES && !a.force {
