@@ -58,7 +58,8 @@ fi
 ln -sfn node_modules/cesium/Build/Cesium "$site/Cesium"
 cp bench/cesium/index.html "$site/index.html"
 level=$("$BIN" info "$store" | sed -n 's/^  color: levels 0\.\.\([0-9]*\).*/\1/p')
-"$BIN" export "$store" --layer color --level "$level" --no-overviews "$out/color.tif" > /dev/null
+"$BIN" export "$store" --layer color --level "$level" --no-overviews "$out/color.tif" \
+  > /dev/null 2> "$out/export.txt" || { cat "$out/export.txt" >&2; exit 1; }
 gdal_translate -q -of PNG "$out/color.tif" "$site/color.png"
 port=$("$py" -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
 "$py" -m http.server --bind 127.0.0.1 "$port" -d "$site" > /dev/null 2>&1 &

@@ -21,6 +21,9 @@ use crate::wire;
 /// Workers started again after crashes, at most (then the page goes on with fewer).
 const MAX_RESTARTS: u32 = 64;
 
+/// Tiles whose maker is remembered, at most (then forgotten all at once).
+const MADE_BY: usize = 4096;
+
 /// What a worker is doing.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Doing {
@@ -70,6 +73,12 @@ pub struct Pool {
     filters: Vec<f32>,
     /// Tiles being made with settings edited since: their answers are not kept.
     stale: std::collections::HashSet<TileKey>,
+    /// Which worker made each tile lately (at most [`MADE_BY`] remembered).
+    made_by: std::collections::HashMap<TileKey, usize>,
+    /// A tile each worker makes next, waiting for it (see [`Self::dispatch`]).
+    held: Vec<Option<TileKey>>,
+    /// Tiles taken for a worker that was then stopped: the next idle workers make them.
+    loose: Vec<TileKey>,
     me: Weak<RefCell<Pool>>,
 }
 
@@ -231,6 +240,9 @@ impl Pool {
                 made: 0,
                 filters: Vec::new(),
                 stale: Default::default(),
+                made_by: Default::default(),
+                held: vec![None; makers.max(1)],
+                loose: Vec::new(),
                 me: me.clone(),
             })
         });
@@ -340,6 +352,12 @@ impl Pool {
                     Err(e) => Err(TileError::Other(format!("the tile maker's answer: {e}"))),
                 };
                 self.made += u64::from(made.is_ok());
+                if made.is_ok() {
+                    if self.made_by.len() >= MADE_BY {
+                        self.made_by.clear();
+                    }
+                    self.made_by.insert(key, i);
+                }
                 self.store.streamer.finish(key, made);
                 if self.stale.remove(&key) {
                     // made with the old settings: the next frames ask for it again
@@ -368,6 +386,11 @@ impl Pool {
     fn stop(&mut self, i: usize, error: TileError, crash: bool) {
         let doing = self.slots[i].doing;
         self.retire(i);
+        // what it made is gone with it; a tile waiting for it goes to the next idle worker
+        self.made_by.retain(|_, &mut j| j != i);
+        if let Some(key) = self.held[i].take() {
+            self.loose.push(key);
+        }
         match doing {
             Doing::Making(key, _) => {
                 self.stale.remove(&key);
@@ -415,42 +438,73 @@ impl Pool {
         }
     }
 
-    /// Gives each idle worker the next task, with the inputs' tiles the page has.
+    /// Gives the idle workers the next tasks, with the inputs' tiles the page has. A tile goes
+    /// to the worker that made one of its inputs, if it is still there: what a source makes on
+    /// the side stays in its worker (a detail's colour shade, made with its heights), and
+    /// another worker would make it again from the store. When that worker is busy the tile
+    /// waits for it (one a worker).
     pub fn dispatch(&mut self) {
-        let streamer = &self.store.streamer;
         for i in 0..self.slots.len() {
-            if self.slots[i].doing != Doing::Idle {
-                continue;
+            if self.slots[i].doing == Doing::Idle
+                && let Some(key) = self.held[i].take()
+            {
+                self.send(i, key);
             }
-            let Some(task) = streamer.take_task() else {
+        }
+        loop {
+            let Some(idle) = self.slots.iter().position(|s| s.doing == Doing::Idle) else {
                 return;
             };
-            let inputs: Vec<(TileKey, _)> = streamer
+            if let Some(key) = self.loose.pop() {
+                self.send(idle, key);
+                continue;
+            }
+            let Some(task) = self.store.streamer.take_task() else {
+                return;
+            };
+            let home = self
+                .store
+                .streamer
                 .inputs_of(&task.key)
-                .into_iter()
-                .filter_map(|k| Some((k, streamer.cache().get(&k)?)))
-                .collect();
-            let bytes = Uint8Array::from(
-                &wire::task(&task.key, inputs.iter().map(|(k, t)| (*k, &**t)))[..],
-            );
-            let sent = message(&[("task", bytes.clone().into())]).and_then(|m| {
-                self.slots[i]
-                    .worker
-                    .post_message_with_transfer(&m, &js_sys::Array::of1(&bytes.buffer()))
-            });
-            match sent {
-                Ok(()) => self.slots[i].doing = Doing::Making(task.key, Instant::now()),
-                Err(e) => {
-                    let why = format!("cannot hand the tile maker a task: {e:?}");
-                    streamer.finish(task.key, Err(TileError::Other(why)));
-                }
+                .iter()
+                .rev()
+                .find_map(|k| self.made_by.get(k).copied())
+                .filter(|&j| !matches!(self.slots[j].doing, Doing::Gone | Doing::Opening));
+            match home {
+                Some(j) if self.slots[j].doing == Doing::Idle => self.send(j, task.key),
+                Some(j) if self.held[j].is_none() => self.held[j] = Some(task.key),
+                _ => self.send(idle, task.key),
+            }
+        }
+    }
+
+    /// Hands worker `i` the tile `key`, with the inputs' tiles the page has.
+    fn send(&mut self, i: usize, key: TileKey) {
+        let streamer = &self.store.streamer;
+        let inputs: Vec<(TileKey, _)> = streamer
+            .inputs_of(&key)
+            .into_iter()
+            .filter_map(|k| Some((k, streamer.cache().get(&k)?)))
+            .collect();
+        let bytes = Uint8Array::from(&wire::task(&key, inputs.iter().map(|(k, t)| (*k, &**t)))[..]);
+        let sent = message(&[("task", bytes.clone().into())]).and_then(|m| {
+            self.slots[i]
+                .worker
+                .post_message_with_transfer(&m, &js_sys::Array::of1(&bytes.buffer()))
+        });
+        match sent {
+            Ok(()) => self.slots[i].doing = Doing::Making(key, Instant::now()),
+            Err(e) => {
+                let why = format!("cannot hand the tile maker a task: {e:?}");
+                streamer.finish(key, Err(TileError::Other(why)));
             }
         }
     }
 
     /// The colour filters were edited (`filters`: four numbers each, in the graph's order), and
     /// the tiles of the sources `dropped` with them: the workers take the new settings, and
-    /// tiles being made with the old ones are not kept.
+    /// tiles being made with the old ones are not kept (those not yet sent are made with the new
+    /// ones: the settings reach a worker before its next task).
     pub fn filters_changed(&mut self, filters: Vec<f32>, dropped: &[u32]) {
         self.filters = filters;
         let to_all = message(&[(
