@@ -171,12 +171,22 @@ impl Chromium {
         if said != "complete" {
             return Err(said);
         }
-        let status: Value = serde_json::from_str(
+        let status = self.status();
+        Ok((self.snapshot(), status))
+    }
+
+    /// The viewer's status, as JSON.
+    fn status(&mut self) -> Value {
+        serde_json::from_str(
             self.eval("window.sphereclip.status()")
                 .as_str()
                 .expect("text"),
         )
-        .expect("status JSON");
+        .expect("status JSON")
+    }
+
+    /// The view drawn again and read back from the canvas.
+    fn snapshot(&mut self) -> image::RgbaImage {
         let png = self.eval("window.sphereclip.snapshot()");
         let png = png
             .as_str()
@@ -185,8 +195,7 @@ impl Chromium {
         let bytes = base64::engine::general_purpose::STANDARD
             .decode(png)
             .expect("base64");
-        let img = image::load_from_memory(&bytes).expect("PNG").to_rgba8();
-        Ok((img, status))
+        image::load_from_memory(&bytes).expect("PNG").to_rgba8()
     }
 }
 
@@ -529,7 +538,7 @@ fn a_server_that_goes_away_is_counted_and_shown_and_the_page_keeps_drawing() {
     // shown on the page, and the page still draws when the view moves
     let line = chromium.eval("document.getElementById('status').textContent");
     assert!(line.as_str().unwrap_or("").contains("FAILED"), "{line}");
-    let frames = |c: &mut Chromium| status(c)["frames"].as_u64().expect("frames");
+    let frames = |c: &mut Chromium| c.status()["frames"].as_u64().expect("frames");
     let n = frames(&mut chromium);
     chromium.call(
         "Input.dispatchMouseEvent",
@@ -626,16 +635,6 @@ impl Drop for Silent {
     }
 }
 
-/// The viewer's status, as JSON.
-fn status(c: &mut Chromium) -> Value {
-    serde_json::from_str(
-        c.eval("window.sphereclip.status()")
-            .as_str()
-            .expect("status"),
-    )
-    .expect("JSON")
-}
-
 #[test]
 fn a_server_that_never_answers_slows_the_view_not_the_page() {
     let store = sample_planet();
@@ -711,15 +710,7 @@ fn the_panel_edits_the_view_by_the_windows_rules() {
                 else setTimeout(look, 50); }; look(); })",
         );
         assert_eq!(said, "complete");
-        let png = c.eval("window.sphereclip.snapshot()");
-        let png = png
-            .as_str()
-            .and_then(|u| u.strip_prefix("data:image/png;base64,"))
-            .expect("a PNG data URL");
-        let bytes = base64::engine::general_purpose::STANDARD
-            .decode(png)
-            .expect("base64");
-        image::load_from_memory(&bytes).expect("PNG").to_rgba8()
+        c.snapshot()
     };
     // the panel's "lit" switched off, as a user clicks it: the colour as stored, and no air
     let clicked = chromium.eval(

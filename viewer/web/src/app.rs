@@ -19,13 +19,13 @@ use sc_view_plan::graph::StoreStreamer;
 use sc_view_plan::link::{RendererName, ViewLink};
 use sc_view_plan::sun::Sun;
 use sc_view_plan::terrain::Geometry;
+use serde_json::{Value, json};
 use wasm_bindgen::JsCast;
 use wasm_bindgen::prelude::*;
 use web_time::{Duration, Instant};
 
 use crate::pool::{self, Pool};
 use crate::recorded::Recorded;
-use crate::wire;
 
 /// A frame's time for planning and uploads (the rest of a 60 Hz frame is the browser's and the
 /// GPU's).
@@ -485,89 +485,56 @@ impl App {
         }
     }
 
-    /// See [`Viewer::panel`].
+    /// See [`Viewer::panel`]: the status and the settings.
     fn panel(&self) -> String {
         let o = &self.pass.options;
         let c = &self.controller.camera;
-        let s = &self.stats;
-        let makers = self.makers.borrow();
-        let [requests, failed, bytes] = makers.counts();
         let (az, el) = o.sun.az_el_at(c.lat_deg, c.lon_deg);
-        let geometry = match o.geometry {
-            Geometry::Clipmap => 0,
-            Geometry::Cdlod(_) => 1,
-            Geometry::Warp(_) => 2,
-        };
-        let filters: Vec<String> = self
+        let filters: Vec<Value> = self
             .store
             .filters
             .iter()
             .map(|f| {
                 let p = f.params.read().map(|p| *p).unwrap_or_default();
-                format!(
-                    "{{\"name\":{},\"brightness\":{},\"contrast\":{},\"gamma\":{},\"saturation\":{}}}",
-                    wire::json_string(&f.name),
-                    p.brightness,
-                    p.contrast,
-                    p.gamma,
-                    p.saturation
-                )
+                json!({"name": f.name, "brightness": p.brightness, "contrast": p.contrast,
+                       "gamma": p.gamma, "saturation": p.saturation})
             })
             .collect();
-        let detail = self.detail.is_some_and(|(on, _)| on == self.sources);
-        format!(
-            concat!(
-                "{{\"fps\":{:.1},\"cpu_ms\":{:.1},\"lat\":{:.5},\"lon\":{:.5},\"alt\":{:.1},",
-                "\"heading\":{:.0},\"level_lo\":{},\"level_hi\":{},\"level_wanted\":{},",
-                "\"tiles\":{},\"cache_mb\":{:.1},\"requests\":{},\"mib\":{:.1},\"failed\":{},",
-                "\"errors\":{},\"last_error\":{},\"adapter\":{},\"makers\":{},",
-                "\"mode\":{},\"speed\":{},\"geometry\":{},\"compute\":{},",
-                "\"level_colors\":{},\"lit\":{},\"atmosphere\":{},\"detail\":{},",
-                "\"detail_available\":{},\"exaggeration\":{},\"sun_azimuth\":{:.1},",
-                "\"sun_elevation\":{:.1},\"filters\":[{}]}}"
-            ),
-            self.fps,
-            self.cpu_ms,
-            c.lat_deg,
-            c.lon_deg,
-            c.alt,
-            c.heading,
-            s.level_lo,
-            s.level_hi,
-            s.level_wanted,
-            makers.made(),
-            self.store.streamer.cache().bytes() as f64 / 1048576.0,
-            requests,
-            bytes / 1048576.0,
-            failed,
-            self.store.streamer.errors().len(),
-            wire::json_string(
-                self.store
-                    .streamer
-                    .errors()
-                    .last()
-                    .map_or("", |e| e.as_str())
-            ),
-            wire::json_string(&self.adapter),
-            makers.working(),
-            match self.controller.mode {
+        let mut v = self.status_json();
+        let settings = json!({
+            "fps": self.fps,
+            "cpu_ms": self.cpu_ms,
+            "lat": c.lat_deg,
+            "lon": c.lon_deg,
+            "alt": c.alt,
+            "heading": c.heading,
+            "cache_mb": self.store.streamer.cache().bytes() as f64 / 1048576.0,
+            "mode": match self.controller.mode {
                 Mode::Orbit => 0,
                 Mode::Fly => 1,
                 Mode::Walk => 2,
             },
-            self.controller.speed,
-            geometry,
-            self.pass.has_compute(),
-            o.level_colors,
-            o.lit,
-            o.atmosphere.is_some(),
-            detail,
-            self.detail.is_some(),
-            o.exaggeration,
-            az,
-            el,
-            filters.join(","),
-        )
+            "speed": self.controller.speed,
+            "geometry": match o.geometry {
+                Geometry::Clipmap => 0,
+                Geometry::Cdlod(_) => 1,
+                Geometry::Warp(_) => 2,
+            },
+            "compute": self.pass.has_compute(),
+            "level_colors": o.level_colors,
+            "lit": o.lit,
+            "atmosphere": o.atmosphere.is_some(),
+            "detail": self.detail.is_some_and(|(on, _)| on == self.sources),
+            "detail_available": self.detail.is_some(),
+            "exaggeration": o.exaggeration,
+            "sun_azimuth": az,
+            "sun_elevation": el,
+            "filters": filters,
+        });
+        if let (Value::Object(all), Value::Object(more)) = (&mut v, settings) {
+            all.extend(more);
+        }
+        v.to_string()
     }
 
     /// See [`Viewer::set`]: the edit applied by the window's rules ([`Edited::apply`]), the
@@ -598,7 +565,13 @@ impl App {
                 }
             }
             "level_colors" => e.options.level_colors = on,
-            "lit" => e.options.lit = on,
+            "lit" => {
+                e.options.lit = on;
+                // a lit view switched on gets the air its link asks for
+                if on && self.link.atmosphere {
+                    e.options.atmosphere = Some(air);
+                }
+            }
             "atmosphere" => e.options.atmosphere = on.then_some(air),
             "detail" => e.detail = on,
             "exaggeration" => e.options.exaggeration = value.clamp(0.1, 50.0),
@@ -658,10 +631,6 @@ impl App {
             Geometry::Cdlod(_) => RendererName::Cdlod,
             Geometry::Warp(_) => RendererName::Warp,
         };
-        // a lit view switched on gets the air its link asks for
-        if name == "lit" && on && self.link.atmosphere {
-            self.pass.options.atmosphere = Some(air);
-        }
         self.pass.space = background(&self.pass.options);
         self.link_behind = true;
         self.complete = false;
@@ -823,30 +792,29 @@ impl App {
     }
 
     fn status(&self) -> String {
+        self.status_json().to_string()
+    }
+
+    /// What the viewer has done (see [`Viewer::status`]).
+    fn status_json(&self) -> Value {
         let s = &self.stats;
         let makers = self.makers.borrow();
-        let [requests, failed, bytes] = makers.counts();
-        format!(
-            "{{\"frames\":{},\"complete\":{},\"level_lo\":{},\"level_hi\":{},\"level_wanted\":{},\"tiles\":{},\"requests\":{},\"failed\":{},\"bytes\":{},\"errors\":{},\"makers\":{},\"last_error\":{},\"adapter\":{}}}",
-            self.frames,
-            self.complete,
-            s.level_lo,
-            s.level_hi,
-            s.level_wanted,
-            makers.made(),
-            requests,
-            failed,
-            bytes,
-            self.store.streamer.errors().len(),
-            makers.working(),
-            wire::json_string(
-                self.store
-                    .streamer
-                    .errors()
-                    .last()
-                    .map_or("", |e| e.as_str())
-            ),
-            wire::json_string(&self.adapter),
-        )
+        let [requests, failed, bytes] = makers.counts().map(|c| c as u64);
+        let errors = self.store.streamer.errors();
+        json!({
+            "frames": self.frames,
+            "complete": self.complete,
+            "level_lo": s.level_lo,
+            "level_hi": s.level_hi,
+            "level_wanted": s.level_wanted,
+            "tiles": makers.made(),
+            "requests": requests,
+            "failed": failed,
+            "bytes": bytes,
+            "errors": errors.len(),
+            "makers": makers.working(),
+            "last_error": errors.last().map_or("", String::as_str),
+            "adapter": self.adapter,
+        })
     }
 }

@@ -47,8 +47,27 @@ struct Slot {
     counts: [f64; 3],
     /// Which worker of this slot (a replaced one's late messages are ignored).
     generation: u32,
+    /// The request it last announced.
+    asking: String,
+    /// A tile it makes next, waiting for it (see [`Pool::dispatch`]).
+    held: Option<TileKey>,
     _on_message: Option<OnMessage>,
     _on_error: Option<OnError>,
+}
+
+impl Slot {
+    fn new(worker: web_sys::Worker, doing: Doing, counts: [f64; 3]) -> Self {
+        Self {
+            worker,
+            doing,
+            counts,
+            generation: 0,
+            asking: String::new(),
+            held: None,
+            _on_message: None,
+            _on_error: None,
+        }
+    }
 }
 
 /// The workers and the streamer they make tiles for.
@@ -63,8 +82,6 @@ pub struct Pool {
     /// Counts of the workers replaced.
     retired: [f64; 3],
     restarts: u32,
-    /// The request each worker last announced.
-    asking: Vec<String>,
     /// Requests given up on (their workers stopped).
     given_up: f64,
     /// Tiles received.
@@ -75,8 +92,6 @@ pub struct Pool {
     stale: std::collections::HashSet<TileKey>,
     /// Which worker made each tile lately (at most [`MADE_BY`] remembered).
     made_by: std::collections::HashMap<TileKey, usize>,
-    /// A tile each worker makes next, waiting for it (see [`Self::dispatch`]).
-    held: Vec<Option<TileKey>>,
     /// Tiles taken for a worker that was then stopped: the next idle workers make them.
     loose: Vec<TileKey>,
     me: Weak<RefCell<Pool>>,
@@ -103,6 +118,27 @@ fn message(pairs: &[(&str, JsValue)]) -> Result<Object, JsValue> {
         Reflect::set(&o, &JsValue::from_str(k), v)?;
     }
     Ok(o)
+}
+
+/// What tells a worker to open the store at `url`: from another worker's `record`, if any, with
+/// the colour filters' settings `filters` (four numbers each; none: as the graph has them).
+fn open_message(
+    url: &str,
+    timeout_ms: u32,
+    record: Option<&[u8]>,
+    filters: &[f32],
+) -> Result<Object, JsValue> {
+    let mut pairs = vec![
+        ("store", JsValue::from_str(url)),
+        ("timeout", JsValue::from(timeout_ms)),
+    ];
+    if let Some(r) = record {
+        pairs.push(("record", Uint8Array::from(r).into()));
+    }
+    if !filters.is_empty() {
+        pairs.push(("filters", js_sys::Float32Array::from(filters).into()));
+    }
+    message(&pairs)
 }
 
 fn new_worker(script: &str) -> Result<web_sys::Worker, JsValue> {
@@ -169,10 +205,7 @@ pub async fn first(
     timeout_ms: u32,
 ) -> Result<(web_sys::Worker, Vec<u8>, [f64; 3]), JsValue> {
     let worker = new_worker(script)?;
-    let open = message(&[
-        ("store", JsValue::from_str(url)),
-        ("timeout", JsValue::from(timeout_ms)),
-    ])?;
+    let open = open_message(url, timeout_ms, None, &[])?;
     worker.post_message(&open)?;
     let mut asking = None;
     let data = loop {
@@ -235,39 +268,22 @@ impl Pool {
                 record,
                 retired: [0.0; 3],
                 restarts: 0,
-                asking: vec![String::new(); makers.max(1)],
                 given_up: 0.0,
                 made: 0,
                 filters: Vec::new(),
                 stale: Default::default(),
                 made_by: Default::default(),
-                held: vec![None; makers.max(1)],
                 loose: Vec::new(),
                 me: me.clone(),
             })
         });
         {
             let mut p = pool.borrow_mut();
-            p.slots.push(Slot {
-                worker: first,
-                doing: Doing::Idle,
-                counts,
-                generation: 0,
-                _on_message: None,
-                _on_error: None,
-            });
+            p.slots.push(Slot::new(first, Doing::Idle, counts));
             p.listen(0);
-            for _ in 1..makers.max(1) {
+            for i in 1..makers.max(1) {
                 let worker = p.open_worker()?;
-                p.slots.push(Slot {
-                    worker,
-                    doing: Doing::Opening,
-                    counts: [0.0; 3],
-                    generation: 0,
-                    _on_message: None,
-                    _on_error: None,
-                });
-                let i = p.slots.len() - 1;
+                p.slots.push(Slot::new(worker, Doing::Opening, [0.0; 3]));
                 p.listen(i);
             }
         }
@@ -283,15 +299,12 @@ impl Pool {
     /// A worker told to open the store from the record.
     fn open_worker(&self) -> Result<web_sys::Worker, JsValue> {
         let worker = new_worker(&self.script)?;
-        let open = message(&[
-            ("store", JsValue::from_str(&self.url)),
-            ("timeout", JsValue::from(self.timeout_ms)),
-            ("record", Uint8Array::from(&self.record[..]).into()),
-            (
-                "filters",
-                js_sys::Float32Array::from(&self.filters[..]).into(),
-            ),
-        ])?;
+        let open = open_message(
+            &self.url,
+            self.timeout_ms,
+            Some(&self.record),
+            &self.filters,
+        )?;
         worker.post_message(&open)?;
         Ok(worker)
     }
@@ -333,7 +346,7 @@ impl Pool {
             if let Doing::Making(key, _) = self.slots[i].doing {
                 self.slots[i].doing = Doing::Making(key, Instant::now());
             }
-            self.asking[i] = url;
+            self.slots[i].asking = url;
             return;
         }
         if let Some(why) = field(data, "failed") {
@@ -388,7 +401,7 @@ impl Pool {
         self.retire(i);
         // what it made is gone with it; a tile waiting for it goes to the next idle worker
         self.made_by.retain(|_, &mut j| j != i);
-        if let Some(key) = self.held[i].take() {
+        if let Some(key) = self.slots[i].held.take() {
             self.loose.push(key);
         }
         match doing {
@@ -446,7 +459,7 @@ impl Pool {
     pub fn dispatch(&mut self) {
         for i in 0..self.slots.len() {
             if self.slots[i].doing == Doing::Idle
-                && let Some(key) = self.held[i].take()
+                && let Some(key) = self.slots[i].held.take()
             {
                 self.send(i, key);
             }
@@ -472,7 +485,7 @@ impl Pool {
                 .filter(|&j| !matches!(self.slots[j].doing, Doing::Gone | Doing::Opening));
             match home {
                 Some(j) if self.slots[j].doing == Doing::Idle => self.send(j, task.key),
-                Some(j) if self.held[j].is_none() => self.held[j] = Some(task.key),
+                Some(j) if self.slots[j].held.is_none() => self.slots[j].held = Some(task.key),
                 _ => self.send(idle, task.key),
             }
         }
@@ -536,7 +549,7 @@ impl Pool {
                 self.given_up += 1.0;
                 let why = format!(
                     "{}: no answer (none in {} s)",
-                    self.asking[i],
+                    self.slots[i].asking,
                     patience.as_secs_f64()
                 );
                 self.stop(i, TileError::Store(why), false);

@@ -219,21 +219,6 @@ pub fn read_made(b: &[u8]) -> Result<(TileKey, Result<TileData, TileError>), Str
     Ok((key, made))
 }
 
-/// `s` as a JSON string (the page's status is JSON for its script).
-pub fn json_string(s: &str) -> String {
-    let mut out = String::from("\"");
-    for c in s.chars() {
-        match c {
-            '"' => out.push_str("\\\""),
-            '\\' => out.push_str("\\\\"),
-            c if u32::from(c) < 0x20 => out.push_str(&format!("\\u{:04x}", u32::from(c))),
-            c => out.push(c),
-        }
-    }
-    out.push('"');
-    out
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -269,15 +254,6 @@ mod tests {
         let (_, back) = read_made(&made(&k, &Err(e.clone()))).expect("reads");
         assert_eq!(back.map_err(|e| e.to_string()), Err(e.to_string()));
         assert_eq!(read_task(&task(&k, [])), Ok((k, Vec::new())));
-    }
-
-    #[test]
-    fn json_strings_escape_quotes_backslashes_and_controls() {
-        assert_eq!(
-            json_string("a\"b\\c\n\u{1}é"),
-            "\"a\\\"b\\\\c\\u000a\\u0001é\""
-        );
-        assert_eq!(json_string(""), "\"\"");
     }
 
     #[test]

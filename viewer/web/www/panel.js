@@ -110,10 +110,10 @@ export function panel(viewer, root) {
     facts.textContent =
       `${s.fps.toFixed(1)} fps · ${s.cpu_ms.toFixed(1)} ms/frame\n` +
       `${s.lat.toFixed(5)}°, ${s.lon.toFixed(5)}° · ${s.alt.toFixed(1)} m above ground · ` +
-      `heading ${s.heading}°\n` +
+      `heading ${s.heading.toFixed(0)}°\n` +
       `levels ${s.level_lo}..${s.level_hi} of ${s.level_wanted} · ${s.tiles} tiles made, ` +
-      `cache ${s.cache_mb} MiB\n` +
-      `${s.requests} requests, ${s.mib} MiB · ${s.makers} workers`;
+      `cache ${s.cache_mb.toFixed(1)} MiB\n` +
+      `${s.requests} requests, ${(s.bytes / 1048576).toFixed(1)} MiB · ${s.makers} workers`;
     error.textContent = s.failed > 0 || s.errors > 0
       ? `${s.failed} failed requests, ${s.errors} tile errors; last: ${s.last_error}` : '';
     adapter.textContent = s.adapter;
