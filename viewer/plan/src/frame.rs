@@ -90,9 +90,10 @@ pub const OPEN_SOUTH: u32 = 4;
 /// horizon, metres (above Everest).
 const MAX_GROUND_M: f64 = 9000.0;
 
-/// Frames over which a level newly drawn fades in over the coarser one (no pop when detail
-/// arrives).
-pub const FADE_FRAMES: u32 = 8;
+/// How long a level newly drawn takes to fade in over the coarser one (no pop when detail
+/// arrives): a time, not a count of frames, so that a slow renderer (a CPU rasteriser at a
+/// frame a second) does not take many seconds to show what it has.
+pub const FADE: Duration = Duration::from_millis(150);
 
 /// What one frame drew.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -112,11 +113,13 @@ pub struct FrameStats {
     /// Clipmap levels (height or colour) whose window moved by a texel or more: their changed
     /// regions were refilled.
     pub levels_filled: u32,
+    /// Texture regions the frame writes (0: the clipmaps hold what the frame before drew).
+    pub uploads: u32,
     /// The level after `level_hi` cannot be drawn because one of its tiles failed (the coarser
     /// levels show instead; with `level_hi == level_lo` and nothing drawn, a plain sphere). The
     /// view is as complete as it can get.
     pub level_failed: bool,
-    /// A level drawn is still fading in ([`FADE_FRAMES`]).
+    /// A level drawn is still fading in ([`FADE`]).
     pub fading: bool,
     /// CDLOD: leaves drawn, and tree nodes culled beyond the horizon and outside the frustum
     /// (0 for the clipmap renderer).
@@ -140,7 +143,7 @@ pub struct DrawOptions {
     pub exaggeration: f64,
     /// The sun, fixed in the world.
     pub sun: Sun,
-    /// Fade newly drawn levels in over [`FADE_FRAMES`] frames (a moving view); off, a level
+    /// Fade newly drawn levels in over [`FADE`] (a moving view); off, a level
     /// shows whole as soon as it is drawn (a still picture wants the final frame at once).
     pub fade_in: bool,
     /// The atmosphere (sky, sun disc, aerial perspective), its shell set on the planet's sphere
@@ -737,8 +740,10 @@ impl FramePlanner {
     }
 
     /// Advances each level's fade-in for a frame that drew levels `lo..=hi` (`drawn`: anything
-    /// at all); whether one is still fading.
-    fn fade(&mut self, drawn: bool, (lo, hi): (u32, u32)) -> bool {
+    /// at all), `since` the frame before it (none: the first frame); whether one is still
+    /// fading.
+    fn fade(&mut self, drawn: bool, (lo, hi): (u32, u32), since: Option<Duration>) -> bool {
+        let step = since.map_or(0.0, |d| (d.as_secs_f64() / FADE.as_secs_f64()).min(1.0)) as f32;
         // a level drawn for the first time fades in over the coarser one; the coarsest drawn is
         // whole (nothing to fade from), levels not drawn start again from nothing
         let mut fading = false;
@@ -749,7 +754,7 @@ impl FramePlanner {
             } else if i == lo || !self.options.fade_in {
                 1.0
             } else {
-                (*f + 1.0 / FADE_FRAMES as f32).min(1.0)
+                (*f + step).min(1.0)
             };
             if let Some(u) = self.level_uniforms.get_mut(i as usize) {
                 u.fade = *f;
@@ -806,6 +811,9 @@ impl FramePlanner {
             |i| rises[(i - lo) as usize],
         );
         let motion = self.motion(&viewer, clock);
+        let since = self
+            .prev_viewer
+            .map(|(_, t)| clock.now.saturating_duration_since(t));
         self.post_tasks(streamer, &wins, &viewer, (lo, wanted, sharpest), motion);
         self.prev_viewer = Some((viewer, clock.now));
         let (uploads, drawn, filled, level_failed) =
@@ -842,7 +850,7 @@ impl FramePlanner {
                 Some((Some(i), ground_from_quad(&q, &p, n)))
             })
             .unwrap_or((None, 0.0));
-        let fading = self.fade(drawn.is_some(), (lo, hi));
+        let fading = self.fade(drawn.is_some(), (lo, hi), since);
         // the ground as drawn while the finest level fades: its vertices blend from the heights
         // of the level before their own
         let ground = match (drawn.is_some(), vertex_level(hi, lo)) {
@@ -863,6 +871,7 @@ impl FramePlanner {
             level_sharpest: sharpest,
             triangles: self.hemi.triangles(lo, hi),
             levels_filled: filled,
+            uploads: uploads.len() as u32,
             level_failed,
             fading,
             ..Default::default()

@@ -146,6 +146,9 @@ struct App {
     link_behind: bool,
     stats: FrameStats,
     complete: bool,
+    /// Whether the canvas may not show what the current settings draw (a setting was edited,
+    /// the canvas resized): the next frame is drawn even if its plan did not change.
+    dirty: bool,
 }
 
 fn js_error(e: impl std::fmt::Display) -> JsValue {
@@ -323,6 +326,7 @@ pub async fn start(
         link_behind: false,
         stats: FrameStats::default(),
         complete: false,
+        dirty: true,
     }));
     run_frames(app.clone())?;
     Ok(Viewer { app })
@@ -634,6 +638,7 @@ impl App {
         self.pass.space = background(&self.pass.options);
         self.link_behind = true;
         self.complete = false;
+        self.dirty = true;
         Ok(())
     }
 
@@ -674,6 +679,7 @@ impl App {
             if std::mem::take(&mut s.level_colors) {
                 self.pass.options.level_colors ^= true;
                 self.complete = false;
+                self.dirty = true;
             }
             s.take(dt)
         };
@@ -712,8 +718,19 @@ impl App {
             makers.dispatch();
             makers.check(now);
         }
+        // a frame whose plan changed nothing on screen is not drawn: the canvas keeps the last
+        // one, and a CPU rasteriser's time goes to the workers making the tiles still missing
+        let changed = std::mem::take(&mut self.dirty)
+            || force
+            || resized
+            || camera != before
+            || stats.uploads > 0
+            || stats.fading
+            || stats != self.stats;
         self.stats = stats;
-        self.draw()?;
+        if changed {
+            self.draw()?;
+        }
         self.frames += 1;
         let took = now.elapsed().as_secs_f64() * 1e3;
         self.cpu_ms = if self.frames == 1 {
