@@ -7,6 +7,9 @@ a still view is not drawn again). One line of JSON a view.
 With PAGE_URL `cesium:URL`, the page is bench/cesium/index.html (CesiumJS), which measures
 itself: the same numbers from its `window.bench`.
 
+With FLY=0 in the environment, only the complete view is measured (no frames flying: nothing
+fetched after it).
+
 Usage: python bench/web.py PAGE_URL WxH FLAGS NAME=CAMERA...   (FLAGS: Chromium's, space-separated)
 """
 import json, os, subprocess, sys, tempfile, time, urllib.request
@@ -69,6 +72,10 @@ try:
             print(json.dumps({"view": name, "error": said}), flush=True)
             continue
         status = json.loads(js("window.sphereclip.status()"))
+        if os.environ.get("FLY") == "0":
+            print(json.dumps({"view": name, "complete_ms": round(complete_ms),
+                              "bytes": status["bytes"], "requests": status["requests"]}), flush=True)
+            continue
         # a still, complete view is not drawn again: fly sideways (D held) while measuring
         key = dict(key="d", code="KeyD", windowsVirtualKeyCode=68)
         call("Input.dispatchKeyEvent", type="keyDown", **key)

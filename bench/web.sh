@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # The web viewer against native `render` over the same loopback server, in one run: for each view
-# the time to the complete first view and the bytes fetched (native: `render URL`, the server's
-# count; the browser: from asking for the page — the wasm included — to its complete view, the
-# page's count), and the browser's steady frame time, on WebGPU and on WebGL2 (headless Chromium,
+# the time to the complete first view and the store's bytes sent over the network (native:
+# `render URL`; the browser: from asking for the page — the wasm included — to its complete view;
+# both the server's count), and the browser's steady frame time, on WebGPU and on WebGL2 (headless Chromium,
 # SwiftShader: a CPU renderer, like lavapipe for native). Lit with the atmosphere. Then, in the
 # same browser, CesiumJS (npm `cesium`, installed once under target/bench/cesium) drawing the
 # store's finest colour level, exported to PNG, on its ellipsoid with its own lighting and
@@ -41,14 +41,33 @@ for v in "${views[@]}"; do
   bytes=$(sed -n 's/^served [0-9]* requests, \(.*\)$/\1/p' "$out/serve.txt")
   echo "native $name: complete after $ms ms, $bytes"
 done
+# the bytes a browser fetches over the network to its complete view: the page from a static host
+# (its own files not counted), the store from a fresh server for each view, whose count is read
+# when the page has its complete view; a fresh browser each time (an empty cache). The page's
+# own count (what its reads got) is larger with several workers: each worker reads the chunks it
+# needs, and the browser's cache answers those another worker fetched already.
+"$BIN" web --out "$out/site" --store unused > /dev/null
+site_port=$("$py" -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
+"$py" -m http.server --bind 127.0.0.1 "$site_port" -d "$out/site" > /dev/null 2>&1 &
+static=$!
+for _ in $(seq 100); do (echo > "/dev/tcp/127.0.0.1/$site_port") 2>/dev/null && break; sleep 0.1; done
 for gpu in webgpu webgl2; do
   flags=""
   [ $gpu = webgpu ] && flags="--enable-unsafe-webgpu --enable-features=Vulkan --use-vulkan=swiftshader --use-angle=vulkan"
+  for v in "${views[@]}"; do
+    serve_start "$store" "$out"
+    FLY=0 "$py" bench/web.py "http://127.0.0.1:$site_port/index.html?gpu=$gpu&store=$url" "$size" "$flags" "$v" \
+      | sed "s/^/$gpu /"
+    serve_stop
+    echo "$gpu ${v%%=*}: the store's server sent $(sed -n 's/^served \(.*\)$/\1/p' "$out/serve.txt") to the complete view"
+  done
+  # the complete views again, each then flown through: the frame times
   serve_start "$store" "$out"
   "$py" bench/web.py "${page}?gpu=$gpu" "$size" "$flags" "${views[@]}" | sed "s/^/$gpu /"
   serve_stop
   echo "$gpu: the server sent $(sed -n 's/^served \(.*\)$/\1/p' "$out/serve.txt") in all"
 done
+kill "$static"; wait "$static" 2>/dev/null || true; static=
 # CesiumJS on the same cameras, from a static host (Python's) beside it
 site=target/bench/cesium
 mkdir -p "$site"

@@ -10,7 +10,7 @@ use sc_store::StoreReader;
 use sc_view_plan::clipmap::{HeightSource, LevelWindow, StoreHeights};
 use sc_view_plan::detail::{Detail, DetailParams};
 use sc_view_plan::graph::Graph;
-use sc_view_plan::stream::{GridId, TileData, TileKey};
+use sc_view_plan::stream::{GridId, TileKey};
 
 use crate::util::sample_planet;
 
@@ -91,10 +91,8 @@ fn tile_columns(
     let v = ((90.0 - lat).to_radians() / w.texel_colat) as i64;
     let columns = |source: u32| -> Vec<Vec<f64>> {
         let key = TileKey::at(source, grid, u, v, n);
-        let TileData::Height(h) = g.sources[source as usize].make(&key, n, &[]).expect("tile")
-        else {
-            unreachable!("heights")
-        };
+        let tile = g.sources[source as usize].make(&key, n, &[]).expect("tile");
+        let h = tile.heights().expect("heights");
         if source == g.clipmaps.height {
             let reader = StoreReader::open(store).expect("open");
             let detail = Detail::new(DetailParams::default(), reader.meta().radius_m);

@@ -10,7 +10,7 @@ use std::f64::consts::PI;
 use std::time::Instant;
 
 use sc_view_plan::graph::Graph;
-use sc_view_plan::stream::{GridId, TileData, TileKey};
+use sc_view_plan::stream::{GridId, TileKey};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
@@ -82,8 +82,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 let tile = g.sources[source as usize].make(&key, n, &[])?;
                 ms.push(t.elapsed().as_secs_f64() * 1e3);
                 sum = 0xcbf2_9ce4_8422_2325;
-                if let TileData::Height(h) = tile {
-                    for v in h {
+                if let Some(h) = tile.heights() {
+                    for &v in h {
                         sum = (sum ^ u64::from(v.to_bits())).wrapping_mul(0x100_0000_01b3);
                     }
                 }

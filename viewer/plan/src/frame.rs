@@ -1109,10 +1109,7 @@ fn region_from_tiles(keys: &[TileKey], tiles: &[Tile], p: &Placement, r: Region)
         }
     }
     // a window's tiles are all of its layer
-    if tiles
-        .first()
-        .is_some_and(|t| matches!(**t, TileData::Height(_)))
-    {
+    if tiles.first().is_some_and(|t| t.heights().is_some()) {
         // nodata that no overlay filled is drawn at sea level
         for v in out.chunks_exact_mut(4) {
             if f32::from_ne_bytes([v[0], v[1], v[2], v[3]]).is_nan() {
@@ -1126,7 +1123,7 @@ fn region_from_tiles(keys: &[TileKey], tiles: &[Tile], p: &Placement, r: Region)
 /// A height tile's highest height, largest step between neighbouring texels (NaN texels
 /// skipped) and lowest height as drawn (NaN at sea level; colour tiles: no height).
 fn height_extremes(tile: &TileData, n: u32) -> (f32, f32, f32) {
-    let TileData::Height(h) = tile else {
+    let Some(h) = tile.heights() else {
         return (f32::NEG_INFINITY, 0.0, f32::INFINITY);
     };
     let n = n as usize;
@@ -1156,8 +1153,8 @@ fn ground_from_quad(quad: &[Tile], p: &Placement, n: u32) -> f64 {
         let nn = i64::from(n);
         let (u, v) = (p.u0 + i64::from(c), p.v0 + i64::from(r));
         let k = (v.rem_euclid(nn) * nn + u.rem_euclid(nn)) as usize;
-        match &*quad[quad_index(p, c, r, n)] {
-            TileData::Height(h) if !h[k].is_nan() => f64::from(h[k]),
+        match quad[quad_index(p, c, r, n)].heights() {
+            Some(h) if !h[k].is_nan() => f64::from(h[k]),
             _ => 0.0,
         }
     };

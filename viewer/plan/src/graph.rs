@@ -207,9 +207,13 @@ impl TileSource for Overlay {
         let mut out: Option<TileData> = None;
         for t in inputs {
             out = Some(match (out, &**t) {
-                (None, t) => t.clone(),
-                (Some(TileData::Height(mut below)), TileData::Height(top)) => {
-                    for (b, &v) in below.iter_mut().zip(top) {
+                // heights overlaid are plain heights (a detail's shade is for its own colours)
+                (None, t) => match t.heights() {
+                    Some(h) => TileData::Height(h.to_vec()),
+                    None => t.clone(),
+                },
+                (Some(TileData::Height(mut below)), t) if t.heights().is_some() => {
+                    for (b, &v) in below.iter_mut().zip(t.heights().unwrap_or(&[])) {
                         if !v.is_nan() {
                             *b = v;
                         }

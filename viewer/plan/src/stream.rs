@@ -22,7 +22,7 @@
 
 use std::collections::{HashMap, HashSet};
 use std::f64::consts::PI;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::thread::JoinHandle;
 use std::time::Duration;
@@ -124,6 +124,17 @@ impl TileKey {
 pub enum TileData {
     /// Heights, metres (NaN: no data).
     Height(Vec<f32>),
+    /// Heights with detail synthesized, and per texel the colour shade made in the same pass
+    /// ([`crate::detail::DetailSample::shade`], 0 where there is no detail): what a
+    /// [`DetailColorTiles`] over these heights shades its colours by. The shade travels with its
+    /// heights, so whoever has the heights' tile (a cache, another thread, a web worker's page)
+    /// can shade colours without reading and synthesizing the heights again.
+    ShadedHeight {
+        /// The heights, as [`TileData::Height`].
+        heights: Vec<f32>,
+        /// The shade, one a texel.
+        shade: Vec<f32>,
+    },
     /// sRGB RGBA8.
     Color(Vec<u8>),
 }
@@ -133,6 +144,7 @@ impl TileData {
     pub fn bytes(&self) -> usize {
         match self {
             TileData::Height(v) => v.len() * 4,
+            TileData::ShadedHeight { heights, shade } => (heights.len() + shade.len()) * 4,
             TileData::Color(v) => v.len(),
         }
     }
@@ -140,8 +152,18 @@ impl TileData {
     /// The texel bytes as the clipmap texture stores them (f32 or RGBA8, 4 bytes a texel).
     pub fn texel_bytes(&self) -> &[u8] {
         match self {
-            TileData::Height(v) => bytemuck::cast_slice(v),
+            TileData::Height(v) | TileData::ShadedHeight { heights: v, .. } => {
+                bytemuck::cast_slice(v)
+            }
             TileData::Color(v) => v,
+        }
+    }
+
+    /// The heights, if the tile holds heights (shaded or not).
+    pub fn heights(&self) -> Option<&[f32]> {
+        match self {
+            TileData::Height(v) | TileData::ShadedHeight { heights: v, .. } => Some(v),
+            TileData::Color(_) => None,
         }
     }
 }
@@ -287,38 +309,10 @@ pub struct StoreHeightTiles {
     reader: StoreReader,
     keep_nodata: bool,
     detail: Option<Arc<Detail>>,
-    /// The colour shades made with the heights, until a [`DetailColorTiles`] takes them.
-    shades: Arc<ShadeStash>,
+    /// Whether a [`DetailColorTiles`] shades colours by this detail: then the tiles carry
+    /// their shade ([`TileData::ShadedHeight`]).
+    shade_wanted: Arc<AtomicBool>,
     pool: Pool<StoreHeights>,
-}
-
-/// Tiles of colour shade made in the same pass as their detail heights, kept for the colour
-/// source that asks for them next (it makes its tile right after the heights' tile, which is
-/// its input). Bounded: the oldest go first; a shade not found is made again.
-#[derive(Debug, Default)]
-struct ShadeStash {
-    wanted: std::sync::atomic::AtomicBool,
-    tiles: Mutex<std::collections::VecDeque<(TileKey, Arc<Vec<f32>>)>>,
-}
-
-/// Shade tiles a [`ShadeStash`] keeps (1 MiB each at 512²).
-const SHADE_STASH_TILES: usize = 32;
-
-impl ShadeStash {
-    fn put(&self, key: TileKey, shade: Vec<f32>) {
-        let mut t = self.tiles.lock().unwrap_or_else(|e| e.into_inner());
-        if t.len() >= SHADE_STASH_TILES {
-            t.pop_front();
-        }
-        t.push_back((key.with_source(0), Arc::new(shade)));
-    }
-
-    fn take(&self, key: TileKey) -> Option<Arc<Vec<f32>>> {
-        let mut t = self.tiles.lock().unwrap_or_else(|e| e.into_inner());
-        let k = key.with_source(0);
-        let i = t.iter().position(|(x, _)| *x == k)?;
-        t.remove(i).map(|(_, s)| s)
-    }
 }
 
 impl StoreHeightTiles {
@@ -333,7 +327,7 @@ impl StoreHeightTiles {
             reader,
             keep_nodata: keep,
             detail: None,
-            shades: Arc::default(),
+            shade_wanted: Arc::default(),
             pool: Pool::new(),
         }
     }
@@ -345,18 +339,19 @@ impl StoreHeightTiles {
             reader: self.reader.clone(),
             keep_nodata: self.keep_nodata,
             detail: Some(detail),
-            shades: Arc::default(),
+            shade_wanted: Arc::default(),
             pool: Pool::new(),
         }
     }
 
-    /// The same source, sharing its shades (the graph keeps it to derive detail sources from).
+    /// The same source, sharing whether its shade is wanted (the graph keeps it to derive
+    /// detail sources from).
     pub fn handle(&self) -> Self {
         Self {
             reader: self.reader.clone(),
             keep_nodata: self.keep_nodata,
             detail: self.detail.clone(),
-            shades: self.shades.clone(),
+            shade_wanted: self.shade_wanted.clone(),
             pool: Pool::new(),
         }
     }
@@ -380,10 +375,9 @@ impl StoreHeightTiles {
 
 impl TileSource for StoreHeightTiles {
     fn make(&self, key: &TileKey, n: u32, _: &[Tile]) -> Result<TileData, TileError> {
-        if self.detail.is_some() && self.shades.wanted.load(Ordering::Relaxed) {
-            let (height, shade) = self.heights_and_shade(key, n)?;
-            self.shades.put(*key, shade);
-            return Ok(TileData::Height(height));
+        if self.detail.is_some() && self.shade_wanted.load(Ordering::Relaxed) {
+            let (heights, shade) = self.heights_and_shade(key, n)?;
+            return Ok(TileData::ShadedHeight { heights, shade });
         }
         self.pool.with(
             || self.sampler(),
@@ -418,7 +412,7 @@ impl StoreHeightTiles {
 pub struct DetailColorTiles {
     /// The colour source shaded.
     pub input: u32,
-    /// The detail heights source whose shade it takes (made first, its shade kept for this).
+    /// The detail heights source whose shade it takes (an input: its tiles carry the shade).
     pub heights_source: u32,
     heights: StoreHeightTiles,
     detail: Arc<Detail>,
@@ -429,7 +423,7 @@ impl DetailColorTiles {
     /// must synthesize some) makes.
     pub fn new(input: u32, heights_source: u32, heights: &StoreHeightTiles) -> Option<Self> {
         let detail = heights.detail.clone()?;
-        heights.shades.wanted.store(true, Ordering::Relaxed);
+        heights.shade_wanted.store(true, Ordering::Relaxed);
         Some(Self {
             input,
             heights_source,
@@ -448,10 +442,14 @@ impl TileSource for DetailColorTiles {
         let Some(TileData::Color(c)) = inputs.first().map(|t| &**t) else {
             return Err(TileError::Inputs("a colour detail needs a colour input"));
         };
-        let shade = match self.heights.shades.take(*key) {
-            Some(s) => s,
-            // the heights' tile was made long ago (cached): make its shade again
-            None => Arc::new(self.heights.heights_and_shade(key, n)?.1),
+        let made;
+        let shade = match inputs.get(1).map(|t| &**t) {
+            Some(TileData::ShadedHeight { shade, .. }) => shade,
+            // heights made before their shade was wanted: make it
+            _ => {
+                made = self.heights.heights_and_shade(key, n)?.1;
+                &made
+            }
         };
         let mut out = c.clone();
         for (px, &q) in out.chunks_exact_mut(4).zip(shade.iter()) {
@@ -1543,9 +1541,9 @@ mod tests {
             vec![0]
         }
         fn make(&self, _: &TileKey, _: u32, inputs: &[Tile]) -> Result<TileData, TileError> {
-            match &*inputs[0] {
-                TileData::Height(v) => Ok(TileData::Height(v.iter().map(|x| 2.0 * x).collect())),
-                TileData::Color(_) => Err("not heights".into()),
+            match inputs[0].heights() {
+                Some(v) => Ok(TileData::Height(v.iter().map(|x| 2.0 * x).collect())),
+                None => Err("not heights".into()),
             }
         }
     }

@@ -246,9 +246,9 @@ fn the_detail_has_no_seam_at_the_antimeridian_a_pole_or_a_tile_border() {
         x: left.x + 1,
         ..left
     };
-    let get = |key: &TileKey| match tiles.make(key, n, &[]).expect("tile") {
-        TileData::Height(h) => h,
-        TileData::Color(_) => unreachable!("heights"),
+    let get = |key: &TileKey| {
+        let t = tiles.make(key, n, &[]).expect("tile");
+        t.heights().expect("heights").to_vec()
     };
     let (a, b) = (get(&left), get(&right));
     let mut inside = 0.0f32;
@@ -338,4 +338,49 @@ fn the_colour_follows_the_ground_but_keeps_its_mean() {
         );
     }
     assert!(c.chunks_exact(4).all(|p| p[3] == 255), "alpha kept");
+}
+
+/// The shade a colour detail needs travels in its heights' tile: a colour source in another
+/// thread or process (a web worker other than the one that made the heights) shades from the
+/// tile alone, as the heights' own process would; the shade is the tile's, not made again.
+#[test]
+fn the_shade_comes_with_the_heights_tile() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let reader = rough_store(dir.path());
+    let detail = || Arc::new(Detail::new(DetailParams::default(), RADIUS));
+    let heights = StoreHeightTiles::new(reader.clone()).with_detail(detail());
+    let here = DetailColorTiles::new(0, 1, &heights).expect("a detail over heights");
+    let key = TileKey {
+        source: 0,
+        grid: GridId { level: 12, k: 11 },
+        x: 1800,
+        y: 600,
+    };
+    let n = 128;
+    let grey = FnColorTiles(|_: f64, _: f64| [120u8, 110, 100, 255]);
+    let colour = Arc::new(grey.make(&key, n, &[]).expect("colour"));
+    let made = heights.make(&key, n, &[]).expect("heights");
+    let TileData::ShadedHeight { heights: h, shade } = &made else {
+        panic!("heights wanted for a colour detail carry their shade")
+    };
+    assert_eq!(shade.len(), h.len());
+    assert!(shade.iter().any(|&q| q != 0.0));
+    let shaded = |by: &DetailColorTiles, h: TileData| {
+        by.make(&key, n, &[colour.clone(), Arc::new(h)])
+            .expect("shaded")
+    };
+    let want = shaded(&here, made.clone());
+    // another process's colour detail, over its own heights source
+    let elsewhere_heights = StoreHeightTiles::new(reader).with_detail(detail());
+    let elsewhere = DetailColorTiles::new(0, 1, &elsewhere_heights).expect("detail");
+    assert_eq!(shaded(&elsewhere, made.clone()), want);
+    // plain heights (made before the shade was wanted): the shade is made again, the same
+    assert_eq!(shaded(&elsewhere, TileData::Height(h.clone())), want);
+    // the tile's shade is the one used: none at all leaves the colour as it was
+    let flat = TileData::ShadedHeight {
+        heights: h.clone(),
+        shade: vec![0.0; shade.len()],
+    };
+    assert_eq!(shaded(&elsewhere, flat), *colour);
+    assert_ne!(want, *colour);
 }

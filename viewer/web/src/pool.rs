@@ -21,9 +21,6 @@ use crate::wire;
 /// Workers started again after crashes, at most (then the page goes on with fewer).
 const MAX_RESTARTS: u32 = 64;
 
-/// Tiles whose maker is remembered, at most (then forgotten all at once).
-const MADE_BY: usize = 4096;
-
 /// What a worker is doing.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Doing {
@@ -49,8 +46,6 @@ struct Slot {
     generation: u32,
     /// The request it last announced.
     asking: String,
-    /// A tile it makes next, waiting for it (see [`Pool::dispatch`]).
-    held: Option<TileKey>,
     _on_message: Option<OnMessage>,
     _on_error: Option<OnError>,
 }
@@ -63,7 +58,6 @@ impl Slot {
             counts,
             generation: 0,
             asking: String::new(),
-            held: None,
             _on_message: None,
             _on_error: None,
         }
@@ -90,10 +84,6 @@ pub struct Pool {
     filters: Vec<f32>,
     /// Tiles being made with settings edited since: their answers are not kept.
     stale: std::collections::HashSet<TileKey>,
-    /// Which worker made each tile lately (at most [`MADE_BY`] remembered).
-    made_by: std::collections::HashMap<TileKey, usize>,
-    /// Tiles taken for a worker that was then stopped: the next idle workers make them.
-    loose: Vec<TileKey>,
     me: Weak<RefCell<Pool>>,
 }
 
@@ -272,8 +262,6 @@ impl Pool {
                 made: 0,
                 filters: Vec::new(),
                 stale: Default::default(),
-                made_by: Default::default(),
-                loose: Vec::new(),
                 me: me.clone(),
             })
         });
@@ -365,12 +353,6 @@ impl Pool {
                     Err(e) => Err(TileError::Other(format!("the tile maker's answer: {e}"))),
                 };
                 self.made += u64::from(made.is_ok());
-                if made.is_ok() {
-                    if self.made_by.len() >= MADE_BY {
-                        self.made_by.clear();
-                    }
-                    self.made_by.insert(key, i);
-                }
                 self.store.streamer.finish(key, made);
                 if self.stale.remove(&key) {
                     // made with the old settings: the next frames ask for it again
@@ -399,11 +381,6 @@ impl Pool {
     fn stop(&mut self, i: usize, error: TileError, crash: bool) {
         let doing = self.slots[i].doing;
         self.retire(i);
-        // what it made is gone with it; a tile waiting for it goes to the next idle worker
-        self.made_by.retain(|_, &mut j| j != i);
-        if let Some(key) = self.slots[i].held.take() {
-            self.loose.push(key);
-        }
         match doing {
             Doing::Making(key, _) => {
                 self.stale.remove(&key);
@@ -451,43 +428,14 @@ impl Pool {
         }
     }
 
-    /// Gives the idle workers the next tasks, with the inputs' tiles the page has. A tile goes
-    /// to the worker that made one of its inputs, if it is still there: what a source makes on
-    /// the side stays in its worker (a detail's colour shade, made with its heights), and
-    /// another worker would make it again from the store. When that worker is busy the tile
-    /// waits for it (one a worker).
+    /// Gives the idle workers the next tasks, with the inputs' tiles the page has (a detail's
+    /// colour shade travels with its heights' tile, so any worker can make any task).
     pub fn dispatch(&mut self) {
-        for i in 0..self.slots.len() {
-            if self.slots[i].doing == Doing::Idle
-                && let Some(key) = self.slots[i].held.take()
-            {
-                self.send(i, key);
-            }
-        }
-        loop {
-            let Some(idle) = self.slots.iter().position(|s| s.doing == Doing::Idle) else {
-                return;
-            };
-            if let Some(key) = self.loose.pop() {
-                self.send(idle, key);
-                continue;
-            }
+        while let Some(idle) = self.slots.iter().position(|s| s.doing == Doing::Idle) {
             let Some(task) = self.store.streamer.take_task() else {
                 return;
             };
-            let home = self
-                .store
-                .streamer
-                .inputs_of(&task.key)
-                .iter()
-                .rev()
-                .find_map(|k| self.made_by.get(k).copied())
-                .filter(|&j| !matches!(self.slots[j].doing, Doing::Gone | Doing::Opening));
-            match home {
-                Some(j) if self.slots[j].doing == Doing::Idle => self.send(j, task.key),
-                Some(j) if self.slots[j].held.is_none() => self.slots[j].held = Some(task.key),
-                _ => self.send(idle, task.key),
-            }
+            self.send(idle, task.key);
         }
     }
 

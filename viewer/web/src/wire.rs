@@ -40,18 +40,27 @@ impl Writer {
         self.i64(k.y);
     }
 
+    fn f32s(&mut self, v: &[f32]) {
+        self.u64(v.len() as u64);
+        for x in v {
+            self.0.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+
     pub fn tile(&mut self, t: &TileData) {
         match t {
             TileData::Height(v) => {
                 self.u8(0);
-                self.u64(v.len() as u64);
-                for x in v {
-                    self.0.extend_from_slice(&x.to_le_bytes());
-                }
+                self.f32s(v);
             }
             TileData::Color(v) => {
                 self.u8(1);
                 self.bytes(v);
+            }
+            TileData::ShadedHeight { heights, shade } => {
+                self.u8(2);
+                self.f32s(heights);
+                self.f32s(shade);
             }
         }
     }
@@ -132,18 +141,30 @@ impl<'a> Reader<'a> {
         })
     }
 
+    fn f32s(&mut self) -> Result<Vec<f32>, String> {
+        let n = self.count(4)?;
+        let b = self.take(n * 4)?;
+        Ok(b.chunks_exact(4)
+            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect())
+    }
+
     pub fn tile(&mut self) -> Result<TileData, String> {
         match self.u8()? {
-            0 => {
-                let n = self.count(4)?;
-                let b = self.take(n * 4)?;
-                Ok(TileData::Height(
-                    b.chunks_exact(4)
-                        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-                        .collect(),
-                ))
-            }
+            0 => Ok(TileData::Height(self.f32s()?)),
             1 => Ok(TileData::Color(self.bytes()?.to_vec())),
+            2 => {
+                let heights = self.f32s()?;
+                let shade = self.f32s()?;
+                if shade.len() != heights.len() {
+                    return Err(format!(
+                        "a tile of {} heights with {} shades",
+                        heights.len(),
+                        shade.len()
+                    ));
+                }
+                Ok(TileData::ShadedHeight { heights, shade })
+            }
             t => Err(format!("a tile of unknown kind {t}")),
         }
     }
@@ -254,6 +275,12 @@ mod tests {
         let (_, back) = read_made(&made(&k, &Err(e.clone()))).expect("reads");
         assert_eq!(back.map_err(|e| e.to_string()), Err(e.to_string()));
         assert_eq!(read_task(&task(&k, [])), Ok((k, Vec::new())));
+        // heights with their detail's shade: both come back
+        let s = TileData::ShadedHeight {
+            heights: vec![2.0, -3.5],
+            shade: vec![0.25, 0.0],
+        };
+        assert_eq!(read_made(&made(&k, &Ok(s.clone()))), Ok((k, Ok(s))));
     }
 
     #[test]
@@ -273,5 +300,15 @@ mod tests {
         let mut kind = made(&key(0, 0, 0), &Ok(h));
         kind[28] = 9;
         assert!(read_made(&kind).is_err());
+        // a shade that does not cover its heights
+        let s = TileData::ShadedHeight {
+            heights: vec![1.0; 4],
+            shade: vec![0.5; 4],
+        };
+        let mut short = made(&key(0, 0, 0), &Ok(s));
+        let at = short.len() - 4 * 4 - 8;
+        short[at..at + 8].copy_from_slice(&3u64.to_le_bytes());
+        short.truncate(short.len() - 4);
+        assert!(read_made(&short).is_err());
     }
 }
