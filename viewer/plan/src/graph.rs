@@ -212,8 +212,8 @@ impl TileSource for Overlay {
                     Some(h) => TileData::Height(h.to_vec()),
                     None => t.clone(),
                 },
-                (Some(TileData::Height(mut below)), t) if t.heights().is_some() => {
-                    for (b, &v) in below.iter_mut().zip(t.heights().unwrap_or(&[])) {
+                (Some(TileData::Height(mut below)), t) if let Some(top) = t.heights() => {
+                    for (b, &v) in below.iter_mut().zip(top) {
                         if !v.is_nan() {
                             *b = v;
                         }

@@ -300,6 +300,20 @@ fn the_same_seed_makes_the_same_planet() {
     assert_ne!(a, c);
 }
 
+/// A tile of 19 m texels over the rough north (64° N) of [`rough_store`].
+const ROUGH_NORTH: TileKey = TileKey {
+    source: 0,
+    grid: GridId { level: 12, k: 11 },
+    x: 1800,
+    y: 600,
+};
+
+/// [`ROUGH_NORTH`] in one grey, `n` texels a side.
+fn grey_tile(n: u32) -> Arc<TileData> {
+    let grey = FnColorTiles(|_: f64, _: f64| [120u8, 110, 100, 255]);
+    Arc::new(grey.make(&ROUGH_NORTH, n, &[]).expect("colour"))
+}
+
 #[test]
 fn the_colour_follows_the_ground_but_keeps_its_mean() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -307,17 +321,9 @@ fn the_colour_follows_the_ground_but_keeps_its_mean() {
     let detail = Arc::new(Detail::new(DetailParams::default(), RADIUS));
     let heights = StoreHeightTiles::new(reader.clone()).with_detail(detail);
     let shaded = DetailColorTiles::new(0, 1, &heights).expect("a detail over heights");
-    let grey = FnColorTiles(|_: f64, _: f64| [120u8, 110, 100, 255]);
-    // a tile of 19 m texels over the rough north (64° N), made after its heights as the
-    // streamer makes it
-    let key = TileKey {
-        source: 0,
-        grid: GridId { level: 12, k: 11 },
-        x: 1800,
-        y: 600,
-    };
-    let n = 256;
-    let colour = Arc::new(grey.make(&key, n, &[]).expect("colour"));
+    // made after its heights as the streamer makes it
+    let (key, n) = (ROUGH_NORTH, 256);
+    let colour = grey_tile(n);
     let h = Arc::new(heights.make(&key, n, &[]).expect("heights"));
     let TileData::Color(c) = shaded.make(&key, n, &[colour, h]).expect("shaded") else {
         unreachable!("colour")
@@ -350,15 +356,8 @@ fn the_shade_comes_with_the_heights_tile() {
     let detail = || Arc::new(Detail::new(DetailParams::default(), RADIUS));
     let heights = StoreHeightTiles::new(reader.clone()).with_detail(detail());
     let here = DetailColorTiles::new(0, 1, &heights).expect("a detail over heights");
-    let key = TileKey {
-        source: 0,
-        grid: GridId { level: 12, k: 11 },
-        x: 1800,
-        y: 600,
-    };
-    let n = 128;
-    let grey = FnColorTiles(|_: f64, _: f64| [120u8, 110, 100, 255]);
-    let colour = Arc::new(grey.make(&key, n, &[]).expect("colour"));
+    let (key, n) = (ROUGH_NORTH, 128);
+    let colour = grey_tile(n);
     let made = heights.make(&key, n, &[]).expect("heights");
     let TileData::ShadedHeight { heights: h, shade } = &made else {
         panic!("heights wanted for a colour detail carry their shade")
