@@ -48,3 +48,15 @@ serve_start() {
   page=${url%/*}/
 }
 serve_stop() { kill "$server"; wait "$server" 2>/dev/null || true; server=; }
+
+# static_start DIR: Python's static file server for DIR on a free loopback port; sets static (its
+# PID) and static_url (`http://127.0.0.1:PORT`). static_stop stops it. Needs $py.
+static_start() {
+  local port
+  port=$("$py" -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
+  "$py" -m http.server --bind 127.0.0.1 "$port" -d "$1" > /dev/null 2>&1 &
+  static=$!
+  static_url=http://127.0.0.1:$port
+  for _ in $(seq 100); do (echo > "/dev/tcp/127.0.0.1/$port") 2>/dev/null && break; sleep 0.1; done
+}
+static_stop() { kill "$static"; wait "$static" 2>/dev/null || true; static=; }

@@ -47,16 +47,13 @@ done
 # own count (what its reads got) is larger with several workers: each worker reads the chunks it
 # needs, and the browser's cache answers those another worker fetched already.
 "$BIN" web --out "$out/site" --store unused > /dev/null
-site_port=$("$py" -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
-"$py" -m http.server --bind 127.0.0.1 "$site_port" -d "$out/site" > /dev/null 2>&1 &
-static=$!
-for _ in $(seq 100); do (echo > "/dev/tcp/127.0.0.1/$site_port") 2>/dev/null && break; sleep 0.1; done
+static_start "$out/site"
 for gpu in webgpu webgl2; do
   flags=""
   [ $gpu = webgpu ] && flags="--enable-unsafe-webgpu --enable-features=Vulkan --use-vulkan=swiftshader --use-angle=vulkan"
   for v in "${views[@]}"; do
     serve_start "$store" "$out"
-    FLY=0 "$py" bench/web.py "http://127.0.0.1:$site_port/index.html?gpu=$gpu&store=$url" "$size" "$flags" "$v" \
+    FLY=0 "$py" bench/web.py "$static_url/index.html?gpu=$gpu&store=$url" "$size" "$flags" "$v" \
       | sed "s/^/$gpu /"
     serve_stop
     echo "$gpu ${v%%=*}: the store's server sent $(sed -n 's/^served \(.*\)$/\1/p' "$out/serve.txt") to the complete view"
@@ -67,7 +64,7 @@ for gpu in webgpu webgl2; do
   serve_stop
   echo "$gpu: the server sent $(sed -n 's/^served \(.*\)$/\1/p' "$out/serve.txt") in all"
 done
-kill "$static"; wait "$static" 2>/dev/null || true; static=
+static_stop
 # CesiumJS on the same cameras, from a static host (Python's) beside it
 site=target/bench/cesium
 mkdir -p "$site"
@@ -80,9 +77,6 @@ level=$("$BIN" info "$store" | sed -n 's/^  color: levels 0\.\.\([0-9]*\).*/\1/p
 "$BIN" export "$store" --layer color --level "$level" --no-overviews "$out/color.tif" \
   > /dev/null 2> "$out/export.txt" || { cat "$out/export.txt" >&2; exit 1; }
 gdal_translate -q -of PNG "$out/color.tif" "$site/color.png"
-port=$("$py" -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
-"$py" -m http.server --bind 127.0.0.1 "$port" -d "$site" > /dev/null 2>&1 &
-static=$!
-for _ in $(seq 100); do (echo > "/dev/tcp/127.0.0.1/$port") 2>/dev/null && break; sleep 0.1; done
+static_start "$site"
 echo "cesium: colour level $level as a $(stat -c %s "$site/color.png")-byte PNG"
-"$py" bench/web.py "cesium:http://127.0.0.1:$port/index.html" "$size" "" "${views[@]}" | sed "s/^/cesium /"
+"$py" bench/web.py "cesium:$static_url/index.html" "$size" "" "${views[@]}" | sed "s/^/cesium /"
