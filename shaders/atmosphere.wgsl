@@ -1,4 +1,4 @@
-// The atmosphere's lookup tables as compute passes (the CPU twins: sc_view_plan::atmosphere);
+// The atmosphere's lookup tables as compute passes (the CPU twins: sc_view_space::atmosphere);
 // atmosphere_model.wgsl, which comes first, has the model, and air_table_reads.wgsl the tables'
 // reads from the buffers declared here. Each pass writes
 // one table from the ones before it: transmittance, multiple scattering, the sky's irradiance

@@ -3,7 +3,7 @@
 // includes this file declares the tables it reads: `atm`, `atmo`, `transmittance_table`,
 // `multiple_scattering_table`, `sky_view_table`, `aerial_inscatter`, `aerial_transmittance`,
 // `irradiance_table`.
-// The CPU twins: sc_view_plan::atmosphere.
+// The CPU twins: sc_view_space::atmosphere.
 
 struct Atmosphere {
     // xyz: Rayleigh scattering, w: its scale height

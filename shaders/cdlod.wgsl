@@ -1,5 +1,5 @@
 // Icosahedral triangular CDLOD's vertex stage: one instanced patch per leaf of the triangle tree
-// (viewer/plan/src/cdlod.rs). The renderer appends this to clipmap.wgsl and cdlod_geometry.wgsl:
+// (viewer/plan/src/terrain/cdlod.rs). The renderer appends this to clipmap.wgsl and cdlod_geometry.wgsl:
 // heights come from the clipmaps as the clipmap mesh reads them at the same point, and the
 // fragment stage is the clipmap renderer's (`fs_main`), so the two renderers differ in geometry
 // only.

@@ -1,4 +1,4 @@
-// Icosahedral triangular CDLOD: where a patch vertex lies, morphed (viewer/plan/src/cdlod.rs,
+// Icosahedral triangular CDLOD: where a patch vertex lies, morphed (viewer/plan/src/terrain/cdlod.rs,
 // `vertex_f32`, operation for operation). A module including this declares the uniform `cdlod`.
 // Lattice points are integers, so every leaf holding a point computes it from the same numbers;
 // the position is viewer-relative (the clipmap's vertex attributes), f32 throughout.

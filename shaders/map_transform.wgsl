@@ -1,5 +1,5 @@
 // The map transform of spherical clipmaps (paper §3.3), viewer-relative and free of large
-// cancellations: `offsets_f32` in viewer/plan/src/transform.rs, operation for operation. Shared by the
+// cancellations: `offsets_f32` in viewer/space/src/transform.rs, operation for operation. Shared by the
 // renderer (clipmap.wgsl) and the precision probe (transform_probe.wgsl).
 
 // The viewer, from the nearer pole: sin and cos of its colatitude, the colatitude, +1 north / −1

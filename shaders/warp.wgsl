@@ -1,6 +1,6 @@
 // Geometry-image warping's vertex stage: one mesh of (rings + 1)·(around + 1) vertices placed by
 // `warp_point` (warp_geometry.wgsl) from the two lines the CPU warped this frame
-// (viewer/plan/src/warp.rs). The renderer appends this to clipmap.wgsl and warp_geometry.wgsl:
+// (viewer/plan/src/terrain/warp.rs). The renderer appends this to clipmap.wgsl and warp_geometry.wgsl:
 // heights come from the clipmaps as the clipmap mesh reads them at the same point, and the
 // fragment stage is the clipmap renderer's (`fs_main`), so the renderers differ in geometry only.
 

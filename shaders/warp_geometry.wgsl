@@ -1,4 +1,4 @@
-// Geometry-image warping: where vertex k of the warped mesh lies (viewer/plan/src/warp.rs,
+// Geometry-image warping: where vertex k of the warped mesh lies (viewer/plan/src/terrain/warp.rs,
 // `WarpFrame::vertex`, operation for operation). A module including this declares the uniform
 // `warp` (x: cells along a ring, y: cells along a line of azimuth) and the storage array
 // `warp_lines` (per ring (sin θ, 1 − cos θ, 0, 0), then per azimuth (cos ψ, sin ψ, seam, 0)).

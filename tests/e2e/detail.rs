@@ -7,10 +7,10 @@
 use std::f64::consts::PI;
 
 use sc_store::StoreReader;
-use sc_view_plan::clipmap::{HeightSource, LevelWindow, StoreHeights};
-use sc_view_plan::detail::{Detail, DetailParams};
-use sc_view_plan::graph::Graph;
-use sc_view_plan::stream::{GridId, TileKey};
+use sc_view_data::clipmap::{HeightSource, LevelWindow, StoreHeights};
+use sc_view_data::detail::{Detail, DetailParams};
+use sc_view_data::graph::Graph;
+use sc_view_data::stream::{GridId, TileKey};
 
 use crate::util::sample_planet;
 

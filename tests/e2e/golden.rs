@@ -77,7 +77,7 @@ fn check_goldens(views: &[(&str, &str, &[&str])]) {
 
 #[test]
 fn golden_views_of_the_sample_planet() {
-    let views: Vec<(&str, &str, &[&str])> = sc_view_plan::camera::GOLDEN_VIEWS
+    let views: Vec<(&str, &str, &[&str])> = sc_view_space::camera::GOLDEN_VIEWS
         .iter()
         .map(|(name, cam)| (*name, *cam, &["--atmosphere", "off", "--detail", "off"][..]))
         .collect();

@@ -5,7 +5,7 @@ use std::f64::consts::PI;
 
 use sc_core::LevelId;
 use sc_store::StoreReader;
-use sc_view_plan::clipmap::{HeightSource, LevelWindow, StoreHeights};
+use sc_view_data::clipmap::{HeightSource, LevelWindow, StoreHeights};
 
 use crate::util::{copy_dir, etopo5_level4, ok, read_level, run, s, sample};
 

@@ -7,11 +7,11 @@
 use std::time::Instant;
 
 use sc_view_gpu::atmosphere::AtmosphereTables;
-use sc_view_plan::atmosphere::{Atmosphere, AtmosphereFrame};
-use sc_view_plan::camera::Camera;
 use sc_view_plan::frame::view_projection;
-use sc_view_plan::sun::Sun;
-use sc_view_plan::transform::Viewer;
+use sc_view_space::atmosphere::{Atmosphere, AtmosphereFrame};
+use sc_view_space::camera::Camera;
+use sc_view_space::sun::Sun;
+use sc_view_space::transform::Viewer;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let reps: usize = std::env::args()

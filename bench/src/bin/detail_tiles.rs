@@ -9,8 +9,8 @@
 use std::f64::consts::PI;
 use std::time::Instant;
 
-use sc_view_plan::graph::Graph;
-use sc_view_plan::stream::{GridId, TileKey};
+use sc_view_data::graph::Graph;
+use sc_view_data::stream::{GridId, TileKey};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
@@ -34,7 +34,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut sum = 0.0;
     for i in 0..evals {
         let f = f64::from(i);
-        sum += sc_view_plan::detail::gradient_noise(
+        sum += sc_view_data::detail::gradient_noise(
             [f * 1e-3 + 1e6, f * 7e-4 - 3e5, 2e4 + f * 1e-4],
             5,
         );
@@ -43,7 +43,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "simplex noise: {:.1} ns an evaluation (checksum {sum:.3})",
         t.elapsed().as_secs_f64() * 1e9 / f64::from(evals)
     );
-    let lanes = sc_view_plan::detail::LANES as u32;
+    let lanes = sc_view_data::detail::LANES as u32;
     let t = Instant::now();
     let mut sum = 0.0;
     for i in (0..evals).step_by(lanes as usize) {
@@ -51,7 +51,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let f = f64::from(i + l as u32);
             [f * 1e-3 + 1e6, f * 7e-4 - 3e5, 2e4 + f * 1e-4]
         });
-        sum += sc_view_plan::detail::noise_lanes(&q, 5).iter().sum::<f64>();
+        sum += sc_view_data::detail::noise_lanes(&q, 5).iter().sum::<f64>();
     }
     println!(
         "simplex noise, {lanes} lanes at once: {:.1} ns an evaluation (checksum {sum:.3})",

@@ -11,11 +11,11 @@ use std::time::Instant;
 
 use sc_view_gpu::measure::{DepthFrame, RoughMountains, quantile};
 use sc_view_gpu::render::Renderer;
-use sc_view_plan::camera::Camera;
-use sc_view_plan::cdlod::CdlodSpec;
 use sc_view_plan::frame::DrawOptions;
 use sc_view_plan::terrain::Geometry;
-use sc_view_plan::warp::WarpSpec;
+use sc_view_plan::terrain::cdlod::CdlodSpec;
+use sc_view_plan::terrain::warp::WarpSpec;
+use sc_view_space::camera::Camera;
 
 const R: f64 = 6_371_008.8;
 

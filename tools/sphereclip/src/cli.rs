@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::{Parser, Subcommand};
 use sc_core::{Kernel, LevelId};
-use sc_view_plan::camera::Camera;
+use sc_view_space::camera::Camera;
 
 /// sphereclip: rasters in any projection → a global spherical pyramid → a planet on screen.
 #[derive(Debug, Parser)]
@@ -366,7 +366,7 @@ pub struct LookArgs {
     /// The sun as AZIMUTH,ELEVATION in degrees (azimuth clockwise from north) seen from the point
     /// under the camera at the start; fixed in the world from then on [default: 135,50].
     #[arg(long, allow_hyphen_values = true, conflicts_with = "time", value_parser = sun_arg)]
-    pub sun: Option<sc_view_plan::sun::SunAngles>,
+    pub sun: Option<sc_view_space::sun::SunAngles>,
     /// Put the sun where it stands at this UTC time (e.g. 2026-06-21T12:00:00Z): straight above
     /// its subsolar point.
     #[arg(long, value_parser = time_arg)]
@@ -781,13 +781,13 @@ fn exaggeration_arg(s: &str) -> Result<f64, String> {
 }
 
 /// The sun's angles, placed once the camera is known.
-fn sun_arg(s: &str) -> Result<sc_view_plan::sun::SunAngles, String> {
-    sc_view_plan::sun::SunAngles::parse(s).map_err(|e| e.to_string())
+fn sun_arg(s: &str) -> Result<sc_view_space::sun::SunAngles, String> {
+    sc_view_space::sun::SunAngles::parse(s).map_err(|e| e.to_string())
 }
 
 /// Seconds since the Unix epoch.
 fn time_arg(s: &str) -> Result<f64, String> {
-    sc_view_plan::sun::parse_utc(s).map_err(|e| e.to_string())
+    sc_view_space::sun::parse_utc(s).map_err(|e| e.to_string())
 }
 
 fn export_file_arg(s: &str) -> Result<ExportFile, String> {

@@ -4,10 +4,10 @@
 //! and per frame the sky-view table and the aerial-perspective volume of the frame's viewer.
 //! [`AtmospherePasses`] holds them on a device for the clipmap pass, which reads them in its
 //! fragment stage; [`AtmosphereTables`] reads them back for the tests that compare them with
-//! their CPU twins (`sc_view_plan::atmosphere`).
+//! their CPU twins (`sc_view_space::atmosphere`).
 
 use crate::device::{RenderError, gpu_device, read_back};
-use sc_view_plan::atmosphere::{
+use sc_view_space::atmosphere::{
     AERIAL_SIZE, AerialPerspectiveLut, Atmosphere, AtmosphereFrame, AtmosphereUniforms,
     IRRADIANCE_SIZE, IrradianceLut, MULTIPLE_SCATTERING_SIZE, MultipleScatteringLut, SKY_VIEW_SIZE,
     SkyViewLut, TRANSMITTANCE_SIZE, TransmittanceLut,
@@ -366,7 +366,7 @@ fn texture_size(k: usize) -> (u32, u32) {
     (w as u32, h as u32)
 }
 
-/// The tables made on the CPU by their twins (`sc_view_plan::atmosphere`) and uploaded as
+/// The tables made on the CPU by their twins (`sc_view_space::atmosphere`) and uploaded as
 /// RGBA32F textures: for a device without compute shaders or storage buffers (WebGL2), whose
 /// clipmap pass reads them through `shaders/air_tables_webgl.wgsl`.
 #[derive(Debug)]

@@ -2,7 +2,7 @@
 //! lavapipe), the device with the limits the renderers need, copying a buffer back, and the
 //! errors of the wgpu side.
 
-use sc_view_plan::geometry::HemisphereSpec;
+use sc_view_plan::terrain::clipmap::HemisphereSpec;
 
 /// The depth buffer of every pass: float, reversed Z (cleared to 0, nearer is greater) with an
 /// infinite far plane, which serves orbit and the ground alike.

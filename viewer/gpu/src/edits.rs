@@ -5,10 +5,11 @@
 //! the visible ones, as the next frames ask for them).
 
 use sc_store::LayerKind;
-use sc_view_plan::camera::{Controller, Mode};
-use sc_view_plan::frame::{DrawOptions, StreamSources};
-use sc_view_plan::graph::{FilterHandle, FilterParams};
-use sc_view_plan::stream::Streamer;
+use sc_view_data::graph::{FilterHandle, FilterParams};
+use sc_view_data::stream::StreamSources;
+use sc_view_data::stream::Streamer;
+use sc_view_plan::frame::DrawOptions;
+use sc_view_space::camera::{Controller, Mode};
 
 use crate::render::ClipmapPass;
 

@@ -8,10 +8,10 @@ use std::time::Duration;
 use web_time::Instant;
 
 use sc_core::stats::percentile;
-use sc_view_plan::camera::move_along;
-use sc_view_plan::flight::Flight;
-use sc_view_plan::frame::StreamSources;
-use sc_view_plan::stream::Streamer;
+use sc_view_data::stream::StreamSources;
+use sc_view_data::stream::Streamer;
+use sc_view_space::camera::move_along;
+use sc_view_space::flight::Flight;
 use serde::Serialize;
 
 use crate::render::{RenderError, Renderer};

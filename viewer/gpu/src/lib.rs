@@ -17,11 +17,11 @@ pub mod terrain;
 /// constants are the only source: the finest clipmap level, table sizes of the atmosphere, the
 /// frame's flags, the sides of a colour window that are no edge.
 pub fn shader_constants() -> String {
-    use sc_view_plan::atmosphere as a;
     use sc_view_plan::frame as f;
+    use sc_view_space::atmosphere as a;
     let u = |v: usize| u32::try_from(v).expect("a table size fits a u32");
     let constants: [(&str, u32); 18] = [
-        ("MAX_RING", sc_view_plan::geometry::LEVELS - 1),
+        ("MAX_RING", sc_view_space::transform::LEVELS - 1),
         ("TRANSMITTANCE_W", u(a::TRANSMITTANCE_SIZE.0)),
         ("TRANSMITTANCE_H", u(a::TRANSMITTANCE_SIZE.1)),
         ("MS_SIZE", u(a::MULTIPLE_SCATTERING_SIZE)),

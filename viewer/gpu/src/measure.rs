@@ -5,11 +5,11 @@
 //! the world moving on screen). [`RoughMountains`] is a height field both can be run on.
 
 use glam::{DMat4, DVec3, DVec4};
-use sc_view_plan::camera::Camera;
-use sc_view_plan::cdlod::{from_view, to_view};
-use sc_view_plan::clipmap::{HeightSource, LevelWindow};
+use sc_view_data::clipmap::{HeightSource, LevelWindow};
 use sc_view_plan::frame::FrameUniform;
-use sc_view_plan::transform::Viewer;
+use sc_view_plan::terrain::cdlod::{from_view, to_view};
+use sc_view_space::camera::Camera;
+use sc_view_space::transform::Viewer;
 
 use crate::render::{RenderError, Renderer};
 

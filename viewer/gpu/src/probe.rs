@@ -6,9 +6,9 @@
 use wgpu::util::DeviceExt;
 
 use crate::device::{RenderError, gpu_device, read_back};
-use sc_view_plan::cdlod::{CdlodUniform, LeafInstance};
-use sc_view_plan::transform::TransformUniforms;
-use sc_view_plan::warp::WarpFrame;
+use sc_view_plan::terrain::cdlod::{CdlodUniform, LeafInstance};
+use sc_view_plan::terrain::warp::WarpFrame;
+use sc_view_space::transform::TransformUniforms;
 
 /// A compute pass `probe` of one WGSL module on a device of its own: its inputs bound at 0..k
 /// in order, its output at k.

@@ -9,15 +9,14 @@ use web_time::Instant;
 
 use bytemuck::Zeroable;
 use sc_store::LayerKind;
-use sc_view_plan::atmosphere::AtmosphereFrame;
-use sc_view_plan::camera::Camera;
-use sc_view_plan::clipmap::{CLIPMAP_N, COLOR_N, ColorSource, HeightSource, Region};
+use sc_view_data::clipmap::{CLIPMAP_N, COLOR_N, ColorSource, HeightSource, Region};
+use sc_view_data::stream::{StreamSources, Streamer};
 use sc_view_plan::frame::{
     DrawOptions, FrameClock, FramePlan, FramePlanner, FrameStats, FrameUniform, LevelUniform,
-    StreamSources,
 };
-use sc_view_plan::geometry::HemisphereSpec;
-use sc_view_plan::stream::Streamer;
+use sc_view_plan::terrain::clipmap::HemisphereSpec;
+use sc_view_space::atmosphere::AtmosphereFrame;
+use sc_view_space::camera::Camera;
 
 use crate::atmosphere::{AirTables, uploads_tables};
 use crate::device::DEPTH_FORMAT;

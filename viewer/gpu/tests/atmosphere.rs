@@ -1,7 +1,7 @@
 //! The atmosphere's lookup tables computed on the GPU (lavapipe in CI) against their CPU twins.
 
 use sc_view_gpu::atmosphere::AtmosphereTables;
-use sc_view_plan::atmosphere::{
+use sc_view_space::atmosphere::{
     Atmosphere, IrradianceLut, MultipleScatteringLut, SkyViewLut, TransmittanceLut,
 };
 
@@ -110,7 +110,7 @@ fn looking(forward: glam::Vec3, fov: f32) -> [[f32; 4]; 4] {
 
 #[test]
 fn gpu_aerial_perspective_volume_matches_its_cpu_twin_from_the_ground_to_beyond_the_moon() {
-    use sc_view_plan::atmosphere::{AerialPerspectiveLut, AtmosphereFrame};
+    use sc_view_space::atmosphere::{AerialPerspectiveLut, AtmosphereFrame};
     let mut gpu = AtmosphereTables::new().unwrap_or_else(|e| {
         panic!("{e} — GPU tests need an adapter; `make test` installs mesa-vulkan-drivers")
     });

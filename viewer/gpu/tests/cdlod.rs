@@ -7,12 +7,12 @@ use std::collections::HashMap;
 
 use glam::DVec3;
 use sc_view_gpu::probe::CdlodProbe;
-use sc_view_plan::camera::Camera;
-use sc_view_plan::cdlod::{
+use sc_view_plan::terrain::cdlod::{
     CdlodFrame, CdlodPlanner, CdlodSpec, LeafInstance, attributes, patch_border, vertex_f32,
     vertex_f64,
 };
-use sc_view_plan::transform::{Viewer, visible_levels};
+use sc_view_space::camera::Camera;
+use sc_view_space::transform::{Viewer, visible_levels};
 
 const R: f64 = sc_core::EARTH_RADIUS_M;
 

@@ -7,11 +7,11 @@
 
 use sc_view_gpu::measure::{DepthFrame, RoughMountains, quantile};
 use sc_view_gpu::render::Renderer;
-use sc_view_plan::camera::Camera;
-use sc_view_plan::cdlod::CdlodSpec;
 use sc_view_plan::frame::DrawOptions;
 use sc_view_plan::terrain::Geometry;
-use sc_view_plan::warp::WarpSpec;
+use sc_view_plan::terrain::cdlod::CdlodSpec;
+use sc_view_plan::terrain::warp::WarpSpec;
+use sc_view_space::camera::Camera;
 
 const R: f64 = sc_core::EARTH_RADIUS_M;
 const HEIGHTS: RoughMountains = RoughMountains { radius_m: R };

@@ -2,8 +2,9 @@
 //! 1000 km, at the poles, the antimeridian and elsewhere (same f32 vertex attributes into both).
 
 use sc_view_gpu::probe::TransformProbe;
-use sc_view_plan::geometry::{Hemisphere, HemisphereSpec, level_outer};
-use sc_view_plan::transform::{Viewer, offsets_f32, offsets_f64, visible_levels};
+use sc_view_plan::terrain::clipmap::{Hemisphere, HemisphereSpec};
+use sc_view_space::transform::level_outer;
+use sc_view_space::transform::{Viewer, offsets_f32, offsets_f64, visible_levels};
 
 const R: f64 = sc_core::EARTH_RADIUS_M;
 

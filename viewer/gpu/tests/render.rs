@@ -2,14 +2,14 @@
 //! the ground to orbit, over both poles and across the antimeridian; no seam beyond a pole.
 
 use glam::{Vec3, Vec4};
+use sc_view_data::clipmap::{ColorSource, HeightSource, LevelWindow};
 use sc_view_gpu::render::Renderer;
-use sc_view_plan::camera::Camera;
-use sc_view_plan::cdlod::CdlodSpec;
-use sc_view_plan::clipmap::{ColorSource, HeightSource, LevelWindow};
 use sc_view_plan::frame::{DrawOptions, view_projection};
 use sc_view_plan::terrain::Geometry;
-use sc_view_plan::transform::Viewer;
-use sc_view_plan::warp::WarpSpec;
+use sc_view_plan::terrain::cdlod::CdlodSpec;
+use sc_view_plan::terrain::warp::WarpSpec;
+use sc_view_space::camera::Camera;
+use sc_view_space::transform::Viewer;
 
 const R: f64 = sc_core::EARTH_RADIUS_M;
 
@@ -150,7 +150,7 @@ fn no_cracks(geometry: Geometry) {
         let ground = f64::from(Mountains.height(
             v.lon_rad,
             v.colat_rad,
-            sc_view_plan::clipmap::level_window(20, v.colat_rad, 256),
+            sc_view_data::clipmap::level_window(20, v.colat_rad, 256),
         ));
         let must = hits(&cam, ground + cam.alt, w, h, R - 6500.0);
         let mut holes = Vec::new();

@@ -4,16 +4,16 @@
 //! (so the comparison measures the aerial-perspective volume's interpolation too).
 
 use glam::DVec3;
+use sc_view_data::clipmap::{ColorSource, HeightSource, LevelWindow};
 use sc_view_gpu::render::Renderer;
-use sc_view_plan::atmosphere::{
+use sc_view_plan::frame::{DrawOptions, view_projection};
+use sc_view_space::atmosphere::{
     Atmosphere, AtmosphereFrame, IrradianceLut, MultipleScatteringLut, SUN_ILLUMINANCE, SkyViewLut,
     TransmittanceLut, tone_map, view_ray,
 };
-use sc_view_plan::camera::Camera;
-use sc_view_plan::clipmap::{ColorSource, HeightSource, LevelWindow};
-use sc_view_plan::frame::{DrawOptions, view_projection};
-use sc_view_plan::sun::Sun;
-use sc_view_plan::transform::Viewer;
+use sc_view_space::camera::Camera;
+use sc_view_space::sun::Sun;
+use sc_view_space::transform::Viewer;
 
 const R: f64 = sc_core::EARTH_RADIUS_M;
 const GREY: u8 = 128;

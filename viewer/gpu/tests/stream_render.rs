@@ -8,13 +8,13 @@ use std::sync::mpsc::{Receiver, channel};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use sc_view_gpu::render::Renderer;
-use sc_view_plan::camera::Camera;
-use sc_view_plan::clipmap::{CLIPMAP_N, ColorSource, HeightSource, LevelWindow};
-use sc_view_plan::frame::StreamSources;
-use sc_view_plan::stream::{
+use sc_view_data::clipmap::{CLIPMAP_N, ColorSource, HeightSource, LevelWindow};
+use sc_view_data::stream::StreamSources;
+use sc_view_data::stream::{
     FnColorTiles, FnHeightTiles, Streamer, Tile, TileData, TileError, TileKey, TileSource,
 };
+use sc_view_gpu::render::Renderer;
+use sc_view_space::camera::Camera;
 
 #[path = "../../plan/tests/support/mod.rs"]
 mod support;
@@ -342,7 +342,7 @@ const SOURCES_FILTERED: StreamSources = StreamSources {
 
 #[test]
 fn a_filter_edit_remakes_only_the_visible_tiles() {
-    use sc_view_plan::graph::{ColorFilter, FilterParams};
+    use sc_view_data::graph::{ColorFilter, FilterParams};
     use std::sync::atomic::{AtomicUsize, Ordering};
     use std::sync::{Arc, RwLock};
     let made = Arc::new(AtomicUsize::new(0));
@@ -372,12 +372,12 @@ fn a_filter_edit_remakes_only_the_visible_tiles() {
     let cached = streamer.cache().tiles_of(2);
     let count = made.load(Ordering::SeqCst);
     // the panel's edit: new settings, the filter's tiles (and what derives from them) dropped
-    let filters = [sc_view_plan::graph::FilterHandle {
+    let filters = [sc_view_data::graph::FilterHandle {
         name: "filter".into(),
         source: 2,
         params: params.clone(),
     }];
-    let mut controller = sc_view_plan::camera::Controller::new(b, R);
+    let mut controller = sc_view_space::camera::Controller::new(b, R);
     let mut sources = SOURCES_FILTERED;
     let mut view = sc_view_gpu::edits::Edited {
         controller: &mut controller,

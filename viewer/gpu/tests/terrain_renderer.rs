@@ -4,11 +4,11 @@
 
 use std::sync::Arc;
 
+use sc_view_data::clipmap::{HeightSource, LevelWindow};
 use sc_view_gpu::render::Renderer;
 use sc_view_gpu::terrain::{TerrainDraw, TerrainRenderer, TerrainSetup, TerrainStage};
-use sc_view_plan::camera::Camera;
-use sc_view_plan::clipmap::{HeightSource, LevelWindow};
 use sc_view_plan::terrain::{GeometryFrame, GeometryInput, GeometryPlanner};
+use sc_view_space::camera::Camera;
 
 const R: f64 = sc_core::EARTH_RADIUS_M;
 

@@ -3,8 +3,8 @@
 //! ground, over a pole and across the antimeridian.
 
 use sc_view_gpu::probe::WarpProbe;
-use sc_view_plan::camera::Camera;
-use sc_view_plan::warp::{WarpSpec, plan};
+use sc_view_plan::terrain::warp::{WarpSpec, plan};
+use sc_view_space::camera::Camera;
 
 const R: f64 = sc_core::EARTH_RADIUS_M;
 

@@ -13,17 +13,20 @@ use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec3};
 use sc_store::LayerKind;
 
-use crate::atmosphere::Atmosphere;
-use crate::camera::Camera;
-use crate::clipmap::{
+use crate::terrain::clipmap::{Hemisphere, HemisphereSpec};
+use crate::terrain::{Geometry, GeometryFrame, GeometryInput, GeometryPlanner, planner_for};
+use sc_view_data::clipmap::{
     CLIPMAP_N, COLOR_N, ColorSource, HeightSource, Placement, Region, all_regions, changed_regions,
     fill_region,
 };
-use crate::geometry::{Hemisphere, HemisphereSpec, level_outer};
-use crate::stream::{Focus, GridId, Streamer, Task, Tile, TileData, TileKey};
-use crate::sun::Sun;
-use crate::terrain::{Geometry, GeometryFrame, GeometryInput, GeometryPlanner, planner_for};
-use crate::transform::{Viewer, finest_level_in_view, vertex_level, view_axes, visible_levels};
+use sc_view_data::stream::{Focus, GridId, StreamSources, Streamer, Task, Tile, TileData, TileKey};
+use sc_view_space::atmosphere::Atmosphere;
+use sc_view_space::camera::Camera;
+use sc_view_space::sun::Sun;
+use sc_view_space::transform::level_outer;
+use sc_view_space::transform::{
+    Viewer, finest_level_in_view, vertex_level, view_axes, visible_levels,
+};
 
 /// The frame uniform of `shaders/clipmap.wgsl`, as plain numbers (its layout is checked against
 /// the WGSL by the GPU crate's tests).
@@ -201,15 +204,6 @@ pub struct FrameClock {
 
 /// Most quads prefetched along the path per level (at half-window steps: four windows ahead).
 const LOOKAHEAD_QUADS: u32 = 8;
-
-/// Which sources of a [`Streamer`] feed the clipmaps.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct StreamSources {
-    /// The height source.
-    pub height: u32,
-    /// The colour source, if any.
-    pub color: Option<u32>,
-}
 
 /// One texture region to write: level `level` of the layer's clipmap array, the region's texels
 /// row-major, 4 bytes each (f32 height or RGBA).

@@ -4,8 +4,8 @@
 //! `--atmosphere`, `--renderer`), so a link and a command line show the same picture. Written
 //! back as the camera moves, so the address bar always holds a link to what is on screen.
 
-use crate::ViewError;
-use crate::camera::Camera;
+use sc_view_space::ViewError;
+use sc_view_space::camera::Camera;
 
 /// The camera of a link that names none: `view`'s default (the Atlantic and Africa from 12 000 km).
 pub const DEFAULT_CAMERA: &str = "30,10,12000000";

@@ -11,10 +11,10 @@ use std::f64::consts::PI;
 
 use glam::DVec3;
 
-use crate::camera::Camera;
-use crate::clipmap::{HeightSource, LevelWindow, StoreColors, StoreHeights};
-use crate::sun::unit_of;
-use crate::transform::{LocalAxes, view_axes};
+use sc_view_data::clipmap::{HeightSource, LevelWindow, StoreColors, StoreHeights};
+use sc_view_space::camera::Camera;
+use sc_view_space::sun::unit_of;
+use sc_view_space::transform::{LocalAxes, view_axes};
 
 /// A clipmap texel finer than any stored level: the store's finest level with data serves.
 const FINEST: LevelWindow = LevelWindow {

@@ -7,10 +7,11 @@ use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
 use sc_store::LayerKind;
-use sc_view_plan::camera::Camera;
-use sc_view_plan::clipmap::{CLIPMAP_N, COLOR_N};
-use sc_view_plan::frame::{FrameClock, FramePlan, FramePlanner, StreamSources};
-use sc_view_plan::stream::{FnColorTiles, FnHeightTiles, GridId, Streamer, Task, TileSource};
+use sc_view_data::clipmap::{CLIPMAP_N, COLOR_N};
+use sc_view_data::stream::StreamSources;
+use sc_view_data::stream::{FnColorTiles, FnHeightTiles, GridId, Streamer, Task, TileSource};
+use sc_view_plan::frame::{FrameClock, FramePlan, FramePlanner};
+use sc_view_space::camera::Camera;
 
 mod support;
 use support::FailsBelow;

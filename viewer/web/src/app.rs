@@ -11,14 +11,15 @@ use std::collections::HashSet;
 use std::rc::Rc;
 use std::sync::Arc;
 
+use sc_view_data::graph::StoreStreamer;
+use sc_view_data::stream::StreamSources;
 use sc_view_gpu::edits::Edited;
 use sc_view_gpu::render::{ClipmapPass, background, begin_pass, depth_target};
-use sc_view_plan::camera::{Camera, Controller, Input, Mode};
-use sc_view_plan::frame::{DrawOptions, FrameClock, FrameStats, StreamSources};
-use sc_view_plan::graph::StoreStreamer;
+use sc_view_plan::frame::{DrawOptions, FrameClock, FrameStats};
 use sc_view_plan::link::{RendererName, ViewLink};
-use sc_view_plan::sun::Sun;
 use sc_view_plan::terrain::Geometry;
+use sc_view_space::camera::{Camera, Controller, Input, Mode};
+use sc_view_space::sun::Sun;
 use serde_json::{Value, json};
 use wasm_bindgen::JsCast;
 use wasm_bindgen::prelude::*;
@@ -163,7 +164,7 @@ fn window() -> Result<web_sys::Window, JsValue> {
 /// camera's place, `--sun` unset).
 fn draw_options(
     link: &ViewLink,
-    graph_air: Option<sc_view_plan::atmosphere::Atmosphere>,
+    graph_air: Option<sc_view_space::atmosphere::Atmosphere>,
 ) -> DrawOptions {
     DrawOptions {
         lit: link.lit,

@@ -9,9 +9,9 @@ use std::sync::Arc;
 use std::sync::atomic::Ordering::Relaxed;
 
 use sc_store::{Location, StoreReader};
-use sc_view_plan::clipmap::CLIPMAP_N;
-use sc_view_plan::graph::{FilterHandle, FilterParams, Graph};
-use sc_view_plan::stream::{Streamer, Task};
+use sc_view_data::clipmap::CLIPMAP_N;
+use sc_view_data::graph::{FilterHandle, FilterParams, Graph};
+use sc_view_data::stream::{Streamer, Task};
 use wasm_bindgen::prelude::*;
 
 use crate::recorded::Recorded;

@@ -10,8 +10,8 @@ use std::cell::RefCell;
 use std::rc::{Rc, Weak};
 
 use js_sys::{Object, Reflect, Uint8Array};
-use sc_view_plan::graph::StoreStreamer;
-use sc_view_plan::stream::{TileError, TileKey};
+use sc_view_data::graph::StoreStreamer;
+use sc_view_data::stream::{TileError, TileKey};
 use wasm_bindgen::JsCast;
 use wasm_bindgen::prelude::*;
 use web_time::{Duration, Instant};

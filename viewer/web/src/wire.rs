@@ -3,7 +3,7 @@
 //! maker opened the store with ([`crate::recorded`]). Little-endian; read back with every length
 //! checked, so a message that does not parse is an error, never a panic.
 
-use sc_view_plan::stream::{GridId, TileData, TileError, TileKey};
+use sc_view_data::stream::{GridId, TileData, TileError, TileKey};
 
 /// Writes a message.
 #[derive(Debug, Default)]

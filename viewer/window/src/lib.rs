@@ -1,5 +1,5 @@
 //! The windowed viewer: winit window, wgpu surface, the clipmap pass of `sc_view_gpu`, camera
-//! control (`sc_view_plan::camera`) and an egui panel with frame statistics and debug toggles.
+//! control (`sc_view_space::camera`) and an egui panel with frame statistics and debug toggles.
 //!
 //! Keys: W/A/S/D move, Q/E down/up, Shift ×5, 1/2/3 orbit/fly/walk, F wireframe, L level
 //! colours, Esc quits; drag with the left button; the wheel zooms (orbit) or sets speed (fly).
@@ -14,13 +14,14 @@ use winit::event_loop::{ActiveEventLoop, EventLoop};
 use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::{Window, WindowId};
 
+use sc_view_data::graph::FilterHandle;
+use sc_view_data::stream::StreamSources;
+use sc_view_data::stream::Streamer;
 use sc_view_gpu::render::{
     ClipmapPass, ImageReadback, RenderError, background, begin_pass, depth_target, device_for,
 };
-use sc_view_plan::camera::{Camera, CameraScript, Controller, Input, Mode};
-use sc_view_plan::frame::{DrawOptions, FrameClock, FrameStats, StreamSources};
-use sc_view_plan::graph::FilterHandle;
-use sc_view_plan::stream::Streamer;
+use sc_view_plan::frame::{DrawOptions, FrameClock, FrameStats};
+use sc_view_space::camera::{Camera, CameraScript, Controller, Input, Mode};
 
 mod panel;
 

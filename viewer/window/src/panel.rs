@@ -2,15 +2,15 @@
 //! camera) and what it lets a user change (camera mode and speed, geometry, shading, detail,
 //! exaggeration, the sun, the graph's colour filters).
 
+use sc_view_data::graph::FilterParams;
 use sc_view_gpu::edits::Edits;
-use sc_view_plan::atmosphere::Atmosphere;
-use sc_view_plan::camera::{Camera, Mode};
-use sc_view_plan::cdlod::CdlodSpec;
 use sc_view_plan::frame::FrameStats;
-use sc_view_plan::graph::FilterParams;
-use sc_view_plan::sun::Sun;
 use sc_view_plan::terrain::Geometry;
-use sc_view_plan::warp::WarpSpec;
+use sc_view_plan::terrain::cdlod::CdlodSpec;
+use sc_view_plan::terrain::warp::WarpSpec;
+use sc_view_space::atmosphere::Atmosphere;
+use sc_view_space::camera::{Camera, Mode};
+use sc_view_space::sun::Sun;
 
 /// What the panel shows of the frame and the viewer.
 pub(crate) struct PanelFacts {

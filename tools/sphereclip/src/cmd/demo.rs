@@ -171,7 +171,7 @@ pub fn run(a: &DemoArgs) -> Result<ExitCode> {
     let views = a.out.join("views");
     std::fs::create_dir_all(&views)
         .with_context(|| format!("cannot create {}", views.display()))?;
-    for (name, cam) in sc_view_plan::camera::GOLDEN_VIEWS {
+    for (name, cam) in sc_view_space::camera::GOLDEN_VIEWS {
         let out = views.join(format!("{name}.png"));
         step(&[
             "render".as_ref(),

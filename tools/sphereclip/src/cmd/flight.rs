@@ -4,9 +4,9 @@
 use std::path::Path;
 
 use anyhow::{Context, Result};
+use sc_view_data::graph::default_workers;
 use sc_view_gpu::flight::{Stats, fly};
 use sc_view_gpu::render::Renderer;
-use sc_view_plan::graph::default_workers;
 
 use super::streamer_for;
 use crate::cli::LookArgs;
@@ -20,7 +20,7 @@ pub fn run(
     (out, no_draw): (&Path, bool),
     look: &LookArgs,
 ) -> Result<Stats> {
-    let mut flight = sc_view_plan::flight::parse(flight_path)?;
+    let mut flight = sc_view_space::flight::parse(flight_path)?;
     if no_draw {
         flight.draw = false;
     }

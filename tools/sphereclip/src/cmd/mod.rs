@@ -93,12 +93,12 @@ pub fn info_line(args: std::fmt::Arguments<'_>) {
     }
 }
 
-/// The store's streamer ([`sc_view_plan::graph::store_streamer`]), its warnings printed.
+/// The store's streamer ([`sc_view_data::graph::store_streamer`]), its warnings printed.
 pub fn streamer_for(
     store: &sc_store::Location,
     graph_file: Option<&std::path::Path>,
-) -> Result<sc_view_plan::graph::StoreStreamer> {
-    let s = sc_view_plan::graph::store_streamer(store, graph_file)?;
+) -> Result<sc_view_data::graph::StoreStreamer> {
+    let s = sc_view_data::graph::store_streamer(store, graph_file)?;
     for w in &s.warnings {
         eprintln!("warning: {w}");
     }
@@ -126,9 +126,9 @@ pub fn check_output_file(out: &std::path::Path, what: &str) -> Result<()> {
 /// switched off.
 pub fn clipmap_sources(
     look: &crate::cli::LookArgs,
-    with: sc_view_plan::frame::StreamSources,
-    without: sc_view_plan::frame::StreamSources,
-) -> sc_view_plan::frame::StreamSources {
+    with: sc_view_data::stream::StreamSources,
+    without: sc_view_data::stream::StreamSources,
+) -> sc_view_data::stream::StreamSources {
     if look.detail == crate::cli::OnOff::On {
         with
     } else {
@@ -141,7 +141,7 @@ pub fn geometry(look: &crate::cli::LookArgs) -> Result<sc_view_plan::terrain::Ge
     Ok(match look.renderer {
         crate::cli::RendererKind::Clipmap => sc_view_plan::terrain::Geometry::Clipmap,
         crate::cli::RendererKind::Cdlod => {
-            let spec = sc_view_plan::cdlod::CdlodSpec {
+            let spec = sc_view_plan::terrain::cdlod::CdlodSpec {
                 patch: look.cdlod_patch,
                 pixel_error: look.cdlod_pixels,
             };
@@ -150,7 +150,7 @@ pub fn geometry(look: &crate::cli::LookArgs) -> Result<sc_view_plan::terrain::Ge
             sc_view_plan::terrain::Geometry::Cdlod(spec)
         }
         crate::cli::RendererKind::Warp => {
-            let spec = sc_view_plan::warp::WarpSpec {
+            let spec = sc_view_plan::terrain::warp::WarpSpec {
                 mesh: look.warp_mesh,
                 importance: look.warp_importance,
             }
@@ -165,10 +165,10 @@ pub fn geometry(look: &crate::cli::LookArgs) -> Result<sc_view_plan::terrain::Ge
 /// that starts at `camera` and the source graph's atmosphere (Earth's when it has none).
 pub fn draw_options(
     look: &crate::cli::LookArgs,
-    camera: &sc_view_plan::camera::Camera,
-    graph_atmosphere: Option<sc_view_plan::atmosphere::Atmosphere>,
+    camera: &sc_view_space::camera::Camera,
+    graph_atmosphere: Option<sc_view_space::atmosphere::Atmosphere>,
 ) -> Result<sc_view_plan::frame::DrawOptions> {
-    use sc_view_plan::sun::Sun;
+    use sc_view_space::sun::Sun;
     let k = look.exaggeration;
     let sun = match (&look.sun, look.time) {
         (Some(a), _) => a.seen_from(camera.lat_deg, camera.lon_deg),

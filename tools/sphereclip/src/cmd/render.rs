@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use sc_view_gpu::render::Renderer;
-use sc_view_plan::camera::Camera;
+use sc_view_space::camera::Camera;
 
 use sc_core::stats::{median, percentile};
 
@@ -45,7 +45,7 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
     if let Some(n) = a.reference {
         return reference(a, &camera, (w, h), n, clear, out);
     }
-    let sc_view_plan::graph::StoreStreamer {
+    let sc_view_data::graph::StoreStreamer {
         streamer,
         sources,
         without_detail,
@@ -154,7 +154,7 @@ fn reference(
     clear: [f64; 4],
     out: &std::path::Path,
 ) -> Result<ExitCode> {
-    use sc_view_plan::clipmap::{StoreColors, StoreHeights};
+    use sc_view_data::clipmap::{StoreColors, StoreHeights};
     if !(1..=16).contains(&n) {
         bail!("--reference must be 1..16 rays per pixel side, found {n}");
     }

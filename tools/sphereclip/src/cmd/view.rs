@@ -5,8 +5,8 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use sc_core::stats::{median, percentile};
-use sc_view_plan::flight;
-use sc_view_plan::graph::StoreStreamer;
+use sc_view_data::graph::StoreStreamer;
+use sc_view_space::flight;
 use sc_view_window::{ViewOptions, view};
 
 use super::streamer_for;

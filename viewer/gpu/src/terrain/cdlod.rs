@@ -1,8 +1,8 @@
-//! Icosahedral triangular CDLOD (`sc_view_plan::cdlod`): one patch mesh drawn once per leaf of
+//! Icosahedral triangular CDLOD (`sc_view_plan::terrain::cdlod`): one patch mesh drawn once per leaf of
 //! the frame's tree, instanced.
 
-use sc_view_plan::cdlod::{CdlodFrame, CdlodUniform, LeafInstance, patch_mesh};
 use sc_view_plan::terrain::GeometryFrame;
+use sc_view_plan::terrain::cdlod::{CdlodFrame, CdlodUniform, LeafInstance, patch_mesh};
 use wgpu::util::DeviceExt;
 
 use super::{

@@ -7,13 +7,13 @@ mod cdlod;
 mod clipmap;
 mod warp;
 
-use sc_view_plan::geometry::Hemisphere;
 use sc_view_plan::terrain::GeometryFrame;
+use sc_view_plan::terrain::clipmap::Hemisphere;
 
 use crate::device::DEPTH_FORMAT;
 
 /// What the renderer of one geometry does each frame.
-pub trait TerrainRenderer: std::fmt::Debug + sc_view_plan::stream::Shareable {
+pub trait TerrainRenderer: std::fmt::Debug + sc_view_data::stream::Shareable {
     /// Takes a frame's geometry: uploads it when it is this renderer's. Returns whether this
     /// renderer draws the frame.
     fn upload(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, frame: &GeometryFrame)

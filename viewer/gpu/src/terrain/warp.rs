@@ -1,8 +1,8 @@
-//! Geometry-image warping (`sc_view_plan::warp`): one mesh of rings and azimuths, its vertices
+//! Geometry-image warping (`sc_view_plan::terrain::warp`): one mesh of rings and azimuths, its vertices
 //! formed in the vertex stage from the frame's lines; no vertex buffer.
 
 use sc_view_plan::terrain::GeometryFrame;
-use sc_view_plan::warp::{WarpFrame, mesh_indices};
+use sc_view_plan::terrain::warp::{WarpFrame, mesh_indices};
 use wgpu::util::DeviceExt;
 
 use super::{

@@ -1,6 +1,6 @@
 //! Tile sources shared by the viewer crates' tests (`viewer/gpu/tests` includes this file too).
 
-use sc_view_plan::stream::{Tile, TileData, TileError, TileKey, TileSource};
+use sc_view_data::stream::{Tile, TileData, TileError, TileKey, TileSource};
 
 /// The tiles of `inner`, failing for grids finer than the level given (a store damaged below
 /// some level).

@@ -5,8 +5,8 @@ use std::path::Path;
 
 use sc_core::{GridSpec, LevelId};
 use sc_store::{StoreConfig, StoreReader, StoreWriter};
-use sc_view_plan::clipmap::{CLIPMAP_N, Placement, StoreHeights, fill_level, level_window};
-use sc_view_plan::transform::Viewer;
+use sc_view_data::clipmap::{CLIPMAP_N, Placement, StoreHeights, fill_level, level_window};
+use sc_view_space::transform::Viewer;
 
 const T: u32 = 32;
 
@@ -71,8 +71,8 @@ fn store_of(
 
 #[test]
 fn tiles_from_the_row_sampler_equal_point_by_point_sampling() {
-    use sc_view_plan::clipmap::{ColorSource, HeightSource, StoreColors};
-    use sc_view_plan::stream::{
+    use sc_view_data::clipmap::{ColorSource, HeightSource, StoreColors};
+    use sc_view_data::stream::{
         GridId, StoreColorTiles, StoreHeightTiles, TileData, TileKey, TileSource,
     };
     let dir = tempfile::tempdir().expect("tempdir");
@@ -220,7 +220,7 @@ fn where_a_fine_level_has_no_tiles_the_next_coarser_one_serves() {
         &data[..4]
     );
     // the streamed tiles (row sampler) agree
-    use sc_view_plan::stream::{GridId, StoreHeightTiles, TileData, TileKey, TileSource};
+    use sc_view_data::stream::{GridId, StoreHeightTiles, TileData, TileKey, TileSource};
     let grid_id = GridId::of(8, &p, CLIPMAP_N);
     let key = TileKey::at(0, grid_id, p.u0, p.v0, CLIPMAP_N);
     let TileData::Height(t) = StoreHeightTiles::new(StoreReader::open(&root).expect("open"))

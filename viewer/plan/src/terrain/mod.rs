@@ -6,10 +6,13 @@
 //! outside the crate: its planner, handed to [`crate::frame::FramePlanner::use_geometry`], whose
 //! frames are [`GeometryFrame::Other`].
 
-use crate::camera::Camera;
-use crate::cdlod::{CdlodFrame, CdlodPlanner, CdlodSpec};
-use crate::transform::{ring_of, vertex_level};
-use crate::warp::{WarpFrame, WarpSpec};
+pub mod cdlod;
+pub mod clipmap;
+pub mod warp;
+
+use cdlod::{CdlodFrame, CdlodSpec};
+use sc_view_space::camera::Camera;
+use warp::{WarpFrame, WarpSpec};
 
 /// Which geometry draws the planet; all read the same clipmaps.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -17,9 +20,9 @@ pub enum Geometry {
     /// Spherical geometry clipmaps (the static hemisphere around the viewer).
     #[default]
     Clipmap,
-    /// Icosahedral triangular CDLOD (`crate::cdlod`).
+    /// Icosahedral triangular CDLOD (`crate::terrain::cdlod`).
     Cdlod(CdlodSpec),
-    /// One mesh warped every frame to where the view needs vertices (`crate::warp`).
+    /// One mesh warped every frame to where the view needs vertices (`crate::terrain::warp`).
     Warp(WarpSpec),
 }
 
@@ -106,90 +109,8 @@ pub trait GeometryPlanner: std::fmt::Debug + Send {
 /// The planner of `geometry`: the one place that registers each geometry.
 pub fn planner_for(geometry: Geometry) -> Box<dyn GeometryPlanner> {
     match geometry {
-        Geometry::Clipmap => Box::new(ClipmapGeometry),
-        Geometry::Cdlod(spec) => Box::new(CdlodGeometry::new(spec)),
-        Geometry::Warp(spec) => Box::new(WarpGeometry { spec, split: None }),
-    }
-}
-
-/// Spherical geometry clipmaps: the hemisphere's rings are static, the frame planner has already
-/// counted their triangles.
-#[derive(Debug)]
-pub struct ClipmapGeometry;
-
-impl GeometryPlanner for ClipmapGeometry {
-    fn plan(&mut self, _: &GeometryInput<'_>) -> GeometryFrame {
-        GeometryFrame::Clipmap
-    }
-}
-
-/// Icosahedral triangular CDLOD: the tree traversed per frame.
-#[derive(Debug)]
-pub struct CdlodGeometry {
-    tree: CdlodPlanner,
-}
-
-impl CdlodGeometry {
-    /// With `spec`'s patch and pixel error.
-    pub fn new(spec: CdlodSpec) -> Self {
-        Self {
-            tree: CdlodPlanner::new(spec),
-        }
-    }
-}
-
-impl GeometryPlanner for CdlodGeometry {
-    fn plan(&mut self, input: &GeometryInput<'_>) -> GeometryFrame {
-        let (lo, hi) = input.levels;
-        let f = self.tree.plan(
-            input.camera,
-            input.size,
-            input.radius,
-            (input.cam_height, input.ground()),
-            (input.bounds, lo, hi),
-        );
-        GeometryFrame::Cdlod(Box::new(f))
-    }
-}
-
-/// Geometry-image warping: one mesh warped every frame; its split between rings and azimuths
-/// carries over from frame to frame.
-#[derive(Debug)]
-pub struct WarpGeometry {
-    spec: WarpSpec,
-    split: Option<i32>,
-}
-
-impl GeometryPlanner for WarpGeometry {
-    /// The mesh's importance is bounded (the paper's I_s) by the texels of the clipmap level
-    /// whose heights the mesh carries at each arc (as `mesh_height` picks it): vertices closer
-    /// than those texels add nothing.
-    fn plan(&mut self, input: &GeometryInput<'_>) -> GeometryFrame {
-        let (lo, hi) = input.levels;
-        let ground = input.ground();
-        let (low, high) = input
-            .bounds
-            .iter()
-            .flatten()
-            .fold((ground, ground), |(a, b), (l, h)| (a.min(*l), b.max(*h)));
-        let texels = |theta: f64| {
-            let max_ring = f64::from(crate::geometry::LEVELS - 1);
-            let ring = ring_of(theta.max(1e-30)).clamp(0.0, max_ring) as u32;
-            let lv = vertex_level(ring.clamp(lo, hi), lo);
-            f64::from(input.texels_per_rad[lv as usize][1])
-        };
-        let f = crate::warp::plan(
-            self.spec,
-            input.camera,
-            input.size,
-            input.radius,
-            input.cam_height,
-            ground,
-            (low, high),
-            texels,
-            self.split,
-        );
-        self.split = Some(f.mesh.split);
-        GeometryFrame::Warp(f)
+        Geometry::Clipmap => Box::new(clipmap::ClipmapGeometry),
+        Geometry::Cdlod(spec) => Box::new(cdlod::CdlodGeometry::new(spec)),
+        Geometry::Warp(spec) => Box::new(warp::WarpGeometry::new(spec)),
     }
 }

@@ -24,8 +24,10 @@
 
 use glam::DVec3;
 
-use crate::camera::Camera;
-use crate::transform::Viewer;
+use super::{GeometryFrame, GeometryInput, GeometryPlanner};
+use sc_view_space::camera::Camera;
+use sc_view_space::transform::Viewer;
+use sc_view_space::transform::{LEVELS, ring_of, vertex_level};
 
 /// The warped mesh: `mesh` cells a side (vertices `mesh + 1`), warped by an importance map of
 /// `importance` nodes a side.
@@ -488,6 +490,55 @@ pub fn plan(
     WarpFrame {
         lines: mesh.lines(),
         mesh,
+    }
+}
+
+/// Geometry-image warping: one mesh warped every frame; its split between rings and azimuths
+/// carries over from frame to frame.
+#[derive(Debug)]
+pub struct WarpGeometry {
+    spec: WarpSpec,
+    split: Option<i32>,
+}
+
+impl WarpGeometry {
+    /// With `spec`'s mesh size and importance.
+    pub fn new(spec: WarpSpec) -> Self {
+        Self { spec, split: None }
+    }
+}
+
+impl GeometryPlanner for WarpGeometry {
+    /// The mesh's importance is bounded (the paper's I_s) by the texels of the clipmap level
+    /// whose heights the mesh carries at each arc (as `mesh_height` picks it): vertices closer
+    /// than those texels add nothing.
+    fn plan(&mut self, input: &GeometryInput<'_>) -> GeometryFrame {
+        let (lo, hi) = input.levels;
+        let ground = input.ground();
+        let (low, high) = input
+            .bounds
+            .iter()
+            .flatten()
+            .fold((ground, ground), |(a, b), (l, h)| (a.min(*l), b.max(*h)));
+        let texels = |theta: f64| {
+            let max_ring = f64::from(LEVELS - 1);
+            let ring = ring_of(theta.max(1e-30)).clamp(0.0, max_ring) as u32;
+            let lv = vertex_level(ring.clamp(lo, hi), lo);
+            f64::from(input.texels_per_rad[lv as usize][1])
+        };
+        let f = plan(
+            self.spec,
+            input.camera,
+            input.size,
+            input.radius,
+            input.cam_height,
+            ground,
+            (low, high),
+            texels,
+            self.split,
+        );
+        self.split = Some(f.mesh.split);
+        GeometryFrame::Warp(f)
     }
 }
 

@@ -12,9 +12,9 @@ use std::sync::Arc;
 
 use sc_core::{GridSpec, Kernel, LevelId};
 use sc_store::{StoreConfig, StoreReader, StoreWriter};
-use sc_view_plan::clipmap::{HeightSource, LevelWindow, StoreHeights};
-use sc_view_plan::detail::{Detail, DetailParams};
-use sc_view_plan::stream::{
+use sc_view_data::clipmap::{HeightSource, LevelWindow, StoreHeights};
+use sc_view_data::detail::{Detail, DetailParams};
+use sc_view_data::stream::{
     DetailColorTiles, FnColorTiles, GridId, StoreHeightTiles, TileData, TileKey, TileSource,
 };
 

@@ -72,14 +72,14 @@ use std::sync::{Arc, RwLock};
 use sc_store::{LayerKind, StoreReader};
 use serde::Deserialize;
 
-use crate::ViewError;
-use crate::atmosphere::Atmosphere;
 use crate::detail::{Detail, DetailParams};
-use crate::frame::StreamSources;
+use crate::stream::StreamSources;
 use crate::stream::{
     DetailColorTiles, FnHeightTiles, StoreColorTiles, StoreHeightTiles, Streamer, Tile, TileData,
     TileError, TileKey, TileSource,
 };
+use sc_view_space::ViewError;
+use sc_view_space::atmosphere::Atmosphere;
 
 /// The settings of a colour filter.
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]

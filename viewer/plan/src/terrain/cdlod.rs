@@ -45,8 +45,9 @@ use web_time::Instant;
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 
-use crate::camera::Camera;
-use crate::transform::{Viewer, offsets_f64, ring_of};
+use super::{GeometryFrame, GeometryInput, GeometryPlanner};
+use sc_view_space::camera::Camera;
+use sc_view_space::transform::{Viewer, offsets_f64, ring_of};
 
 /// Faces of the icosahedron.
 pub const FACES: usize = 20;
@@ -239,7 +240,7 @@ pub struct FaceUniform {
 }
 
 /// The finest clipmap level.
-const MAX_RING: u32 = crate::geometry::LEVELS - 1;
+const MAX_RING: u32 = sc_view_space::transform::LEVELS - 1;
 
 /// Per clipmap level i, the lowest and highest height that points within its cap can read: the
 /// union of the ranges of levels i..=hi (within the levels drawn `lo..=hi`; a level unknown
@@ -385,7 +386,7 @@ pub fn level_extent(l: u32) -> (f64, f64) {
 }
 
 /// A world direction (z north, x at longitude 0) in the view frame of the clipmap renderer:
-/// the viewer at +z, ψ = 0 south (see [`crate::transform`]); a southern viewer's frame is
+/// the viewer at +z, ψ = 0 south (see [`sc_view_space::transform`]); a southern viewer's frame is
 /// turned by π about z.
 pub fn to_view(viewer: &Viewer, w: DVec3) -> DVec3 {
     let (sl, cl) = viewer.lon_rad.sin_cos();
@@ -973,6 +974,35 @@ pub fn patch_border(n: u32) -> Vec<[u32; 2]> {
     let diagonal = (0..n).map(|k| [n - k, k]);
     let back = (0..n).map(|k| [0, n - k]);
     along.chain(diagonal).chain(back).collect()
+}
+
+/// Icosahedral triangular CDLOD: the tree traversed per frame.
+#[derive(Debug)]
+pub struct CdlodGeometry {
+    tree: CdlodPlanner,
+}
+
+impl CdlodGeometry {
+    /// With `spec`'s patch and pixel error.
+    pub fn new(spec: CdlodSpec) -> Self {
+        Self {
+            tree: CdlodPlanner::new(spec),
+        }
+    }
+}
+
+impl GeometryPlanner for CdlodGeometry {
+    fn plan(&mut self, input: &GeometryInput<'_>) -> GeometryFrame {
+        let (lo, hi) = input.levels;
+        let f = self.tree.plan(
+            input.camera,
+            input.size,
+            input.radius,
+            (input.cam_height, input.ground()),
+            (input.bounds, lo, hi),
+        );
+        GeometryFrame::Cdlod(Box::new(f))
+    }
 }
 
 #[cfg(test)]

@@ -6,7 +6,7 @@ use std::f64::consts::PI;
 
 use sc_core::{GridSpec, LevelId};
 use sc_store::{StoreConfig, StoreReader, StoreWriter};
-use sc_view_plan::clipmap::{HeightSource, LevelWindow, StoreHeights};
+use sc_view_data::clipmap::{HeightSource, LevelWindow, StoreHeights};
 
 /// Amplitude of the field, metres.
 const A: f64 = 1000.0;

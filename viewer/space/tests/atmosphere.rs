@@ -2,7 +2,7 @@
 //! the Earth model's constants: the zenith column in closed form, the horizon by Chapman's
 //! grazing-incidence function (exponential layers) and a quadrature in altitude (the ozone tent).
 
-use sc_view_plan::atmosphere::{Atmosphere, TRANSMITTANCE_SIZE, TransmittanceLut};
+use sc_view_space::atmosphere::{Atmosphere, TRANSMITTANCE_SIZE, TransmittanceLut};
 
 fn earth() -> Atmosphere {
     Atmosphere::default()
@@ -159,7 +159,7 @@ fn the_atmosphere_table_reads_from_toml_and_nonsense_is_refused() {
 
 #[test]
 fn the_sky_is_blue_by_day_red_at_sunset_and_multiple_scattering_only_adds_light() {
-    use sc_view_plan::atmosphere::MultipleScatteringLut;
+    use sc_view_space::atmosphere::MultipleScatteringLut;
     let a = earth();
     let lut = TransmittanceLut::compute(&a);
     let ms = MultipleScatteringLut::compute(&a, &lut);
@@ -194,7 +194,7 @@ fn the_sky_is_blue_by_day_red_at_sunset_and_multiple_scattering_only_adds_light(
 
 #[test]
 fn sky_view_coordinates_round_trip_and_put_the_horizon_in_the_middle() {
-    use sc_view_plan::atmosphere::{SKY_VIEW_SIZE, sky_view_ray_to_uv, sky_view_uv_to_ray};
+    use sc_view_space::atmosphere::{SKY_VIEW_SIZE, sky_view_ray_to_uv, sky_view_uv_to_ray};
     let a = earth();
     let (w, h) = SKY_VIEW_SIZE;
     for r in [
@@ -222,7 +222,7 @@ fn sky_view_coordinates_round_trip_and_put_the_horizon_in_the_middle() {
 
 #[test]
 fn the_aerial_perspective_volume_reads_what_each_rays_own_march_gives() {
-    use sc_view_plan::atmosphere::{
+    use sc_view_space::atmosphere::{
         AerialPerspectiveLut, AtmosphereFrame, MultipleScatteringLut, column_path, view_ray,
     };
     let a = earth().on_sphere(6_371_008.8);
@@ -310,7 +310,7 @@ fn the_aerial_perspective_volume_reads_what_each_rays_own_march_gives() {
 
 #[test]
 fn the_sky_lights_the_ground_as_a_clear_sky_does() {
-    use sc_view_plan::atmosphere::{IrradianceLut, MultipleScatteringLut};
+    use sc_view_space::atmosphere::{IrradianceLut, MultipleScatteringLut};
     let a = earth();
     let t = TransmittanceLut::compute(&a);
     let ms = MultipleScatteringLut::compute(&a, &t);

@@ -4,11 +4,14 @@
 //! ψ (the paper's φ̃) is split into `n` steps; θ̃ (angular distance from the viewer) into levels:
 //! level i spans θ̃ from `π/2 · 2^−i` inwards to `π/2 · 2^−(i+1)` in `m` rings
 //! `θ̃_{i,j} = θ̃_{i,0} · 2^(−j/m)`; the innermost level ends in a fill disc around the viewer.
-//! Two triangles per cell. ψ = ±π points to the world's north pole (see [`crate::transform`]):
+//! Two triangles per cell. ψ = ±π points to the world's north pole (see [`sc_view_space::transform`]):
 //! the vertices on that meridian exist twice, once flagged −1 (ψ = −π) and once +1 (ψ = +π), so
 //! that map coordinates beyond the pole interpolate without a seam (§4.4).
 
 use std::f64::consts::PI;
+
+use super::{GeometryFrame, GeometryInput, GeometryPlanner};
+use sc_view_space::transform::{LEVELS, level_outer};
 
 /// One vertex: direction ψ, angular distance θ̃ from the viewer, and what the shader needs to
 /// evaluate the transform in f32 without cancellation.
@@ -44,10 +47,6 @@ pub struct HemisphereSpec {
     pub levels: u32,
 }
 
-/// The clipmap levels of the viewer's hemisphere: the one definition of their count (the ring
-/// rule's finest level, [`crate::terrain`]'s and the shaders' `MAX_RING`, is `LEVELS − 1`).
-pub const LEVELS: u32 = 26;
-
 impl Default for HemisphereSpec {
     /// 256 steps around, 16 rings per level, 26 levels (the finest ring ≈ 0.3 m on Earth).
     fn default() -> Self {
@@ -73,11 +72,6 @@ pub struct Hemisphere {
     /// Per level: the fill disc closing it (a fan from its inner ring to the viewer), drawn
     /// after the finest level of a frame.
     pub fill_ranges: Vec<std::ops::Range<u32>>,
-}
-
-/// Outer θ̃ of level `i`.
-pub fn level_outer(i: u32) -> f64 {
-    PI / 2.0 * 0.5f64.powi(i as i32)
 }
 
 impl Hemisphere {
@@ -172,6 +166,17 @@ fn vertex(psi: f64, theta: f64, seam: f32, level: u32) -> Vertex {
         one_minus_cos: (2.0 * (theta / 2.0).sin().powi(2)) as f32,
         seam,
         level,
+    }
+}
+
+/// Spherical geometry clipmaps: the hemisphere's rings are static, the frame planner has already
+/// counted their triangles.
+#[derive(Debug)]
+pub struct ClipmapGeometry;
+
+impl GeometryPlanner for ClipmapGeometry {
+    fn plan(&mut self, _: &GeometryInput<'_>) -> GeometryFrame {
+        GeometryFrame::Clipmap
     }
 }
 

@@ -315,6 +315,15 @@ pub fn visible_levels(
     (lo, hi)
 }
 
+/// The clipmap levels of the viewer's hemisphere: the one definition of their count (the ring
+/// rule's finest level, the planners' and the shaders' `MAX_RING`, is `LEVELS − 1`).
+pub const LEVELS: u32 = 26;
+
+/// Outer θ̃ of level `i`.
+pub fn level_outer(i: u32) -> f64 {
+    std::f64::consts::FRAC_PI_2 * 0.5f64.powi(i as i32)
+}
+
 /// The hemisphere ring (clipmap level) of the ground at arc `theta` from the point under the
 /// viewer, as a whole number: level i spans (π/2·2^−(i+1), π/2·2^−i], so ⌊log2(π/2 / θ)⌋
 /// (negative beyond π/2; callers clamp to the levels they have). The CPU twin of the ring level
@@ -355,7 +364,7 @@ pub fn finest_level_in_view(
     let eye = radius_m + height_m.max(0.0);
     let mut finest = lo;
     for i in lo..=hi {
-        let theta = crate::geometry::level_outer(i);
+        let theta = level_outer(i);
         let rim = radius_m + rise(i);
         let (down, across) = (eye - rim * theta.cos(), rim * theta.sin());
         if down > 0.0 && down.atan2(across) > steepest {
@@ -441,7 +450,7 @@ mod tests {
         // ahead; level 9's cap (19.6 km) reaches into the view, level 10's (9.8 km) does not
         let l = finest_level_in_view(r, 20_000.0, -20f64.to_radians(), fov, (4, 11), flat);
         assert_eq!(l, 9);
-        let cap = |i: u32| crate::geometry::level_outer(i) * r;
+        let cap = |i: u32| level_outer(i) * r;
         assert!(cap(9) > 20_000.0 / 50f64.to_radians().tan());
         assert!(cap(10) < 20_000.0 / 50f64.to_radians().tan());
         // looking straight down, or far enough down to see under the camera: every level
@@ -482,7 +491,7 @@ mod tests {
         for h in [1.7, 50.0, 2000.0, 80_000.0] {
             let (_, hi) = visible_levels(r, h, 9000.0, fov, 1280, 256, 26);
             let pixel = h * (fov / 1280.0).tan();
-            let triangle = |i: u32| crate::geometry::level_outer(i) * r * 2.0 * PI / 256.0;
+            let triangle = |i: u32| level_outer(i) * r * 2.0 * PI / 256.0;
             assert!(triangle(hi) >= pixel, "{h} m: level {hi}");
             // … unless the hemisphere has no finer level
             assert!(hi == 25 || triangle(hi + 1) < pixel, "{h} m: level {hi}");
