@@ -113,7 +113,8 @@ fn run_task(plan: &Path, i: usize) -> std::process::Output {
     run(&["run-task", s(plan), "--task", &i.to_string()])
 }
 
-/// The number of shards the journal of each task of an ingest plan records (by task number).
+/// The number of shards the journal in each task's folder of an ingest plan records (by task
+/// number).
 fn journal_counts(store: &Path) -> std::collections::BTreeMap<u32, usize> {
     let mut out = std::collections::BTreeMap::new();
     let Ok(dirs) = std::fs::read_dir(store.join(".sphereclip/tasks")) else {
@@ -122,14 +123,10 @@ fn journal_counts(store: &Path) -> std::collections::BTreeMap<u32, usize> {
     for d in dirs.flatten() {
         for f in std::fs::read_dir(d.path()).expect("read_dir").flatten() {
             let name = f.file_name().to_string_lossy().into_owned();
-            let Some(i) = name
-                .strip_prefix("task-")
-                .and_then(|n| n.strip_suffix(".json"))
-                .and_then(|n| n.parse().ok())
-            else {
+            let Some(i) = name.strip_prefix("task-").and_then(|n| n.parse().ok()) else {
                 continue;
             };
-            let n = std::fs::read(f.path())
+            let n = std::fs::read(f.path().join("journal.json"))
                 .ok()
                 .and_then(|b| serde_json::from_slice::<serde_json::Value>(&b).ok())
                 .and_then(|v| v["done"].as_object().map(|o| o.len()))

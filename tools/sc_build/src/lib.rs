@@ -24,6 +24,7 @@ use std::time::Instant;
 use sc_core::pyramid::{LevelFilter, RowReader, halve, halve_needs};
 use sc_core::{ANISO_MAX, GridSpec, Kernel, LevelId, ShardId, TileId};
 use sc_store::BuildRecord;
+use sc_store::tasks::{Committed, StepShape, StepShards, TaskError, TaskPlan, TaskRun};
 use sc_store::{LayerKind, StoreError, StoreReader, StoreWriter, TileRead};
 
 use rows::{StoreRows, TILE_CACHE_BYTES, Texel, TileCache, iso};
@@ -1015,12 +1016,6 @@ impl Plan {
         self.steps.iter().map(|s| (s.layer, s.out)).collect()
     }
 
-    /// Every output shard of step `k` (index into [`Self::work_shapes`]); empty for a
-    /// step the build does not have.
-    pub fn step_shards(&self, k: usize) -> &[ShardId] {
-        self.steps.get(k).map_or(&[], |s| &s.shards)
-    }
-
     /// A hash of what determines the build's output besides the store's data (builder version,
     /// kernel, grid, shard size, steps).
     pub fn hash(&self) -> String {
@@ -1029,24 +1024,80 @@ impl Plan {
     }
 }
 
-/// Prepares the store at `root` for running `plan` as tasks in many processes ([`run_task`],
-/// then [`commit_tasks`]): makes every level the plan writes and marks the plan open with
-/// `marker`. A build needs no undo: a shard is made from finer data over what the level holds,
-/// which gives the same bytes however often it runs.
-pub fn open_tasks(root: &Path, plan: &Plan, marker: &str) -> Result<()> {
-    let writer = StoreWriter::open_planning(root, None)?;
-    writer.plan_reopened(marker)?;
-    for st in &plan.steps {
-        writer.ensure_level(st.layer, st.out)?;
+/// A build as tasks (the protocol: [`sc_store::tasks`]). A build needs no undo: a shard is
+/// made from finer data over what the level holds, which gives the same bytes however often it
+/// runs; abandoning leaves the store incomplete, for `sphereclip build` to finish. Each task
+/// keeps manifests of the shards it built in its folder, which the commit joins into the store's.
+impl TaskPlan for Plan {
+    fn steps(&self) -> Vec<StepShape> {
+        self.steps
+            .iter()
+            .map(|st| StepShape {
+                layer: st.layer,
+                level: Some(st.out),
+                shards: st.shards.clone(),
+            })
+            .collect()
     }
-    writer.mark_plan_open(marker)?;
-    Ok(())
+
+    fn open(&self, root: &Path, marker: &str) -> std::result::Result<(), TaskError> {
+        sc_store::tasks::open(root, None, marker, |writer, _| {
+            for st in &self.steps {
+                writer.ensure_level(st.layer, st.out)?;
+            }
+            Ok(())
+        })?;
+        Ok(())
+    }
+
+    fn run(
+        &self,
+        root: &Path,
+        work: &[StepShards],
+        task: &Path,
+        on_shard: &(dyn Fn(u64, u64) + Sync),
+    ) -> std::result::Result<TaskRun, TaskError> {
+        let s = run_task(root, self, work, task, on_shard)?;
+        Ok(TaskRun {
+            written: s.shards_written,
+            resumed: s.shards_skipped + s.shards_empty,
+            seconds: s.seconds,
+        })
+    }
+
+    fn done(
+        &self,
+        root: &Path,
+        step: usize,
+        task: &Path,
+    ) -> std::result::Result<Vec<ShardId>, TaskError> {
+        let Some(step) = self.steps.get(step) else {
+            return Ok(Vec::new());
+        };
+        let m = ManifestFile::open(root, step.layer, step.out, &settings_hash(self), Some(task))?;
+        Ok(step.shards.iter().filter(|s| m.has(s)).copied().collect())
+    }
+
+    fn commit(
+        &self,
+        root: &Path,
+        work: &[Vec<ShardId>],
+        tasks: &[PathBuf],
+        started_unix: u64,
+    ) -> std::result::Result<Committed, TaskError> {
+        let s = commit_tasks(root, self, work, tasks, started_unix)?;
+        Ok(Committed {
+            shards: s.shards_written,
+            seconds: s.seconds,
+            summary: serde_json::to_value(&s).map_err(|e| BuildError::Usage(e.to_string()))?,
+        })
+    }
 }
 
-/// Builds, in the store at `root` opened for the plan by [`open_tasks`], the shards `work` lists
-/// per step (index into [`Plan::work`], in order), alongside other processes building others.
+/// Builds, in the store at `root` opened for the plan, the shards `work` lists per step (index
+/// into [`Plan::work`], in order), alongside other processes building others.
 /// Every shard done is recorded in the task's manifests in folder `task`; a rerun skips those.
-pub fn run_task(
+fn run_task(
     root: &Path,
     plan: &Plan,
     work: &[(usize, Vec<ShardId>)],
@@ -1085,24 +1136,15 @@ pub fn run_task(
     Ok(summary)
 }
 
-/// The shards of step `k` of `plan` that the task with folder `task` is done with.
-pub fn task_done(root: &Path, plan: &Plan, k: usize, task: &Path) -> Result<Vec<ShardId>> {
-    let Some(step) = plan.steps.get(k) else {
-        return Ok(Vec::new());
-    };
-    let m = ManifestFile::open(root, step.layer, step.out, &settings_hash(plan), Some(task))?;
-    Ok(step.shards.iter().filter(|s| m.has(s)).copied().collect())
-}
-
 /// Commits a build plan whose tasks all finished: every shard of `work` (what the plan gave its
-/// tasks, [`Plan::work`] when it was made) must be recorded in one of the task folders `tasks`; their records join the store's manifests (so a later
-/// build skips what did not change), the value ranges go into the metadata, the build is
+/// tasks, [`Plan::work`] when it was made) must be recorded in one of the task folders `tasks`; their
+/// records join the store's manifests (so a later build skips what did not change), the value ranges go into the metadata, the build is
 /// recorded in the provenance as started at `started_unix`, the store is marked complete and
 /// the plan closed.
-pub fn commit_tasks(
+fn commit_tasks(
     root: &Path,
     plan: &Plan,
-    work: &[StepWork],
+    work: &[Vec<ShardId>],
     tasks: &[PathBuf],
     started_unix: u64,
 ) -> Result<Summary> {
@@ -1142,20 +1184,14 @@ pub fn commit_tasks(
         }
         missing.extend(
             expected
-                .shards
                 .iter()
                 .filter(|s| !seen.contains(&shard_key(s)))
                 .map(|s| format!("{} {s}", step.layer)),
         );
         merged.push((store_path, m));
     }
-    if !missing.is_empty() {
-        return Err(BuildError::Usage(format!(
-            "{} shard(s) of the plan are not built yet (first: {}): {}",
-            missing.len(),
-            missing[0],
-            root.display()
-        )));
+    if let Some(e) = sc_store::tasks::missing_shards(root, &missing) {
+        return Err(e.into());
     }
     for (path, m) in &merged {
         if m.shards.is_empty() && !path.exists() {
@@ -1165,15 +1201,7 @@ pub fn commit_tasks(
         write_atomic(path, &bytes)?;
     }
     writer.commit(Some(build_record(plan, &summary, started_unix)))?;
-    writer.close_plan_committed()?;
-    for t in tasks {
-        if t.exists() {
-            std::fs::remove_dir_all(t).map_err(|source| BuildError::Io {
-                source,
-                path: t.clone(),
-            })?;
-        }
-    }
+    sc_store::tasks::close(&writer, true, tasks)?;
     summary.seconds = start.elapsed().as_secs_f64();
     Ok(summary)
 }

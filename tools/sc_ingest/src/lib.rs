@@ -24,6 +24,7 @@ use sha2::{Digest, Sha256};
 
 use crate::journal::Journal;
 use crate::resample::{Kernels, TileSamples, resample_tile};
+use sc_store::tasks::{Committed, StepShape, StepShards, TaskError, TaskPlan, TaskRun};
 
 /// Errors of ingest; one line each.
 #[derive(Debug, thiserror::Error)]
@@ -512,13 +513,100 @@ pub fn run(root: &Path, plan: &Plan, on_shard: &(dyn Fn(u64, u64) + Sync)) -> Re
     }
 }
 
-/// Prepares the store at `root` (created if missing) for running `plan` as tasks in many
-/// processes ([`run_task`], then [`commit_tasks`]): makes its levels, keeps the undo entry of every
-/// shard it will write (each task starts a shard from that version, so a task run twice writes
-/// the same bytes) and marks the plan open with `marker`. Making the same plan again (same
-/// `marker`) keeps what its tasks did.
-pub fn open_tasks(root: &Path, plan: &Plan, marker: &str) -> Result<()> {
-    let writer = StoreWriter::open_planning(root, Some(plan.settings.new_store))?;
+/// Where a task keeps the record of the shards it has written (in its folder).
+fn task_journal(task: &Path) -> PathBuf {
+    task.join("journal.json")
+}
+
+/// An ingest as tasks (the protocol: [`sc_store::tasks`]). Opening keeps the version before the
+/// plan of every shard it writes, so each task starts a shard from it and a task run twice
+/// writes the same bytes; abandoning puts every one back. The plan has one step.
+impl TaskPlan for Plan {
+    fn steps(&self) -> Vec<StepShape> {
+        vec![StepShape {
+            layer: self.settings.layer,
+            level: None,
+            shards: self.shards.keys().copied().collect(),
+        }]
+    }
+
+    fn open(&self, root: &Path, marker: &str) -> std::result::Result<(), TaskError> {
+        sc_store::tasks::open(
+            root,
+            Some(self.settings.new_store),
+            marker,
+            |writer, again| {
+                check_grid(writer, self, root).map_err(|e| StoreError::Usage(e.to_string()))?;
+                for l in self.inputs.iter().map(|p| p.level) {
+                    writer.ensure_level(self.settings.layer, l)?;
+                }
+                writer.keep_undo(!again)?;
+                for shard in self.shards.keys() {
+                    writer.keep_undo_of(self.settings.layer, *shard)?;
+                }
+                Ok(())
+            },
+        )?;
+        Ok(())
+    }
+
+    fn run(
+        &self,
+        root: &Path,
+        work: &[StepShards],
+        task: &Path,
+        on_shard: &(dyn Fn(u64, u64) + Sync),
+    ) -> std::result::Result<TaskRun, TaskError> {
+        let shards: Vec<ShardId> = work
+            .iter()
+            .filter(|(step, _)| *step == 0)
+            .flat_map(|(_, s)| s.iter().copied())
+            .collect();
+        Ok(run_task(
+            root,
+            self,
+            &shards,
+            &task_journal(task),
+            on_shard,
+        )?)
+    }
+
+    fn done(
+        &self,
+        _root: &Path,
+        step: usize,
+        task: &Path,
+    ) -> std::result::Result<Vec<ShardId>, TaskError> {
+        if step != 0 {
+            return Ok(Vec::new());
+        }
+        let records = Journal::read(&task_journal(task), "ingest", &self.hash);
+        Ok(self
+            .shards
+            .keys()
+            .filter(|s| records.contains_key(&journal::key(s)))
+            .copied()
+            .collect())
+    }
+
+    fn commit(
+        &self,
+        root: &Path,
+        _work: &[Vec<ShardId>],
+        tasks: &[PathBuf],
+        started_unix: u64,
+    ) -> std::result::Result<Committed, TaskError> {
+        let s = commit_tasks(root, self, tasks, started_unix)?;
+        Ok(Committed {
+            shards: s.shards_written,
+            seconds: s.seconds,
+            summary: serde_json::to_value(&s)?,
+        })
+    }
+}
+
+/// The plan must be for the store's grid.
+fn check_grid(writer: &StoreWriter, plan: &Plan, root: &Path) -> Result<()> {
     let meta = writer.meta();
     if meta.grid != plan.grid || meta.shard_tiles != plan.shard_tiles {
         return Err(IngestError::Usage(format!(
@@ -526,51 +614,23 @@ pub fn open_tasks(root: &Path, plan: &Plan, marker: &str) -> Result<()> {
             root.display()
         )));
     }
-    let again = writer.plan_reopened(marker)?;
-    for l in plan.inputs.iter().map(|p| p.level) {
-        writer.ensure_level(plan.settings.layer, l)?;
-    }
-    writer.keep_undo(!again)?;
-    for shard in plan.shards.keys() {
-        writer.keep_undo_of(plan.settings.layer, *shard)?;
-    }
-    writer.mark_plan_open(marker)?;
     Ok(())
 }
 
-/// What one task did.
-#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
-pub struct TaskSummary {
-    /// Shards written by this run.
-    pub shards_written: u64,
-    /// Shards an earlier run of the same task had written.
-    pub shards_resumed: u64,
-    /// Tiles written that hold data.
-    pub tiles_written: u64,
-    /// Wall time, seconds.
-    pub seconds: f64,
-}
-
-/// Writes `shards` of `plan` into the store at `root`, opened for the plan by [`open_tasks`],
-/// alongside other processes writing the plan's other shards. Each shard done is recorded in the
-/// task's journal at `journal`; a rerun skips those and starts every other shard from its version
-/// before the plan, so any number of reruns ends with the same bytes.
-pub fn run_task(
+/// Writes `shards` of `plan` into the store at `root`, opened for the plan, alongside other
+/// processes writing the plan's other shards. Each shard done is recorded in the task's journal
+/// at `journal`; a rerun skips those and starts every other shard from its version before the
+/// plan, so any number of reruns ends with the same bytes.
+fn run_task(
     root: &Path,
     plan: &Plan,
     shards: &[ShardId],
     journal: &Path,
     on_shard: &(dyn Fn(u64, u64) + Sync),
-) -> Result<TaskSummary> {
+) -> Result<TaskRun> {
     let start = Instant::now();
     let writer = StoreWriter::open_task(root)?;
-    let meta = writer.meta();
-    if meta.grid != plan.grid || meta.shard_tiles != plan.shard_tiles {
-        return Err(IngestError::Usage(format!(
-            "the plan was made for another store grid: {}",
-            root.display()
-        )));
-    }
+    check_grid(&writer, plan, root)?;
     writer.keep_undo(false)?;
     let journal = Journal::open_at(journal, "ingest", &plan.hash)?;
     let todo: Vec<ShardId> = shards
@@ -582,40 +642,24 @@ pub fn run_task(
         writer.reset_to_undo(plan.settings.layer, shard)?;
     }
     let resumed = (shards.len() - todo.len()) as u64;
-    let tiles = write_shards(&writer, plan, &todo, &journal, resumed, on_shard)?;
-    Ok(TaskSummary {
-        shards_written: todo.len() as u64,
-        shards_resumed: resumed,
-        tiles_written: tiles,
+    write_shards(&writer, plan, &todo, &journal, resumed, on_shard)?;
+    Ok(TaskRun {
+        written: todo.len() as u64,
+        resumed,
         seconds: start.elapsed().as_secs_f64(),
     })
 }
 
-/// The shards of `plan` the task journal at `journal` records as durable.
-pub fn task_done(journal: &Path, plan: &Plan) -> Vec<ShardId> {
-    let records = Journal::read(journal, "ingest", &plan.hash);
-    plan.shards
-        .keys()
-        .filter(|s| records.contains_key(&journal::key(s)))
-        .copied()
-        .collect()
-}
-
 /// Commits a plan whose tasks all finished: sums the task journals (every shard of the plan must
 /// be in one), records the ingest as started at `started_unix`, marks the store complete and
-/// closes the plan; the journals are removed last. When no input gave a valid texel the store is
-/// rolled back instead.
-pub fn commit_tasks(
-    root: &Path,
-    plan: &Plan,
-    journals: &[PathBuf],
-    started_unix: u64,
-) -> Result<Summary> {
+/// closes the plan; the task folders are removed last. When no input gave a valid texel the
+/// store is rolled back instead.
+fn commit_tasks(root: &Path, plan: &Plan, tasks: &[PathBuf], started_unix: u64) -> Result<Summary> {
     let start = Instant::now();
     let writer = StoreWriter::open_planning(root, None)?;
     let mut records = BTreeMap::new();
-    for j in journals {
-        records.extend(Journal::read(j, "ingest", &plan.hash));
+    for t in tasks {
+        records.extend(Journal::read(&task_journal(t), "ingest", &plan.hash));
     }
     let missing: Vec<String> = plan
         .shards
@@ -623,13 +667,8 @@ pub fn commit_tasks(
         .filter(|s| !records.contains_key(&journal::key(s)))
         .map(ToString::to_string)
         .collect();
-    if !missing.is_empty() {
-        return Err(IngestError::Usage(format!(
-            "{} shard(s) of the plan are not written yet (first: {}): {}",
-            missing.len(),
-            missing[0],
-            root.display()
-        )));
+    if let Some(e) = sc_store::tasks::missing_shards(root, &missing) {
+        return Err(e.into());
     }
     let levels = plan.inputs.iter().map(|p| p.level).collect();
     let records: Vec<journal::ShardRecord> = records.into_values().collect();
@@ -638,36 +677,15 @@ pub fn commit_tasks(
         Err(e) if resumable(&e) => return Err(IngestError::Interrupted(Box::new(e))),
         Err(e) => {
             writer.rollback()?;
-            writer.close_plan()?;
-            remove_journals(journals)?;
+            sc_store::tasks::close(&writer, false, tasks)?;
             return Err(IngestError::RolledBack(Box::new(e)));
         }
     };
     writer.drop_undo()?;
-    writer.close_plan_committed()?;
-    remove_journals(journals)?;
+    sc_store::tasks::close(&writer, true, tasks)?;
     summary.shards_written = plan.shards.len() as u64;
     summary.seconds = start.elapsed().as_secs_f64();
     Ok(summary)
-}
-
-/// Puts the store back as it was before the plan (every shard its tasks wrote, the levels it
-/// made, the metadata) and closes the plan.
-pub fn abandon_tasks(root: &Path, journals: &[PathBuf]) -> Result<()> {
-    let writer = StoreWriter::open_planning(root, None)?;
-    writer.rollback()?;
-    writer.close_plan()?;
-    remove_journals(journals)
-}
-
-fn remove_journals(journals: &[PathBuf]) -> Result<()> {
-    for j in journals {
-        sc_store::fault::remove_file(j).map_err(|source| IngestError::Io {
-            source,
-            path: j.clone(),
-        })?;
-    }
-    Ok(())
 }
 
 /// Whether an error mid-run is one a rerun of the same command can overcome.

@@ -32,6 +32,8 @@ mod sample;
 mod shard_index;
 mod source;
 #[cfg(not(target_arch = "wasm32"))]
+pub mod tasks;
+#[cfg(not(target_arch = "wasm32"))]
 mod upgrade;
 #[cfg(not(target_arch = "wasm32"))]
 mod verify;

@@ -16,6 +16,7 @@ use anyhow::{Context, Result, bail};
 use clap::Parser;
 use sc_core::{LevelId, ShardId};
 use sc_store::StoreReader;
+use sc_store::tasks::{TaskPlan, TaskRun};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
@@ -327,44 +328,31 @@ fn check_plan(plan: &PlanFile) -> std::result::Result<(), String> {
 fn check_work(plan: &PlanFile, step: &Step) -> Result<()> {
     use std::collections::HashSet;
     let bad = |what: String| anyhow::anyhow!("the plan's tasks name {what}; make the plan again");
-    match step {
-        Step::Ingest(p) => {
-            let layer = p.settings.layer.name();
-            for w in plan.tasks.iter().flat_map(|t| &t.work) {
-                if w.step != 0 || w.layer != layer {
-                    return Err(bad(format!(
-                        "a step the ingest does not have ({} {})",
-                        w.layer, w.step
-                    )));
-                }
-                if let Some(s) = w
-                    .shard_ids()?
-                    .into_iter()
-                    .find(|s| !p.shards.contains_key(s))
-                {
-                    return Err(bad(format!("shard {s}, which the ingest does not write")));
-                }
-            }
+    let steps = step.steps();
+    let mut sets: Vec<Option<HashSet<ShardId>>> = vec![None; steps.len()];
+    for w in plan.tasks.iter().flat_map(|t| &t.work) {
+        let Some(shape) = steps.get(w.step) else {
+            return Err(bad(format!(
+                "a step {} the {} does not have",
+                w.step, plan.kind
+            )));
+        };
+        if w.layer != shape.layer.name() || shape.level.is_some_and(|l| w.level != l.key()) {
+            return Err(bad(format!(
+                "{} {} as step {}, which writes {}{}",
+                w.layer,
+                w.level,
+                w.step,
+                shape.layer,
+                shape.level.map(|l| format!(" {l}")).unwrap_or_default()
+            )));
         }
-        Step::Build(p) => {
-            let shapes = p.work_shapes();
-            let mut sets: Vec<Option<HashSet<ShardId>>> = vec![None; shapes.len()];
-            for w in plan.tasks.iter().flat_map(|t| &t.work) {
-                let Some((layer, level)) = shapes.get(w.step) else {
-                    return Err(bad(format!("a step {} the build does not have", w.step)));
-                };
-                if w.layer != layer.name() || w.level != level.key() {
-                    return Err(bad(format!(
-                        "{} {} as step {}, which makes {layer} {level}",
-                        w.layer, w.level, w.step
-                    )));
-                }
-                let set = sets[w.step]
-                    .get_or_insert_with(|| p.step_shards(w.step).iter().copied().collect());
-                if let Some(s) = w.shard_ids()?.into_iter().find(|s| !set.contains(s)) {
-                    return Err(bad(format!("shard {s}, which the build does not write")));
-                }
-            }
+        let set = sets[w.step].get_or_insert_with(|| shape.shards.iter().copied().collect());
+        if let Some(s) = w.shard_ids()?.into_iter().find(|s| !set.contains(s)) {
+            return Err(bad(format!(
+                "shard {s}, which the {} does not write",
+                plan.kind
+            )));
         }
     }
     Ok(())
@@ -423,11 +411,8 @@ fn tasks_dir(plan: &PlanFile) -> PathBuf {
         .join(&plan.hash[..16])
 }
 
-fn ingest_journal(plan: &PlanFile, task: u32) -> PathBuf {
-    tasks_dir(plan).join(format!("task-{task}.json"))
-}
-
-fn build_task_dir(plan: &PlanFile, task: u32) -> PathBuf {
+/// The folder where task `task` records the shards it has done.
+fn task_dir(plan: &PlanFile, task: u32) -> PathBuf {
     tasks_dir(plan).join(format!("task-{task}"))
 }
 
@@ -493,7 +478,8 @@ pub fn make(a: &PlanArgs) -> Result<ExitCode> {
                 .iter()
                 .map(|r| modified_ns(Path::new(&r.path)))
                 .collect::<Result<_>>()?;
-            sc_ingest::open_tasks(&plan.store, &p, &marker(&plan, &out))
+            p.open(&plan.store, &marker(&plan, &out))
+                .map_err(anyhow::Error::from_boxed)
                 .with_context(|| format!("cannot prepare {}", plan.store.display()))?;
             plan
         }
@@ -502,7 +488,8 @@ pub fn make(a: &PlanArgs) -> Result<ExitCode> {
             let p = build_plan(&store, build)?;
             let (stages, tasks) = build_stages(&p.work(&store)?, opts.tasks as usize);
             let plan = new_plan("build", store, cwd, args, &p.hash(), cpus, stages, tasks);
-            sc_build::open_tasks(&plan.store, &p, &marker(&plan, &out))
+            p.open(&plan.store, &marker(&plan, &out))
+                .map_err(anyhow::Error::from_boxed)
                 .with_context(|| format!("cannot prepare {}", plan.store.display()))?;
             plan
         }
@@ -683,11 +670,9 @@ fn build_stages(work: &[sc_build::StepWork], n: usize) -> (Vec<Stage>, Vec<Task>
     (stages, tasks)
 }
 
-/// The step of a plan file made again from its recorded arguments, checked against the plan.
-enum Step {
-    Ingest(Box<sc_ingest::Plan>),
-    Build(Box<sc_build::Plan>),
-}
+/// The step of a plan file made again from its recorded arguments, checked against the plan:
+/// an ingest or a build, run by its tasks through one protocol ([`sc_store::tasks`]).
+type Step = Box<dyn TaskPlan + Send + Sync>;
 
 /// How a step made again knows its inputs' contents.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -701,7 +686,7 @@ enum Inputs {
 
 fn remake(plan: &PlanFile, threads: Option<usize>, inputs: Inputs) -> Result<Step> {
     let what = parse_recorded(&plan.args)?;
-    let step = match what {
+    let (kind, step) = match what {
         PlanWhat::Ingest { ingest, .. } => {
             same_store(plan, &ingest.store)?;
             let known = match inputs {
@@ -718,7 +703,7 @@ fn remake(plan: &PlanFile, threads: Option<usize>, inputs: Inputs) -> Result<Ste
                     plan.store.display()
                 );
             }
-            Step::Ingest(Box::new(p))
+            ("ingest", Box::new(p) as Step)
         }
         PlanWhat::Build { mut build, .. } => {
             same_store(plan, &build.store)?;
@@ -732,12 +717,8 @@ fn remake(plan: &PlanFile, threads: Option<usize>, inputs: Inputs) -> Result<Ste
                     plan.store.display()
                 );
             }
-            Step::Build(Box::new(p))
+            ("build", Box::new(p) as Step)
         }
-    };
-    let kind = match step {
-        Step::Ingest(_) => "ingest",
-        Step::Build(_) => "build",
     };
     if kind != plan.kind {
         bail!("the plan says {} but its arguments make {kind}", plan.kind);
@@ -810,12 +791,9 @@ fn task_is_done(plan: &PlanFile, step: &Step, i: u32) -> Result<bool> {
     let task = &plan.tasks[i as usize];
     for w in &task.work {
         let want = w.shard_ids()?;
-        let done = match step {
-            Step::Ingest(p) => sc_ingest::task_done(&ingest_journal(plan, i), p),
-            Step::Build(p) => {
-                sc_build::task_done(&plan.store, p, w.step, &build_task_dir(plan, i))?
-            }
-        };
+        let done = step
+            .done(&plan.store, w.step, &task_dir(plan, i))
+            .map_err(anyhow::Error::from_boxed)?;
         if want.iter().any(|s| !done.contains(s)) {
             return Ok(false);
         }
@@ -918,42 +896,28 @@ pub fn run_task(a: &RunTaskArgs) -> Result<ExitCode> {
     let shards: usize = task.work.iter().map(|w| w.shards.len()).sum();
     let progress = Progress::new(&format!("task {i}"), shards as u64);
     let what = format!("task {i} of {}", plan_path.display());
-    let (written, resumed, seconds) = match &step {
-        Step::Ingest(p) => {
-            let mut ids = Vec::new();
-            for w in &task.work {
-                ids.extend(w.shard_ids()?);
-            }
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads.unwrap_or(0))
-                .build()
-                .context("cannot start the worker threads")?;
-            let s = pool
-                .install(|| {
-                    sc_ingest::run_task(&plan.store, p, &ids, &ingest_journal(&plan, i), &|d, _| {
-                        progress.set(d)
-                    })
-                })
-                .with_context(|| format!("{what} stopped (run it again to resume)"))?;
-            (s.shards_written, s.shards_resumed, s.seconds)
-        }
-        Step::Build(p) => {
-            let mut work = Vec::new();
-            for w in &task.work {
-                work.push((w.step, w.shard_ids()?));
-            }
-            let s =
-                sc_build::run_task(&plan.store, p, &work, &build_task_dir(&plan, i), &|d, _| {
-                    progress.set(d)
-                })
-                .with_context(|| format!("{what} stopped (run it again to resume)"))?;
-            (
-                s.shards_written,
-                s.shards_skipped + s.shards_empty,
-                s.seconds,
-            )
-        }
-    };
+    let mut work = Vec::new();
+    for w in &task.work {
+        work.push((w.step, w.shard_ids()?));
+    }
+    // an ingest's workers are rayon's; a build starts its own threads (`threads` above)
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads.unwrap_or(0))
+        .build()
+        .context("cannot start the worker threads")?;
+    let run = pool
+        .install(|| {
+            step.run(&plan.store, &work, &task_dir(&plan, i), &|d, _| {
+                progress.set(d)
+            })
+        })
+        .map_err(anyhow::Error::from_boxed)
+        .with_context(|| format!("{what} stopped (run it again to resume)"))?;
+    let TaskRun {
+        written,
+        resumed,
+        seconds,
+    } = run;
     progress.finish();
     drop(lock);
     crate::outln!(
@@ -983,23 +947,20 @@ pub fn commit(a: &CommitArgs) -> Result<ExitCode> {
     check_open(&plan)?;
     std::env::set_current_dir(&plan.cwd)
         .with_context(|| format!("cannot enter the plan's folder {}", plan.cwd.display()))?;
-    let journals: Vec<PathBuf> = (0..plan.tasks.len() as u32)
-        .map(|i| ingest_journal(&plan, i))
+    let tasks: Vec<PathBuf> = (0..plan.tasks.len() as u32)
+        .map(|i| task_dir(&plan, i))
         .collect();
     let dir = tasks_dir(&plan);
     if a.abandon {
-        match plan.kind.as_str() {
-            "ingest" => sc_ingest::abandon_tasks(&plan.store, &journals)?,
-            _ => {
-                let w = sc_store::StoreWriter::open_planning(&plan.store, None)?;
-                w.close_plan()?;
-            }
-        }
+        // an ingest kept every shard's version before the plan and puts it back; a build's
+        // shards are right whenever they were made and stay
+        let undo = plan.kind == "ingest";
+        sc_store::tasks::abandon(&plan.store, &tasks, undo)?;
         remove_dir(&dir)?;
         crate::outln!(
             "abandoned the plan {}: {}",
             plan_path.display(),
-            if plan.kind == "ingest" {
+            if undo {
                 format!("{} is as it was before it", plan.store.display())
             } else {
                 format!(
@@ -1021,28 +982,18 @@ pub fn commit(a: &CommitArgs) -> Result<ExitCode> {
             plan_path.display()
         );
     }
-    let (shards, seconds) = match &step {
-        Step::Ingest(p) => {
-            let s = sc_ingest::commit_tasks(&plan.store, p, &journals, plan.created_unix)
-                .with_context(|| format!("cannot commit {}", plan_path.display()))?;
-            if a.json {
-                crate::outln!("{}", serde_json::to_string_pretty(&s)?);
-            }
-            (s.shards_written, s.seconds)
-        }
-        Step::Build(p) => {
-            let dirs: Vec<PathBuf> = (0..plan.tasks.len() as u32)
-                .map(|i| build_task_dir(&plan, i))
-                .collect();
-            let work = expected_work(&plan, p)?;
-            let s = sc_build::commit_tasks(&plan.store, p, &work, &dirs, plan.created_unix)
-                .with_context(|| format!("cannot commit {}", plan_path.display()))?;
-            if a.json {
-                crate::outln!("{}", serde_json::to_string_pretty(&s)?);
-            }
-            (s.shards_written, s.seconds)
-        }
-    };
+    let mut work = vec![Vec::new(); step.steps().len()];
+    for w in plan.tasks.iter().flat_map(|t| &t.work) {
+        work[w.step].extend(w.shard_ids()?);
+    }
+    let done = step
+        .commit(&plan.store, &work, &tasks, plan.created_unix)
+        .map_err(anyhow::Error::from_boxed)
+        .with_context(|| format!("cannot commit {}", plan_path.display()))?;
+    if a.json {
+        crate::outln!("{}", serde_json::to_string_pretty(&done.summary)?);
+    }
+    let (shards, seconds) = (done.shards, done.seconds);
     remove_dir(&dir)?;
     sc_store::forget_committed_plan(&plan.store)?;
     if !a.json {
@@ -1054,27 +1005,6 @@ pub fn commit(a: &CommitArgs) -> Result<ExitCode> {
         );
     }
     Ok(ExitCode::SUCCESS)
-}
-
-/// Per step of a build, the shards the plan gave its tasks.
-fn expected_work(plan: &PlanFile, p: &sc_build::Plan) -> Result<Vec<sc_build::StepWork>> {
-    let mut work: Vec<sc_build::StepWork> = p
-        .work_shapes()
-        .into_iter()
-        .map(|(layer, level)| sc_build::StepWork {
-            layer,
-            level,
-            shards: Vec::new(),
-            tiles: Vec::new(),
-        })
-        .collect();
-    for w in plan.tasks.iter().flat_map(|t| &t.work) {
-        let Some(step) = work.get_mut(w.step) else {
-            bail!("the plan names a step {} the build does not have", w.step);
-        };
-        step.shards.extend(w.shard_ids()?);
-    }
-    Ok(work)
 }
 
 /// Removes a plan's task folder, and `tasks/` when no other plan's folder is left in it.
