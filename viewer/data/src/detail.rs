@@ -76,7 +76,7 @@ impl DetailParams {
 /// The first octave's lattice spacing in units of the data's spacing d₀. Noise of lattice λ
 /// holds most of its power at wavelengths λ … 2λ; at λ = d₀ (the data's own spacing) a third of
 /// its amplitude passes the pyramid's kernel back into the data's band, at λ = d₀/2 under a tenth
-/// (measured: `viewer/plan/tests/detail.rs`).
+/// (measured: `viewer/data/tests/detail.rs`).
 pub const FIRST_LATTICE: f64 = 0.5;
 
 /// The shade (a slope) at which the colour's modulation reaches tanh(1) of its strength: rocky

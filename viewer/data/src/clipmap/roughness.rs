@@ -4,11 +4,8 @@ use rustc_hash::FxHashMap;
 
 use sc_core::LevelId;
 
-use super::sample::{Taps, tap_value};
-use crate::detail::corner_residuals;
-
 /// The data's roughness at the four texels around each footprint origin (level, x₀, y₀) seen,
-/// [`corner_residuals`] of the 4×4 texels there (None where any lacks data): the points of a
+/// [`crate::detail::corner_residuals`] of the 4×4 texels there (None where any lacks data): the points of a
 /// tile share a few, each a plane fit of nine texels four times over.
 #[derive(Debug, Default)]
 pub(super) struct Roughness(FxHashMap<FootprintKey, Option<[f64; 4]>>);
@@ -82,19 +79,4 @@ pub(super) fn local_hurst([r1, r2]: [f64; 2], level: usize, spacing: &[f64]) -> 
     }
     let ratio = spacing[level - 2] / spacing[level - 1];
     Some(((r2 / r1).ln() / ratio.ln()).clamp(MIN_DATA_HURST, 1.0))
-}
-
-/// The data's roughness ([`plane_residual`]) at the four texels around a point, from the 4×4
-/// `taps` (none where any lacks data: the roughness is not known there).
-pub(super) fn corner_roughness(taps: Taps<'_, f32>) -> Option<[f64; 4]> {
-    let mut h = [[0f32; 4]; 4];
-    for (r, row) in taps.iter().enumerate() {
-        for (c, t) in row.iter().enumerate() {
-            h[r][c] = tap_value(*t);
-            if h[r][c].is_nan() {
-                return None;
-            }
-        }
-    }
-    Some(corner_residuals(&h))
 }

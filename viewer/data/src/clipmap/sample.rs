@@ -8,9 +8,9 @@ use std::sync::Arc;
 use sc_core::{GridSpec, LevelId, TileId};
 use sc_store::{LayerKind, StoreReader, TileRead, TileSample};
 
-use super::roughness::{FootprintKey, Roughness, corner_roughness, data_roughness, local_hurst};
+use super::roughness::{FootprintKey, Roughness, data_roughness, local_hurst};
 use super::window::{LevelWindow, Placement, fill_window};
-use crate::detail::{Detail, DetailPoint, bilinear_roughness};
+use crate::detail::{Detail, DetailPoint, bilinear_roughness, corner_residuals};
 
 /// Most bytes of decoded store tiles one layer's reader keeps.
 pub const TILE_CACHE_BYTES: usize = 192 << 20;
@@ -481,7 +481,7 @@ impl Columns {
 
 /// The 4×4 texels around a point, `[row][column]` from (x0 − 1, y0 − 1); the bilinear corners
 /// are `[1..=2][1..=2]` (None: no data).
-pub(super) type Taps<'a, T> = [[Option<&'a [T]>; 4]; 4];
+type Taps<'a, T> = [[Option<&'a [T]>; 4]; 4];
 
 /// A point's texels in a row [`StoreLevels::sample_points`] samples, looked up only when asked
 /// for: the points of a row share their columns, so most of them need none beyond the four
@@ -577,7 +577,7 @@ fn height_from_taps(taps: Taps<'_, f32>, fx: f32, fy: f32, magnified: bool, keep
 }
 
 /// A tap's value, NaN where it has none.
-pub(super) fn tap_value(t: Option<&[f32]>) -> f32 {
+fn tap_value(t: Option<&[f32]>) -> f32 {
     match t {
         Some([h]) => *h,
         _ => f32::NAN,
@@ -872,6 +872,21 @@ impl HeightSource for StoreHeights {
 /// Fills a height clipmap level placed at `p` (toroidal order).
 pub fn fill_level(src: &mut dyn HeightSource, p: &Placement) -> Vec<f32> {
     fill_window(p, |lon, colat| [src.height(lon, colat, p.win)])
+}
+
+/// The data's roughness ([`crate::detail::plane_residual`]) at the four texels around a point, from the 4×4
+/// `taps` (none where any lacks data: the roughness is not known there).
+fn corner_roughness(taps: Taps<'_, f32>) -> Option<[f64; 4]> {
+    let mut h = [[0f32; 4]; 4];
+    for (r, row) in taps.iter().enumerate() {
+        for (c, t) in row.iter().enumerate() {
+            h[r][c] = tap_value(*t);
+            if h[r][c].is_nan() {
+                return None;
+            }
+        }
+    }
+    Some(corner_residuals(&h))
 }
 
 /// Colours at points of the sphere (sRGB RGBA8; alpha 0 = nothing there).
