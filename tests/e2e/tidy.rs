@@ -272,12 +272,13 @@ fn every_repository_path_named_in_comments_and_documents_exists() {
         "tools/", "viewer/", "shaders/", "bench/", "scripts/", "docs/", "samples/", "tests/",
     ];
     let exts = [
-        ".rs", ".wgsl", ".toml", ".sh", ".md", ".json", ".txt", ".py", ".png",
+        ".rs", ".wgsl", ".wesl", ".toml", ".sh", ".md", ".json", ".txt", ".py", ".png",
     ];
     let mut broken = Vec::new();
     for f in files().iter().filter(|f| {
-        f.extension()
-            .is_some_and(|e| ["rs", "md", "wgsl", "sh", "toml"].contains(&e.to_str().unwrap_or("")))
+        f.extension().is_some_and(|e| {
+            ["rs", "md", "wgsl", "wesl", "sh", "toml"].contains(&e.to_str().unwrap_or(""))
+        })
     }) {
         let text = std::fs::read_to_string(root().join(f)).expect("read");
         for (n, line) in text.lines().enumerate() {

@@ -1,4 +1,4 @@
-//! The atmosphere's lookup tables as compute passes (`shaders/atmosphere.wgsl`): the
+//! The atmosphere's lookup tables as compute passes (`shaders/atmosphere.wesl`): the
 //! transmittance, multiple-scattering and sky-irradiance tables, made again only when the
 //! atmosphere changes,
 //! and per frame the sky-view table and the aerial-perspective volume of the frame's viewer.
@@ -91,7 +91,7 @@ impl AtmospherePasses {
     /// Compiles the passes and makes the tables' buffers on `device`.
     pub fn new(device: &wgpu::Device) -> Self {
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("atmosphere.wgsl"),
+            label: Some("atmosphere.wesl"),
             source: wgpu::ShaderSource::Wgsl(crate::ATMOSPHERE_WGSL.into()),
         });
         let uniform = |label: &str, size: usize| uniform_buffer(device, label, size);
@@ -368,7 +368,7 @@ fn texture_size(k: usize) -> (u32, u32) {
 
 /// The tables made on the CPU by their twins (`sc_view_space::atmosphere`) and uploaded as
 /// RGBA32F textures: for a device without compute shaders or storage buffers (WebGL2), whose
-/// clipmap pass reads them through `shaders/air_tables_webgl.wgsl`.
+/// clipmap pass reads them through `shaders/air.wesl`.
 #[derive(Debug)]
 pub struct UploadedTables {
     atm: wgpu::Buffer,
@@ -564,7 +564,7 @@ impl AirTables {
 
 /// Whether `device` lacks what the computed tables need (compute shaders, storage buffers in
 /// the fragment stage): WebGL2. Its renderers then read the tables from textures
-/// ([`crate::for_webgl`]) and draw no geometry that needs storage buffers.
+/// ([`crate::CLIPMAP_WEBGL_WGSL`]) and draw no geometry that needs storage buffers.
 pub fn uploads_tables(device: &wgpu::Device) -> bool {
     device.limits().max_storage_buffers_per_shader_stage == 0
 }

@@ -12,7 +12,7 @@ pub mod probe;
 pub mod render;
 pub mod terrain;
 
-/// The constants the shaders share with the Rust side, as WGSL: what `shaders/constants.wgsl`
+/// The constants the shaders share with the Rust side, as WGSL: what `shaders/constants.wesl`
 /// holds (a test keeps the file equal to this; `SPHERECLIP_BLESS=1` rewrites it). The Rust
 /// constants are the only source: the finest clipmap level, table sizes of the atmosphere, the
 /// frame's flags, the sides of a colour window that are no edge.
@@ -50,104 +50,67 @@ pub fn shader_constants() -> String {
     out
 }
 
-/// The WGSL of the clipmap renderer, from `shaders/` (the map transform first).
-pub const CLIPMAP_WGSL: &str = concat!(
-    include_str!("../../../shaders/constants.wgsl"),
-    include_str!("../../../shaders/map_transform.wgsl"),
-    include_str!("../../../shaders/atmosphere_model.wgsl"),
-    include_str!("../../../shaders/air_tables.wgsl"),
-    include_str!("../../../shaders/air_table_reads.wgsl"),
-    include_str!("../../../shaders/clipmap.wgsl")
-);
+/// The composed WGSL of one pipeline (`build.rs` composes it from the WESL modules of
+/// `shaders/`).
+macro_rules! composed {
+    ($name:literal) => {
+        include_str!(concat!(env!("OUT_DIR"), "/", $name, ".wgsl"))
+    };
+}
 
-/// The WGSL of the CDLOD renderer: the clipmap renderer's (its height reads and fragment stage),
-/// CDLOD's geometry and its vertex stage.
-pub const CDLOD_WGSL: &str = concat!(
-    include_str!("../../../shaders/constants.wgsl"),
-    include_str!("../../../shaders/map_transform.wgsl"),
-    include_str!("../../../shaders/atmosphere_model.wgsl"),
-    include_str!("../../../shaders/air_tables.wgsl"),
-    include_str!("../../../shaders/air_table_reads.wgsl"),
-    include_str!("../../../shaders/clipmap.wgsl"),
-    include_str!("../../../shaders/cdlod_geometry.wgsl"),
-    include_str!("../../../shaders/cdlod.wgsl")
-);
+/// The clipmap renderer (`shaders/clipmap.wesl`): its vertex stage, the fragment stage every
+/// renderer shares, the sky; the atmosphere's tables in storage buffers.
+pub const CLIPMAP_WGSL: &str = composed!("clipmap");
 
-/// The WGSL of the geometry-image warping renderer: the clipmap renderer's and the warped
-/// mesh's vertex stage.
-pub const WARP_WGSL: &str = concat!(
-    include_str!("../../../shaders/constants.wgsl"),
-    include_str!("../../../shaders/map_transform.wgsl"),
-    include_str!("../../../shaders/atmosphere_model.wgsl"),
-    include_str!("../../../shaders/air_tables.wgsl"),
-    include_str!("../../../shaders/air_table_reads.wgsl"),
-    include_str!("../../../shaders/clipmap.wgsl"),
-    include_str!("../../../shaders/warp_geometry.wgsl"),
-    include_str!("../../../shaders/warp.wgsl")
-);
+/// [`CLIPMAP_WGSL`] for WebGL2: the atmosphere's tables read from textures (`shaders/air.wesl`'s
+/// `webgl` form).
+pub const CLIPMAP_WEBGL_WGSL: &str = composed!("clipmap_webgl");
 
-/// A renderer's shader `wgsl` as `device` takes it: [`for_webgl`] where the device has no
-/// storage buffers ([`atmosphere::uploads_tables`]), else as it is.
-pub fn wgsl_for(device: &wgpu::Device, wgsl: &'static str) -> std::borrow::Cow<'static, str> {
+/// The CDLOD renderer (`shaders/cdlod.wesl`, with the clipmap renderer's fragment stage).
+pub const CDLOD_WGSL: &str = composed!("cdlod");
+
+/// [`CDLOD_WGSL`] for WebGL2.
+pub const CDLOD_WEBGL_WGSL: &str = composed!("cdlod_webgl");
+
+/// The warped-mesh renderer (`shaders/warp.wesl`; storage buffers, so never on WebGL2).
+pub const WARP_WGSL: &str = composed!("warp");
+
+/// The shader `device` takes of a renderer whose two forms are `storage` (the atmosphere's
+/// tables in storage buffers) and `webgl` (in textures, where the device has no storage buffers:
+/// [`atmosphere::uploads_tables`]).
+pub fn wgsl_for(device: &wgpu::Device, storage: &'static str, webgl: &'static str) -> &'static str {
     if atmosphere::uploads_tables(device) {
-        for_webgl(wgsl).into()
+        webgl
     } else {
-        wgsl.into()
+        storage
     }
 }
 
-/// `wgsl` (one of the renderers' shaders) for WebGL2: the atmosphere's tables read from
-/// textures (`shaders/air_tables_webgl.wgsl`) instead of storage buffers.
-pub fn for_webgl(wgsl: &str) -> String {
-    wgsl.replace(
-        include_str!("../../../shaders/air_tables.wgsl"),
-        include_str!("../../../shaders/air_tables_webgl.wgsl"),
-    )
-    .replace(include_str!("../../../shaders/air_table_reads.wgsl"), "")
-}
+/// The warped mesh's geometry probe (a compute pass over its vertices).
+pub const WARP_PROBE_WGSL: &str = composed!("warp_probe");
 
-/// The WGSL of the warped mesh's geometry probe (a compute pass over its vertices).
-pub const WARP_PROBE_WGSL: &str = concat!(
-    include_str!("../../../shaders/constants.wgsl"),
-    include_str!("../../../shaders/warp_geometry.wgsl"),
-    include_str!("../../../shaders/warp_probe.wgsl")
-);
+/// The CDLOD geometry probe (a compute pass over patch vertices).
+pub const CDLOD_PROBE_WGSL: &str = composed!("cdlod_probe");
 
-/// The WGSL of the CDLOD geometry probe (a compute pass over patch vertices).
-pub const CDLOD_PROBE_WGSL: &str = concat!(
-    include_str!("../../../shaders/constants.wgsl"),
-    include_str!("../../../shaders/cdlod_geometry.wgsl"),
-    include_str!("../../../shaders/cdlod_probe.wgsl")
-);
+/// The atmosphere's lookup tables (compute passes writing the tables).
+pub const ATMOSPHERE_WGSL: &str = composed!("atmosphere");
 
-/// The WGSL of the atmosphere's lookup tables (compute passes; the model first).
-pub const ATMOSPHERE_WGSL: &str = concat!(
-    include_str!("../../../shaders/constants.wgsl"),
-    include_str!("../../../shaders/atmosphere_model.wgsl"),
-    include_str!("../../../shaders/air_table_reads.wgsl"),
-    include_str!("../../../shaders/atmosphere.wgsl")
-);
-
-/// The WGSL of the map-transform probe (a compute pass over vertices).
-pub const PROBE_WGSL: &str = concat!(
-    include_str!("../../../shaders/constants.wgsl"),
-    include_str!("../../../shaders/map_transform.wgsl"),
-    include_str!("../../../shaders/transform_probe.wgsl")
-);
+/// The map-transform probe (a compute pass over vertices).
+pub const PROBE_WGSL: &str = composed!("transform_probe");
 
 #[cfg(test)]
 mod tests {
     #[test]
     fn shader_constants_file_is_what_the_rust_constants_generate() {
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shaders/constants.wgsl");
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shaders/constants.wesl");
         let want = super::shader_constants();
         if std::env::var_os("SPHERECLIP_BLESS").is_some() {
-            std::fs::write(path, &want).expect("write shaders/constants.wgsl");
+            std::fs::write(path, &want).expect("write shaders/constants.wesl");
         }
         let have = std::fs::read_to_string(path).unwrap_or_default();
         assert!(
             have == want,
-            "shaders/constants.wgsl differs from the Rust constants; SPHERECLIP_BLESS=1 rewrites it:\n{want}"
+            "shaders/constants.wesl differs from the Rust constants; SPHERECLIP_BLESS=1 rewrites it:\n{want}"
         );
     }
 }

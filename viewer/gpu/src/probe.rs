@@ -1,5 +1,5 @@
-//! Runs the shaders' map transform (`shaders/map_transform.wgsl`), CDLOD's vertex placement
-//! (`shaders/cdlod_geometry.wgsl`) and the warped mesh's (`shaders/warp_geometry.wgsl`) on the
+//! Runs the shaders' map transform (`shaders/map_transform.wesl`), CDLOD's vertex placement
+//! (`shaders/cdlod_geometry.wesl`) and the warped mesh's (`shaders/warp_geometry.wesl`) on the
 //! GPU over a list of vertices and reads the results back: what the precision tests compare
 //! with the twins.
 
@@ -113,7 +113,7 @@ pub struct TransformProbe {
 impl TransformProbe {
     /// Compiles the probe on the first adapter found.
     pub fn new() -> Result<Self, RenderError> {
-        let probe = ComputeProbe::new("transform_probe.wgsl", crate::PROBE_WGSL)?;
+        let probe = ComputeProbe::new("transform_probe.wesl", crate::PROBE_WGSL)?;
         Ok(Self { probe })
     }
 
@@ -144,7 +144,7 @@ impl TransformProbe {
     }
 }
 
-/// A device with the CDLOD geometry probe (`shaders/cdlod_probe.wgsl`): patch vertices placed
+/// A device with the CDLOD geometry probe (`shaders/cdlod_probe.wesl`): patch vertices placed
 /// by the WGSL of the vertex stage, read back.
 #[derive(Debug)]
 pub struct CdlodProbe {
@@ -154,7 +154,7 @@ pub struct CdlodProbe {
 impl CdlodProbe {
     /// Compiles the probe on the first adapter found.
     pub fn new() -> Result<Self, RenderError> {
-        let probe = ComputeProbe::new("cdlod_probe.wgsl", crate::CDLOD_PROBE_WGSL)?;
+        let probe = ComputeProbe::new("cdlod_probe.wesl", crate::CDLOD_PROBE_WGSL)?;
         Ok(Self { probe })
     }
 
@@ -208,7 +208,7 @@ impl CdlodProbe {
     }
 }
 
-/// A device with the warped mesh's geometry probe (`shaders/warp_probe.wgsl`): every vertex of a
+/// A device with the warped mesh's geometry probe (`shaders/warp_probe.wesl`): every vertex of a
 /// frame's mesh placed by the WGSL of the vertex stage, read back.
 #[derive(Debug)]
 pub struct WarpProbe {
@@ -218,7 +218,7 @@ pub struct WarpProbe {
 impl WarpProbe {
     /// Compiles the probe on the first adapter found.
     pub fn new() -> Result<Self, RenderError> {
-        let probe = ComputeProbe::new("warp_probe.wgsl", crate::WARP_PROBE_WGSL)?;
+        let probe = ComputeProbe::new("warp_probe.wesl", crate::WARP_PROBE_WGSL)?;
         Ok(Self { probe })
     }
 

@@ -274,8 +274,10 @@ impl ClipmapPass {
         let (layout, frame_buf, level_buf, bind) =
             clipmap_bindings(device, &heights, &colors, levels);
         let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("clipmap.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(crate::wgsl_for(device, crate::CLIPMAP_WGSL)),
+            label: Some("clipmap.wesl"),
+            source: wgpu::ShaderSource::Wgsl(
+                crate::wgsl_for(device, crate::CLIPMAP_WGSL, crate::CLIPMAP_WEBGL_WGSL).into(),
+            ),
         });
         let (atmosphere, air_layout, atmosphere_bind) = atmosphere_bindings(device, queue);
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -1006,7 +1008,7 @@ mod tests {
                 .types
                 .iter()
                 .find(|(_, t)| t.name.as_deref() == Some(name))
-                .unwrap_or_else(|| panic!("no struct {name} in clipmap.wgsl"));
+                .unwrap_or_else(|| panic!("no struct {name} in clipmap.wesl"));
             match &ty.inner {
                 naga::TypeInner::Struct { members, span } => (
                     *span,

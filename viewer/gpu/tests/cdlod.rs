@@ -1,4 +1,4 @@
-//! CDLOD's vertex placement as the GPU runs it (`shaders/cdlod_geometry.wgsl`, through the
+//! CDLOD's vertex placement as the GPU runs it (`shaders/cdlod_geometry.wesl`, through the
 //! probe) against its twins: every leaf that holds a point puts it at the same place bit for bit
 //! over the whole sphere (watertight), and vertices are within the clipmap renderer's precision
 //! of the f64 twin from 1.7 m to 1000 km.

@@ -116,7 +116,7 @@ fn f32_transform_matches_f64_from_the_ground_to_orbit_everywhere() {
     check(None, "CPU twin");
 }
 
-/// The same on the GPU (lavapipe in CI): `shaders/map_transform.wgsl` run by a compute pass.
+/// The same on the GPU (lavapipe in CI): `shaders/map_transform.wesl` run by a compute pass.
 #[test]
 fn gpu_transform_matches_f64_from_the_ground_to_orbit_everywhere() {
     let probe = TransformProbe::new().unwrap_or_else(|e| {

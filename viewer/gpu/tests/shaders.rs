@@ -112,16 +112,25 @@ fn the_webgl2_forms_of_the_renderers_write_glsl_es_300_and_the_storage_forms_do_
         ("sky_fs", Fragment),
     ];
     let cdlod = [("cdlod_vs", Vertex), ("fs_main", Fragment)];
-    for (name, src, entries) in [
-        ("clipmap", sc_view_gpu::CLIPMAP_WGSL, &clipmap[..]),
-        ("cdlod", sc_view_gpu::CDLOD_WGSL, &cdlod[..]),
+    for (name, src, webgl, entries) in [
+        (
+            "clipmap",
+            sc_view_gpu::CLIPMAP_WGSL,
+            sc_view_gpu::CLIPMAP_WEBGL_WGSL,
+            &clipmap[..],
+        ),
+        (
+            "cdlod",
+            sc_view_gpu::CDLOD_WGSL,
+            sc_view_gpu::CDLOD_WEBGL_WGSL,
+            &cdlod[..],
+        ),
     ] {
-        let webgl = sc_view_gpu::for_webgl(src);
         assert!(
             !webgl.contains("var<storage"),
             "{name}: storage left for WebGL2"
         );
-        webgl2_glsl(&webgl, entries).unwrap_or_else(|e| panic!("{name} on WebGL2: {e}"));
+        webgl2_glsl(webgl, entries).unwrap_or_else(|e| panic!("{name} on WebGL2: {e}"));
         // the form for WebGPU and native reads storage buffers, which WebGL2 has not
         assert!(
             webgl2_glsl(src, entries).is_err(),

@@ -1,4 +1,4 @@
-//! The warped mesh's vertex stage on the GPU (`shaders/warp_geometry.wgsl`, through the probe)
+//! The warped mesh's vertex stage on the GPU (`shaders/warp_geometry.wesl`, through the probe)
 //! against its CPU twin (`WarpFrame::vertex`), over whole meshes of views from orbit to the
 //! ground, over a pole and across the antimeridian.
 

@@ -28,7 +28,7 @@ use sc_view_space::transform::{
     Viewer, finest_level_in_view, vertex_level, view_axes, visible_levels,
 };
 
-/// The frame uniform of `shaders/clipmap.wgsl`, as plain numbers (its layout is checked against
+/// The frame uniform of `shaders/clipmap.wesl`, as plain numbers (its layout is checked against
 /// the WGSL by the GPU crate's tests).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
@@ -55,7 +55,7 @@ pub const FLAG_LEVEL_COLORS: u32 = 1;
 /// `FrameUniform::flags`: no lighting: colour exactly as stored (imagery inspection).
 pub const FLAG_UNLIT: u32 = 2;
 
-/// One clipmap level's uniform of `shaders/clipmap.wgsl`.
+/// One clipmap level's uniform of `shaders/clipmap.wesl`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
 pub struct LevelUniform {

@@ -1,4 +1,4 @@
-//! CDLOD's tree and vertex stage on the CPU (the twin of `shaders/cdlod_geometry.wgsl`): the
+//! CDLOD's tree and vertex stage on the CPU (the twin of `shaders/cdlod_geometry.wesl`): the
 //! mesh is watertight across levels, faces and the icosahedron's corners, bit for bit; vertices
 //! are where the f64 twin puts them within the clipmap renderer's precision bounds; culling
 //! keeps what the camera sees.

@@ -564,7 +564,7 @@ impl Atmosphere {
     }
 }
 
-/// The atmosphere as the shaders read it (`shaders/atmosphere.wgsl`, struct `Atmosphere`):
+/// The atmosphere as the shaders read it (`shaders/atmosphere.wesl`, struct `Atmosphere`):
 /// lengths in kilometres and coefficients per kilometre, so that f32 keeps the geometry of a
 /// planet-sized shell to centimetres.
 #[repr(C)]
@@ -766,7 +766,7 @@ impl Atmosphere {
     }
 }
 
-/// What the atmosphere's per-frame passes and the renderer read (`shaders/atmosphere_model.wgsl`,
+/// What the atmosphere's per-frame passes and the renderer read (`shaders/atmosphere_model.wesl`,
 /// struct `AtmosphereFrame`): view space as the clipmap pass's (camera at the origin, the local
 /// up along +z, the planet's centre straight below), lengths in kilometres.
 #[repr(C)]

@@ -7,7 +7,7 @@
 //! (`orient = −1`), so that the duplicated seam meridian always points to the nearer pole (§4.4).
 //!
 //! The GPU never sees absolute positions: [`offsets_f32`] (mirrored line by line in
-//! `shaders/clipmap.wgsl`) evaluates Δφ = φ − φ_v and Δθ = θ − θ_v without subtracting large
+//! `shaders/clipmap.wesl`) evaluates Δφ = φ − φ_v and Δθ = θ − θ_v without subtracting large
 //! numbers: with p = R_y(θ_v)·p̃ and ρ = |(p_x, p_y)|,
 //! `sin(θ − θ_v)·k = p̃_x + cos θ_v · q`, `cos(θ − θ_v)·k = p̃_z + sin θ_v · q` with
 //! `q = ρ − p_x = p_y² / (ρ + p_x)` (when p_x > 0), so Δθ = atan2 of two well-conditioned terms,
@@ -251,7 +251,7 @@ pub fn atan2_precise(y: f32, x: f32) -> f32 {
     if y < 0.0 { -r } else { r }
 }
 
-/// The shader's transform in f32 (the CPU twin of `shaders/clipmap.wgsl`, operation for
+/// The shader's transform in f32 (the CPU twin of `shaders/clipmap.wesl`, operation for
 /// operation).
 pub fn offsets_f32(u: &TransformUniforms, px: f32, py: f32, c: f32, seam: f32) -> Offsets<f32> {
     // mirrored to the nearer pole: the geometry's ψ = ±π keeps pointing at that pole, longitude
@@ -327,12 +327,12 @@ pub fn level_outer(i: u32) -> f64 {
 /// The hemisphere ring (clipmap level) of the ground at arc `theta` from the point under the
 /// viewer, as a whole number: level i spans (π/2·2^−(i+1), π/2·2^−i], so ⌊log2(π/2 / θ)⌋
 /// (negative beyond π/2; callers clamp to the levels they have). The CPU twin of the ring level
-/// `ring_of` in `shaders/clipmap.wgsl` computes.
+/// `ring_of` in `shaders/clipmap.wesl` computes.
 pub fn ring_of(theta: f64) -> f64 {
     (std::f64::consts::FRAC_PI_2 / theta).log2().floor()
 }
 
-/// The level whose heights the mesh of ring `i` carries (`shaders/clipmap.wgsl`, `vs_main`): the
+/// The level whose heights the mesh of ring `i` carries (`shaders/clipmap.wesl`, `vs_main`): the
 /// next coarser one, whose texels are about as far apart as the ring's vertices (the ring's own,
 /// twice as fine, shade it), or the coarsest level drawn.
 pub fn vertex_level(i: u32, lo: u32) -> u32 {

@@ -85,8 +85,10 @@ impl CdlodRenderer {
         });
         let pipeline_layout = setup.pipeline_layout("cdlod", Some(&layout));
         let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("cdlod.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(crate::wgsl_for(setup.device, crate::CDLOD_WGSL)),
+            label: Some("cdlod.wesl"),
+            source: wgpu::ShaderSource::Wgsl(
+                crate::wgsl_for(setup.device, crate::CDLOD_WGSL, crate::CDLOD_WEBGL_WGSL).into(),
+            ),
         });
         let buffers = [
             wgpu::VertexBufferLayout {

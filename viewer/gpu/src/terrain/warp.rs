@@ -93,7 +93,7 @@ impl WarpRenderer {
         });
         let pipeline_layout = setup.pipeline_layout("warp", Some(&layout));
         let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("warp.wgsl"),
+            label: Some("warp.wesl"),
             source: wgpu::ShaderSource::Wgsl(crate::WARP_WGSL.into()),
         });
         let (pipeline, wire) = setup.pipelines(&TerrainStage {

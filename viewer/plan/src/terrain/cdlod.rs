@@ -3,7 +3,7 @@
 //! from the camera; every leaf draws one instanced triangular patch of `N + 1` vertices a side
 //! (N = 2n segments) whose odd vertices morph onto the parent's lattice near the leaf's outer
 //! distance, so neighbouring levels meet without cracks or pops. Heights and colours come from
-//! the clipmaps (`shaders/cdlod.wgsl` reads them as the clipmap renderer does), so a comparison
+//! the clipmaps (`shaders/cdlod.wesl` reads them as the clipmap renderer does), so a comparison
 //! of the two renderers compares geometry, not data.
 //!
 //! - **Lattice.** A face is flat: `P(u, v) = c₀ + (c₁ − c₀)u + (c₂ − c₀)v` (the gnomonic
@@ -219,7 +219,7 @@ pub struct LeafInstance {
     pub seam: f32,
 }
 
-/// One face's per-frame constants (`CdlodFace` of `shaders/cdlod.wgsl`).
+/// One face's per-frame constants (`CdlodFace` of `shaders/cdlod.wesl`).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
 pub struct FaceUniform {
@@ -273,7 +273,7 @@ fn range_table(
 /// Levels in the morph table.
 pub const MORPH_LEVELS: usize = 32;
 
-/// The per-frame uniform of `shaders/cdlod.wgsl` (its layout is checked against the WGSL by the
+/// The per-frame uniform of `shaders/cdlod.wesl` (its layout is checked against the WGSL by the
 /// GPU crate's tests).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
@@ -823,7 +823,7 @@ pub fn morph_target(slots: &[u32; 8], [i, j]: [i32; 2], m: i32) -> [i32; 2] {
 }
 
 /// The clipmap vertex attributes (px, py, 1 − cos θ̃) in f32 of the face point `anchor + e₁Δu +
-/// e₂Δv` (`cdlod_point` in `shaders/cdlod_geometry.wgsl`, operation for operation): with
+/// e₂Δv` (`cdlod_point` in `shaders/cdlod_geometry.wesl`, operation for operation): with
 /// ρ² = x² + y², 1 − z/|d| = ρ² / (|d|(|d| + z)), free of cancellation even where the face is
 /// tilted against the view (z then changes linearly along it), and x/|d| = x − x·t with
 /// t = 1 − 1/|d| formed from |d|² − 1 (|d| itself rounds to 6e-8, which x/|d| would keep).
@@ -855,7 +855,7 @@ pub fn distance_f32(u: &CdlodUniform, radius: f32, cam_height: f32, c: f32) -> f
 }
 
 /// Patch vertex (i, j) of `leaf` after its morph, in f32 as the vertex stage computes it
-/// (`cdlod_vertex` in `shaders/cdlod.wgsl`): the clipmap vertex attributes (px, py, 1 − cos θ̃).
+/// (`cdlod_vertex` in `shaders/cdlod.wesl`): the clipmap vertex attributes (px, py, 1 − cos θ̃).
 pub fn vertex_f32(
     u: &CdlodUniform,
     radius: f32,

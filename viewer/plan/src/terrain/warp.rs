@@ -18,8 +18,8 @@
 //! which cannot fold (both lines are strictly increasing). The paper warps every row by its own
 //! importance; on a planar square map (this module's first form) that folded cells on a low
 //! oblique view, because adjacent columns then blend different rows. The m² pass of §3.4 — the
-//! warp at the mesh's resolution — is the vertex stage (`shaders/warp_geometry.wgsl`, drawn by
-//! `shaders/warp.wgsl`): it forms each vertex from its ring and its azimuth;
+//! warp at the mesh's resolution — is the vertex stage (`shaders/warp_geometry.wesl`, drawn by
+//! `shaders/warp.wesl`): it forms each vertex from its ring and its azimuth;
 //! [`WarpFrame::vertex`] is its CPU twin.
 
 use glam::DVec3;
