@@ -92,6 +92,19 @@ struct StepCounts {
     lost: Vec<String>,
 }
 
+impl StepCounts {
+    /// Adds a step's counts to the run's summary (the lost tiles in order).
+    fn add_to(mut self, summary: &mut Summary) {
+        summary.shards_written += self.written;
+        summary.shards_skipped += self.skipped;
+        summary.shards_empty += self.empty;
+        summary.texels += self.texels;
+        summary.shards_repaired += self.repaired;
+        self.lost.sort();
+        summary.tiles_lost.append(&mut self.lost);
+    }
+}
+
 /// Version of the construction and of its records (2: fingerprints by BLAKE3), part of every
 /// shard's record: a change rebuilds everything.
 const BUILDER: &str = "pyramid-2";
@@ -756,6 +769,15 @@ fn on_workers(n: usize, threads: usize, f: impl Fn(usize) -> Result<()> + Sync) 
     })
 }
 
+/// `shards` of `step`, polar ones first: they cost most, and no worker should be left with one at
+/// the end (the bytes do not depend on the order).
+fn polar_first(plan: &Plan, step: &Step, shards: &[ShardId]) -> Vec<ShardId> {
+    let mut order = shards.to_vec();
+    let ny = ShardId::counts(plan.grid, step.out, plan.shard_tiles).1;
+    order.sort_by_key(|s| (s.y.min(ny - 1 - s.y), s.y, s.x));
+    order
+}
+
 /// Builds `shards` of one step, adding what it did to `summary`. `task`: the folder of a task's
 /// own manifests (a task of a plan run by many processes), else the store's manifests are used.
 #[allow(clippy::too_many_arguments)]
@@ -901,10 +923,7 @@ fn run_step(
         progress.one();
         Ok(())
     };
-    // polar shards cost most: start them first (bytes do not depend on the order)
-    let mut order = shards.to_vec();
-    let ny = ShardId::counts(plan.grid, step.out, plan.shard_tiles).1;
-    order.sort_by_key(|s| (s.y.min(ny - 1 - s.y), s.y, s.x));
+    let order = polar_first(plan, step, shards);
     // neighbouring shards share input shards: each is fingerprinted once, all on every thread
     let mut files = BTreeSet::new();
     for &shard in &order {
@@ -916,15 +935,10 @@ fn run_step(
     if task.is_some() {
         manifest.flush()?;
     }
-    let mut c = counts.into_inner().unwrap_or_else(|e| e.into_inner());
-    summary.shards_written += c.written;
-    summary.shards_skipped += c.skipped;
-    summary.shards_empty += c.empty;
-    summary.texels += c.texels;
-    summary.shards_repaired += c.repaired;
-    let mut lost = std::mem::take(&mut c.lost);
-    lost.sort();
-    summary.tiles_lost.extend(lost);
+    counts
+        .into_inner()
+        .unwrap_or_else(|e| e.into_inner())
+        .add_to(summary);
     let seconds = step_start.elapsed().as_secs_f64();
     tracing::debug!(layer = %step.layer, level = %step.out, seconds, "build: level done");
     summary

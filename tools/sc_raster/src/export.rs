@@ -333,74 +333,7 @@ fn write_staged(
     };
     let meta = reader.meta();
     let grid = meta.grid;
-    let (w, h) = (region.width as usize, region.height as usize);
-    let driver = DriverManager::get_driver_by_name("GTiff").map_err(&gerr)?;
-    let opts: Vec<&str> = vec![
-        "TILED=YES",
-        "BLOCKXSIZE=256",
-        "BLOCKYSIZE=256",
-        "COMPRESS=NONE",
-        "BIGTIFF=YES",
-        "INTERLEAVE=BAND",
-    ];
-    let o: RasterCreationOptions = opts.into_iter().collect();
-    let mut ds = match kind {
-        LayerKind::Height => {
-            driver.create_with_band_type_with_options::<f32, _>(stage, w, h, 1, &o)
-        }
-        LayerKind::Color => driver.create_with_band_type_with_options::<u8, _>(stage, w, h, 4, &o),
-    }
-    .map_err(&gerr)?;
-    let mut gt = grid.geotransform(region.level);
-    gt[0] = region.bounds[0];
-    gt[3] = region.bounds[3];
-    ds.set_geo_transform(&gt).map_err(&gerr)?;
-    let mut srs = SpatialRef::from_epsg(4326).map_err(&gerr)?;
-    srs.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
-    ds.set_spatial_ref(&srs).map_err(&gerr)?;
-    ds.set_metadata_item("SPHERECLIP_LEVEL", &region.level.to_string(), "")
-        .map_err(&gerr)?;
-    ds.set_metadata_item("SPHERECLIP_SPHERE_RADIUS_M", &meta.radius_m.to_string(), "")
-        .map_err(&gerr)?;
-    ds.set_metadata_item(
-        "SPHERECLIP_OVERVIEWS",
-        &region
-            .overviews
-            .iter()
-            .map(|l| l.key())
-            .collect::<Vec<_>>()
-            .join(" "),
-        "",
-    )
-    .map_err(&gerr)?;
-    match kind {
-        LayerKind::Height => {
-            let mut b = ds.rasterband(1).map_err(&gerr)?;
-            b.set_no_data_value(Some(f64::NAN)).map_err(&gerr)?;
-            b.set_description("height above the sphere (mean sea level)")
-                .map_err(&gerr)?;
-            set_unit(&b, "m");
-        }
-        LayerKind::Color => {
-            let bands = [
-                (ColorInterpretation::RedBand, "red"),
-                (ColorInterpretation::GreenBand, "green"),
-                (ColorInterpretation::BlueBand, "blue"),
-                (ColorInterpretation::AlphaBand, "alpha (0: no data)"),
-            ];
-            for (i, (ci, name)) in bands.into_iter().enumerate() {
-                let mut b = ds.rasterband(i + 1).map_err(&gerr)?;
-                b.set_color_interpretation(ci).map_err(&gerr)?;
-                b.set_description(name).map_err(&gerr)?;
-            }
-        }
-    }
-    if !region.overviews.is_empty() {
-        let factors: Vec<i32> = (1..=region.overviews.len() as u32)
-            .map(|k| 1 << k)
-            .collect();
-        ds.build_overviews("NONE", &factors, &[]).map_err(&gerr)?;
-    }
+    let mut ds = create_staged(meta, kind, region, stage, out)?;
     let t = u64::from(grid.tile_size());
     // every window of the export: the base, then each overview (factor 2^k)
     let windows: Vec<(LevelId, u32)> = std::iter::once((region.level, 0))
@@ -503,6 +436,89 @@ fn write_staged(
     drop(ds);
     failed()?;
     Ok(summary)
+}
+
+/// The staged GeoTIFF of `region` at `stage`: tiled, uncompressed, its georeference, the
+/// store's level, radius and overview levels in its metadata, its bands described and its
+/// overviews made (empty: the export fills them).
+fn create_staged(
+    meta: &sc_store::StoreMeta,
+    kind: LayerKind,
+    region: &ExportRegion,
+    stage: &Path,
+    out: &Path,
+) -> Result<gdal::Dataset> {
+    let gerr = gdal_err(out);
+    let grid = meta.grid;
+    let (w, h) = (region.width as usize, region.height as usize);
+    let driver = DriverManager::get_driver_by_name("GTiff").map_err(&gerr)?;
+    let opts: Vec<&str> = vec![
+        "TILED=YES",
+        "BLOCKXSIZE=256",
+        "BLOCKYSIZE=256",
+        "COMPRESS=NONE",
+        "BIGTIFF=YES",
+        "INTERLEAVE=BAND",
+    ];
+    let o: RasterCreationOptions = opts.into_iter().collect();
+    let mut ds = match kind {
+        LayerKind::Height => {
+            driver.create_with_band_type_with_options::<f32, _>(stage, w, h, 1, &o)
+        }
+        LayerKind::Color => driver.create_with_band_type_with_options::<u8, _>(stage, w, h, 4, &o),
+    }
+    .map_err(&gerr)?;
+    let mut gt = grid.geotransform(region.level);
+    gt[0] = region.bounds[0];
+    gt[3] = region.bounds[3];
+    ds.set_geo_transform(&gt).map_err(&gerr)?;
+    let mut srs = SpatialRef::from_epsg(4326).map_err(&gerr)?;
+    srs.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
+    ds.set_spatial_ref(&srs).map_err(&gerr)?;
+    ds.set_metadata_item("SPHERECLIP_LEVEL", &region.level.to_string(), "")
+        .map_err(&gerr)?;
+    ds.set_metadata_item("SPHERECLIP_SPHERE_RADIUS_M", &meta.radius_m.to_string(), "")
+        .map_err(&gerr)?;
+    ds.set_metadata_item(
+        "SPHERECLIP_OVERVIEWS",
+        &region
+            .overviews
+            .iter()
+            .map(|l| l.key())
+            .collect::<Vec<_>>()
+            .join(" "),
+        "",
+    )
+    .map_err(&gerr)?;
+    match kind {
+        LayerKind::Height => {
+            let mut b = ds.rasterband(1).map_err(&gerr)?;
+            b.set_no_data_value(Some(f64::NAN)).map_err(&gerr)?;
+            b.set_description("height above the sphere (mean sea level)")
+                .map_err(&gerr)?;
+            set_unit(&b, "m");
+        }
+        LayerKind::Color => {
+            let bands = [
+                (ColorInterpretation::RedBand, "red"),
+                (ColorInterpretation::GreenBand, "green"),
+                (ColorInterpretation::BlueBand, "blue"),
+                (ColorInterpretation::AlphaBand, "alpha (0: no data)"),
+            ];
+            for (i, (ci, name)) in bands.into_iter().enumerate() {
+                let mut b = ds.rasterband(i + 1).map_err(&gerr)?;
+                b.set_color_interpretation(ci).map_err(&gerr)?;
+                b.set_description(name).map_err(&gerr)?;
+            }
+        }
+    }
+    if !region.overviews.is_empty() {
+        let factors: Vec<i32> = (1..=region.overviews.len() as u32)
+            .map(|k| 1 << k)
+            .collect();
+        ds.build_overviews("NONE", &factors, &[]).map_err(&gerr)?;
+    }
+    Ok(ds)
 }
 
 /// Lays the staged GeoTIFF out as a COG, keeping its overviews as they are.

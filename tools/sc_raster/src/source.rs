@@ -364,16 +364,7 @@ impl RasterSource {
         if let Some(b) = opts.bounds {
             validate_bounds(b)?;
         }
-        let meta = std::fs::metadata(path).map_err(|source| RasterError::Io {
-            source,
-            path: path.to_path_buf(),
-        })?;
-        if meta.is_dir() {
-            return Err(usage(path, "input is a folder, not a raster file"));
-        }
-        if meta.len() == 0 {
-            return Err(usage(path, "input is an empty file"));
-        }
+        check_file(path)?;
         let is_exr = path
             .extension()
             .and_then(|e| e.to_str())
@@ -423,77 +414,8 @@ impl RasterSource {
             })?),
             None => file_srs,
         };
-        let file_gt = ds
-            .geo_transform()
-            .ok()
-            .filter(|gt| *gt != [0.0, 1.0, 0.0, 0.0, 0.0, 1.0]);
-        let (gt, geographic, crs, to_src) = match (opts.bounds, file_gt, srs) {
-            (Some(b), _, _) => (
-                geotransform_from_bounds(b, w, h),
-                true,
-                "EPSG:4326 (from --bounds)".to_string(),
-                None,
-            ),
-            (None, None, _) => {
-                return Err(usage(
-                    path,
-                    "raster has no georeference; give its lon/lat edges with --bounds W,S,E,N (e.g. --bounds -180,-90,180,90 for a whole-globe picture)",
-                ));
-            }
-            (None, Some(gt), Some(srs)) => {
-                if gt[2] != 0.0 || gt[4] != 0.0 {
-                    return Err(usage(
-                        path,
-                        "rotated geotransforms are not supported; warp the raster to north-up first (gdalwarp)",
-                    ));
-                }
-                let name = srs.name().unwrap_or_else(|| "unnamed CRS".into());
-                // the root's authority only (GDAL 3.6 answers a bare code of a unit or datum
-                // for a CRS that has none of its own)
-                let code = srs
-                    .authority()
-                    .ok()
-                    .map(|c| format!("{c} "))
-                    .unwrap_or_default();
-                // lon/lat in degrees from Greenwich are used directly; other angular units or
-                // prime meridians (NTF Paris: grads from Paris) go through PROJ like a projection
-                let degrees = (srs.angular_units() - 1f64.to_radians()).abs() < 1e-12;
-                let greenwich = srs
-                    .get_attr_value("PRIMEM", 1)
-                    .ok()
-                    .flatten()
-                    .and_then(|v| v.trim().parse::<f64>().ok())
-                    .is_none_or(|v| v == 0.0);
-                if srs.is_geographic() && degrees && greenwich {
-                    (gt, true, format!("{code}{name}"), None)
-                } else {
-                    let mut wgs = SpatialRef::from_epsg(4326).map_err(gdal_err(path))?;
-                    wgs.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
-                    let mut s = srs.clone();
-                    s.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
-                    let t = CoordTransform::new(&wgs, &s)
-                        .map_err(|_| untransformable(path, &format!("{code}{name}")))?;
-                    (gt, false, format!("{code}{name}"), Some(t))
-                }
-            }
-            (None, Some(gt), None) => {
-                let (x0, x1) = (gt[0], gt[0] + gt[1] * w as f64);
-                let (y0, y1) = (gt[3], gt[3] + gt[5] * h as f64);
-                let (px, py) = (gt[1].abs(), gt[5].abs());
-                let geographic_looking = x0.min(x1) >= -180.0 - px
-                    && x0.max(x1) <= 540.0 + px
-                    && y0.min(y1) >= -90.0 - py
-                    && y0.max(y1) <= 90.0 + py;
-                if !geographic_looking || gt[2] != 0.0 || gt[4] != 0.0 {
-                    return Err(usage(
-                        path,
-                        "raster has no CRS and its extent is not lon/lat; give one with --src-srs",
-                    ));
-                }
-                warnings.push("no CRS in the file; its extent looks like lon/lat, so it is taken as EPSG:4326".into());
-                (gt, true, "EPSG:4326 (assumed)".to_string(), None)
-            }
-        };
+        let (gt, geographic, crs, to_src) =
+            georeference(path, &ds, srs, opts, (w, h), &mut warnings)?;
         let mut info = SourceInfo {
             path: path.to_path_buf(),
             width: w,
@@ -515,40 +437,7 @@ impl RasterSource {
             check_geographic_extent(&mut info)?;
         }
         if role == SampleRole::Color {
-            let mut ranges = Vec::new();
-            for &b in &info.bands {
-                let band = ds.rasterband(b).map_err(gdal_err(path))?;
-                if band.band_type() == GdalDataType::UInt8 {
-                    info.stretch.push((1.0, 0.0));
-                    continue;
-                }
-                // the band's own nodata unless --src-nodata says otherwise
-                let nodata = opts.src_nodata.or(band.no_data_value());
-                let range = serialized(is_serial(&ds), || valid_range(&band, nodata))
-                    .map_err(gdal_err(path))?;
-                info.stretch.push(match range {
-                    // one value only: nothing to stretch, shown as mid-grey
-                    Some((lo, hi)) if hi <= lo => (0.0, 128.0),
-                    Some((lo, hi)) => (255.0 / (hi - lo), -lo * 255.0 / (hi - lo)),
-                    None => (1.0, 0.0),
-                });
-                ranges.push((b, range));
-            }
-            if !ranges.is_empty() {
-                let said: Vec<String> = ranges
-                    .iter()
-                    .map(|(b, r)| match r {
-                        Some((lo, hi)) if hi <= lo => format!("band {b}: one value {lo}, mid-grey"),
-                        Some((lo, hi)) => format!("band {b}: {lo}..{hi}"),
-                        None => format!("band {b}: no valid pixel"),
-                    })
-                    .collect();
-                info.warnings.push(format!(
-                    "{} colour bands stretched linearly from the min..max of their valid pixels to 0..255 ({})",
-                    data_type.name(),
-                    said.join(", ")
-                ));
-            }
+            stretch_colour(path, &ds, opts, data_type, &mut info)?;
         }
         Ok(Self {
             info,
@@ -1916,6 +1805,156 @@ fn snap_geographic(info: &mut SourceInfo) {
     let h = info.height as f64;
     info.north_pole_y = (-0.01..=0.51).contains(&yn).then_some(yn);
     info.south_pole_y = ((h - 0.51)..=(h + 0.01)).contains(&ys).then_some(ys);
+}
+
+/// An input must be a non-empty file.
+fn check_file(path: &Path) -> Result<()> {
+    let meta = std::fs::metadata(path).map_err(|source| RasterError::Io {
+        source,
+        path: path.to_path_buf(),
+    })?;
+    if meta.is_dir() {
+        return Err(usage(path, "input is a folder, not a raster file"));
+    }
+    if meta.len() == 0 {
+        return Err(usage(path, "input is an empty file"));
+    }
+    Ok(())
+}
+
+/// Where a raster lies: its geotransform, whether it is lon/lat in degrees from Greenwich, the
+/// CRS's name and, for any other CRS, the transform from lon/lat into it. `--bounds` places a
+/// raster without (or despite) a georeference; a file without a CRS whose extent looks like
+/// lon/lat is taken as EPSG:4326 with a warning.
+fn georeference(
+    path: &Path,
+    ds: &Dataset,
+    srs: Option<SpatialRef>,
+    opts: &SourceOptions,
+    (w, h): (usize, usize),
+    warnings: &mut Vec<String>,
+) -> Result<([f64; 6], bool, String, Option<CoordTransform>)> {
+    let file_gt = ds
+        .geo_transform()
+        .ok()
+        .filter(|gt| *gt != [0.0, 1.0, 0.0, 0.0, 0.0, 1.0]);
+    Ok(match (opts.bounds, file_gt, srs) {
+        (Some(b), _, _) => (
+            geotransform_from_bounds(b, w, h),
+            true,
+            "EPSG:4326 (from --bounds)".to_string(),
+            None,
+        ),
+        (None, None, _) => {
+            return Err(usage(
+                path,
+                "raster has no georeference; give its lon/lat edges with --bounds W,S,E,N (e.g. --bounds -180,-90,180,90 for a whole-globe picture)",
+            ));
+        }
+        (None, Some(gt), Some(srs)) => {
+            if gt[2] != 0.0 || gt[4] != 0.0 {
+                return Err(usage(
+                    path,
+                    "rotated geotransforms are not supported; warp the raster to north-up first (gdalwarp)",
+                ));
+            }
+            let name = srs.name().unwrap_or_else(|| "unnamed CRS".into());
+            // the root's authority only (GDAL 3.6 answers a bare code of a unit or datum
+            // for a CRS that has none of its own)
+            let code = srs
+                .authority()
+                .ok()
+                .map(|c| format!("{c} "))
+                .unwrap_or_default();
+            // lon/lat in degrees from Greenwich are used directly; other angular units or
+            // prime meridians (NTF Paris: grads from Paris) go through PROJ like a projection
+            let degrees = (srs.angular_units() - 1f64.to_radians()).abs() < 1e-12;
+            let greenwich = srs
+                .get_attr_value("PRIMEM", 1)
+                .ok()
+                .flatten()
+                .and_then(|v| v.trim().parse::<f64>().ok())
+                .is_none_or(|v| v == 0.0);
+            if srs.is_geographic() && degrees && greenwich {
+                (gt, true, format!("{code}{name}"), None)
+            } else {
+                let mut wgs = SpatialRef::from_epsg(4326).map_err(gdal_err(path))?;
+                wgs.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
+                let mut s = srs.clone();
+                s.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
+                let t = CoordTransform::new(&wgs, &s)
+                    .map_err(|_| untransformable(path, &format!("{code}{name}")))?;
+                (gt, false, format!("{code}{name}"), Some(t))
+            }
+        }
+        (None, Some(gt), None) => {
+            let (x0, x1) = (gt[0], gt[0] + gt[1] * w as f64);
+            let (y0, y1) = (gt[3], gt[3] + gt[5] * h as f64);
+            let (px, py) = (gt[1].abs(), gt[5].abs());
+            let geographic_looking = x0.min(x1) >= -180.0 - px
+                && x0.max(x1) <= 540.0 + px
+                && y0.min(y1) >= -90.0 - py
+                && y0.max(y1) <= 90.0 + py;
+            if !geographic_looking || gt[2] != 0.0 || gt[4] != 0.0 {
+                return Err(usage(
+                    path,
+                    "raster has no CRS and its extent is not lon/lat; give one with --src-srs",
+                ));
+            }
+            warnings.push(
+                "no CRS in the file; its extent looks like lon/lat, so it is taken as EPSG:4326"
+                    .into(),
+            );
+            (gt, true, "EPSG:4326 (assumed)".to_string(), None)
+        }
+    })
+}
+
+/// Colour bands that are not 8-bit are stretched linearly from the min..max of their valid
+/// pixels to 0..255 (`info.stretch`, one scale and offset per band), and the file's warnings say
+/// so.
+fn stretch_colour(
+    path: &Path,
+    ds: &Dataset,
+    opts: &SourceOptions,
+    data_type: GdalDataType,
+    info: &mut SourceInfo,
+) -> Result<()> {
+    let mut ranges = Vec::new();
+    for &b in &info.bands {
+        let band = ds.rasterband(b).map_err(gdal_err(path))?;
+        if band.band_type() == GdalDataType::UInt8 {
+            info.stretch.push((1.0, 0.0));
+            continue;
+        }
+        // the band's own nodata unless --src-nodata says otherwise
+        let nodata = opts.src_nodata.or(band.no_data_value());
+        let range =
+            serialized(is_serial(ds), || valid_range(&band, nodata)).map_err(gdal_err(path))?;
+        info.stretch.push(match range {
+            // one value only: nothing to stretch, shown as mid-grey
+            Some((lo, hi)) if hi <= lo => (0.0, 128.0),
+            Some((lo, hi)) => (255.0 / (hi - lo), -lo * 255.0 / (hi - lo)),
+            None => (1.0, 0.0),
+        });
+        ranges.push((b, range));
+    }
+    if !ranges.is_empty() {
+        let said: Vec<String> = ranges
+            .iter()
+            .map(|(b, r)| match r {
+                Some((lo, hi)) if hi <= lo => format!("band {b}: one value {lo}, mid-grey"),
+                Some((lo, hi)) => format!("band {b}: {lo}..{hi}"),
+                None => format!("band {b}: no valid pixel"),
+            })
+            .collect();
+        info.warnings.push(format!(
+            "{} colour bands stretched linearly from the min..max of their valid pixels to 0..255 ({})",
+            data_type.name(),
+            said.join(", ")
+        ));
+    }
+    Ok(())
 }
 
 #[cfg(test)]
