@@ -467,6 +467,83 @@ fn circles(g: &BTreeMap<String, std::collections::BTreeSet<String>>) -> Vec<Vec<
     out
 }
 
+/// The imports between the files of a folder module (the `.rs` files beside its `mod.rs`): a
+/// file imports a sibling when it names `super::sibling::…`, or through `super::` an item the
+/// sibling defines (the folder's re-exports). `mod.rs`, which declares the files, and unit tests
+/// are left out.
+fn sibling_imports(dir: &Path) -> BTreeMap<String, std::collections::BTreeSet<String>> {
+    let mut code = BTreeMap::new();
+    for e in std::fs::read_dir(dir).expect("read_dir").flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        let Some(m) = name.strip_suffix(".rs") else {
+            continue;
+        };
+        if m == "mod" {
+            continue;
+        }
+        let text = std::fs::read_to_string(e.path()).expect("read");
+        let text: String = text
+            .split("#[cfg(test)]")
+            .next()
+            .unwrap_or_default()
+            .lines()
+            .filter(|l| !l.trim_start().starts_with("//"))
+            .collect::<Vec<_>>()
+            .join("\n");
+        code.insert(m.to_string(), text);
+    }
+    let ident = |s: &str| -> String {
+        s.trim()
+            .chars()
+            .take_while(|c| c.is_alphanumeric() || *c == '_')
+            .collect()
+    };
+    let mut owner = BTreeMap::new();
+    for (m, text) in &code {
+        for line in text.lines() {
+            let mut l = line.trim_start();
+            for vis in ["pub(crate) ", "pub(super) ", "pub "] {
+                l = l.strip_prefix(vis).unwrap_or(l);
+            }
+            for kw in [
+                "struct ", "enum ", "fn ", "trait ", "type ", "const ", "static ",
+            ] {
+                if let Some(rest) = l.strip_prefix(kw) {
+                    owner.insert(ident(rest), m.clone());
+                }
+            }
+        }
+    }
+    let mut out = BTreeMap::new();
+    for (m, text) in &code {
+        let uses: &mut std::collections::BTreeSet<String> = out.entry(m.clone()).or_default();
+        for (at, _) in text.match_indices("super::") {
+            let rest = &text[at + "super::".len()..];
+            let names: Vec<String> = match rest.strip_prefix('{') {
+                Some(group) => group
+                    .split('}')
+                    .next()
+                    .unwrap_or_default()
+                    .split(',')
+                    .map(ident)
+                    .collect(),
+                None => vec![ident(rest)],
+            };
+            for n in names {
+                let target = if code.contains_key(&n) {
+                    Some(n)
+                } else {
+                    owner.get(&n).cloned()
+                };
+                if let Some(t) = target.filter(|t| t != m) {
+                    uses.insert(t);
+                }
+            }
+        }
+    }
+    out
+}
+
 #[test]
 fn no_crate_has_modules_importing_each_other_in_a_circle() {
     let mut found = Vec::new();
@@ -485,6 +562,25 @@ fn no_crate_has_modules_importing_each_other_in_a_circle() {
                     src.strip_prefix(root()).expect("inside").display(),
                     c.join(" ⇄ ")
                 ));
+            }
+            // and the files of every folder module among themselves
+            let mut dirs = vec![src.clone()];
+            while let Some(dir) = dirs.pop() {
+                for e in std::fs::read_dir(&dir).expect("read_dir").flatten() {
+                    if e.path().is_dir() {
+                        dirs.push(e.path());
+                    }
+                }
+                if dir == src || !dir.join("mod.rs").is_file() {
+                    continue;
+                }
+                for c in circles(&sibling_imports(&dir)) {
+                    found.push(format!(
+                        "{}: {}",
+                        dir.strip_prefix(root()).expect("inside").display(),
+                        c.join(" ⇄ ")
+                    ));
+                }
             }
         }
     }

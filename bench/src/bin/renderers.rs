@@ -9,8 +9,8 @@
 
 use std::time::Instant;
 
+use sc_view_gpu::headless::Renderer;
 use sc_view_gpu::measure::{DepthFrame, RoughMountains, quantile};
-use sc_view_gpu::render::Renderer;
 use sc_view_plan::frame::DrawOptions;
 use sc_view_plan::terrain::Geometry;
 use sc_view_plan::terrain::cdlod::CdlodSpec;

@@ -101,3 +101,73 @@ pub fn read_back(device: &wgpu::Device, buffer: &wgpu::Buffer) -> Result<Vec<u8>
     buffer.unmap();
     Ok(out)
 }
+
+/// A `w × h` 8-bit RGBA or BGRA texture's copy on its way back to the CPU (rows padded to
+/// wgpu's 256-byte alignment).
+#[derive(Debug)]
+pub struct ImageReadback {
+    buffer: wgpu::Buffer,
+    bytes_per_row: u32,
+    width: u32,
+    height: u32,
+}
+
+impl ImageReadback {
+    /// Records the copy of `texture` (made with `COPY_SRC`) into `enc`.
+    pub fn record(
+        device: &wgpu::Device,
+        enc: &mut wgpu::CommandEncoder,
+        texture: &wgpu::Texture,
+        (width, height): (u32, u32),
+    ) -> Self {
+        let bytes_per_row = (width * 4).div_ceil(256) * 256;
+        let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("readback"),
+            size: u64::from(bytes_per_row) * u64::from(height),
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        enc.copy_texture_to_buffer(
+            texture.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &buffer,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(bytes_per_row),
+                    rows_per_image: Some(height),
+                },
+            },
+            wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+        );
+        Self {
+            buffer,
+            bytes_per_row,
+            width,
+            height,
+        }
+    }
+
+    /// Waits for the GPU (after the submission of the recorded copy) and returns the image;
+    /// `bgra`: the texture's channels are B, G, R, A.
+    pub fn image(
+        &self,
+        device: &wgpu::Device,
+        bgra: bool,
+    ) -> Result<image::RgbaImage, RenderError> {
+        let data = read_back(device, &self.buffer)?;
+        let (w, h) = (self.width as usize, self.height as usize);
+        let mut img = image::RgbaImage::new(self.width, self.height);
+        for (y, row) in data.chunks(self.bytes_per_row as usize).take(h).enumerate() {
+            let out = &mut img.as_mut()[y * w * 4..(y + 1) * w * 4];
+            out.copy_from_slice(&row[..w * 4]);
+            if bgra {
+                out.chunks_exact_mut(4).for_each(|p| p.swap(0, 2));
+            }
+        }
+        Ok(img)
+    }
+}

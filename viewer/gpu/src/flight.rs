@@ -14,7 +14,8 @@ use sc_view_space::camera::move_along;
 use sc_view_space::flight::Flight;
 use serde::Serialize;
 
-use crate::render::{RenderError, Renderer};
+use crate::headless::Renderer;
+use crate::render::RenderError;
 
 /// One run: an altitude at one speed.
 #[derive(Debug, Serialize)]

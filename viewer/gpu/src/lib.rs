@@ -7,6 +7,7 @@ pub mod atmosphere;
 pub mod device;
 pub mod edits;
 pub mod flight;
+pub mod headless;
 pub mod measure;
 pub mod probe;
 pub mod render;

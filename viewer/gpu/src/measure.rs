@@ -11,7 +11,8 @@ use sc_view_plan::terrain::cdlod::{from_view, to_view};
 use sc_view_space::camera::Camera;
 use sc_view_space::transform::Viewer;
 
-use crate::render::{RenderError, Renderer};
+use crate::headless::Renderer;
+use crate::render::RenderError;
 
 /// Rough mountains on a sphere of `radius_m`, a function of the 3-D point: three plane waves an
 /// octave, wavelengths 2000 km down to 20 m, amplitudes falling as λ^0.7 (3 km at the top).

@@ -5,8 +5,8 @@
 //! (wavelengths 2000 km to 20 m) at 320×180; BENCHMARKS.md has the same at 640×360
 //! (`cargo run -p sc_bench --bin renderers`).
 
+use sc_view_gpu::headless::Renderer;
 use sc_view_gpu::measure::{DepthFrame, RoughMountains, quantile};
-use sc_view_gpu::render::Renderer;
 use sc_view_plan::frame::DrawOptions;
 use sc_view_plan::terrain::Geometry;
 use sc_view_plan::terrain::cdlod::CdlodSpec;

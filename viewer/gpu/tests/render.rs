@@ -3,7 +3,7 @@
 
 use glam::{Vec3, Vec4};
 use sc_view_data::clipmap::{ColorSource, HeightSource, LevelWindow};
-use sc_view_gpu::render::Renderer;
+use sc_view_gpu::headless::Renderer;
 use sc_view_plan::frame::{DrawOptions, view_projection};
 use sc_view_plan::terrain::Geometry;
 use sc_view_plan::terrain::cdlod::CdlodSpec;

@@ -5,7 +5,7 @@
 
 use glam::DVec3;
 use sc_view_data::clipmap::{ColorSource, HeightSource, LevelWindow};
-use sc_view_gpu::render::Renderer;
+use sc_view_gpu::headless::Renderer;
 use sc_view_plan::frame::{DrawOptions, view_projection};
 use sc_view_space::atmosphere::{
     Atmosphere, AtmosphereFrame, IrradianceLut, MultipleScatteringLut, SUN_ILLUMINANCE, SkyViewLut,

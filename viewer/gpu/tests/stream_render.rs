@@ -13,7 +13,7 @@ use sc_view_data::stream::StreamSources;
 use sc_view_data::stream::{
     FnColorTiles, FnHeightTiles, Streamer, Tile, TileData, TileError, TileKey, TileSource,
 };
-use sc_view_gpu::render::Renderer;
+use sc_view_gpu::headless::Renderer;
 use sc_view_space::camera::Camera;
 
 #[path = "../../plan/tests/support/mod.rs"]

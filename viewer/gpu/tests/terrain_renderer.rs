@@ -2,12 +2,10 @@
 //! renderer, registered with one call (`ClipmapPass::use_geometry`), draw the frame in place of
 //! the built-in geometry, through the same pass, uniforms and depth test.
 
-use std::sync::Arc;
-
 use sc_view_data::clipmap::{HeightSource, LevelWindow};
-use sc_view_gpu::render::Renderer;
+use sc_view_gpu::headless::Renderer;
 use sc_view_gpu::terrain::{TerrainDraw, TerrainRenderer, TerrainSetup, TerrainStage};
-use sc_view_plan::terrain::{GeometryFrame, GeometryInput, GeometryPlanner};
+use sc_view_plan::terrain::{Drawn, GeometryFrame, GeometryInput, GeometryPlanner};
 use sc_view_space::camera::Camera;
 
 const R: f64 = sc_core::EARTH_RADIUS_M;
@@ -26,15 +24,17 @@ struct ToyFrame {
     rgb: [f32; 3],
 }
 
+impl Drawn for ToyFrame {}
+
 /// Plans the toy geometry: every frame one colour.
 #[derive(Debug)]
 struct ToyPlanner;
 
 impl GeometryPlanner for ToyPlanner {
     fn plan(&mut self, _: &GeometryInput<'_>) -> GeometryFrame {
-        GeometryFrame::Other(Arc::new(ToyFrame {
+        GeometryFrame::new(ToyFrame {
             rgb: [1.0, 0.0, 1.0],
-        }))
+        })
     }
 }
 
@@ -83,12 +83,9 @@ impl ToyRenderer {
 
 impl TerrainRenderer for ToyRenderer {
     fn upload(&mut self, _: &wgpu::Device, _: &wgpu::Queue, frame: &GeometryFrame) -> bool {
-        self.drawn = match frame {
-            GeometryFrame::Other(f) => f
-                .downcast_ref::<ToyFrame>()
-                .is_some_and(|t| t.rgb == [1.0, 0.0, 1.0]),
-            _ => false,
-        };
+        self.drawn = frame
+            .get::<ToyFrame>()
+            .is_some_and(|t| t.rgb == [1.0, 0.0, 1.0]);
         self.drawn
     }
 

@@ -6,7 +6,7 @@ use std::path::Path;
 use anyhow::{Context, Result};
 use sc_view_data::graph::default_workers;
 use sc_view_gpu::flight::{Stats, fly};
-use sc_view_gpu::render::Renderer;
+use sc_view_gpu::headless::Renderer;
 
 use super::streamer_for;
 use crate::cli::LookArgs;

@@ -4,7 +4,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
-use sc_view_gpu::render::Renderer;
+use sc_view_gpu::headless::Renderer;
 use sc_view_space::camera::Camera;
 
 use sc_core::stats::{median, percentile};

@@ -128,8 +128,8 @@ impl TerrainRenderer for CdlodRenderer {
         queue: &wgpu::Queue,
         frame: &GeometryFrame,
     ) -> bool {
-        match frame {
-            GeometryFrame::Cdlod(f) => {
+        match frame.get::<CdlodFrame>() {
+            Some(f) => {
                 self.upload_frame(device, queue, f);
                 true
             }

@@ -6,6 +6,7 @@ use std::ops::Range;
 
 use bytemuck::{Pod, Zeroable};
 use sc_view_plan::terrain::GeometryFrame;
+use sc_view_plan::terrain::clipmap::HemisphereFrame;
 use wgpu::util::DeviceExt;
 
 use super::{TerrainDraw, TerrainRenderer, TerrainSetup, TerrainStage, pipeline_of};
@@ -84,7 +85,7 @@ impl HemisphereRenderer {
 
 impl TerrainRenderer for HemisphereRenderer {
     fn upload(&mut self, _: &wgpu::Device, _: &wgpu::Queue, frame: &GeometryFrame) -> bool {
-        matches!(frame, GeometryFrame::Clipmap)
+        frame.get::<HemisphereFrame>().is_some()
     }
 
     fn draw(&self, pass: &mut wgpu::RenderPass<'_>, how: &TerrainDraw) {

@@ -122,8 +122,8 @@ impl TerrainRenderer for WarpRenderer {
         queue: &wgpu::Queue,
         frame: &GeometryFrame,
     ) -> bool {
-        match frame {
-            GeometryFrame::Warp(f) => {
+        match frame.get::<WarpFrame>() {
+            Some(f) => {
                 self.upload_frame(device, queue, f);
                 true
             }

@@ -45,7 +45,7 @@ use web_time::Instant;
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 
-use super::{GeometryFrame, GeometryInput, GeometryPlanner};
+use super::{Drawn, GeometryCounts, GeometryFrame, GeometryInput, GeometryPlanner};
 use sc_view_space::camera::Camera;
 use sc_view_space::transform::{Viewer, offsets_f64, ring_of};
 
@@ -976,6 +976,17 @@ pub fn patch_border(n: u32) -> Vec<[u32; 2]> {
     along.chain(diagonal).chain(back).collect()
 }
 
+impl Drawn for CdlodFrame {
+    fn counts(&self) -> Option<GeometryCounts> {
+        Some(GeometryCounts {
+            triangles: self.stats.triangles,
+            leaves: self.stats.leaves,
+            culled_horizon: self.stats.culled_horizon,
+            culled_frustum: self.stats.culled_frustum,
+        })
+    }
+}
+
 /// Icosahedral triangular CDLOD: the tree traversed per frame.
 #[derive(Debug)]
 pub struct CdlodGeometry {
@@ -1001,7 +1012,7 @@ impl GeometryPlanner for CdlodGeometry {
             (input.cam_height, input.ground()),
             (input.bounds, lo, hi),
         );
-        GeometryFrame::Cdlod(Box::new(f))
+        GeometryFrame::new(f)
     }
 }
 

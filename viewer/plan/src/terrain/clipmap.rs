@@ -10,7 +10,7 @@
 
 use std::f64::consts::PI;
 
-use super::{GeometryFrame, GeometryInput, GeometryPlanner};
+use super::{Drawn, GeometryFrame, GeometryInput, GeometryPlanner};
 use sc_view_space::transform::{LEVELS, level_outer};
 
 /// One vertex: direction ψ, angular distance θ̃ from the viewer, and what the shader needs to
@@ -169,6 +169,12 @@ fn vertex(psi: f64, theta: f64, seam: f32, level: u32) -> Vertex {
     }
 }
 
+/// The hemisphere's frame: nothing to plan, its rings are fixed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct HemisphereFrame;
+
+impl Drawn for HemisphereFrame {}
+
 /// Spherical geometry clipmaps: the hemisphere's rings are static, the frame planner has already
 /// counted their triangles.
 #[derive(Debug)]
@@ -176,7 +182,7 @@ pub struct ClipmapGeometry;
 
 impl GeometryPlanner for ClipmapGeometry {
     fn plan(&mut self, _: &GeometryInput<'_>) -> GeometryFrame {
-        GeometryFrame::Clipmap
+        GeometryFrame::new(HemisphereFrame)
     }
 }
 

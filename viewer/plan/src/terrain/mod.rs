@@ -1,18 +1,18 @@
 //! The geometries that draw the planet, behind one interface: each is a [`GeometryPlanner`] that
 //! turns what the frame planner knows (camera, levels drawn, heights the clipmaps hold, texel
-//! sizes) into the [`GeometryFrame`] the GPU side draws. All read the same clipmaps, so they
-//! show the same data. A geometry of the viewer: its planner here (or in its own module), a
-//! variant of [`Geometry`] and of [`GeometryFrame`], and its line in [`planner_for`]; one from
-//! outside the crate: its planner, handed to [`crate::frame::FramePlanner::use_geometry`], whose
-//! frames are [`GeometryFrame::Other`].
+//! sizes) into the [`GeometryFrame`] the GPU side draws (any [`Drawn`] type its renderer takes
+//! back). All read the same clipmaps, so they show the same data. A geometry of the viewer: its
+//! file here (planner and frame), a variant of [`Geometry`] (the choice users make) and its line
+//! in [`planner_for`]; one from outside the crate: its planner, handed to
+//! [`crate::frame::FramePlanner::use_geometry`].
 
 pub mod cdlod;
 pub mod clipmap;
 pub mod warp;
 
-use cdlod::{CdlodFrame, CdlodSpec};
+use cdlod::CdlodSpec;
 use sc_view_space::camera::Camera;
-use warp::{WarpFrame, WarpSpec};
+use warp::WarpSpec;
 
 /// Which geometry draws the planet; all read the same clipmaps.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -26,19 +26,25 @@ pub enum Geometry {
     Warp(WarpSpec),
 }
 
-/// What a geometry draws this frame.
-#[derive(Debug, Clone, Default)]
-pub enum GeometryFrame {
-    /// The static hemisphere of spherical clipmaps (nothing to plan: its rings are fixed).
-    #[default]
-    Clipmap,
-    /// CDLOD's leaves and their uniform.
-    Cdlod(Box<CdlodFrame>),
-    /// The warped mesh's rings and azimuths.
-    Warp(WarpFrame),
-    /// What a geometry added from outside this crate ([`crate::frame::FramePlanner::use_geometry`])
-    /// hands its renderer.
-    Other(std::sync::Arc<dyn std::any::Any + Send + Sync>),
+/// What a geometry's planner makes of a frame for its renderer (CDLOD's leaves, the warped
+/// mesh's lines, the hemisphere's fixed rings): any type, which the renderer takes back by
+/// [`GeometryFrame::get`].
+pub trait Drawn: std::any::Any + std::fmt::Debug + Send + Sync {
+    /// What it draws, for the frame's statistics; `None` where the frame planner counts (the
+    /// hemisphere's rings).
+    fn counts(&self) -> Option<GeometryCounts> {
+        None
+    }
+}
+
+/// What a geometry draws this frame (the hemisphere's, by default).
+#[derive(Debug, Clone)]
+pub struct GeometryFrame(std::sync::Arc<dyn Drawn>);
+
+impl Default for GeometryFrame {
+    fn default() -> Self {
+        Self::new(clipmap::HemisphereFrame)
+    }
 }
 
 /// What a geometry frame draws, for the frame's statistics.
@@ -55,21 +61,20 @@ pub struct GeometryCounts {
 }
 
 impl GeometryFrame {
+    /// A frame drawing `drawn`.
+    pub fn new(drawn: impl Drawn) -> Self {
+        Self(std::sync::Arc::new(drawn))
+    }
+
+    /// What the frame draws, if its planner made a `T` (the renderer of `T` draws it).
+    pub fn get<T: Drawn>(&self) -> Option<&T> {
+        let any: &dyn std::any::Any = &*self.0;
+        any.downcast_ref()
+    }
+
     /// What it draws; `None` for the hemisphere, whose rings the frame planner counts.
     pub fn counts(&self) -> Option<GeometryCounts> {
-        match self {
-            GeometryFrame::Clipmap | GeometryFrame::Other(_) => None,
-            GeometryFrame::Cdlod(f) => Some(GeometryCounts {
-                triangles: f.stats.triangles,
-                leaves: f.stats.leaves,
-                culled_horizon: f.stats.culled_horizon,
-                culled_frustum: f.stats.culled_frustum,
-            }),
-            GeometryFrame::Warp(f) => Some(GeometryCounts {
-                triangles: f.triangles(),
-                ..GeometryCounts::default()
-            }),
-        }
+        self.0.counts()
     }
 }
 

@@ -24,7 +24,7 @@
 
 use glam::DVec3;
 
-use super::{GeometryFrame, GeometryInput, GeometryPlanner};
+use super::{Drawn, GeometryCounts, GeometryFrame, GeometryInput, GeometryPlanner};
 use sc_view_space::camera::Camera;
 use sc_view_space::transform::Viewer;
 use sc_view_space::transform::{LEVELS, ring_of, vertex_level};
@@ -493,6 +493,15 @@ pub fn plan(
     }
 }
 
+impl Drawn for WarpFrame {
+    fn counts(&self) -> Option<GeometryCounts> {
+        Some(GeometryCounts {
+            triangles: self.triangles(),
+            ..GeometryCounts::default()
+        })
+    }
+}
+
 /// Geometry-image warping: one mesh warped every frame; its split between rings and azimuths
 /// carries over from frame to frame.
 #[derive(Debug)]
@@ -538,7 +547,7 @@ impl GeometryPlanner for WarpGeometry {
             self.split,
         );
         self.split = Some(f.mesh.split);
-        GeometryFrame::Warp(f)
+        GeometryFrame::new(f)
     }
 }
 
