@@ -374,15 +374,7 @@ fn module_imports(src: &Path) -> BTreeMap<String, std::collections::BTreeSet<Str
             if !modules.contains(&module) {
                 continue; // the crate root, a binary
             }
-            let text = std::fs::read_to_string(&p).expect("read");
-            let code: String = text
-                .split("#[cfg(test)]")
-                .next()
-                .unwrap_or_default()
-                .lines()
-                .filter(|l| !l.trim_start().starts_with("//"))
-                .collect::<Vec<_>>()
-                .join("\n");
+            let code = code_of(&p);
             let uses: &mut std::collections::BTreeSet<String> =
                 out.entry(module.clone()).or_default();
             let mut names = Vec::new();
@@ -467,6 +459,19 @@ fn circles(g: &BTreeMap<String, std::collections::BTreeSet<String>>) -> Vec<Vec<
     out
 }
 
+/// A Rust file's code before its unit tests, without comment lines.
+fn code_of(path: &Path) -> String {
+    std::fs::read_to_string(path)
+        .expect("read")
+        .split("#[cfg(test)]")
+        .next()
+        .unwrap_or_default()
+        .lines()
+        .filter(|l| !l.trim_start().starts_with("//"))
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
 /// The imports between the files of a folder module (the `.rs` files beside its `mod.rs`): a
 /// file imports a sibling when it names `super::sibling::…`, or through `super::` an item the
 /// sibling defines (the folder's re-exports). `mod.rs`, which declares the files, and unit tests
@@ -481,16 +486,7 @@ fn sibling_imports(dir: &Path) -> BTreeMap<String, std::collections::BTreeSet<St
         if m == "mod" {
             continue;
         }
-        let text = std::fs::read_to_string(e.path()).expect("read");
-        let text: String = text
-            .split("#[cfg(test)]")
-            .next()
-            .unwrap_or_default()
-            .lines()
-            .filter(|l| !l.trim_start().starts_with("//"))
-            .collect::<Vec<_>>()
-            .join("\n");
-        code.insert(m.to_string(), text);
+        code.insert(m.to_string(), code_of(&e.path()));
     }
     let ident = |s: &str| -> String {
         s.trim()
