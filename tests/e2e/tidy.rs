@@ -1,9 +1,9 @@
 //! Tidy: rules of the code base that no compiler checks, in the spirit of rust-analyzer's
 //! `tidy` — each crate's dependencies exactly as ARCHITECTURE.md's table lists them (from
 //! `cargo metadata`), every Rust name ARCHITECTURE.md writes defined in the code, no module
-//! importing another that imports it back, every Rust file opening with a `//!` line, no comment
-//! that names a work item (the word "issue" and a number), and every repository path a comment
-//! or document names existing.
+//! importing another that imports it back, every workspace crate with its own opt-level in the
+//! profiles, every Rust file opening with a `//!` line, no comment that names a work item (the
+//! word "issue" and a number), and every repository path a comment or document names existing.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -194,6 +194,39 @@ fn defined_names() -> std::collections::BTreeSet<String> {
         }
     }
     out
+}
+
+/// The build-speed rule of Cargo.toml's profiles: dependencies take their opt-level from the
+/// profile itself, each workspace crate its own from a named override, and no `package."*"`
+/// override exists (it would also optimise the crates that only run while building — proc
+/// macros, build scripts — which Cargo's build-override otherwise builds quickly at opt-level 0).
+#[test]
+fn every_workspace_crate_sets_its_own_opt_level_and_no_wildcard_does() {
+    let text = std::fs::read_to_string(root().join("Cargo.toml")).expect("Cargo.toml");
+    let manifest: toml::Table = toml::from_str(&text).expect("Cargo.toml parses");
+    let profiles = manifest["profile"].as_table().expect("[profile]");
+    let mut broken = Vec::new();
+    for (name, profile) in profiles {
+        let packages = profile.get("package").and_then(toml::Value::as_table);
+        if packages.is_some_and(|p| p.contains_key("*")) {
+            broken.push(format!(
+                "profile.{name} has a package.\"*\" override (set the dependencies' opt-level on the profile)"
+            ));
+        }
+    }
+    let dev = profiles["dev"]
+        .get("package")
+        .and_then(toml::Value::as_table)
+        .cloned()
+        .unwrap_or_default();
+    for krate in dependencies().keys() {
+        if dev.get(krate).and_then(|p| p.get("opt-level")).is_none() {
+            broken.push(format!(
+                "{krate} has no [profile.dev.package.{krate}] opt-level (it would be built like a dependency)"
+            ));
+        }
+    }
+    assert!(broken.is_empty(), "{}", broken.join("\n"));
 }
 
 #[test]
