@@ -51,11 +51,19 @@ pub fn shader_constants() -> String {
     out
 }
 
-/// The composed WGSL of one pipeline (`build.rs` composes it from the WESL modules of
-/// `shaders/`).
+/// The composed WGSL of one pipeline: `shaders/composed/<name>.wgsl`, which wesl composes from
+/// the WESL modules of `shaders/` (imports resolved, `@if` features chosen). The composer runs in
+/// a test (`tests/shaders.rs`, which fails when a file is not what the modules compose and
+/// rewrites it under `SPHERECLIP_BLESS=1`), not in a build script: its parser would otherwise be
+/// compiled for every profile and target a build makes.
 macro_rules! composed {
     ($name:literal) => {
-        include_str!(concat!(env!("OUT_DIR"), "/", $name, ".wgsl"))
+        include_str!(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../shaders/composed/",
+            $name,
+            ".wgsl"
+        ))
     };
 }
 

@@ -138,3 +138,80 @@ fn the_webgl2_forms_of_the_renderers_write_glsl_es_300_and_the_storage_forms_do_
         );
     }
 }
+
+/// Each composed pipeline: its file in `shaders/composed/`, the root module, the features set.
+const COMPOSED: [(&str, &str, &[&str]); 9] = [
+    ("clipmap", "clipmap", &[]),
+    ("clipmap_webgl", "clipmap", &["webgl"]),
+    ("cdlod", "cdlod", &[]),
+    ("cdlod_webgl", "cdlod", &["webgl"]),
+    ("warp", "warp", &[]),
+    ("atmosphere", "atmosphere", &["tables_written"]),
+    ("transform_probe", "transform_probe", &["probe"]),
+    ("cdlod_probe", "cdlod_probe", &["probe"]),
+    ("warp_probe", "warp_probe", &["probe"]),
+];
+
+/// The WGSL wesl composes from `shaders/<root>.wesl` with `features` set, names kept as written
+/// (one namespace across the modules, so the entry points and every name keep the spelling the
+/// Rust side uses), with the header that says where it came from.
+fn compose(root: &str, features: &[&str]) -> String {
+    use wesl::{CompileOptions, ManglerKind, Wesl};
+    let shaders = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shaders");
+    let mut compiler = Wesl::new(shaders);
+    compiler.set_mangler(ManglerKind::None);
+    compiler.set_options(CompileOptions {
+        strip: false,
+        ..Default::default()
+    });
+    for f in ["webgl", "tables_written", "probe"] {
+        compiler.set_feature(f, features.contains(&f));
+    }
+    let path = format!("package::{root}").parse().expect("a module path");
+    let wgsl = compiler
+        .compile(&path)
+        .unwrap_or_else(|e| panic!("shaders/{root}.wesl: {e}"));
+    format!(
+        "// Composed by wesl from shaders/{root}.wesl (features: {}): do not edit.\n\
+         // `SPHERECLIP_BLESS=1 cargo test -p sc_view_gpu --test shaders composed` rewrites it.\n\n{wgsl}\n",
+        if features.is_empty() {
+            "none".to_string()
+        } else {
+            features.join(", ")
+        }
+    )
+}
+
+#[test]
+fn composed_wgsl_is_what_the_wesl_modules_compose() {
+    let dir = std::path::Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../shaders/composed"
+    ));
+    let bless = std::env::var_os("SPHERECLIP_BLESS").is_some();
+    let mut stale = Vec::new();
+    for (name, root, features) in COMPOSED {
+        let want = compose(root, features);
+        let path = dir.join(format!("{name}.wgsl"));
+        if bless {
+            std::fs::create_dir_all(dir).expect("create shaders/composed");
+            std::fs::write(&path, &want).expect("write a composed shader");
+        }
+        if std::fs::read_to_string(&path).ok().as_deref() != Some(want.as_str()) {
+            stale.push(format!("shaders/composed/{name}.wgsl"));
+        }
+    }
+    let listed: Vec<String> = COMPOSED.iter().map(|c| format!("{}.wgsl", c.0)).collect();
+    for entry in std::fs::read_dir(dir).expect("shaders/composed") {
+        let name = entry.expect("an entry").file_name();
+        let name = name.to_string_lossy();
+        if !listed.iter().any(|l| *l == name) {
+            stale.push(format!("shaders/composed/{name} is composed from nothing"));
+        }
+    }
+    assert!(
+        stale.is_empty(),
+        "not what shaders/*.wesl compose (SPHERECLIP_BLESS=1 rewrites them): {}",
+        stale.join(", ")
+    );
+}
