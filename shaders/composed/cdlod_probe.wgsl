@@ -1,15 +1,6 @@
 // Composed by wesl from shaders/cdlod_probe.wesl (features: probe): do not edit.
 // `SPHERECLIP_BLESS=1 cargo test -p sc_view_gpu --test shaders composed` rewrites it.
 
-@group(0) @binding(1)
-var<uniform> probe_frame: vec4<f32>;
-
-@group(0) @binding(2)
-var<storage, read> probe_in: array<vec4<i32>>;
-
-@group(0) @binding(3)
-var<storage, read_write> probe_out: array<vec4<f32>>;
-
 @compute @workgroup_size(64)
 fn probe(@builtin(global_invocation_id) id: vec3<u32>) {
     let k = id.x + 65535u * 64u * id.y;
@@ -25,21 +16,52 @@ fn probe(@builtin(global_invocation_id) id: vec3<u32>) {
 @group(0) @binding(0)
 var<uniform> cdlod: Cdlod;
 
-struct CdlodFace {
-    a: vec4<f32>,
-    e1: vec4<f32>,
-    e2: vec4<f32>,
-    e1_lo: vec4<f32>,
-    e2_lo: vec4<f32>,
-    anchor: vec4<i32>,
-    slots: array<vec4<u32>, 2>
+@group(0) @binding(1)
+var<uniform> probe_frame: vec4<f32>;
+
+@group(0) @binding(2)
+var<storage, read> probe_in: array<vec4<i32>>;
+
+@group(0) @binding(3)
+var<storage, read_write> probe_out: array<vec4<f32>>;
+
+fn cdlod_at(g: u32, p: vec2<i32>, step: i32) -> vec3<f32> {
+    let anchor = cdlod.faces[g].anchor;
+    let du = f32(p.x * step - anchor.x) * cdlod.h_range.z;
+    let dv = f32(p.y * step - anchor.y) * cdlod.h_range.z;
+    return cdlod_point(g, du, dv);
 }
 
-struct Cdlod {
-    faces: array<CdlodFace, 20>,
-    morph: array<vec4<f32>, 32>,
-    h_range: vec4<f32>,
-    params: vec4<u32>
+fn cdlod_distance(radius: f32, cam_height: f32, c: f32) -> f32 {
+    let rc = radius + cam_height;
+    let h = clamp(cam_height - rc * c, cdlod.h_range.x, cdlod.h_range.y);
+    return sqrt((h - cam_height) * (h - cam_height) + 2.0 * (radius + h) * rc * c);
+}
+
+fn cdlod_point(g: u32, du: f32, dv: f32) -> vec3<f32> {
+    let face = cdlod.faces[g];
+    let dx = face.a.x + (face.e1.x * du + face.e2.x * dv) + (face.e1_lo.x * du + face.e2_lo.x * dv);
+    let dy = face.a.y + (face.e1.y * du + face.e2.y * dv) + (face.e1_lo.y * du + face.e2_lo.y * dv);
+    let dz = (face.e1.z * du + face.e2.z * dv) - face.a.z;
+    let rho2 = dx * dx + dy * dy;
+    let w = dz * (2.0 + dz) + rho2;
+    let len = sqrt(1.0 + w);
+    let t = w / (len * (len + 1.0));
+    let z = 1.0 + dz;
+    var c = 1.0 - z / len;
+    if (z > 0.0) {
+        c = rho2 / (len * (len + z));
+    }
+    return vec3<f32>(dx - dx * t, dy - dy * t, c);
+}
+
+fn cdlod_remap(f: u32, slot: u32, ij: vec2<i32>, m: i32) -> vec3<i32> {
+    if (slot == 6u) {
+        return vec3<i32>(i32(f), ij);
+    }
+    let s = cdlod_slot(f, slot);
+    var w = array<i32, 4>(m - ij.x - ij.y, ij.x, ij.y, 0);
+    return vec3<i32>(i32(s & 255u), w[(s >> 8u) & 3u], w[(s >> 16u) & 3u]);
 }
 
 fn cdlod_slot(f: u32, k: u32) -> u32 {
@@ -68,15 +90,6 @@ fn cdlod_slot_index(ij: vec2<i32>, m: i32) -> u32 {
     return 6u;
 }
 
-fn cdlod_remap(f: u32, slot: u32, ij: vec2<i32>, m: i32) -> vec3<i32> {
-    if (slot == 6u) {
-        return vec3<i32>(i32(f), ij);
-    }
-    let s = cdlod_slot(f, slot);
-    var w = array<i32, 4>(m - ij.x - ij.y, ij.x, ij.y, 0);
-    return vec3<i32>(i32(s & 255u), w[(s >> 8u) & 3u], w[(s >> 16u) & 3u]);
-}
-
 fn cdlod_target(f: u32, ij: vec2<i32>, m: i32) -> vec2<i32> {
     let oi = (ij.x & 1) != 0;
     let oj = (ij.y & 1) != 0;
@@ -101,36 +114,6 @@ fn cdlod_target(f: u32, ij: vec2<i32>, m: i32) -> vec2<i32> {
         return ij + vec2<i32>(0, 1);
     }
     return ij + vec2<i32>(1, -1);
-}
-
-fn cdlod_point(g: u32, du: f32, dv: f32) -> vec3<f32> {
-    let face = cdlod.faces[g];
-    let dx = face.a.x + (face.e1.x * du + face.e2.x * dv) + (face.e1_lo.x * du + face.e2_lo.x * dv);
-    let dy = face.a.y + (face.e1.y * du + face.e2.y * dv) + (face.e1_lo.y * du + face.e2_lo.y * dv);
-    let dz = (face.e1.z * du + face.e2.z * dv) - face.a.z;
-    let rho2 = dx * dx + dy * dy;
-    let w = dz * (2.0 + dz) + rho2;
-    let len = sqrt(1.0 + w);
-    let t = w / (len * (len + 1.0));
-    let z = 1.0 + dz;
-    var c = 1.0 - z / len;
-    if (z > 0.0) {
-        c = rho2 / (len * (len + z));
-    }
-    return vec3<f32>(dx - dx * t, dy - dy * t, c);
-}
-
-fn cdlod_at(g: u32, p: vec2<i32>, step: i32) -> vec3<f32> {
-    let anchor = cdlod.faces[g].anchor;
-    let du = f32(p.x * step - anchor.x) * cdlod.h_range.z;
-    let dv = f32(p.y * step - anchor.y) * cdlod.h_range.z;
-    return cdlod_point(g, du, dv);
-}
-
-fn cdlod_distance(radius: f32, cam_height: f32, c: f32) -> f32 {
-    let rc = radius + cam_height;
-    let h = clamp(cam_height - rc * c, cdlod.h_range.x, cdlod.h_range.y);
-    return sqrt((h - cam_height) * (h - cam_height) + 2.0 * (radius + h) * rc * c);
 }
 
 fn cdlod_vertex(f: u32, level: u32, corner: vec2<i32>, sigma: i32, pij: vec2<u32>, radius: f32, cam_height: f32) -> vec3<f32> {
@@ -161,3 +144,19 @@ fn cdlod_vertex(f: u32, level: u32, corner: vec2<i32>, sigma: i32, pij: vec2<u32
     return cdlod_point(g, du * cdlod.h_range.z, dv * cdlod.h_range.z);
 }
 
+struct Cdlod {
+    faces: array<CdlodFace, 20>,
+    morph: array<vec4<f32>, 32>,
+    h_range: vec4<f32>,
+    params: vec4<u32>
+}
+
+struct CdlodFace {
+    a: vec4<f32>,
+    e1: vec4<f32>,
+    e2: vec4<f32>,
+    e1_lo: vec4<f32>,
+    e2_lo: vec4<f32>,
+    anchor: vec4<i32>,
+    slots: array<vec4<u32>, 2>
+}

@@ -1,182 +1,6 @@
 // Composed by wesl from shaders/clipmap.wesl (features: none): do not edit.
 // `SPHERECLIP_BLESS=1 cargo test -p sc_view_gpu --test shaders composed` rewrites it.
 
-struct VertexIn {
-    @location(0)
-    pxy: vec2<f32>,
-    @location(1)
-    one_minus_cos: f32,
-    @location(2)
-    seam: f32,
-    @location(3)
-    level: u32,
-    @location(4)
-    depth: f32
-}
-
-@vertex
-fn vs_main(v: VertexIn) -> VertexOut {
-    let view = ViewerConsts(frame.sin_v, frame.cos_v, frame.colat, frame.orient);
-    let off = map_offsets(view, v.pxy.x, v.pxy.y, v.one_minus_cos, v.seam);
-    let mp = mesh_height(v.level, v.depth, off);
-    return vertex_out(vec3<f32>(v.pxy, v.one_minus_cos), mp, v.seam);
-}
-
-fn color_texel_of(l: u32, off: vec2<f32>) -> vec2<f32> {
-    let lv = levels[l];
-    return lv.color_viewer_texel + off * lv.color_texels_per_rad;
-}
-
-fn color_at(l: u32, t: vec2<f32>) -> vec4<f32> {
-    let lv = levels[l];
-    let base = floor(t - vec2<f32>(0.5));
-    let f = t - vec2<f32>(0.5) - base;
-    let size = vec2<i32>(lv.color_size);
-    let side = size.x / max(size.x / (2 * size.y), 1);
-    var c = array<vec4<f32>, 4>();
-    for (var k = 0u; k < 4u; k = k + 1u) {
-        let o = vec2<f32>(f32(k & 1u), f32(k >> 1u));
-        let p = vec2<i32>(base + o);
-        let wrapped = ((p + vec2<i32>(lv.color_origin)) % size + size) % size;
-        let strip = wrapped.x / side;
-        let at = vec2<i32>(wrapped.x - strip * side, wrapped.y + strip * size.y);
-        c[k] = textureLoad(colors, at, i32(l), 0);
-    }
-    return mix(mix(c[0], c[1], f.x), mix(c[2], c[3], f.x), f.y);
-}
-
-fn slope_at(l: u32, t: vec2<f32>) -> vec2<f32> {
-    let dx = height_at(l, t + vec2<f32>(1.0, 0.0)) - height_at(l, t - vec2<f32>(1.0, 0.0));
-    let dy = height_at(l, t + vec2<f32>(0.0, 1.0)) - height_at(l, t - vec2<f32>(0.0, 1.0));
-    return 0.5 * frame.exaggeration * vec2<f32>(dx, dy) * levels[l].texels_per_rad;
-}
-
-fn surface_normal(up: vec3<f32>, slope: vec2<f32>, h: f32) -> vec3<f32> {
-    let o = frame.orient;
-    let u = normalize(vec3<f32>(up.x, o * up.y, up.z));
-    let pole = vec3<f32>(-frame.sin_v, 0.0, frame.cos_v);
-    let e = cross(pole, u);
-    let s2 = dot(e, e);
-    if (s2 < 1e-12) {
-        return up;
-    }
-    let sc = o * (dot(u, pole) * u - pole);
-    let g = (slope.y * sc * sqrt(s2) + slope.x * e) / ((frame.radius + h) * s2);
-    let n = normalize(u - g);
-    return vec3<f32>(n.x, o * n.y, n.z);
-}
-
-fn level_tint(l: u32) -> vec3<f32> {
-    let k = f32(l % 6u);
-    return vec3<f32>(0.5 + 0.5 * cos(1.05 * k), 0.5 + 0.5 * cos(1.05 * k + 2.1), 0.5 + 0.5 * cos(1.05 * k + 4.2));
-}
-
-const MAX_ANISO: f32 = 4.0;
-
-struct Footprint {
-    minor: f32,
-    major: f32,
-    axis: vec2<f32>
-}
-
-fn footprint(tpr: vec2<f32>, off: vec2<f32>, doff_x: vec2<f32>, doff_y: vec2<f32>) -> Footprint {
-    let s = abs(sin(frame.colat + frame.orient * off.y));
-    let k = vec2<f32>(tpr.y * s, tpr.y);
-    let ax = length(doff_x * k);
-    let ay = length(doff_y * k);
-    return Footprint(min(ax, ay), max(ax, ay), select(doff_y, doff_x, ax >= ay));
-}
-
-fn aniso_taps(fp: Footprint) -> f32 {
-    return clamp(ceil(fp.major / max(fp.minor, 1e-12)), 1.0, MAX_ANISO);
-}
-
-const LOD_BIAS: f32 = 0.5;
-
-fn lod_level(l: u32, cap: f32, rho: f32) -> f32 {
-    let fine = f32(l) + LOD_BIAS - log2(max(rho, 1e-6));
-    return clamp(min(cap, fine), f32(frame.level_lo), f32(frame.level_hi));
-}
-
-fn color_trilinear(lc: f32, off: vec2<f32>) -> vec4<f32> {
-    let l0 = u32(floor(lc));
-    let f1 = lc - floor(lc);
-    var c = color_at(l0, color_texel_of(l0, off));
-    if (f1 > 0.0 && l0 < frame.level_hi) {
-        c = mix(c, color_at(l0 + 1u, color_texel_of(l0 + 1u, off)), f1);
-    }
-    return c;
-}
-
-fn window_inside(k: u32, off: vec2<f32>, color: bool) -> f32 {
-    var t = texel_of(k, off);
-    var size = vec2<f32>(levels[k].size);
-    var open = 0u;
-    if (color) {
-        t = color_texel_of(k, off);
-        size = vec2<f32>(levels[k].color_size);
-        open = levels[k].color_open;
-    }
-    let far = 1000000000.0;
-    let ex = select(min(t.x, size.x - t.x), far, (open & OPEN_ROUND) != 0u);
-    let top = select(t.y, far, (open & OPEN_NORTH) != 0u);
-    let bottom = select(size.y - t.y, far, (open & OPEN_SOUTH) != 0u);
-    let edge = min(ex, min(top, bottom));
-    return clamp((edge - 4.0) / 16.0, 0.0, 1.0);
-}
-
-fn level_cap(l: u32, ring: f32, off: vec2<f32>, color: bool) -> f32 {
-    var cap = min(ring, f32(l) - 1.0 + levels[l].fade);
-    if (color && (levels[l].color_open & OPEN_ROUND) != 0u && l > frame.level_lo) {
-        cap = min(cap, f32(l) - 1.0 + window_inside(l, off, true));
-    }
-    for (var k = l + 1u; k <= min(l + 2u, frame.level_hi); k = k + 1u) {
-        let inside = min(window_inside(k, off, color), levels[k].fade);
-        if (inside <= 0.0) {
-            break;
-        }
-        cap = max(cap, f32(k) - 1.0 + inside);
-        if (inside < 1.0) {
-            break;
-        }
-    }
-    return cap;
-}
-
-fn terrain_in_air(frag: vec2<f32>, rel: vec3<f32>, albedo: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
-    let p = rel * 0.001;
-    let t = length(p);
-    let d = p / t;
-    let r_c = atmo.camera.x;
-    let q = p + vec3<f32>(0.0, 0.0, r_c);
-    let r = length(q);
-    let s = sun_dir();
-    let mu_s = dot(q / r, s);
-    let r_lit = max(r, atm.radii.x);
-    let sky = irradiance_at(r_lit, mu_s) * 0.5 * (1.0 + dot(n, q / r));
-    let lit = albedo * (sunlight(r_lit, mu_s) * max(dot(n, s), 0.0) + sky);
-    let e = enter(d, s);
-    var s_air = t - max(e.t, 0.0);
-    let g = ground_distance(e.r, e.h, e.mu);
-    if (g >= 0.0) {
-        s_air = min(s_air, g);
-    }
-    let path = column_path(e);
-    var ap = aerial_at(frag / atmo.screen.xy, s_air, path);
-    let below = asin(min(atm.radii.x / r_c, 1.0)) - acos(clamp(-d.z, -1.0, 1.0));
-    let band = atmo.space.w;
-    let own = select(0.0, 1.0 - smoothstep(band, 2.0 * band, below), above_air());
-    if (own > 0.0 && e.t >= 0.0) {
-        let m = sky_along(e.r, e.h, e.mu, e.mu_s, dot(d, s), s_air, false);
-        ap = Scatter(mix(ap.radiance, m.radiance, own), mix(ap.transmittance, m.transmittance, own));
-    }
-    return tone_map(lit * ap.transmittance + ap.radiance * atmo.sun.w);
-}
-
-fn wrap_lon(d: vec2<f32>) -> vec2<f32> {
-    return vec2<f32>(d.x - TAU * round(d.x / TAU), d.y);
-}
-
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let view = ViewerConsts(frame.sin_v, frame.cos_v, frame.colat, frame.orient);
@@ -241,19 +65,6 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     return vec4<f32>(terrain_in_air(in.clip.xy, in.rel, albedo, n), 1.0);
 }
 
-struct SkyOut {
-    @builtin(position)
-    clip: vec4<f32>
-}
-
-@vertex
-fn sky_vs(@builtin(vertex_index) i: u32) -> SkyOut {
-    let xy = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u)) * 2.0 - vec2<f32>(1.0);
-    var out: SkyOut;
-    out.clip = vec4<f32>(xy, 0.0, 1.0);
-    return out;
-}
-
 @fragment
 fn sky_fs(in: SkyOut) -> @location(0) vec4<f32> {
     let d = view_direction(in.clip.xy / atmo.screen.xy);
@@ -286,24 +97,252 @@ fn sky_fs(in: SkyOut) -> @location(0) vec4<f32> {
     return vec4<f32>(c, 1.0);
 }
 
-struct Atmosphere {
-    rayleigh: vec4<f32>,
-    mie_scattering: vec4<f32>,
-    mie_extinction: vec4<f32>,
-    ozone: vec4<f32>,
-    albedo: vec4<f32>,
-    radii: vec4<f32>
+@group(0) @binding(0)
+var<uniform> frame: Frame;
+
+@group(0) @binding(1)
+var<uniform> levels: array<Level, MAX_RING + 1u>;
+
+@group(0) @binding(2)
+var heights: texture_2d_array<f32>;
+
+@group(0) @binding(3)
+var colors: texture_2d_array<f32>;
+
+@group(1) @binding(0)
+var<uniform> atm: Atmosphere;
+
+@group(1) @binding(1)
+var<storage, read> transmittance_table: array<vec4<f32>>;
+
+@group(1) @binding(2)
+var<storage, read> multiple_scattering_table: array<vec4<f32>>;
+
+@group(1) @binding(3)
+var<uniform> atmo: AtmosphereFrame;
+
+@group(1) @binding(4)
+var<storage, read> sky_view_table: array<vec4<f32>>;
+
+@group(1) @binding(5)
+var<storage, read> aerial_inscatter: array<vec4<f32>>;
+
+@group(1) @binding(6)
+var<storage, read> aerial_transmittance: array<vec4<f32>>;
+
+@group(1) @binding(7)
+var<storage, read> irradiance_table: array<vec4<f32>>;
+
+@vertex
+fn sky_vs(@builtin(vertex_index) i: u32) -> SkyOut {
+    let xy = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u)) * 2.0 - vec2<f32>(1.0);
+    var out: SkyOut;
+    out.clip = vec4<f32>(xy, 0.0, 1.0);
+    return out;
 }
 
-struct AtmosphereFrame {
-    inv_view_proj: mat4x4<f32>,
-    sun: vec4<f32>,
-    camera: vec4<f32>,
-    screen: vec4<f32>,
-    space: vec4<f32>
+@vertex
+fn vs_main(v: VertexIn) -> VertexOut {
+    let view = ViewerConsts(frame.sin_v, frame.cos_v, frame.colat, frame.orient);
+    let off = map_offsets(view, v.pxy.x, v.pxy.y, v.one_minus_cos, v.seam);
+    let mp = mesh_height(v.level, v.depth, off);
+    return vertex_out(vec3<f32>(v.pxy, v.one_minus_cos), mp, v.seam);
 }
+
+const AERIAL: u32 = 32u;
+
+const FLAG_LEVEL_COLORS: u32 = 1u;
+
+const FLAG_UNLIT: u32 = 2u;
+
+const IRRADIANCE_DIRECTIONS: u32 = 8u;
+
+const IRRADIANCE_H: u32 = 16u;
+
+const IRRADIANCE_W: u32 = 64u;
+
+const LOD_BIAS: f32 = 0.5;
+
+const MAX_ANISO: f32 = 4.0;
+
+const MAX_RING: u32 = 25u;
+
+const MS_DIRECTIONS: u32 = 8u;
+
+const MS_SIZE: u32 = 32u;
+
+const MS_STEPS: u32 = 20u;
+
+const OPEN_NORTH: u32 = 2u;
+
+const OPEN_ROUND: u32 = 1u;
+
+const OPEN_SOUTH: u32 = 4u;
 
 const PI: f32 = 3.14159265358979;
+
+const SKY_STEPS: u32 = 30u;
+
+const SKY_VIEW_H: u32 = 108u;
+
+const SKY_VIEW_W: u32 = 192u;
+
+const TAU: f32 = 6.283185307179586;
+
+const TRANSMITTANCE_H: u32 = 64u;
+
+const TRANSMITTANCE_W: u32 = 256u;
+
+fn above_air() -> bool {
+    return atmo.camera.x > atm.radii.y;
+}
+
+fn aerial_at(uv: vec2<f32>, s_in: f32, path: f32) -> Scatter {
+    let n = f32(AERIAL);
+    let s = max(s_in, 0.0);
+    let c = taps(uv.x, uv.y, AERIAL, AERIAL);
+    let q = min(slice_index(s, path), n - 1.0);
+    var k0 = 0u;
+    var k1 = 0u;
+    var fz = 0.0;
+    var near = 1.0;
+    if q < 0.0 {
+        near = s / max(slice_end(0u, path), 1e-6);
+    }
+    else {
+        k0 = u32(floor(q));
+        k1 = min(k0 + 1u, AERIAL - 1u);
+        fz = q - f32(k0);
+    }
+    let a = aerial_slice(k0, c);
+    let b = aerial_slice(k1, c);
+    let l = mix(a[0], b[0], fz);
+    let t = mix(a[1], b[1], fz);
+    return Scatter(l * near, mix(vec3<f32>(1.0), t, near));
+}
+
+fn aerial_inscatter_at(i: u32) -> vec3<f32> {
+    return aerial_inscatter[i].xyz;
+}
+
+fn aerial_slice(k: u32, c: Taps) -> array<vec3<f32>, 2> {
+    let n = AERIAL;
+    let a = k * n * n + c.j0 * n;
+    let b = k * n * n + c.j1 * n;
+    let f = c.f;
+    let l = mix(mix(aerial_inscatter_at(a + c.i0), aerial_inscatter_at(a + c.i1), f.x), mix(aerial_inscatter_at(b + c.i0), aerial_inscatter_at(b + c.i1), f.x), f.y);
+    let t = mix(mix(aerial_transmittance_at(a + c.i0), aerial_transmittance_at(a + c.i1), f.x), mix(aerial_transmittance_at(b + c.i0), aerial_transmittance_at(b + c.i1), f.x), f.y);
+    return array<vec3<f32>, 2>(l, t);
+}
+
+fn aerial_transmittance_at(i: u32) -> vec3<f32> {
+    return aerial_transmittance[i].xyz;
+}
+
+fn aniso_taps(fp: Footprint) -> f32 {
+    return clamp(ceil(fp.major / max(fp.minor, 1e-12)), 1.0, MAX_ANISO);
+}
+
+fn atan2_precise(y: f32, x: f32) -> f32 {
+    let ax = abs(x);
+    let ay = abs(y);
+    if (ax == 0.0 && ay == 0.0) {
+        return 0.0;
+    }
+    let swap = ay > ax;
+    let z = select(ay / ax, ax / ay, swap);
+    var r: f32;
+    if (z > 0.41421356) {
+        r = 0.7853981633974483 + atan_series((z - 1.0) / (z + 1.0));
+    }
+    else {
+        r = atan_series(z);
+    }
+    if (swap) {
+        r = 1.5707963267948966 - r;
+    }
+    if (x < 0.0) {
+        r = 3.141592653589793 - r;
+    }
+    return select(r, -r, y < 0.0);
+}
+
+fn atan_series(z: f32) -> f32 {
+    let z2 = z * z;
+    return z * (1.0 + z2 * (-1.0 / 3.0 + z2 * (1.0 / 5.0 + z2 * (-1.0 / 7.0 + z2 * (1.0 / 9.0 + z2 * (-1.0 / 11.0 + z2 * (1.0 / 13.0 - z2 / 15.0)))))));
+}
+
+fn blend_of(l: u32, depth: f32) -> f32 {
+    if (l <= frame.level_lo) {
+        return 1.0;
+    }
+    return smoothstep(0.0, 0.5, depth);
+}
+
+fn color_at(l: u32, t: vec2<f32>) -> vec4<f32> {
+    let lv = levels[l];
+    let base = floor(t - vec2<f32>(0.5));
+    let f = t - vec2<f32>(0.5) - base;
+    let size = vec2<i32>(lv.color_size);
+    let side = size.x / max(size.x / (2 * size.y), 1);
+    var c = array<vec4<f32>, 4>();
+    for (var k = 0u; k < 4u; k = k + 1u) {
+        let o = vec2<f32>(f32(k & 1u), f32(k >> 1u));
+        let p = vec2<i32>(base + o);
+        let wrapped = ((p + vec2<i32>(lv.color_origin)) % size + size) % size;
+        let strip = wrapped.x / side;
+        let at = vec2<i32>(wrapped.x - strip * side, wrapped.y + strip * size.y);
+        c[k] = textureLoad(colors, at, i32(l), 0);
+    }
+    return mix(mix(c[0], c[1], f.x), mix(c[2], c[3], f.x), f.y);
+}
+
+fn color_texel_of(l: u32, off: vec2<f32>) -> vec2<f32> {
+    let lv = levels[l];
+    return lv.color_viewer_texel + off * lv.color_texels_per_rad;
+}
+
+fn color_trilinear(lc: f32, off: vec2<f32>) -> vec4<f32> {
+    let l0 = u32(floor(lc));
+    let f1 = lc - floor(lc);
+    var c = color_at(l0, color_texel_of(l0, off));
+    if (f1 > 0.0 && l0 < frame.level_hi) {
+        c = mix(c, color_at(l0 + 1u, color_texel_of(l0 + 1u, off)), f1);
+    }
+    return c;
+}
+
+fn column_path(e: Entry) -> f32 {
+    let g = ground_distance(e.r, e.h, e.mu);
+    return select(distance_to_top(e.r, e.mu), g, g >= 0.0);
+}
+
+fn distance_to_bottom(r: f32, mu: f32) -> f32 {
+    let bottom = atm.radii.x;
+    let disc = r * r * (mu * mu - 1.0) + bottom * bottom;
+    return max(0.0, -r * mu - sqrt(max(disc, 0.0)));
+}
+
+fn distance_to_top(r: f32, mu: f32) -> f32 {
+    let top = atm.radii.y;
+    let disc = r * r * (mu * mu - 1.0) + top * top;
+    return max(0.0, -r * mu + sqrt(max(disc, 0.0)));
+}
+
+fn enter(d: vec3<f32>, s: vec3<f32>) -> Entry {
+    let r = atmo.camera.x;
+    let top = atm.radii.y;
+    if r <= top {
+        return Entry(0.0, r, atmo.screen.w, d.z, s.z);
+    }
+    let disc = top * top - r * r * dot(d.xy, d.xy);
+    if disc < 0.0 || d.z >= 0.0 {
+        return Entry(-1.0, r, atmo.screen.w, d.z, s.z);
+    }
+    let q = sqrt(disc);
+    let t = max(0.0, -r * d.z - q);
+    return Entry(t, top, top - atm.radii.x, -q / top, (r * s.z + t * dot(d, s)) / top);
+}
 
 fn extinction_at(h_in: f32) -> vec3<f32> {
     let h = max(h_in, 0.0);
@@ -313,21 +352,12 @@ fn extinction_at(h_in: f32) -> vec3<f32> {
     return atm.rayleigh.xyz * rayleigh + atm.mie_extinction.xyz * mie + atm.ozone.xyz * ozone;
 }
 
-fn distance_to_top(r: f32, mu: f32) -> f32 {
-    let top = atm.radii.y;
-    let disc = r * r * (mu * mu - 1.0) + top * top;
-    return max(0.0, -r * mu + sqrt(max(disc, 0.0)));
-}
-
-fn distance_to_bottom(r: f32, mu: f32) -> f32 {
-    let bottom = atm.radii.x;
-    let disc = r * r * (mu * mu - 1.0) + bottom * bottom;
-    return max(0.0, -r * mu - sqrt(max(disc, 0.0)));
-}
-
-fn hits_ground(r: f32, mu: f32) -> bool {
-    let bottom = atm.radii.x;
-    return mu < 0.0 && r * r * (mu * mu - 1.0) + bottom * bottom >= 0.0;
+fn footprint(tpr: vec2<f32>, off: vec2<f32>, doff_x: vec2<f32>, doff_y: vec2<f32>) -> Footprint {
+    let s = abs(sin(frame.colat + frame.orient * off.y));
+    let k = vec2<f32>(tpr.y * s, tpr.y);
+    let ax = length(doff_x * k);
+    let ay = length(doff_y * k);
+    return Footprint(min(ax, ay), max(ax, ay), select(doff_y, doff_x, ax >= ay));
 }
 
 fn ground_distance(r: f32, h: f32, mu: f32) -> f32 {
@@ -339,69 +369,24 @@ fn ground_distance(r: f32, h: f32, mu: f32) -> f32 {
     return max(0.0, h * (2.0 * bottom + h) / (-r * mu + sqrt(disc)));
 }
 
-fn unit_from_texcoord(u: f32, n: f32) -> f32 {
-    return (u - 0.5 / n) / (1.0 - 1.0 / n);
+fn height_at(l: u32, t: vec2<f32>) -> f32 {
+    let lv = levels[l];
+    let base = floor(t - vec2<f32>(0.5));
+    let f = t - vec2<f32>(0.5) - base;
+    var h = array<f32, 4>();
+    for (var k = 0u; k < 4u; k = k + 1u) {
+        let o = vec2<f32>(f32(k & 1u), f32(k >> 1u));
+        let p = vec2<i32>(base + o);
+        let size = vec2<i32>(lv.size);
+        let wrapped = ((p + vec2<i32>(lv.origin)) % size + size) % size;
+        h[k] = textureLoad(heights, wrapped, i32(l), 0).x;
+    }
+    return mix(mix(h[0], h[1], f.x), mix(h[2], h[3], f.x), f.y);
 }
 
-fn texcoord_from_unit(x: f32, n: f32) -> f32 {
-    return 0.5 / n + x * (1.0 - 1.0 / n);
-}
-
-struct Taps {
-    i0: u32,
-    i1: u32,
-    j0: u32,
-    j1: u32,
-    f: vec2<f32>
-}
-
-fn taps(u: f32, v: f32, w: u32, h: u32) -> Taps {
-    let x = clamp(u * f32(w) - 0.5, 0.0, f32(w) - 1.0);
-    let y = clamp(v * f32(h) - 0.5, 0.0, f32(h) - 1.0);
-    let i0 = u32(floor(x));
-    let j0 = u32(floor(y));
-    return Taps(i0, min(i0 + 1u, w - 1u), j0, min(j0 + 1u, h - 1u), vec2<f32>(x - f32(i0), y - f32(j0)));
-}
-
-fn transmittance_to_top(r: f32, mu: f32) -> vec3<f32> {
+fn hits_ground(r: f32, mu: f32) -> bool {
     let bottom = atm.radii.x;
-    let top = atm.radii.y;
-    let big_h = sqrt(top * top - bottom * bottom);
-    let rho = sqrt(max(r * r - bottom * bottom, 0.0));
-    let d = distance_to_top(r, mu);
-    let d_min = top - r;
-    let d_max = rho + big_h;
-    var x_mu = 0.0;
-    if d_max > d_min {
-        x_mu = (d - d_min) / (d_max - d_min);
-    }
-    let u = texcoord_from_unit(clamp(x_mu, 0.0, 1.0), f32(TRANSMITTANCE_W));
-    let v = texcoord_from_unit(clamp(rho / big_h, 0.0, 1.0), f32(TRANSMITTANCE_H));
-    let k = taps(u, v, TRANSMITTANCE_W, TRANSMITTANCE_H);
-    let w = TRANSMITTANCE_W;
-    let a = mix(transmittance_table_at(k.j0 * w + k.i0), transmittance_table_at(k.j0 * w + k.i1), k.f.x);
-    let b = mix(transmittance_table_at(k.j1 * w + k.i0), transmittance_table_at(k.j1 * w + k.i1), k.f.x);
-    return mix(a, b, k.f.y);
-}
-
-fn sunlight(r: f32, mu_s: f32) -> vec3<f32> {
-    if hits_ground(r, mu_s) {
-        return vec3<f32>(0.0);
-    }
-    return transmittance_to_top(r, mu_s);
-}
-
-fn scattering_at(h_in: f32) -> vec3<f32> {
-    let h = max(h_in, 0.0);
-    return atm.rayleigh.xyz * exp(-h / atm.rayleigh.w) + atm.mie_scattering.xyz * exp(-h / atm.mie_scattering.w);
-}
-
-fn multiple_scattering_at(r: f32, mu_s: f32) -> vec3<f32> {
-    let k = taps((mu_s + 1.0) / 2.0, (r - atm.radii.x) / (atm.radii.y - atm.radii.x), MS_SIZE, MS_SIZE);
-    let n = MS_SIZE;
-    let a = mix(multiple_scattering_table_at(k.j0 * n + k.i0), multiple_scattering_table_at(k.j0 * n + k.i1), k.f.x);
-    let b = mix(multiple_scattering_table_at(k.j1 * n + k.i0), multiple_scattering_table_at(k.j1 * n + k.i1), k.f.x);
-    return mix(a, b, k.f.y);
+    return mu < 0.0 && r * r * (mu * mu - 1.0) + bottom * bottom >= 0.0;
 }
 
 fn irradiance_at(r: f32, mu_s: f32) -> vec3<f32> {
@@ -412,8 +397,78 @@ fn irradiance_at(r: f32, mu_s: f32) -> vec3<f32> {
     return mix(a, b, k.f.y);
 }
 
-fn rayleigh_phase(nu: f32) -> f32 {
-    return 3.0 / (16.0 * PI) * (1.0 + nu * nu);
+fn irradiance_table_at(i: u32) -> vec3<f32> {
+    return irradiance_table[i].xyz;
+}
+
+fn level_cap(l: u32, ring: f32, off: vec2<f32>, color: bool) -> f32 {
+    var cap = min(ring, f32(l) - 1.0 + levels[l].fade);
+    if (color && (levels[l].color_open & OPEN_ROUND) != 0u && l > frame.level_lo) {
+        cap = min(cap, f32(l) - 1.0 + window_inside(l, off, true));
+    }
+    for (var k = l + 1u; k <= min(l + 2u, frame.level_hi); k = k + 1u) {
+        let inside = min(window_inside(k, off, color), levels[k].fade);
+        if (inside <= 0.0) {
+            break;
+        }
+        cap = max(cap, f32(k) - 1.0 + inside);
+        if (inside < 1.0) {
+            break;
+        }
+    }
+    return cap;
+}
+
+fn level_tint(l: u32) -> vec3<f32> {
+    let k = f32(l % 6u);
+    return vec3<f32>(0.5 + 0.5 * cos(1.05 * k), 0.5 + 0.5 * cos(1.05 * k + 2.1), 0.5 + 0.5 * cos(1.05 * k + 4.2));
+}
+
+fn lod_level(l: u32, cap: f32, rho: f32) -> f32 {
+    let fine = f32(l) + LOD_BIAS - log2(max(rho, 1e-6));
+    return clamp(min(cap, fine), f32(frame.level_lo), f32(frame.level_hi));
+}
+
+fn map_offsets(v: ViewerConsts, px: f32, py: f32, c: f32, seam: f32) -> vec2<f32> {
+    let tx = px;
+    let ty = v.orient * py;
+    let tz = 1.0 - c;
+    let wx = v.cos_v * tx + v.sin_v * tz;
+    let wy = ty;
+    let rho = sqrt(wx * wx + wy * wy);
+    var dcolat: f32;
+    if (wx > 0.0) {
+        let q = wy * wy / (rho + wx);
+        dcolat = atan2_precise(tx + v.cos_v * q, tz + v.sin_v * q);
+    }
+    else {
+        let wz = -v.sin_v * tx + v.cos_v * tz;
+        dcolat = atan2_precise(rho, wz) - v.colat;
+    }
+    dcolat = v.orient * dcolat;
+    var dlon = atan2_precise(wy, wx);
+    if (wx < 0.0) {
+        let s = seam * v.orient;
+        if (s < 0.0 && dlon > 0.0) {
+            dlon = dlon - TAU;
+        }
+        else if (s > 0.0 && dlon < 0.0) {
+            dlon = dlon + TAU;
+        }
+    }
+    return vec2<f32>(dlon, dcolat);
+}
+
+fn mesh_height(level: u32, depth_in: f32, off: vec2<f32>) -> MeshPoint {
+    let l = min(level, frame.level_hi);
+    let depth = select(depth_in, 1.0, level > frame.level_hi);
+    let lv = max(l, frame.level_lo + 1u) - 1u;
+    let a = select(blend_of(l, depth) * levels[l].fade, 1.0, lv <= frame.level_lo);
+    var h = height_at(lv, texel_of(lv, off));
+    if (a < 1.0) {
+        h = mix(height_at(lv - 1u, texel_of(lv - 1u, off)), h, a);
+    }
+    return MeshPoint(h * frame.exaggeration, l, depth);
 }
 
 fn mie_phase(g: f32, nu: f32) -> f32 {
@@ -421,9 +476,35 @@ fn mie_phase(g: f32, nu: f32) -> f32 {
     return k * (1.0 + nu * nu) / pow(1.0 + g * g - 2.0 * g * nu, 1.5);
 }
 
-struct Scatter {
-    radiance: vec3<f32>,
-    transmittance: vec3<f32>
+fn multiple_scattering_at(r: f32, mu_s: f32) -> vec3<f32> {
+    let k = taps((mu_s + 1.0) / 2.0, (r - atm.radii.x) / (atm.radii.y - atm.radii.x), MS_SIZE, MS_SIZE);
+    let n = MS_SIZE;
+    let a = mix(multiple_scattering_table_at(k.j0 * n + k.i0), multiple_scattering_table_at(k.j0 * n + k.i1), k.f.x);
+    let b = mix(multiple_scattering_table_at(k.j1 * n + k.i0), multiple_scattering_table_at(k.j1 * n + k.i1), k.f.x);
+    return mix(a, b, k.f.y);
+}
+
+fn multiple_scattering_table_at(i: u32) -> vec3<f32> {
+    return multiple_scattering_table[i].xyz;
+}
+
+fn rayleigh_phase(nu: f32) -> f32 {
+    return 3.0 / (16.0 * PI) * (1.0 + nu * nu);
+}
+
+fn ring_of(one_minus_cos: f32) -> RingPoint {
+    let theta = 2.0 * asin(sqrt(0.5 * one_minus_cos));
+    let lam = log2(1.5707964 / max(theta, 1e-30));
+    let ring = clamp(floor(lam), 0.0, f32(MAX_RING));
+    if (u32(ring) < frame.level_lo) {
+        return RingPoint(frame.level_lo, 0.0);
+    }
+    return RingPoint(u32(ring), clamp(lam - ring, 0.0, 1.0));
+}
+
+fn scattering_at(h_in: f32) -> vec3<f32> {
+    let h = max(h_in, 0.0);
+    return atm.rayleigh.xyz * exp(-h / atm.rayleigh.w) + atm.mie_scattering.xyz * exp(-h / atm.mie_scattering.w);
 }
 
 fn sky_along(r: f32, h0: f32, mu: f32, mu_s: f32, nu: f32, max_d: f32, stop_at_ground: bool) -> Scatter {
@@ -467,64 +548,6 @@ fn sky_along(r: f32, h0: f32, mu: f32, mu_s: f32, nu: f32, max_d: f32, stop_at_g
     return Scatter(radiance, throughput);
 }
 
-struct Entry {
-    t: f32,
-    r: f32,
-    h: f32,
-    mu: f32,
-    mu_s: f32
-}
-
-fn enter(d: vec3<f32>, s: vec3<f32>) -> Entry {
-    let r = atmo.camera.x;
-    let top = atm.radii.y;
-    if r <= top {
-        return Entry(0.0, r, atmo.screen.w, d.z, s.z);
-    }
-    let disc = top * top - r * r * dot(d.xy, d.xy);
-    if disc < 0.0 || d.z >= 0.0 {
-        return Entry(-1.0, r, atmo.screen.w, d.z, s.z);
-    }
-    let q = sqrt(disc);
-    let t = max(0.0, -r * d.z - q);
-    return Entry(t, top, top - atm.radii.x, -q / top, (r * s.z + t * dot(d, s)) / top);
-}
-
-fn view_direction(uv: vec2<f32>) -> vec3<f32> {
-    let p = atmo.inv_view_proj * vec4<f32>(2.0 * uv.x - 1.0, 1.0 - 2.0 * uv.y, 1.0, 1.0);
-    return normalize(p.xyz / p.w);
-}
-
-fn sun_dir() -> vec3<f32> {
-    return normalize(atmo.sun.xyz);
-}
-
-fn above_air() -> bool {
-    return atmo.camera.x > atm.radii.y;
-}
-
-fn column_path(e: Entry) -> f32 {
-    let g = ground_distance(e.r, e.h, e.mu);
-    return select(distance_to_top(e.r, e.mu), g, g >= 0.0);
-}
-
-fn slice_end(k: u32, path: f32) -> f32 {
-    let x = (f32(k) + 1.0) / f32(AERIAL);
-    if above_air() {
-        return path * (1.0 - (1.0 - x) * (1.0 - x));
-    }
-    return atmo.camera.y * x * x;
-}
-
-fn slice_index(s: f32, path: f32) -> f32 {
-    let n = f32(AERIAL);
-    if above_air() {
-        let f = clamp(s / max(path, 1e-6), 0.0, 1.0);
-        return n * (1.0 - sqrt(1.0 - f)) - 1.0;
-    }
-    return n * sqrt(s / atmo.camera.y) - 1.0;
-}
-
 fn sky_view_at(r_in: f32, mu: f32, cos_az: f32) -> vec3<f32> {
     let bottom = atm.radii.x;
     let r = max(r_in, bottom);
@@ -546,194 +569,209 @@ fn sky_view_at(r_in: f32, mu: f32, cos_az: f32) -> vec3<f32> {
     return mix(a, b, k.f.y);
 }
 
-fn aerial_slice(k: u32, c: Taps) -> array<vec3<f32>, 2> {
-    let n = AERIAL;
-    let a = k * n * n + c.j0 * n;
-    let b = k * n * n + c.j1 * n;
-    let f = c.f;
-    let l = mix(mix(aerial_inscatter_at(a + c.i0), aerial_inscatter_at(a + c.i1), f.x), mix(aerial_inscatter_at(b + c.i0), aerial_inscatter_at(b + c.i1), f.x), f.y);
-    let t = mix(mix(aerial_transmittance_at(a + c.i0), aerial_transmittance_at(a + c.i1), f.x), mix(aerial_transmittance_at(b + c.i0), aerial_transmittance_at(b + c.i1), f.x), f.y);
-    return array<vec3<f32>, 2>(l, t);
+fn sky_view_table_at(i: u32) -> vec3<f32> {
+    return sky_view_table[i].xyz;
 }
 
-fn aerial_at(uv: vec2<f32>, s_in: f32, path: f32) -> Scatter {
+fn slice_end(k: u32, path: f32) -> f32 {
+    let x = (f32(k) + 1.0) / f32(AERIAL);
+    if above_air() {
+        return path * (1.0 - (1.0 - x) * (1.0 - x));
+    }
+    return atmo.camera.y * x * x;
+}
+
+fn slice_index(s: f32, path: f32) -> f32 {
     let n = f32(AERIAL);
-    let s = max(s_in, 0.0);
-    let c = taps(uv.x, uv.y, AERIAL, AERIAL);
-    let q = min(slice_index(s, path), n - 1.0);
-    var k0 = 0u;
-    var k1 = 0u;
-    var fz = 0.0;
-    var near = 1.0;
-    if q < 0.0 {
-        near = s / max(slice_end(0u, path), 1e-6);
+    if above_air() {
+        let f = clamp(s / max(path, 1e-6), 0.0, 1.0);
+        return n * (1.0 - sqrt(1.0 - f)) - 1.0;
     }
-    else {
-        k0 = u32(floor(q));
-        k1 = min(k0 + 1u, AERIAL - 1u);
-        fz = q - f32(k0);
+    return n * sqrt(s / atmo.camera.y) - 1.0;
+}
+
+fn slope_at(l: u32, t: vec2<f32>) -> vec2<f32> {
+    let dx = height_at(l, t + vec2<f32>(1.0, 0.0)) - height_at(l, t - vec2<f32>(1.0, 0.0));
+    let dy = height_at(l, t + vec2<f32>(0.0, 1.0)) - height_at(l, t - vec2<f32>(0.0, 1.0));
+    return 0.5 * frame.exaggeration * vec2<f32>(dx, dy) * levels[l].texels_per_rad;
+}
+
+fn sun_dir() -> vec3<f32> {
+    return normalize(atmo.sun.xyz);
+}
+
+fn sunlight(r: f32, mu_s: f32) -> vec3<f32> {
+    if hits_ground(r, mu_s) {
+        return vec3<f32>(0.0);
     }
-    let a = aerial_slice(k0, c);
-    let b = aerial_slice(k1, c);
-    let l = mix(a[0], b[0], fz);
-    let t = mix(a[1], b[1], fz);
-    return Scatter(l * near, mix(vec3<f32>(1.0), t, near));
+    return transmittance_to_top(r, mu_s);
+}
+
+fn surface_normal(up: vec3<f32>, slope: vec2<f32>, h: f32) -> vec3<f32> {
+    let o = frame.orient;
+    let u = normalize(vec3<f32>(up.x, o * up.y, up.z));
+    let pole = vec3<f32>(-frame.sin_v, 0.0, frame.cos_v);
+    let e = cross(pole, u);
+    let s2 = dot(e, e);
+    if (s2 < 1e-12) {
+        return up;
+    }
+    let sc = o * (dot(u, pole) * u - pole);
+    let g = (slope.y * sc * sqrt(s2) + slope.x * e) / ((frame.radius + h) * s2);
+    let n = normalize(u - g);
+    return vec3<f32>(n.x, o * n.y, n.z);
+}
+
+fn taps(u: f32, v: f32, w: u32, h: u32) -> Taps {
+    let x = clamp(u * f32(w) - 0.5, 0.0, f32(w) - 1.0);
+    let y = clamp(v * f32(h) - 0.5, 0.0, f32(h) - 1.0);
+    let i0 = u32(floor(x));
+    let j0 = u32(floor(y));
+    return Taps(i0, min(i0 + 1u, w - 1u), j0, min(j0 + 1u, h - 1u), vec2<f32>(x - f32(i0), y - f32(j0)));
+}
+
+fn terrain_in_air(frag: vec2<f32>, rel: vec3<f32>, albedo: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
+    let p = rel * 0.001;
+    let t = length(p);
+    let d = p / t;
+    let r_c = atmo.camera.x;
+    let q = p + vec3<f32>(0.0, 0.0, r_c);
+    let r = length(q);
+    let s = sun_dir();
+    let mu_s = dot(q / r, s);
+    let r_lit = max(r, atm.radii.x);
+    let sky = irradiance_at(r_lit, mu_s) * 0.5 * (1.0 + dot(n, q / r));
+    let lit = albedo * (sunlight(r_lit, mu_s) * max(dot(n, s), 0.0) + sky);
+    let e = enter(d, s);
+    var s_air = t - max(e.t, 0.0);
+    let g = ground_distance(e.r, e.h, e.mu);
+    if (g >= 0.0) {
+        s_air = min(s_air, g);
+    }
+    let path = column_path(e);
+    var ap = aerial_at(frag / atmo.screen.xy, s_air, path);
+    let below = asin(min(atm.radii.x / r_c, 1.0)) - acos(clamp(-d.z, -1.0, 1.0));
+    let band = atmo.space.w;
+    let own = select(0.0, 1.0 - smoothstep(band, 2.0 * band, below), above_air());
+    if (own > 0.0 && e.t >= 0.0) {
+        let m = sky_along(e.r, e.h, e.mu, e.mu_s, dot(d, s), s_air, false);
+        ap = Scatter(mix(ap.radiance, m.radiance, own), mix(ap.transmittance, m.transmittance, own));
+    }
+    return tone_map(lit * ap.transmittance + ap.radiance * atmo.sun.w);
+}
+
+fn texcoord_from_unit(x: f32, n: f32) -> f32 {
+    return 0.5 / n + x * (1.0 - 1.0 / n);
+}
+
+fn texel_of(l: u32, off: vec2<f32>) -> vec2<f32> {
+    let lv = levels[l];
+    return lv.viewer_texel + off * lv.texels_per_rad;
 }
 
 fn tone_map(l: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(1.0) - exp(-atmo.camera.z * l);
 }
 
-@group(1) @binding(0)
-var<uniform> atm: Atmosphere;
-
-@group(1) @binding(3)
-var<uniform> atmo: AtmosphereFrame;
-
-@group(1) @binding(1)
-var<storage, read> transmittance_table: array<vec4<f32>>;
-
-@group(1) @binding(2)
-var<storage, read> multiple_scattering_table: array<vec4<f32>>;
-
-@group(1) @binding(4)
-var<storage, read> sky_view_table: array<vec4<f32>>;
-
-@group(1) @binding(5)
-var<storage, read> aerial_inscatter: array<vec4<f32>>;
-
-@group(1) @binding(6)
-var<storage, read> aerial_transmittance: array<vec4<f32>>;
-
-@group(1) @binding(7)
-var<storage, read> irradiance_table: array<vec4<f32>>;
-
 fn transmittance_table_at(i: u32) -> vec3<f32> {
     return transmittance_table[i].xyz;
 }
 
-fn multiple_scattering_table_at(i: u32) -> vec3<f32> {
-    return multiple_scattering_table[i].xyz;
+fn transmittance_to_top(r: f32, mu: f32) -> vec3<f32> {
+    let bottom = atm.radii.x;
+    let top = atm.radii.y;
+    let big_h = sqrt(top * top - bottom * bottom);
+    let rho = sqrt(max(r * r - bottom * bottom, 0.0));
+    let d = distance_to_top(r, mu);
+    let d_min = top - r;
+    let d_max = rho + big_h;
+    var x_mu = 0.0;
+    if d_max > d_min {
+        x_mu = (d - d_min) / (d_max - d_min);
+    }
+    let u = texcoord_from_unit(clamp(x_mu, 0.0, 1.0), f32(TRANSMITTANCE_W));
+    let v = texcoord_from_unit(clamp(rho / big_h, 0.0, 1.0), f32(TRANSMITTANCE_H));
+    let k = taps(u, v, TRANSMITTANCE_W, TRANSMITTANCE_H);
+    let w = TRANSMITTANCE_W;
+    let a = mix(transmittance_table_at(k.j0 * w + k.i0), transmittance_table_at(k.j0 * w + k.i1), k.f.x);
+    let b = mix(transmittance_table_at(k.j1 * w + k.i0), transmittance_table_at(k.j1 * w + k.i1), k.f.x);
+    return mix(a, b, k.f.y);
 }
 
-fn sky_view_table_at(i: u32) -> vec3<f32> {
-    return sky_view_table[i].xyz;
+fn unit_from_texcoord(u: f32, n: f32) -> f32 {
+    return (u - 0.5 / n) / (1.0 - 1.0 / n);
 }
 
-fn aerial_inscatter_at(i: u32) -> vec3<f32> {
-    return aerial_inscatter[i].xyz;
+fn vertex_out(p: vec3<f32>, mp: MeshPoint, seam: f32) -> VertexOut {
+    let h = mp.h;
+    let r = frame.radius + h;
+    let rel = vec3<f32>(r * p.x, r * p.y, h - frame.cam_height - r * p.z);
+    var out: VertexOut;
+    out.clip = frame.view_proj * vec4<f32>(rel, 1.0);
+    out.height = h;
+    out.level = mp.l;
+    out.p = p;
+    out.seam = seam;
+    out.lvl = f32(mp.l) + mp.depth;
+    out.rel = rel;
+    return out;
 }
 
-fn aerial_transmittance_at(i: u32) -> vec3<f32> {
-    return aerial_transmittance[i].xyz;
+fn view_direction(uv: vec2<f32>) -> vec3<f32> {
+    let p = atmo.inv_view_proj * vec4<f32>(2.0 * uv.x - 1.0, 1.0 - 2.0 * uv.y, 1.0, 1.0);
+    return normalize(p.xyz / p.w);
 }
 
-fn irradiance_table_at(i: u32) -> vec3<f32> {
-    return irradiance_table[i].xyz;
+fn window_inside(k: u32, off: vec2<f32>, color: bool) -> f32 {
+    var t = texel_of(k, off);
+    var size = vec2<f32>(levels[k].size);
+    var open = 0u;
+    if (color) {
+        t = color_texel_of(k, off);
+        size = vec2<f32>(levels[k].color_size);
+        open = levels[k].color_open;
+    }
+    let far = 1000000000.0;
+    let ex = select(min(t.x, size.x - t.x), far, (open & OPEN_ROUND) != 0u);
+    let top = select(t.y, far, (open & OPEN_NORTH) != 0u);
+    let bottom = select(size.y - t.y, far, (open & OPEN_SOUTH) != 0u);
+    let edge = min(ex, min(top, bottom));
+    return clamp((edge - 4.0) / 16.0, 0.0, 1.0);
 }
 
-const MAX_RING: u32 = 25u;
-
-const TRANSMITTANCE_W: u32 = 256u;
-
-const TRANSMITTANCE_H: u32 = 64u;
-
-const MS_SIZE: u32 = 32u;
-
-const MS_DIRECTIONS: u32 = 8u;
-
-const MS_STEPS: u32 = 20u;
-
-const SKY_VIEW_W: u32 = 192u;
-
-const SKY_VIEW_H: u32 = 108u;
-
-const SKY_STEPS: u32 = 30u;
-
-const AERIAL: u32 = 32u;
-
-const IRRADIANCE_W: u32 = 64u;
-
-const IRRADIANCE_H: u32 = 16u;
-
-const IRRADIANCE_DIRECTIONS: u32 = 8u;
-
-const FLAG_LEVEL_COLORS: u32 = 1u;
-
-const FLAG_UNLIT: u32 = 2u;
-
-const OPEN_ROUND: u32 = 1u;
-
-const OPEN_NORTH: u32 = 2u;
-
-const OPEN_SOUTH: u32 = 4u;
-
-struct ViewerConsts {
-    sin_v: f32,
-    cos_v: f32,
-    colat: f32,
-    orient: f32
+fn wrap_lon(d: vec2<f32>) -> vec2<f32> {
+    return vec2<f32>(d.x - TAU * round(d.x / TAU), d.y);
 }
 
-const TAU: f32 = 6.283185307179586;
-
-fn atan_series(z: f32) -> f32 {
-    let z2 = z * z;
-    return z * (1.0 + z2 * (-1.0 / 3.0 + z2 * (1.0 / 5.0 + z2 * (-1.0 / 7.0 + z2 * (1.0 / 9.0 + z2 * (-1.0 / 11.0 + z2 * (1.0 / 13.0 - z2 / 15.0)))))));
+struct Atmosphere {
+    rayleigh: vec4<f32>,
+    mie_scattering: vec4<f32>,
+    mie_extinction: vec4<f32>,
+    ozone: vec4<f32>,
+    albedo: vec4<f32>,
+    radii: vec4<f32>
 }
 
-fn atan2_precise(y: f32, x: f32) -> f32 {
-    let ax = abs(x);
-    let ay = abs(y);
-    if (ax == 0.0 && ay == 0.0) {
-        return 0.0;
-    }
-    let swap = ay > ax;
-    let z = select(ay / ax, ax / ay, swap);
-    var r: f32;
-    if (z > 0.41421356) {
-        r = 0.7853981633974483 + atan_series((z - 1.0) / (z + 1.0));
-    }
-    else {
-        r = atan_series(z);
-    }
-    if (swap) {
-        r = 1.5707963267948966 - r;
-    }
-    if (x < 0.0) {
-        r = 3.141592653589793 - r;
-    }
-    return select(r, -r, y < 0.0);
+struct AtmosphereFrame {
+    inv_view_proj: mat4x4<f32>,
+    sun: vec4<f32>,
+    camera: vec4<f32>,
+    screen: vec4<f32>,
+    space: vec4<f32>
 }
 
-fn map_offsets(v: ViewerConsts, px: f32, py: f32, c: f32, seam: f32) -> vec2<f32> {
-    let tx = px;
-    let ty = v.orient * py;
-    let tz = 1.0 - c;
-    let wx = v.cos_v * tx + v.sin_v * tz;
-    let wy = ty;
-    let rho = sqrt(wx * wx + wy * wy);
-    var dcolat: f32;
-    if (wx > 0.0) {
-        let q = wy * wy / (rho + wx);
-        dcolat = atan2_precise(tx + v.cos_v * q, tz + v.sin_v * q);
-    }
-    else {
-        let wz = -v.sin_v * tx + v.cos_v * tz;
-        dcolat = atan2_precise(rho, wz) - v.colat;
-    }
-    dcolat = v.orient * dcolat;
-    var dlon = atan2_precise(wy, wx);
-    if (wx < 0.0) {
-        let s = seam * v.orient;
-        if (s < 0.0 && dlon > 0.0) {
-            dlon = dlon - TAU;
-        }
-        else if (s > 0.0 && dlon < 0.0) {
-            dlon = dlon + TAU;
-        }
-    }
-    return vec2<f32>(dlon, dcolat);
+struct Entry {
+    t: f32,
+    r: f32,
+    h: f32,
+    mu: f32,
+    mu_s: f32
+}
+
+struct Footprint {
+    minor: f32,
+    major: f32,
+    axis: vec2<f32>
 }
 
 struct Frame {
@@ -767,17 +805,47 @@ struct Level {
     pad: vec2<u32>
 }
 
-@group(0) @binding(0)
-var<uniform> frame: Frame;
+struct MeshPoint {
+    h: f32,
+    l: u32,
+    depth: f32
+}
 
-@group(0) @binding(1)
-var<uniform> levels: array<Level, MAX_RING + 1u>;
+struct RingPoint {
+    level: u32,
+    depth: f32
+}
 
-@group(0) @binding(2)
-var heights: texture_2d_array<f32>;
+struct Scatter {
+    radiance: vec3<f32>,
+    transmittance: vec3<f32>
+}
 
-@group(0) @binding(3)
-var colors: texture_2d_array<f32>;
+struct SkyOut {
+    @builtin(position)
+    clip: vec4<f32>
+}
+
+struct Taps {
+    i0: u32,
+    i1: u32,
+    j0: u32,
+    j1: u32,
+    f: vec2<f32>
+}
+
+struct VertexIn {
+    @location(0)
+    pxy: vec2<f32>,
+    @location(1)
+    one_minus_cos: f32,
+    @location(2)
+    seam: f32,
+    @location(3)
+    level: u32,
+    @location(4)
+    depth: f32
+}
 
 struct VertexOut {
     @builtin(position)
@@ -796,78 +864,9 @@ struct VertexOut {
     rel: vec3<f32>
 }
 
-fn height_at(l: u32, t: vec2<f32>) -> f32 {
-    let lv = levels[l];
-    let base = floor(t - vec2<f32>(0.5));
-    let f = t - vec2<f32>(0.5) - base;
-    var h = array<f32, 4>();
-    for (var k = 0u; k < 4u; k = k + 1u) {
-        let o = vec2<f32>(f32(k & 1u), f32(k >> 1u));
-        let p = vec2<i32>(base + o);
-        let size = vec2<i32>(lv.size);
-        let wrapped = ((p + vec2<i32>(lv.origin)) % size + size) % size;
-        h[k] = textureLoad(heights, wrapped, i32(l), 0).x;
-    }
-    return mix(mix(h[0], h[1], f.x), mix(h[2], h[3], f.x), f.y);
+struct ViewerConsts {
+    sin_v: f32,
+    cos_v: f32,
+    colat: f32,
+    orient: f32
 }
-
-fn texel_of(l: u32, off: vec2<f32>) -> vec2<f32> {
-    let lv = levels[l];
-    return lv.viewer_texel + off * lv.texels_per_rad;
-}
-
-fn blend_of(l: u32, depth: f32) -> f32 {
-    if (l <= frame.level_lo) {
-        return 1.0;
-    }
-    return smoothstep(0.0, 0.5, depth);
-}
-
-struct MeshPoint {
-    h: f32,
-    l: u32,
-    depth: f32
-}
-
-fn mesh_height(level: u32, depth_in: f32, off: vec2<f32>) -> MeshPoint {
-    let l = min(level, frame.level_hi);
-    let depth = select(depth_in, 1.0, level > frame.level_hi);
-    let lv = max(l, frame.level_lo + 1u) - 1u;
-    let a = select(blend_of(l, depth) * levels[l].fade, 1.0, lv <= frame.level_lo);
-    var h = height_at(lv, texel_of(lv, off));
-    if (a < 1.0) {
-        h = mix(height_at(lv - 1u, texel_of(lv - 1u, off)), h, a);
-    }
-    return MeshPoint(h * frame.exaggeration, l, depth);
-}
-
-struct RingPoint {
-    level: u32,
-    depth: f32
-}
-
-fn ring_of(one_minus_cos: f32) -> RingPoint {
-    let theta = 2.0 * asin(sqrt(0.5 * one_minus_cos));
-    let lam = log2(1.5707964 / max(theta, 1e-30));
-    let ring = clamp(floor(lam), 0.0, f32(MAX_RING));
-    if (u32(ring) < frame.level_lo) {
-        return RingPoint(frame.level_lo, 0.0);
-    }
-    return RingPoint(u32(ring), clamp(lam - ring, 0.0, 1.0));
-}
-
-fn vertex_out(p: vec3<f32>, mp: MeshPoint, seam: f32) -> VertexOut {
-    let h = mp.h;
-    let r = frame.radius + h;
-    let rel = vec3<f32>(r * p.x, r * p.y, h - frame.cam_height - r * p.z);
-    var out: VertexOut;
-    out.clip = frame.view_proj * vec4<f32>(rel, 1.0);
-    out.height = h;
-    out.level = mp.l;
-    out.p = p;
-    out.seam = seam;
-    out.lvl = f32(mp.l) + mp.depth;
-    out.rel = rel;
-    return out;
-}
-

@@ -1,15 +1,6 @@
 // Composed by wesl from shaders/transform_probe.wesl (features: probe): do not edit.
 // `SPHERECLIP_BLESS=1 cargo test -p sc_view_gpu --test shaders composed` rewrites it.
 
-@group(0) @binding(0)
-var<uniform> viewer: ViewerConsts;
-
-@group(0) @binding(1)
-var<storage, read> vertices: array<vec4<f32>>;
-
-@group(0) @binding(2)
-var<storage, read_write> offsets: array<vec2<f32>>;
-
 @compute @workgroup_size(64)
 fn probe(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = id.x;
@@ -20,19 +11,16 @@ fn probe(@builtin(global_invocation_id) id: vec3<u32>) {
     offsets[i] = map_offsets(viewer, v.x, v.y, v.z, v.w);
 }
 
-struct ViewerConsts {
-    sin_v: f32,
-    cos_v: f32,
-    colat: f32,
-    orient: f32
-}
+@group(0) @binding(0)
+var<uniform> viewer: ViewerConsts;
+
+@group(0) @binding(1)
+var<storage, read> vertices: array<vec4<f32>>;
+
+@group(0) @binding(2)
+var<storage, read_write> offsets: array<vec2<f32>>;
 
 const TAU: f32 = 6.283185307179586;
-
-fn atan_series(z: f32) -> f32 {
-    let z2 = z * z;
-    return z * (1.0 + z2 * (-1.0 / 3.0 + z2 * (1.0 / 5.0 + z2 * (-1.0 / 7.0 + z2 * (1.0 / 9.0 + z2 * (-1.0 / 11.0 + z2 * (1.0 / 13.0 - z2 / 15.0)))))));
-}
 
 fn atan2_precise(y: f32, x: f32) -> f32 {
     let ax = abs(x);
@@ -56,6 +44,11 @@ fn atan2_precise(y: f32, x: f32) -> f32 {
         r = 3.141592653589793 - r;
     }
     return select(r, -r, y < 0.0);
+}
+
+fn atan_series(z: f32) -> f32 {
+    let z2 = z * z;
+    return z * (1.0 + z2 * (-1.0 / 3.0 + z2 * (1.0 / 5.0 + z2 * (-1.0 / 7.0 + z2 * (1.0 / 9.0 + z2 * (-1.0 / 11.0 + z2 * (1.0 / 13.0 - z2 / 15.0)))))));
 }
 
 fn map_offsets(v: ViewerConsts, px: f32, py: f32, c: f32, seam: f32) -> vec2<f32> {
@@ -88,3 +81,9 @@ fn map_offsets(v: ViewerConsts, px: f32, py: f32, c: f32, seam: f32) -> vec2<f32
     return vec2<f32>(dlon, dcolat);
 }
 
+struct ViewerConsts {
+    sin_v: f32,
+    cos_v: f32,
+    colat: f32,
+    orient: f32
+}

@@ -52,10 +52,10 @@ pub fn shader_constants() -> String {
 }
 
 /// The composed WGSL of one pipeline: `shaders/composed/<name>.wgsl`, which wesl composes from
-/// the WESL modules of `shaders/` (imports resolved, `@if` features chosen). The composer runs in
-/// a test (`tests/shaders.rs`, which fails when a file is not what the modules compose and
-/// rewrites it under `SPHERECLIP_BLESS=1`), not in a build script: its parser would otherwise be
-/// compiled for every profile and target a build makes.
+/// the WESL modules of `shaders/` (imports resolved, `@if` features chosen). The composer runs
+/// in a test (`viewer/gpu/tests/shaders.rs`, which fails when a file is not what the modules
+/// compose and rewrites it under `SPHERECLIP_BLESS=1`), not in a build script: its parser would
+/// otherwise be compiled for every profile and target a build makes.
 macro_rules! composed {
     ($name:literal) => {
         include_str!(concat!(

@@ -152,9 +152,30 @@ const COMPOSED: [(&str, &str, &[&str]); 9] = [
     ("warp_probe", "warp_probe", &["probe"]),
 ];
 
+/// WGSL's module-scope declarations in one order whatever order they come in: wesl emits the
+/// imported modules' declarations in an order that changes from run to run (its module table is a
+/// hash map), and WGSL gives that order no meaning. wesl writes one blank line between two
+/// declarations and none inside one, so the declarations are the text's blank-line-separated
+/// parts; directives (`enable`, `requires`, `diagnostic`) stay first.
+fn canonical(wgsl: &str) -> String {
+    let mut items: Vec<&str> = wgsl
+        .split("\n\n")
+        .map(str::trim)
+        .filter(|i| !i.is_empty())
+        .collect();
+    let directive = |i: &str| {
+        ["enable", "requires", "diagnostic"]
+            .iter()
+            .any(|d| i.starts_with(d))
+    };
+    items.sort_by_key(|i| (!directive(i), *i));
+    items.join("\n\n") + "\n"
+}
+
 /// The WGSL wesl composes from `shaders/<root>.wesl` with `features` set, names kept as written
 /// (one namespace across the modules, so the entry points and every name keep the spelling the
-/// Rust side uses), with the header that says where it came from.
+/// Rust side uses), declarations in [`canonical`] order, with the header that says where it came
+/// from.
 fn compose(root: &str, features: &[&str]) -> String {
     use wesl::{CompileOptions, ManglerKind, Wesl};
     let shaders = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shaders");
@@ -173,12 +194,13 @@ fn compose(root: &str, features: &[&str]) -> String {
         .unwrap_or_else(|e| panic!("shaders/{root}.wesl: {e}"));
     format!(
         "// Composed by wesl from shaders/{root}.wesl (features: {}): do not edit.\n\
-         // `SPHERECLIP_BLESS=1 cargo test -p sc_view_gpu --test shaders composed` rewrites it.\n\n{wgsl}\n",
+         // `SPHERECLIP_BLESS=1 cargo test -p sc_view_gpu --test shaders composed` rewrites it.\n\n{}",
         if features.is_empty() {
             "none".to_string()
         } else {
             features.join(", ")
-        }
+        },
+        canonical(&wgsl.to_string())
     )
 }
 
