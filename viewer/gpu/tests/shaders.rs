@@ -156,12 +156,20 @@ const COMPOSED: [(&str, &str, &[&str]); 9] = [
 /// imported modules' declarations in an order that changes from run to run (its module table is a
 /// hash map), and WGSL gives that order no meaning. wesl writes one blank line between two
 /// declarations and none inside one, so the declarations are the text's blank-line-separated
-/// parts; directives (`enable`, `requires`, `diagnostic`) stay first.
+/// parts (a part that opens indented or with a closing brace would be the inside of one, and is
+/// refused rather than moved); directives (`enable`, `requires`, `diagnostic`) stay first.
 fn canonical(wgsl: &str) -> String {
     let mut items: Vec<&str> = wgsl
         .split("\n\n")
+        .map(|i| i.trim_start_matches('\n'))
+        .filter(|i| !i.trim().is_empty())
+        .inspect(|i| {
+            assert!(
+                !i.starts_with([' ', '\t', '}']),
+                "wesl wrote a blank line inside a declaration; the composed order cannot be made canonical:\n{i}"
+            );
+        })
         .map(str::trim)
-        .filter(|i| !i.is_empty())
         .collect();
     let directive = |i: &str| {
         ["enable", "requires", "diagnostic"]
