@@ -32,7 +32,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .transpose()?
         .unwrap_or(11)
         .max(2);
-    let heights = RoughMountains { radius_m: R };
+    let heights = RoughMountains::new(R);
     let views = [
         ("space", "20,10,8000000,0,-90,40"),
         ("aircraft", "28.0,86.9,9000,200,-10,60"),

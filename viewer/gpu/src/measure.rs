@@ -20,15 +20,18 @@ use crate::render::RenderError;
 pub struct RoughMountains {
     /// The sphere's radius, metres.
     pub radius_m: f64,
+    /// Each wave's unit direction scaled by its wavenumber, amplitude and phase: fixed by the
+    /// radius, so made once instead of at every height asked for.
+    waves: [(DVec3, f64, f64); 18],
 }
 
 impl RoughMountains {
-    /// The height at unit direction `u` (world frame), metres.
-    pub fn at(&self, u: DVec3) -> f64 {
-        let mut h = 0.0;
+    /// The mountains on a sphere of `radius_m` metres.
+    pub fn new(radius_m: f64) -> Self {
+        let mut waves = [(DVec3::ZERO, 0.0, 0.0); 18];
         for octave in 0..6 {
             let lambda = 2.0e6 * 0.1f64.powi(octave);
-            let k = 2.0 * std::f64::consts::PI * self.radius_m / lambda;
+            let k = 2.0 * std::f64::consts::PI * radius_m / lambda;
             let a = 3000.0 * 0.1f64.powf(0.7 * f64::from(octave));
             for j in 0..3 {
                 let t = f64::from(octave * 3 + j);
@@ -37,8 +40,17 @@ impl RoughMountains {
                     (2.1 * t + 0.4).cos(),
                     (0.7 * t + 1.1).sin(),
                 );
-                h += a / 3.0 * (k * u.dot(d.normalize()) + t).sin();
+                waves[(octave * 3 + j) as usize] = (d.normalize(), k, a / 3.0);
             }
+        }
+        Self { radius_m, waves }
+    }
+
+    /// The height at unit direction `u` (world frame), metres.
+    pub fn at(&self, u: DVec3) -> f64 {
+        let mut h = 0.0;
+        for (i, &(d, k, a)) in self.waves.iter().enumerate() {
+            h += a * (k * u.dot(d) + i as f64).sin();
         }
         h
     }

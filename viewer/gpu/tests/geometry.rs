@@ -14,7 +14,9 @@ use sc_view_plan::terrain::warp::WarpSpec;
 use sc_view_space::camera::Camera;
 
 const R: f64 = sc_core::EARTH_RADIUS_M;
-const HEIGHTS: RoughMountains = RoughMountains { radius_m: R };
+fn mountains() -> RoughMountains {
+    RoughMountains::new(R)
+}
 
 fn renderer(geometry: Geometry) -> Renderer {
     let mut r = Renderer::headless(320, 180, R).unwrap_or_else(|e| {
@@ -59,6 +61,7 @@ const GEOMETRIES: [(&str, Geometry); 4] = [
 
 #[test]
 fn drawn_heights_against_an_f64_evaluation_in_pixels() {
+    let heights = mountains();
     for (name, g) in GEOMETRIES {
         let mut r = renderer(g);
         for cam in [
@@ -68,8 +71,8 @@ fn drawn_heights_against_an_f64_evaluation_in_pixels() {
             "20,-60,8000000,0,-90,40",
         ] {
             let cam = Camera::parse(cam).expect("camera");
-            let f = DepthFrame::render(&mut r, &mut HEIGHTS.clone(), &cam, R).expect("render");
-            let mut err = f.vertical_error(|u| HEIGHTS.at(u));
+            let f = DepthFrame::render(&mut r, &mut heights.clone(), &cam, R).expect("render");
+            let mut err = f.vertical_error(|u| heights.at(u));
             let n = err.len();
             let (med, p99) = (quantile(&mut err, 0.5), quantile(&mut err, 0.99));
             eprintln!(
@@ -90,6 +93,7 @@ fn drawn_heights_against_an_f64_evaluation_in_pixels() {
 
 #[test]
 fn the_surface_does_not_pop_along_a_slow_flight() {
+    let heights = mountains();
     for (name, g) in GEOMETRIES {
         let mut r = renderer(g);
         for start in ["28.0,86.9,3000,90,-15,60", "46.5,8.0,30,90,-10,60"] {
@@ -97,11 +101,11 @@ fn the_surface_does_not_pop_along_a_slow_flight() {
             // half a pixel's ground distance under the camera a frame, eastwards
             let step = 0.5 * cam.alt * (cam.fov.to_radians() / 180.0).tan();
             let mut prev =
-                DepthFrame::render(&mut r, &mut HEIGHTS.clone(), &cam, R).expect("render");
+                DepthFrame::render(&mut r, &mut heights.clone(), &cam, R).expect("render");
             let mut moves = Vec::new();
             for _ in 0..24 {
                 cam.lon_deg += (step / (R * cam.lat_deg.to_radians().cos())).to_degrees();
-                let f = DepthFrame::render(&mut r, &mut HEIGHTS.clone(), &cam, R).expect("render");
+                let f = DepthFrame::render(&mut r, &mut heights.clone(), &cam, R).expect("render");
                 moves.extend(f.moves_since(&prev));
                 prev = f;
             }
