@@ -18,10 +18,8 @@ use crate::render::RenderError;
 /// octave, wavelengths 2000 km down to 20 m, amplitudes falling as λ^0.7 (3 km at the top).
 #[derive(Debug, Clone, Copy)]
 pub struct RoughMountains {
-    /// The sphere's radius, metres.
-    pub radius_m: f64,
-    /// Each wave's unit direction scaled by its wavenumber, amplitude and phase: fixed by the
-    /// radius, so made once instead of at every height asked for.
+    /// Wave `i`'s unit direction, wavenumber (radians per unit of `u · direction`) and
+    /// amplitude; its phase is `i`. Fixed by the radius, so made once, not at every height.
     waves: [(DVec3, f64, f64); 18],
 }
 
@@ -43,7 +41,7 @@ impl RoughMountains {
                 waves[(octave * 3 + j) as usize] = (d.normalize(), k, a / 3.0);
             }
         }
-        Self { radius_m, waves }
+        Self { waves }
     }
 
     /// The height at unit direction `u` (world frame), metres.

@@ -14,9 +14,6 @@ use sc_view_plan::terrain::warp::WarpSpec;
 use sc_view_space::camera::Camera;
 
 const R: f64 = sc_core::EARTH_RADIUS_M;
-fn mountains() -> RoughMountains {
-    RoughMountains::new(R)
-}
 
 fn renderer(geometry: Geometry) -> Renderer {
     let mut r = Renderer::headless(320, 180, R).unwrap_or_else(|e| {
@@ -61,7 +58,7 @@ const GEOMETRIES: [(&str, Geometry); 4] = [
 
 #[test]
 fn drawn_heights_against_an_f64_evaluation_in_pixels() {
-    let heights = mountains();
+    let heights = RoughMountains::new(R);
     for (name, g) in GEOMETRIES {
         let mut r = renderer(g);
         for cam in [
@@ -93,7 +90,7 @@ fn drawn_heights_against_an_f64_evaluation_in_pixels() {
 
 #[test]
 fn the_surface_does_not_pop_along_a_slow_flight() {
-    let heights = mountains();
+    let heights = RoughMountains::new(R);
     for (name, g) in GEOMETRIES {
         let mut r = renderer(g);
         for start in ["28.0,86.9,3000,90,-15,60", "46.5,8.0,30,90,-10,60"] {
