@@ -594,7 +594,7 @@ fn map_offsets(v: ViewerConsts, px: f32, py: f32, c: f32, seam: f32) -> vec2<f32
 fn mesh_height(level: u32, depth_in: f32, off: vec2<f32>) -> MeshPoint {
     let l = min(level, frame.level_hi);
     let depth = select(depth_in, 1.0, level > frame.level_hi);
-    let lv = max(l, frame.level_lo + 1u) - 1u;
+    let lv = l;
     let a = select(blend_of(l, depth) * levels[l].fade, 1.0, lv <= frame.level_lo);
     var h = height_at(lv, texel_of(lv, off));
     if (a < 1.0) {

@@ -18,6 +18,7 @@ mod render;
 mod safety;
 mod serve;
 mod shading;
+mod skyline;
 mod store;
 mod store_damage;
 mod tidy;

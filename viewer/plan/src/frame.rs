@@ -338,15 +338,22 @@ impl FramePlanner {
         todo
     }
 
-    /// Levels to draw for `camera` into a target `h` pixels high (§4.5).
-    fn visible(&self, camera: &Camera, h: u32) -> (u32, u32) {
+    /// Levels to draw for `camera` into a target `h` pixels high (§4.5), with the hemisphere
+    /// for that picture (made anew when the picture asks for another).
+    fn visible(&mut self, camera: &Camera, h: u32) -> (u32, u32) {
+        let spec = HemisphereSpec::for_picture(h, camera.fov.to_radians());
+        if spec != self.hemi.spec {
+            self.hemi = Hemisphere::new(spec);
+        }
         visible_levels(
             self.radius,
             camera.alt,
             MAX_GROUND_M,
             camera.fov.to_radians(),
             h,
-            self.hemi.spec.n,
+            // the levels the picture needs are those of the default hemisphere's cells: a
+            // denser hemisphere (a bigger picture) adds vertices, not coarser finest levels
+            HemisphereSpec::default().n,
             self.hemi.spec.levels,
         )
     }

@@ -201,3 +201,208 @@ impl RayCaster {
         Some([c[0], c[1], c[2]])
     }
 }
+
+/// The skyline of a picture as an f64 march of the finest stored heights draws it: where, in each
+/// column of a `w × h` picture from `camera`, the terrain meets the sky, with no clipmap, mesh
+/// or level of detail in between. The tests of the renderers' geometry compare their drawn
+/// skylines with it.
+///
+/// A column's pixel centres all lie on one plane through the eye. The march walks that plane
+/// outwards, finds the terrain's surface on it at each step (the line in the plane nearest to
+/// the local vertical, raised to the height there by fixed-point steps, as the ray-caster does)
+/// and keeps the steepest point seen from the eye. It stops when even the highest terrain the
+/// store holds (`top_m`) could no longer rise above that point, or at the horizon.
+#[derive(Debug)]
+pub struct Skyline {
+    /// Per column, the row coordinate of the skyline in pixel-centre units (row `y`'s centre is
+    /// at `y`): a pixel centre lies on terrain exactly when its row is greater; `None` where the
+    /// column's plane meets no terrain ahead.
+    pub rows: Vec<Option<f64>>,
+}
+
+impl Skyline {
+    /// The first row (from the top) whose pixel centre lies on terrain, per column; `h` where
+    /// none does, 0 where all do.
+    pub fn first_terrain_rows(&self, h: u32) -> Vec<Option<u32>> {
+        self.rows
+            .iter()
+            .map(|r| r.map(|y| (y.floor() + 1.0).clamp(0.0, f64::from(h)) as u32))
+            .collect()
+    }
+
+    /// The skyline of `heights` (at their finest: the store's finest level with data at each
+    /// point) seen from `camera` (its altitude above the finest ground under it) on a sphere of
+    /// `radius` metres, heights scaled by `exaggeration`; `top_m` bounds every height (scaled)
+    /// within the horizon's reach. Only columns `first`, `first + step`, … are marched (the others
+    /// are `None`): marches over their own height sources draw a picture's columns in parallel.
+    pub fn march(
+        heights: &mut dyn HeightSource,
+        camera: &Camera,
+        (w, h): (u32, u32),
+        radius: f64,
+        exaggeration: f64,
+        top_m: f64,
+        (first, step): (u32, u32),
+    ) -> Self {
+        let mut height = |p: DVec3| -> f64 {
+            let colat = PI / 2.0 - (p.z / p.length()).clamp(-1.0, 1.0).asin();
+            f64::from(heights.height(p.y.atan2(p.x), colat, FINEST)) * exaggeration
+        };
+        let under = DVec3::from_array(unit_of(camera.lat_deg, camera.lon_deg));
+        let ground = height(under);
+        let view = ViewFrame::new(camera, radius + ground);
+        let ty = (camera.fov.to_radians() / 2.0).tan();
+        let tx = ty * f64::from(w) / f64::from(h);
+        let rows = (0..w)
+            .map(|x| {
+                if x < first || (x - first) % step.max(1) != 0 {
+                    return None;
+                }
+                let kx = (2.0 * (f64::from(x) + 0.5) / f64::from(w) - 1.0) * tx;
+                let c = view.forward + view.right * kx;
+                let ky = column_top(&mut height, view.eye, c, view.up, radius, top_m)?;
+                Some(f64::from(h) * (1.0 - ky / ty) / 2.0 - 0.5)
+            })
+            .collect();
+        Self { rows }
+    }
+
+    /// The columns each of `parts` marched, put together.
+    pub fn join(parts: Vec<Self>) -> Self {
+        let w = parts.first().map_or(0, |p| p.rows.len());
+        let rows = (0..w)
+            .map(|x| parts.iter().find_map(|p| p.rows[x]))
+            .collect();
+        Self { rows }
+    }
+}
+
+/// Fixed-point steps a skyline march takes at each point (from the previous point's height).
+const SKYLINE_STEPS: usize = 3;
+
+/// The greatest `k` for which the ray `c + k·up` from `eye` meets the terrain (`c ⟂ up`), by a
+/// march along the plane of those rays; `None` if it meets none.
+fn column_top(
+    height: &mut impl FnMut(DVec3) -> f64,
+    eye: DVec3,
+    c: DVec3,
+    up: DVec3,
+    radius: f64,
+    top_m: f64,
+) -> Option<f64> {
+    let len = c.length();
+    let ahead = c / len;
+    let normal = ahead.cross(up).normalize();
+    // the highest point of the sphere `r` on the line from `p` along `w`, as the column's `k`
+    let on_line = |p: DVec3, w: DVec3, r: f64| -> Option<(DVec3, f64)> {
+        let b = p.dot(w);
+        let disc = b * b - (p.length_squared() - r * r);
+        if disc < 0.0 {
+            return None;
+        }
+        let x = p + w * (disc.sqrt() - b);
+        let e = x - eye;
+        let a = e.dot(ahead);
+        (a > 0.0).then(|| (x, len * e.dot(up) / a))
+    };
+    let mut best: Option<f64> = None;
+    let mut bound_prev = f64::INFINITY;
+    // the last step's height: the next step's first guess
+    let mut last = 0.0;
+    let mut along = 10.0;
+    while along < 4.0e6 {
+        let p = eye + ahead * along;
+        // the line in the column's plane nearest the local vertical at `p`
+        let radial = p.normalize();
+        let w = (radial - normal * radial.dot(normal)).normalize();
+        // 20 m steps to 20 km, then a thousandth of the distance (the finest data here are 150 m
+        // texels, which a 500 m step would still cross only beyond 500 km)
+        let step = (along / 1000.0).clamp(20.0, 500.0);
+        along += step;
+        // the highest terrain there could be on this line: once it is below the skyline found
+        // and sinking, nothing farther can rise above it
+        let Some((_, bound)) = on_line(p, w, radius + top_m) else {
+            if best.is_some() {
+                break;
+            }
+            continue;
+        };
+        if let Some(b) = best
+            && bound < b
+            && bound < bound_prev
+        {
+            break;
+        }
+        bound_prev = bound;
+        // fixed-point steps from the last step's height (the line is near the local vertical,
+        // so each step shrinks the error by the terrain's slope times the line's small tilt)
+        let mut r = radius + last;
+        let mut hit = None;
+        for _ in 0..SKYLINE_STEPS {
+            let Some((x, _)) = on_line(p, w, r) else {
+                break;
+            };
+            last = height(x);
+            r = radius + last;
+            hit = on_line(p, w, r);
+        }
+        if let Some((_, k)) = hit {
+            best = Some(best.map_or(k, |b: f64| b.max(k)));
+        }
+    }
+    best
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Terrain at one height everywhere: a sphere.
+    struct Level(f32);
+
+    impl HeightSource for Level {
+        fn height(&mut self, _: f64, _: f64, _: LevelWindow) -> f32 {
+            self.0
+        }
+    }
+
+    #[test]
+    fn a_skyline_over_a_sphere_is_its_exact_horizon() {
+        const R: f64 = 6_371_000.0;
+        for (ground, alt, heading, pitch, fov) in [
+            // (ground m, altitude m, heading°, pitch°, field of view°)
+            (0.0f32, 3000.0f64, 50.0, 0.0, 60.0f64),
+            (1500.0, 10.0, 200.0, 0.0, 40.0),
+            (-400.0, 250_000.0, 0.0, 0.0, 90.0),
+        ] {
+            let cam =
+                Camera::parse(&format!("46,8,{alt},{heading},{pitch},{fov}")).expect("camera");
+            let (w, h) = (96, 54);
+            let sky = Skyline::march(
+                &mut Level(ground),
+                &cam,
+                (w, h),
+                R,
+                1.0,
+                f64::from(ground),
+                (0, 1),
+            );
+            // level, the column planes are vertical: each meets the sphere's tangent ray at the
+            // horizon's dip below its level direction
+            let (sphere, eye) = (R + f64::from(ground), R + f64::from(ground) + alt);
+            let dip = (sphere / eye).acos();
+            let ty = (fov.to_radians() / 2.0).tan();
+            let tx = ty * f64::from(w) / f64::from(h);
+            for (x, row) in sky.rows.iter().enumerate() {
+                let kx = (2.0 * (x as f64 + 0.5) / f64::from(w) - 1.0) * tx;
+                let ky = -(1.0 + kx * kx).sqrt() * dip.tan();
+                let want = f64::from(h) * (1.0 - ky / ty) / 2.0 - 0.5;
+                let got = row.expect("a horizon in every column");
+                assert!(
+                    (got - want).abs() < 2e-3,
+                    "{alt} m up, column {x}: {got} vs {want}"
+                );
+            }
+        }
+    }
+}

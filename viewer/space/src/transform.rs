@@ -332,11 +332,12 @@ pub fn ring_of(theta: f64) -> f64 {
     (std::f64::consts::FRAC_PI_2 / theta).log2().floor()
 }
 
-/// The level whose heights the mesh of ring `i` carries (`shaders/clipmap.wesl`, `vs_main`): the
-/// next coarser one, whose texels are about as far apart as the ring's vertices (the ring's own,
-/// twice as fine, shade it), or the coarsest level drawn.
+/// The level whose heights the mesh of ring `i` carries (`mesh_height` in `shaders/mesh.wesl`):
+/// its own, the finest whose window holds the ring (blended into the next coarser one towards
+/// the ring's outer edge). `lo`, the coarsest level drawn, is kept in the signature for callers
+/// that ask about any ring: no level coarser than it is read.
 pub fn vertex_level(i: u32, lo: u32) -> u32 {
-    i.max(lo + 1) - 1
+    i.max(lo)
 }
 
 /// The finest of levels `lo..=hi` whose ground can show in the view (coarse levels first: a

@@ -6,7 +6,7 @@ use std::ops::Range;
 
 use bytemuck::{Pod, Zeroable};
 use sc_view_plan::terrain::GeometryFrame;
-use sc_view_plan::terrain::clipmap::HemisphereFrame;
+use sc_view_plan::terrain::clipmap::{Hemisphere, HemisphereFrame, HemisphereSpec};
 use wgpu::util::DeviceExt;
 
 use super::{TerrainDraw, TerrainRenderer, TerrainSetup, TerrainStage, pipeline_of};
@@ -31,34 +31,42 @@ pub struct HemisphereRenderer {
     /// Per level, the indices of its rings and of its fill disc.
     level_ranges: Vec<Range<u32>>,
     fill_ranges: Vec<Range<u32>>,
+    /// Which hemisphere the buffers hold.
+    spec: HemisphereSpec,
+}
+
+/// A hemisphere's vertex and index buffers.
+fn buffers(device: &wgpu::Device, hemi: &Hemisphere) -> (wgpu::Buffer, wgpu::Buffer) {
+    let verts: Vec<GpuVertex> = hemi
+        .vertices
+        .iter()
+        .map(|v| GpuVertex {
+            pxy: [v.px, v.py],
+            one_minus_cos: v.one_minus_cos,
+            seam: v.seam,
+            level: v.level,
+            depth: v.depth,
+        })
+        .collect();
+    let vertices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some("hemisphere vertices"),
+        contents: bytemuck::cast_slice(&verts),
+        usage: wgpu::BufferUsages::VERTEX,
+    });
+    let indices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some("hemisphere indices"),
+        contents: bytemuck::cast_slice(&hemi.indices),
+        usage: wgpu::BufferUsages::INDEX,
+    });
+    (vertices, indices)
 }
 
 impl HemisphereRenderer {
     /// The hemisphere of `setup` on its device.
     pub fn new(setup: &TerrainSetup<'_>) -> Self {
         let hemi = setup.hemisphere;
-        let verts: Vec<GpuVertex> = hemi
-            .vertices
-            .iter()
-            .map(|v| GpuVertex {
-                pxy: [v.px, v.py],
-                one_minus_cos: v.one_minus_cos,
-                seam: v.seam,
-                level: v.level,
-                depth: v.depth,
-            })
-            .collect();
         let device = setup.device;
-        let vertices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("hemisphere vertices"),
-            contents: bytemuck::cast_slice(&verts),
-            usage: wgpu::BufferUsages::VERTEX,
-        });
-        let indices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("hemisphere indices"),
-            contents: bytemuck::cast_slice(&hemi.indices),
-            usage: wgpu::BufferUsages::INDEX,
-        });
+        let (vertices, indices) = buffers(device, hemi);
         let layout = setup.pipeline_layout("clipmap", None);
         let buffers = [wgpu::VertexBufferLayout {
             array_stride: std::mem::size_of::<GpuVertex>() as u64,
@@ -79,13 +87,26 @@ impl HemisphereRenderer {
             indices,
             level_ranges: hemi.level_ranges.clone(),
             fill_ranges: hemi.fill_ranges.clone(),
+            spec: hemi.spec,
         }
     }
 }
 
 impl TerrainRenderer for HemisphereRenderer {
-    fn upload(&mut self, _: &wgpu::Device, _: &wgpu::Queue, frame: &GeometryFrame) -> bool {
-        frame.get::<HemisphereFrame>().is_some()
+    /// Takes the hemisphere's frame; makes the buffers anew when the picture asks for another
+    /// hemisphere (a new size or field of view).
+    fn upload(&mut self, device: &wgpu::Device, _: &wgpu::Queue, frame: &GeometryFrame) -> bool {
+        let Some(&HemisphereFrame(spec)) = frame.get::<HemisphereFrame>() else {
+            return false;
+        };
+        if spec != self.spec {
+            let hemi = Hemisphere::new(spec);
+            (self.vertices, self.indices) = buffers(device, &hemi);
+            self.level_ranges = hemi.level_ranges;
+            self.fill_ranges = hemi.fill_ranges;
+            self.spec = spec;
+        }
+        true
     }
 
     fn draw(&self, pass: &mut wgpu::RenderPass<'_>, how: &TerrainDraw) {

@@ -48,11 +48,42 @@ pub struct HemisphereSpec {
 }
 
 impl Default for HemisphereSpec {
-    /// 256 steps around, 16 rings per level, 26 levels (the finest ring ≈ 0.3 m on Earth).
+    /// 256 steps around, 16 rings per level, 26 levels (the finest ring ≈ 0.3 m on Earth): the
+    /// hemisphere of a picture up to about 270 pixels high at a 60° field of view.
     fn default() -> Self {
         Self {
             n: 256,
             m: 16,
+            levels: LEVELS,
+        }
+    }
+}
+
+/// The largest a step around the hemisphere may look on screen, pixels: the width of a cell seen
+/// from beside it (the ground ahead of a camera near it, where a cell's width faces the camera
+/// across the distance its arc from the viewer is). The bound CDLOD puts on its triangles by
+/// default ([`crate::terrain::cdlod::CdlodSpec`]'s `pixel_error`).
+pub const STEP_PX: f64 = 8.0;
+
+/// The most steps around a hemisphere gets (a picture 2880 pixels high at 60°).
+pub const MAX_STEPS: u32 = 2048;
+
+impl HemisphereSpec {
+    /// The hemisphere for a picture `height_px` pixels high with vertical field of view
+    /// `fov_rad`: the fewest steps around, a power of two, at least the default's 256 and at most
+    /// [`MAX_STEPS`], for which a step's arc seen from beside it spans at most [`STEP_PX`] pixels
+    /// (2π/n radians against `fov / height` a pixel), and rings as much denser as the steps
+    /// (m = n/16: a cell keeps its shape). So a bigger or narrower picture gets proportionally
+    /// more vertices, and the mesh's cells keep their size on screen.
+    pub fn for_picture(height_px: u32, fov_rad: f64) -> Self {
+        let pixel = fov_rad.max(1e-6) / f64::from(height_px.max(1));
+        let wanted = 2.0 * PI / (STEP_PX * pixel);
+        let n = (wanted.min(f64::from(MAX_STEPS)).ceil() as u32)
+            .next_power_of_two()
+            .clamp(256, MAX_STEPS);
+        Self {
+            n,
+            m: n / 16,
             levels: LEVELS,
         }
     }
@@ -169,26 +200,49 @@ fn vertex(psi: f64, theta: f64, seam: f32, level: u32) -> Vertex {
     }
 }
 
-/// The hemisphere's frame: nothing to plan, its rings are fixed.
+/// The hemisphere's frame: which hemisphere its rings are (they depend on the picture only).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct HemisphereFrame;
+pub struct HemisphereFrame(pub HemisphereSpec);
 
 impl Drawn for HemisphereFrame {}
 
-/// Spherical geometry clipmaps: the hemisphere's rings are static, the frame planner has already
-/// counted their triangles.
+/// Spherical geometry clipmaps: the hemisphere's rings are static for a picture size and field
+/// of view ([`HemisphereSpec::for_picture`]); the frame planner has already counted their
+/// triangles.
 #[derive(Debug)]
 pub struct ClipmapGeometry;
 
 impl GeometryPlanner for ClipmapGeometry {
-    fn plan(&mut self, _: &GeometryInput<'_>) -> GeometryFrame {
-        GeometryFrame::new(HemisphereFrame)
+    fn plan(&mut self, input: &GeometryInput<'_>) -> GeometryFrame {
+        GeometryFrame::new(HemisphereFrame(HemisphereSpec::for_picture(
+            input.size.1,
+            input.camera.fov.to_radians(),
+        )))
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_bigger_or_narrower_picture_gets_proportionally_more_steps() {
+        let fov = 60f64.to_radians();
+        assert_eq!(
+            HemisphereSpec::for_picture(270, fov),
+            HemisphereSpec::default()
+        );
+        assert_eq!(HemisphereSpec::for_picture(180, fov).n, 256);
+        assert_eq!(HemisphereSpec::for_picture(540, fov).n, 512);
+        let big = HemisphereSpec::for_picture(1080, fov);
+        assert_eq!((big.n, big.m), (1024, 64));
+        assert_eq!(HemisphereSpec::for_picture(1080, fov / 4.0).n, MAX_STEPS);
+        for h in [100, 270, 540, 1080, 2160] {
+            let s = HemisphereSpec::for_picture(h, fov);
+            let step_px = 2.0 * PI / f64::from(s.n) / (fov / f64::from(h));
+            assert!(step_px <= STEP_PX, "{h} px: a step spans {step_px} px");
+        }
+    }
 
     #[test]
     fn rings_shrink_geometrically_and_every_level_has_its_own_index_range() {

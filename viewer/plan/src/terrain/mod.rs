@@ -43,7 +43,7 @@ pub struct GeometryFrame(std::sync::Arc<dyn Drawn>);
 
 impl Default for GeometryFrame {
     fn default() -> Self {
-        Self::new(clipmap::HemisphereFrame)
+        Self::new(clipmap::HemisphereFrame(Default::default()))
     }
 }
 
