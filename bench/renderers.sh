@@ -3,7 +3,8 @@
 # time, the render pass on the GPU's clock and CPU time per frame of the complete view (median of
 # FRAMES), leaves and culling, GPU memory.
 # Usage: bench/renderers.sh STORE [WxH] [FRAMES]; RENDERERS="clipmap cdlod cdlod:8:16 warp warp:256"
-# picks the renderers (cdlod:PATCH:PIXELS sets CDLOD's options, warp:MESH the warped mesh's size).
+# picks the renderers (cdlod:PATCH:PIXELS sets CDLOD's options, warp:MESH the warped mesh's size);
+# VIEWS, lines of "NAME CAMERA", the views.
 set -euo pipefail
 store=${1:?usage: bench/renderers.sh STORE [WxH] [FRAMES]}
 size=${2:-640x360}
@@ -18,6 +19,9 @@ views=(
   "antimeridian 10,179.999,3000,90,-12,60"
   "south-pole -89.95,45,100,180,-6,70"
 )
+if [ -n "${VIEWS:-}" ]; then
+  mapfile -t views <<<"$VIEWS"
+fi
 printf '| view | renderer | triangles | frame ms | GPU pass ms | CPU ms | leaves (culled frustum / horizon) | geometry MiB |\n|---|---|---|---|---|---|---|---|\n'
 for v in "${views[@]}"; do
   name=${v%% *}; cam=${v#* }
