@@ -19,20 +19,14 @@ use sc_view_plan::reference::Skyline;
 use sc_view_plan::terrain::Geometry;
 use sc_view_space::camera::Camera;
 
-use crate::util::{fixture, ok, run, s, sample};
+use crate::util::{etopo5_at_level_3, fixture, ok, run, s, sample};
 
 /// ETOPO5 at level 3 with the Aletsch DEM (200 m, LV95) ingested at its own level (9) over it,
 /// pyramid built.
 pub fn alps_over_etopo5() -> PathBuf {
     fixture("alps-l9", |d| {
         let store = d.join("alps.zarr");
-        ok(&run(&[
-            "ingest",
-            s(&store),
-            s(&sample("etopo5.cdf.gz")),
-            "--level",
-            "3",
-        ]));
+        etopo5_at_level_3(&store);
         ok(&run(&[
             "ingest",
             s(&store),

@@ -258,17 +258,22 @@ pub const BLUE_MARBLE_L3: [&str; 6] = [
     "-180,-90,180,90",
 ];
 
+/// ETOPO5 ingested into `store` at level 3 (4096×2048 with 256² tiles, its own resolution).
+pub fn etopo5_at_level_3(store: &Path) {
+    ok(&run(&[
+        "ingest",
+        s(store),
+        s(&sample("etopo5.cdf.gz")),
+        "--level",
+        "3",
+    ]));
+}
+
 /// The sample planet: ETOPO5 heights and Blue Marble colour at level 3, pyramid built.
 pub fn sample_planet() -> PathBuf {
     fixture("planet-l3", |d| {
         let store = d.join("planet.zarr");
-        ok(&run(&[
-            "ingest",
-            s(&store),
-            s(&sample("etopo5.cdf.gz")),
-            "--level",
-            "3",
-        ]));
+        etopo5_at_level_3(&store);
         let bm = sample("bluemarble_5400x2700.jpg");
         ok(&run(
             &[&["ingest", s(&store), s(&bm)][..], &BLUE_MARBLE_L3].concat()
