@@ -479,11 +479,10 @@ fn map_offsets(v: ViewerConsts, px: f32, py: f32, c: f32, seam: f32) -> vec2<f32
 fn mesh_height(level: u32, depth_in: f32, off: vec2<f32>) -> MeshPoint {
     let l = min(level, frame.level_hi);
     let depth = select(depth_in, 1.0, level > frame.level_hi);
-    let lv = l;
-    let a = select(blend_of(l, depth) * levels[l].fade, 1.0, lv <= frame.level_lo);
-    var h = height_at(lv, texel_of(lv, off));
+    let a = select(blend_of(l, depth) * levels[l].fade, 1.0, l <= frame.level_lo);
+    var h = height_at(l, texel_of(l, off));
     if (a < 1.0) {
-        h = mix(height_at(lv - 1u, texel_of(lv - 1u, off)), h, a);
+        h = mix(height_at(l - 1u, texel_of(l - 1u, off)), h, a);
     }
     return MeshPoint(h * frame.exaggeration, l, depth);
 }

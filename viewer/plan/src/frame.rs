@@ -463,8 +463,8 @@ impl FramePlanner {
             }
             self.level_uniforms[i as usize] = level_uniform(&p, &pc);
         }
-        // the ground under the camera, as drawn: the mesh there carries the heights of the level
-        // before the finest drawn (see `vertex_level`)
+        // the ground under the camera, as drawn: the mesh there carries the heights of the
+        // finest level drawn (see `vertex_level`)
         let p = Placement::new(vertex_level(hi, lo), &viewer, CLIPMAP_N);
         let ground = at_viewer(&p, |c, r| {
             let (lon, colat) = p.texel_centre(c.max(0) as u32, r.max(0) as u32);
@@ -831,7 +831,7 @@ impl FramePlanner {
         };
         // the ground under the camera, as the mesh there would carry it once the finest level
         // with its heights made (drawn or not: the same as a full render's once the prefetch is
-        // done) is drawn: the heights of the level before it (`vertex_level`)
+        // done) is drawn: that level's own heights (`vertex_level`)
         let height_quad = |i: u32| -> Option<(Placement, Vec<Tile>)> {
             let &(_, p, grid) = windows.iter().find(|w| w.0 == i)?;
             let quad: Option<Vec<Tile>> = quad_keys(sources.height, grid, &p, n)

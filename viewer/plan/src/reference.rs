@@ -34,6 +34,13 @@ pub struct RayCaster {
     exaggeration: f64,
 }
 
+/// The height (scaled by `exaggeration`) that `heights` hold at their finest at the point `p`
+/// (any length, planet frame).
+fn finest_height(heights: &mut dyn HeightSource, p: DVec3, exaggeration: f64) -> f64 {
+    let colat = PI / 2.0 - p.z.atan2(p.x.hypot(p.y));
+    f64::from(heights.height(p.y.atan2(p.x), colat, FINEST)) * exaggeration
+}
+
 /// The nearer positive distance along the unit ray `d` from `o` to the sphere of radius `r`.
 fn hit_sphere(o: DVec3, d: DVec3, r: f64) -> Option<f64> {
     let b = o.dot(d);
@@ -104,13 +111,10 @@ impl RayCaster {
     }
 
     fn height_at(&mut self, p: DVec3) -> f64 {
-        let Some(h) = self.heights.as_mut() else {
-            return 0.0;
-        };
-        let colat = p.z.atan2(p.x.hypot(p.y));
-        let colat = PI / 2.0 - colat;
-        let lon = p.y.atan2(p.x);
-        f64::from(h.height(lon, colat, FINEST)) * self.exaggeration
+        match self.heights.as_mut() {
+            Some(h) => finest_height(h, p, self.exaggeration),
+            None => 0.0,
+        }
     }
 
     /// Draws `w × h` pixels (RGBA8, sRGB) with `s × s` rays each; pixels whose rays all miss
@@ -244,10 +248,7 @@ impl Skyline {
         top_m: f64,
         (first, step): (u32, u32),
     ) -> Self {
-        let mut height = |p: DVec3| -> f64 {
-            let colat = PI / 2.0 - (p.z / p.length()).clamp(-1.0, 1.0).asin();
-            f64::from(heights.height(p.y.atan2(p.x), colat, FINEST)) * exaggeration
-        };
+        let mut height = |p: DVec3| finest_height(heights, p, exaggeration);
         let under = DVec3::from_array(unit_of(camera.lat_deg, camera.lon_deg));
         let ground = height(under);
         let view = ViewFrame::new(camera, radius + ground);
