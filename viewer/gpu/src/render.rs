@@ -152,9 +152,22 @@ fn clipmap_bindings(
         usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
     });
-    let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+    let bind = clipmap_bind_group(device, &layout, [&frame_buf, &level_buf], heights, colors);
+    (layout, frame_buf, level_buf, bind)
+}
+
+/// The clipmaps' bind group of `layout` ([`clipmap_bindings`]) over the frame's and the levels'
+/// uniform buffers and the height and colour clipmap arrays.
+fn clipmap_bind_group(
+    device: &wgpu::Device,
+    layout: &wgpu::BindGroupLayout,
+    [frame_buf, level_buf]: [&wgpu::Buffer; 2],
+    heights: &wgpu::Texture,
+    colors: &wgpu::Texture,
+) -> wgpu::BindGroup {
+    device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("clipmap"),
-        layout: &layout,
+        layout,
         entries: &[
             wgpu::BindGroupEntry {
                 binding: 0,
@@ -173,8 +186,7 @@ fn clipmap_bindings(
                 resource: wgpu::BindingResource::TextureView(&array_view(colors)),
             },
         ],
-    });
-    (layout, frame_buf, level_buf, bind)
+    })
 }
 
 /// The atmosphere's tables and the bind group (group 1) the draw reads them through, with its
@@ -411,6 +423,22 @@ impl ClipmapPass {
     /// Writes a plan's texture regions and uniforms, computes the atmosphere's tables of the
     /// frame (if it is drawn), and remembers what it draws.
     pub fn upload(&mut self, plan: &FramePlan) {
+        if plan.height_texels != self.heights.width() {
+            // the picture asks for height windows of another size: every level is filled anew
+            self.heights = clipmap_array(
+                &self.device,
+                "height clipmap",
+                wgpu::TextureFormat::R32Float,
+                plan.height_texels,
+            );
+            self.bind = clipmap_bind_group(
+                &self.device,
+                &self.shared_layouts[0],
+                [&self.frame_buf, &self.level_buf],
+                &self.heights,
+                &self.colors,
+            );
+        }
         for u in &plan.uploads {
             self.write_region(u.layer, u.level, u.region, &u.bytes);
         }

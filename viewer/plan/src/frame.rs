@@ -17,7 +17,7 @@ use crate::terrain::clipmap::{Hemisphere, HemisphereSpec};
 use crate::terrain::{Geometry, GeometryFrame, GeometryInput, GeometryPlanner, planner_for};
 use sc_view_data::clipmap::{
     CLIPMAP_N, COLOR_N, ColorSource, HeightSource, Placement, Region, all_regions, changed_regions,
-    fill_region,
+    fill_region, height_texels_for_picture,
 };
 use sc_view_data::stream::{Focus, GridId, StreamSources, Streamer, Task, Tile, TileData, TileKey};
 use sc_view_space::atmosphere::Atmosphere;
@@ -248,6 +248,8 @@ pub struct FramePlan {
     pub ground: f64,
     /// What the geometry draws (CDLOD's leaves, the warped mesh…).
     pub geometry: GeometryFrame,
+    /// Texels a side of the height windows the uploads and level uniforms refer to.
+    pub height_texels: u32,
 }
 
 /// The CPU side of the clipmap renderer: what each clipmap level holds, what was asked of the
@@ -257,6 +259,9 @@ pub struct FramePlanner {
     hemi: Hemisphere,
     /// Per layer (heights, colours) and level, where its data was last filled (None: never).
     held: [Vec<Option<Placement>>; 2],
+    /// Texels a side of the height windows for the picture last planned
+    /// ([`height_texels_for_picture`]).
+    height_n: u32,
     /// Texels a side of the colour windows this frame: [`COLOR_N`], or [`CLIPMAP_N`] where the
     /// colour is shaded by the heights' detail (made at twice the resolution, detail costs
     /// 2–5× the tiles; see `plan_streamed`).
@@ -296,6 +301,7 @@ impl FramePlanner {
         Self {
             hemi,
             held: [vec![None; levels], vec![None; levels]],
+            height_n: CLIPMAP_N,
             color_n: COLOR_N,
             level_uniforms: vec![LevelUniform::zeroed(); levels],
             radius: radius_m,
@@ -339,11 +345,17 @@ impl FramePlanner {
     }
 
     /// Levels to draw for `camera` into a target `h` pixels high (§4.5), with the hemisphere
-    /// for that picture (made anew when the picture asks for another).
+    /// and the height windows for that picture (made anew when the picture asks for others:
+    /// height windows of another size are filled again whole).
     fn visible(&mut self, camera: &Camera, h: u32) -> (u32, u32) {
         let spec = HemisphereSpec::for_picture(h, camera.fov.to_radians());
         if spec != self.hemi.spec {
             self.hemi = Hemisphere::new(spec);
+        }
+        let n = height_texels_for_picture(h, camera.fov.to_radians());
+        if n != self.height_n {
+            self.height_n = n;
+            self.invalidate(&[LayerKind::Height]);
         }
         visible_levels(
             self.radius,
@@ -377,7 +389,7 @@ impl FramePlanner {
         windows
             .iter()
             .map(|&(_, p, grid)| {
-                let keys = quad_keys(height, grid, &p, CLIPMAP_N);
+                let keys = window_keys(height, grid, &p);
                 let mut top = Some((f32::NEG_INFINITY, 0.0f32));
                 for k in keys {
                     let t = self.tile_extremes(streamer, k).map(|t| (t.0, t.1));
@@ -410,8 +422,14 @@ impl FramePlanner {
     /// GPU memory of the height and colour clipmaps, bytes.
     pub fn clipmap_bytes(&self) -> u64 {
         u64::from(self.hemi.spec.levels)
-            * (u64::from(CLIPMAP_N).pow(2) + u64::from(COLOR_N).pow(2))
+            * (u64::from(self.height_n).pow(2) + u64::from(COLOR_N).pow(2))
             * 4
+    }
+
+    /// Texels a side of the height windows of the frames planned last (those of the picture:
+    /// [`height_texels_for_picture`]).
+    pub fn height_texels(&self) -> u32 {
+        self.height_n
     }
 
     /// The frame from `camera` into a `w × h` target, its tiles sampled from the sources on this
@@ -430,7 +448,7 @@ impl FramePlanner {
         let mut uploads = Vec::new();
         let mut filled = 0;
         for i in lo..=hi {
-            let p = Placement::new(i, &viewer, CLIPMAP_N);
+            let p = Placement::new(i, &viewer, self.height_n);
             if self.held[held_index(LayerKind::Height)][i as usize].is_none() {
                 self.ranges[i as usize] = None;
             }
@@ -465,7 +483,7 @@ impl FramePlanner {
         }
         // the ground under the camera, as drawn: the mesh there carries the heights of the
         // finest level drawn (see `vertex_level`)
-        let p = Placement::new(vertex_level(hi, lo), &viewer, CLIPMAP_N);
+        let p = Placement::new(vertex_level(hi, lo), &viewer, self.height_n);
         let ground = at_viewer(&p, |c, r| {
             let (lon, colat) = p.texel_centre(c.max(0) as u32, r.max(0) as u32);
             f64::from(heights.height(lon, colat, p.win))
@@ -489,6 +507,7 @@ impl FramePlanner {
             stats,
             ground,
             geometry,
+            height_texels: self.height_n,
         }
     }
 
@@ -595,7 +614,7 @@ impl FramePlanner {
         (lo, wanted, sharpest): (u32, u32, u32),
         motion: Option<(f64, f64, f64)>,
     ) {
-        let n = CLIPMAP_N;
+        let n = self.height_n;
         // 1. the tasks of this focus: the visible levels; as prefetch, the level just out of
         // view (terrain ahead may lift its ground into view any frame), and the finer ones (out
         // of view, or the next finer) whose window the camera does not cross within
@@ -723,7 +742,7 @@ impl FramePlanner {
             }
             self.level_uniforms[i as usize] = level_uniform(&p, &wins.color[k].0);
             let mut range = None;
-            for k in quad_keys(wins.height_source, grid, &p, CLIPMAP_N) {
+            for k in window_keys(wins.height_source, grid, &p) {
                 let t = self.tile_extremes(streamer, k);
                 range = match (range, t) {
                     (None, Some(t)) => Some((t.2, t.0)),
@@ -781,8 +800,7 @@ impl FramePlanner {
         clock: FrameClock,
         wait: Duration,
     ) -> FramePlan {
-        let n = CLIPMAP_N;
-        debug_assert_eq!(streamer.tile_size(), n);
+        debug_assert_eq!(streamer.tile_size(), CLIPMAP_N);
         // colour shaded by the heights' detail needs the detail at the colour's texels: at
         // COLOR_N that costs 2–5× the tile work (a pole view from 3000 km: 21 → 111 s to
         // complete), so such colour keeps the heights' window size
@@ -797,7 +815,7 @@ impl FramePlanner {
             &viewer,
             sources,
             lo..=(sharpest + 1).min(levels - 1),
-            self.color_n,
+            (self.height_n, self.color_n),
         );
         let windows = &wins.levels;
         // levels whose ground is out of view are not drawn (the coarser disc covers it unseen),
@@ -832,13 +850,11 @@ impl FramePlanner {
         // the ground under the camera, as the mesh there would carry it once the finest level
         // with its heights made (drawn or not: the same as a full render's once the prefetch is
         // done) is drawn: that level's own heights (`vertex_level`)
-        let height_quad = |i: u32| -> Option<(Placement, Vec<Tile>)> {
+        let height_quad = |i: u32| -> Option<(Placement, Vec<TileKey>, Vec<Tile>)> {
             let &(_, p, grid) = windows.iter().find(|w| w.0 == i)?;
-            let quad: Option<Vec<Tile>> = quad_keys(sources.height, grid, &p, n)
-                .iter()
-                .map(|k| streamer.cache().get(k))
-                .collect();
-            quad.map(|q| (p, q))
+            let keys = window_keys(sources.height, grid, &p);
+            let tiles: Option<Vec<Tile>> = keys.iter().map(|k| streamer.cache().get(k)).collect();
+            tiles.map(|t| (p, keys, t))
         };
         let (ground_level, ground) = windows
             .iter()
@@ -847,8 +863,8 @@ impl FramePlanner {
             .filter(|&i| i <= sharpest && (i > hi || (i == hi && drawn.is_some())))
             .find_map(|i| {
                 height_quad(i)?;
-                let (p, q) = height_quad(vertex_level(i, lo))?;
-                Some((Some(i), ground_from_quad(&q, &p, n)))
+                let (p, keys, tiles) = height_quad(vertex_level(i, lo))?;
+                Some((Some(i), ground_from_tiles(&keys, &tiles, &p)))
             })
             .unwrap_or((None, 0.0));
         let fading = self.fade(drawn.is_some(), (lo, hi), since);
@@ -858,7 +874,9 @@ impl FramePlanner {
             (true, v) if v > lo && ground_level == Some(hi) => {
                 let f = f64::from(self.fades[hi as usize]);
                 match height_quad(v - 1) {
-                    Some((p, q)) => ground_from_quad(&q, &p, n) * (1.0 - f) + ground * f,
+                    Some((p, keys, tiles)) => {
+                        ground_from_tiles(&keys, &tiles, &p) * (1.0 - f) + ground * f
+                    }
                     None => ground,
                 }
             }
@@ -894,6 +912,7 @@ impl FramePlanner {
             stats,
             ground,
             geometry,
+            height_texels: self.height_n,
         }
     }
 }
@@ -916,12 +935,13 @@ struct FrameWindows {
 }
 
 impl FrameWindows {
-    /// Around `viewer`, for `levels`, colour windows of `color_n` texels.
+    /// Around `viewer`, for `levels`, height and colour windows of `height_n` and `color_n`
+    /// texels.
     fn new(
         viewer: &Viewer,
         sources: StreamSources,
         levels: std::ops::RangeInclusive<u32>,
-        color_n: u32,
+        (height_n, color_n): (u32, u32),
     ) -> Self {
         let lo = *levels.start();
         let layers = std::iter::once((LayerKind::Height, sources.height))
@@ -929,7 +949,7 @@ impl FrameWindows {
             .collect();
         let levels: Vec<(u32, Placement, GridId)> = levels
             .map(|i| {
-                let (p, grid) = layer_window(i, viewer, CLIPMAP_N);
+                let (p, grid) = layer_window(i, viewer, height_n);
                 (i, p, grid)
             })
             .collect();
@@ -1045,7 +1065,7 @@ fn level_uniform(p: &Placement, pc: &Placement) -> LevelUniform {
     LevelUniform {
         viewer_texel: p.viewer_texel.map(|v| v as f32),
         texels_per_rad: tpr(p),
-        size: [CLIPMAP_N, CLIPMAP_N],
+        size: p.size,
         origin: p.origin(),
         fade: 1.0,
         color_open: open,
@@ -1067,14 +1087,6 @@ fn quad_keys(source: u32, grid: GridId, p: &Placement, n: u32) -> [TileKey; 4] {
         TileKey::at(source, grid, u, v + nn, n),
         TileKey::at(source, grid, u + nn, v + nn, n),
     ]
-}
-
-/// Which quad tile (0..4) holds window texel (c, r) of a window at `p`.
-fn quad_index(p: &Placement, c: u32, r: u32, n: u32) -> usize {
-    let nn = i64::from(n);
-    let dx = (p.u0 + i64::from(c)).div_euclid(nn) - p.u0.div_euclid(nn);
-    let dy = (p.v0 + i64::from(r)).div_euclid(nn) - p.v0.div_euclid(nn);
-    (dy * 2 + dx) as usize
 }
 
 /// The texture bytes of region `r` of a window of `w × h` texels at `p` (toroidal addressing:
@@ -1144,18 +1156,24 @@ fn height_extremes(tile: &TileData, n: u32) -> (f32, f32, f32) {
     (top, step, bottom)
 }
 
-/// Height under the viewer, bilinear from a level's height quad.
-fn ground_from_quad(quad: &[Tile], p: &Placement, n: u32) -> f64 {
+/// Height under the viewer, bilinear from the tiles (named by `keys`) of a level's height
+/// window at `p`.
+fn ground_from_tiles(keys: &[TileKey], tiles: &[Tile], p: &Placement) -> f64 {
+    let n = i64::from(CLIPMAP_N);
     let at = |c: i64, r: i64| -> f64 {
         let (c, r) = (
-            c.clamp(0, i64::from(n) - 1) as u32,
-            r.clamp(0, i64::from(n) - 1) as u32,
+            c.clamp(0, i64::from(p.size[0]) - 1),
+            r.clamp(0, i64::from(p.size[1]) - 1),
         );
-        let nn = i64::from(n);
-        let (u, v) = (p.u0 + i64::from(c), p.v0 + i64::from(r));
-        let k = (v.rem_euclid(nn) * nn + u.rem_euclid(nn)) as usize;
-        match quad[quad_index(p, c, r, n)].heights() {
-            Some(h) if !h[k].is_nan() => f64::from(h[k]),
+        let (u, v) = (p.u0 + c, p.v0 + r);
+        let key = TileKey::at(keys[0].source, keys[0].grid, u, v, CLIPMAP_N);
+        let k = (v.rem_euclid(n) * n + u.rem_euclid(n)) as usize;
+        match keys
+            .iter()
+            .position(|x| *x == key)
+            .map(|i| tiles[i].heights())
+        {
+            Some(Some(h)) if !h[k].is_nan() => f64::from(h[k]),
             _ => 0.0,
         }
     };

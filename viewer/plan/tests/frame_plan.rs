@@ -10,8 +10,9 @@ use sc_store::LayerKind;
 use sc_view_data::clipmap::{CLIPMAP_N, COLOR_N};
 use sc_view_data::stream::StreamSources;
 use sc_view_data::stream::{FnColorTiles, FnHeightTiles, GridId, Streamer, Task, TileSource};
-use sc_view_plan::frame::{FrameClock, FramePlan, FramePlanner};
+use sc_view_plan::frame::{FrameClock, FramePlan, FramePlanner, layer_window};
 use sc_view_space::camera::Camera;
+use sc_view_space::transform::Viewer;
 
 mod support;
 use support::FailsBelow;
@@ -169,6 +170,46 @@ fn a_first_frame_asks_for_its_levels_now_and_prefetches_the_finer_ones() {
         .map(|t| t.ahead);
     if let Some(first) = finer.min() {
         assert!(edge.iter().all(|t| t.ahead < first), "{edge:?}");
+    }
+}
+
+/// The height windows follow the picture: 2048 texels a side for 1080 rows at 60°, each level's
+/// window filled whole from its 3 × 3 to 5 × 5 tiles, its uniform saying so; back to 512 for a
+/// small picture, filled whole again.
+#[test]
+fn height_windows_follow_the_picture() {
+    let s = streamer(Box::new(FnHeightTiles(mountains)));
+    let mut p = FramePlanner::new(R);
+    let camera = Camera::parse("46.5,8.0,3000,45,-5,60").expect("camera");
+    let clock = FrameClock {
+        now: Instant::now(),
+        deadline: None,
+    };
+    for (size, n) in [((1920, 1080), 2048), (SIZE, CLIPMAP_N)] {
+        let f = p.plan_streamed(&s, SOURCES, &camera, size, clock, Duration::from_secs(20));
+        let lo = f.stats.level_lo;
+        assert_eq!(f.height_texels, n, "{size:?}");
+        assert_eq!(p.height_texels(), n);
+        assert_eq!(f.levels[lo as usize].size, [n, n]);
+        let heights: u32 = f
+            .uploads
+            .iter()
+            .filter(|u| u.level == lo && u.layer == LayerKind::Height)
+            .map(|u| u.region.w * u.region.h)
+            .sum();
+        assert_eq!(heights, n * n, "level {lo} heights at {size:?}, whole");
+        let viewer = Viewer::from_deg(camera.lat_deg, camera.lon_deg);
+        let grid = layer_window(lo, &viewer, n).1;
+        let tiles = f
+            .tasks
+            .iter()
+            .filter(|t| !t.prefetch && t.key.grid == grid && t.key.source == 0)
+            .count() as u32;
+        let side = n / CLIPMAP_N;
+        assert!(
+            (side * side..=(side + 1) * (side + 1)).contains(&tiles),
+            "{tiles} tiles"
+        );
     }
 }
 

@@ -8,6 +8,27 @@ use sc_view_space::transform::level_outer;
 /// Texels per side of a clipmap level (heights; tiles are this size).
 pub const CLIPMAP_N: u32 = 512;
 
+/// The most texels a side a height window gets ([`height_texels_for_picture`]): four tiles.
+pub const MAX_HEIGHT_N: u32 = 4 * CLIPMAP_N;
+
+/// How large a texel of the height windows may look half way across its ring, pixels: a
+/// window of n texels holds, at arc θ̃ from the viewer, texels 2θ̃/n to 4θ̃/n across (seen from
+/// near the ground, that many radians), and heights sampled more coarsely than about a pixel
+/// and a half lower the summits of a skyline by more than a pixel.
+pub const HEIGHT_TEXEL_PX: f64 = 1.5;
+
+/// Texels a side of the height windows for a picture `height_px` pixels high with vertical
+/// field of view `fov_rad`: the fewest, a power of two from [`CLIPMAP_N`] to [`MAX_HEIGHT_N`],
+/// whose texels half way across their ring (8/(3n) radians seen from near the ground) span at
+/// most [`HEIGHT_TEXEL_PX`] pixels: 512 up to 270 rows at 60°, 1024 at 540, 2048 at 1080.
+pub fn height_texels_for_picture(height_px: u32, fov_rad: f64) -> u32 {
+    let pixels_per_rad = f64::from(height_px.max(1)) / fov_rad.max(1e-6);
+    let wanted = 8.0 / 3.0 * pixels_per_rad / HEIGHT_TEXEL_PX;
+    (wanted.min(f64::from(MAX_HEIGHT_N)).ceil() as u32)
+        .next_power_of_two()
+        .clamp(CLIPMAP_N, MAX_HEIGHT_N)
+}
+
 /// Texels per side of a colour clipmap level: twice the heights', at half their texel size, so
 /// that colour keeps one texel a pixel farther out from the point under the camera (and around a
 /// pole, where a window spans the whole circle with this many texels of longitude). Level i's
@@ -281,6 +302,33 @@ pub fn fill_region<T: Copy + Default, const C: usize>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn height_windows_are_the_fewest_texels_that_keep_a_texel_within_the_bound() {
+        let fov = 60f64.to_radians();
+        for (rows, n) in [
+            (180, 512),
+            (270, 512),
+            (540, 1024),
+            (720, 2048),
+            (1080, 2048),
+        ] {
+            assert_eq!(height_texels_for_picture(rows, fov), n, "{rows} rows");
+        }
+        // a narrower view magnifies: the same rows need more texels, up to the most there are
+        assert_eq!(height_texels_for_picture(540, 30f64.to_radians()), 2048);
+        assert_eq!(height_texels_for_picture(2160, fov), MAX_HEIGHT_N);
+        let mid_ring_px =
+            |rows: u32, fov: f64, n: u32| 8.0 / (3.0 * f64::from(n)) * f64::from(rows) / fov;
+        for rows in [100, 270, 300, 540, 600, 900, 1080, 1200] {
+            for fov_deg in [20.0f64, 45.0, 60.0, 90.0] {
+                let fov = fov_deg.to_radians();
+                let n = height_texels_for_picture(rows, fov);
+                assert!(n == MAX_HEIGHT_N || mid_ring_px(rows, fov, n) <= HEIGHT_TEXEL_PX);
+                assert!(n == CLIPMAP_N || mid_ring_px(rows, fov, n / 2) > HEIGHT_TEXEL_PX);
+            }
+        }
+    }
 
     #[test]
     fn windows_snap_to_texels_and_keep_shared_texels_in_place() {
