@@ -268,7 +268,7 @@ impl ClipmapPass {
         radius_m: f64,
     ) -> Self {
         let planner = FramePlanner::new(radius_m);
-        let levels = planner.hemisphere().spec.levels;
+        let levels = planner.hemisphere().levels;
         let heights = clipmap_array(
             device,
             "height clipmap",

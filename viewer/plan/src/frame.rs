@@ -13,7 +13,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec3};
 use sc_store::LayerKind;
 
-use crate::terrain::clipmap::{Hemisphere, HemisphereSpec};
+use crate::terrain::clipmap::HemisphereSpec;
 use crate::terrain::{Geometry, GeometryFrame, GeometryInput, GeometryPlanner, planner_for};
 use sc_view_data::clipmap::{
     CLIPMAP_N, COLOR_N, ColorSource, HeightSource, Placement, Region, all_regions, changed_regions,
@@ -256,7 +256,8 @@ pub struct FramePlan {
 /// streamer, the camera's motion; makes one [`FramePlan`] per frame.
 #[derive(Debug)]
 pub struct FramePlanner {
-    hemi: Hemisphere,
+    /// The hemisphere of the picture last planned ([`HemisphereSpec::for_picture`]).
+    hemi: HemisphereSpec,
     /// Per layer (heights, colours) and level, where its data was last filled (None: never).
     held: [Vec<Option<Placement>>; 2],
     /// Texels a side of the height windows for the picture last planned
@@ -296,8 +297,8 @@ impl FramePlanner {
 
     /// A planner for a sphere of `radius_m` and the default hemisphere geometry.
     pub fn new(radius_m: f64) -> Self {
-        let hemi = Hemisphere::new(HemisphereSpec::default());
-        let levels = hemi.spec.levels as usize;
+        let hemi = HemisphereSpec::default();
+        let levels = hemi.levels as usize;
         Self {
             hemi,
             held: [vec![None; levels], vec![None; levels]],
@@ -316,9 +317,9 @@ impl FramePlanner {
         }
     }
 
-    /// The hemisphere geometry the plans refer to.
-    pub fn hemisphere(&self) -> &Hemisphere {
-        &self.hemi
+    /// The hemisphere the plans refer to.
+    pub fn hemisphere(&self) -> HemisphereSpec {
+        self.hemi
     }
 
     /// Forgets what the clipmaps hold (a source's parameters changed and its tiles were dropped
@@ -345,13 +346,10 @@ impl FramePlanner {
     }
 
     /// Levels to draw for `camera` into a target `h` pixels high (§4.5), with the hemisphere
-    /// and the height windows for that picture (made anew when the picture asks for others:
-    /// height windows of another size are filled again whole).
+    /// and the height windows for that picture (height windows of another size are filled
+    /// again whole).
     fn visible(&mut self, camera: &Camera, h: u32) -> (u32, u32) {
-        let spec = HemisphereSpec::for_picture(h, camera.fov.to_radians());
-        if spec != self.hemi.spec {
-            self.hemi = Hemisphere::new(spec);
-        }
+        self.hemi = HemisphereSpec::for_picture(h, camera.fov.to_radians());
         let n = height_texels_for_picture(h, camera.fov.to_radians());
         if n != self.height_n {
             self.height_n = n;
@@ -366,7 +364,7 @@ impl FramePlanner {
             // the levels the picture needs are those of the default hemisphere's cells: a
             // denser hemisphere (a bigger picture) adds vertices, not coarser finest levels
             HemisphereSpec::default().n,
-            self.hemi.spec.levels,
+            self.hemi.levels,
         )
     }
 
@@ -421,7 +419,7 @@ impl FramePlanner {
 
     /// GPU memory of the height and colour clipmaps, bytes.
     pub fn clipmap_bytes(&self) -> u64 {
-        u64::from(self.hemi.spec.levels)
+        u64::from(self.hemi.levels)
             * (u64::from(self.height_n).pow(2) + u64::from(COLOR_N).pow(2))
             * 4
     }
@@ -809,7 +807,7 @@ impl FramePlanner {
             _ => COLOR_N,
         };
         let viewer = Viewer::from_deg(camera.lat_deg, camera.lon_deg);
-        let levels = self.hemi.spec.levels;
+        let levels = self.hemi.levels;
         let (lo, sharpest) = self.visible(camera, h);
         let wins = FrameWindows::new(
             &viewer,

@@ -64,7 +64,7 @@ fn buffers(device: &wgpu::Device, hemi: &Hemisphere) -> (wgpu::Buffer, wgpu::Buf
 impl HemisphereRenderer {
     /// The hemisphere of `setup` on its device.
     pub fn new(setup: &TerrainSetup<'_>) -> Self {
-        let hemi = setup.hemisphere;
+        let hemi = &Hemisphere::new(setup.hemisphere);
         let device = setup.device;
         let (vertices, indices) = buffers(device, hemi);
         let layout = setup.pipeline_layout("clipmap", None);

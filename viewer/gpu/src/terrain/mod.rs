@@ -8,7 +8,7 @@ mod clipmap;
 mod warp;
 
 use sc_view_plan::terrain::GeometryFrame;
-use sc_view_plan::terrain::clipmap::Hemisphere;
+use sc_view_plan::terrain::clipmap::HemisphereSpec;
 
 use crate::device::DEPTH_FORMAT;
 
@@ -46,7 +46,7 @@ pub struct TerrainSetup<'a> {
     /// `crate::CLIPMAP_WGSL`, compiled.
     pub clipmap_shader: &'a wgpu::ShaderModule,
     /// The hemisphere of spherical clipmaps.
-    pub hemisphere: &'a Hemisphere,
+    pub hemisphere: HemisphereSpec,
 }
 
 impl TerrainSetup<'_> {

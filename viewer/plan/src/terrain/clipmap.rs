@@ -87,6 +87,14 @@ impl HemisphereSpec {
             levels: LEVELS,
         }
     }
+
+    /// Triangles of levels `lo..=hi` and the fill disc of `hi` in the hemisphere of this spec
+    /// (two a cell of each level's rings, one a step of the fill disc), without building it.
+    pub fn triangles(&self, lo: u32, hi: u32) -> u32 {
+        let (n, m, levels) = (self.n.max(8), self.m.max(1), self.levels.max(1));
+        let hi = hi.min(levels - 1);
+        (lo..=hi).count() as u32 * 2 * m * n + n
+    }
 }
 
 /// The static geometry: vertices, triangle indices, and per level the range of indices drawing it.
@@ -169,15 +177,6 @@ impl Hemisphere {
             level_ranges,
             fill_ranges,
         }
-    }
-
-    /// Triangles of levels `lo..=hi` and the fill disc of `hi`.
-    pub fn triangles(&self, lo: u32, hi: u32) -> u32 {
-        let hi = hi.min(self.spec.levels - 1);
-        (lo..=hi)
-            .map(|i| self.level_ranges[i as usize].len() as u32 / 3)
-            .sum::<u32>()
-            + self.fill_ranges[hi as usize].len() as u32 / 3
     }
 }
 
@@ -283,6 +282,35 @@ mod tests {
         }
         for v in &h.vertices {
             assert!(v.theta as f64 <= PI / 2.0 + 1e-6);
+        }
+    }
+
+    #[test]
+    fn a_spec_counts_the_triangles_its_hemisphere_draws() {
+        let fov = 60f64.to_radians();
+        for spec in [
+            HemisphereSpec {
+                n: 16,
+                m: 4,
+                levels: 5,
+            },
+            HemisphereSpec::default(),
+            HemisphereSpec::for_picture(540, fov),
+        ] {
+            let h = Hemisphere::new(spec);
+            let last = spec.levels - 1;
+            for (lo, hi) in [(0, 0), (0, last), (2, 4), (3, last + 2)] {
+                let top = hi.min(last);
+                let drawn: usize = (lo..=top)
+                    .map(|i| h.level_ranges[i as usize].len())
+                    .sum::<usize>()
+                    + h.fill_ranges[top as usize].len();
+                assert_eq!(
+                    spec.triangles(lo, hi) as usize,
+                    drawn / 3,
+                    "{spec:?} {lo}..={hi}"
+                );
+            }
         }
     }
 }
