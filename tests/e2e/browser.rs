@@ -50,6 +50,8 @@ impl Chromium {
                 "--remote-debugging-port=0",
             ])
             .arg(format!("--user-data-dir={}", profile.path().display()))
+            // its own temporary folders (org.chromium.Chromium.*) go with the profile
+            .env("TMPDIR", profile.path())
             .args(flags)
             .arg("about:blank")
             .stdout(Stdio::null())
