@@ -42,7 +42,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     ];
     let geometries = [
         ("clipmap", Geometry::Clipmap),
-        ("cdlod 16/8 px", Geometry::Cdlod(CdlodSpec::default())),
+        ("cdlod 16/4 px", Geometry::Cdlod(CdlodSpec::default())),
         (
             "cdlod 8/16 px",
             Geometry::Cdlod(CdlodSpec {

@@ -389,7 +389,7 @@ pub struct LookArgs {
     #[arg(long, default_value_t = 16)]
     pub cdlod_patch: u32,
     /// CDLOD: the largest size of a patch triangle on screen, pixels.
-    #[arg(long, default_value_t = 8.0)]
+    #[arg(long, default_value_t = sc_view_plan::terrain::cdlod::DEFAULT_PIXEL_ERROR)]
     pub cdlod_pixels: f64,
     /// Warp: cells a side of the warped mesh (16..=2048).
     #[arg(long, default_value_t = 512)]

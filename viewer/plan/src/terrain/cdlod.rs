@@ -79,12 +79,18 @@ pub struct CdlodSpec {
     pub pixel_error: f64,
 }
 
+/// The largest patch triangle on screen by default, pixels: with 8 the skyline over rough
+/// terrain stays 2 px (p99) under the finest data's, with 4 at 1 px in most views, for 1.3–1.9×
+/// the frame time on a CPU rasteriser (BENCHMARKS.md, "Skylines against the finest data").
+pub const DEFAULT_PIXEL_ERROR: f64 = 4.0;
+
 impl Default for CdlodSpec {
-    /// Patches of 16 segments (17 vertices a side), triangles of at most 8 pixels.
+    /// Patches of 16 segments (17 vertices a side), triangles of at most
+    /// [`DEFAULT_PIXEL_ERROR`] pixels.
     fn default() -> Self {
         Self {
             patch: 16,
-            pixel_error: 8.0,
+            pixel_error: DEFAULT_PIXEL_ERROR,
         }
     }
 }
