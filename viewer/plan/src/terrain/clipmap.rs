@@ -91,9 +91,14 @@ impl HemisphereSpec {
     /// Triangles of levels `lo..=hi` and the fill disc of `hi` in the hemisphere of this spec
     /// (two a cell of each level's rings, one a step of the fill disc), without building it.
     pub fn triangles(&self, lo: u32, hi: u32) -> u32 {
-        let (n, m, levels) = (self.n.max(8), self.m.max(1), self.levels.max(1));
+        let (n, m, levels) = self.built();
         let hi = hi.min(levels - 1);
         (lo..=hi).count() as u32 * 2 * m * n + n
+    }
+
+    /// The steps, rings a level and levels its hemisphere is built with: at least 8, 1 and 1.
+    fn built(&self) -> (u32, u32, u32) {
+        (self.n.max(8), self.m.max(1), self.levels.max(1))
     }
 }
 
@@ -116,9 +121,7 @@ pub struct Hemisphere {
 impl Hemisphere {
     /// Builds the geometry.
     pub fn new(spec: HemisphereSpec) -> Self {
-        let n = spec.n.max(8);
-        let m = spec.m.max(1);
-        let levels = spec.levels.max(1);
+        let (n, m, levels) = spec.built();
         let mut vertices = Vec::new();
         // ring thetas from outside in, with the level each belongs to
         let mut rings: Vec<(f64, u32)> = Vec::new();
