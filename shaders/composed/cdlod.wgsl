@@ -156,10 +156,14 @@ fn sky_vs(@builtin(vertex_index) i: u32) -> SkyOut {
 
 @vertex
 fn vs_main(v: VertexIn) -> VertexOut {
+    let on_inner = v.column.w > 0.5;
+    let ring = select(v.outer, v.inner, on_inner);
+    let level = select(v.rings.x, v.rings.y, on_inner);
+    let pxy = ring.x * v.column.xy;
     let view = ViewerConsts(frame.sin_v, frame.cos_v, frame.colat, frame.orient);
-    let off = map_offsets(view, v.pxy.x, v.pxy.y, v.one_minus_cos, v.seam);
-    let mp = mesh_height(v.level, v.depth, off);
-    return vertex_out(vec3<f32>(v.pxy, v.one_minus_cos), mp, v.seam);
+    let off = map_offsets(view, pxy.x, pxy.y, ring.y, v.column.z);
+    let mp = mesh_height(level, ring.z, off);
+    return vertex_out(vec3<f32>(pxy, ring.y), mp, v.column.z);
 }
 
 const AERIAL: u32 = 32u;
@@ -999,15 +1003,13 @@ struct Taps {
 
 struct VertexIn {
     @location(0)
-    pxy: vec2<f32>,
+    column: vec4<f32>,
     @location(1)
-    one_minus_cos: f32,
+    outer: vec3<f32>,
     @location(2)
-    seam: f32,
+    inner: vec3<f32>,
     @location(3)
-    level: u32,
-    @location(4)
-    depth: f32
+    rings: vec2<u32>
 }
 
 struct VertexOut {

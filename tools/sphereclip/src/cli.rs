@@ -391,8 +391,9 @@ pub struct LookArgs {
     /// CDLOD: the largest size of a patch triangle on screen, pixels.
     #[arg(long, default_value_t = sc_view_plan::terrain::cdlod::DEFAULT_PIXEL_ERROR)]
     pub cdlod_pixels: f64,
-    /// Warp: cells a side of the warped mesh (16..=2048).
-    #[arg(long, default_value_t = 512)]
+    /// Warp: cells a side of the warped mesh (16..=2048; 0: follows the picture, 512 up to
+    /// 512 rows, 1024 above).
+    #[arg(long, default_value_t = 0)]
     pub warp_mesh: u32,
     /// Warp: nodes a side of the importance map that drives it (8..=512).
     #[arg(long, default_value_t = 128)]

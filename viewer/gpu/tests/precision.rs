@@ -29,8 +29,8 @@ fn errors(
     let u = v.uniforms();
     let m = f64::from(hemi.spec.m);
     let (mut near_max, mut all_max) = ((0.0f64, 0.0f64), (0.0f64, 0.0f64));
-    let visible: Vec<_> = hemi
-        .vertices
+    let vertices = hemi.vertices();
+    let visible: Vec<_> = vertices
         .iter()
         .filter(|x| x.level >= lo && x.level <= hi)
         .collect();

@@ -118,11 +118,17 @@ pub(crate) fn show(ui: &mut egui::Ui, e: &mut Edits, f: &PanelFacts) {
         ui.radio_value(&mut options.geometry, Geometry::Warp(warp), "warp");
     });
     if let Geometry::Warp(spec) = &mut options.geometry {
-        let old = spec.mesh.ilog2();
-        let mut bits = old;
-        ui.add(egui::Slider::new(&mut bits, 6..=10).text("mesh: 2^n cells a side"));
-        if bits != old {
-            spec.mesh = 1 << bits;
+        let mut follow = spec.mesh == 0;
+        ui.checkbox(&mut follow, "mesh follows the picture");
+        if follow {
+            spec.mesh = 0;
+        } else {
+            let old = spec.mesh.max(512).ilog2();
+            let mut bits = old;
+            ui.add(egui::Slider::new(&mut bits, 6..=10).text("mesh: 2^n cells a side"));
+            if bits != old || spec.mesh == 0 {
+                spec.mesh = 1 << bits;
+            }
         }
     }
     if let Geometry::Cdlod(spec) = &mut options.geometry {

@@ -645,7 +645,7 @@ impl CdlodPlanner {
 
 /// The view frustum's inward plane normals through the camera (left, right, bottom, top, near),
 /// view frame, as `frame::view_projection` builds the view (widened by 2 %).
-fn frustum_planes(viewer: &Viewer, camera: &Camera, aspect: f64) -> [DVec3; 5] {
+pub(super) fn frustum_planes(viewer: &Viewer, camera: &Camera, aspect: f64) -> [DVec3; 5] {
     let axes = viewer.camera_axes(camera.heading, camera.pitch);
     let f = axes.forward.normalize();
     let s = f.cross(axes.screen_up).normalize();

@@ -30,8 +30,8 @@ pub enum Geometry {
 /// mesh's lines, the hemisphere's fixed rings): any type, which the renderer takes back by
 /// [`GeometryFrame::get`].
 pub trait Drawn: std::any::Any + std::fmt::Debug + Send + Sync {
-    /// What it draws, for the frame's statistics; `None` where the frame planner counts (the
-    /// hemisphere's rings).
+    /// What it draws, for the frame's statistics; `None`: the frame planner counts the
+    /// hemisphere's rings of the levels drawn, whole.
     fn counts(&self) -> Option<GeometryCounts> {
         None
     }
@@ -43,7 +43,7 @@ pub struct GeometryFrame(std::sync::Arc<dyn Drawn>);
 
 impl Default for GeometryFrame {
     fn default() -> Self {
-        Self::new(clipmap::HemisphereFrame(Default::default()))
+        Self::new(clipmap::HemisphereFrame::default())
     }
 }
 
@@ -72,7 +72,7 @@ impl GeometryFrame {
         any.downcast_ref()
     }
 
-    /// What it draws; `None` for the hemisphere, whose rings the frame planner counts.
+    /// What it draws, if its geometry counts it.
     pub fn counts(&self) -> Option<GeometryCounts> {
         self.0.counts()
     }
