@@ -291,7 +291,7 @@ impl Hemisphere {
     /// ring and the viewer's point (for tests of the transform).
     pub fn vertices(&self) -> Vec<Vertex> {
         let cols = self.spec.n as usize + 1;
-        let (n, m, levels) = self.spec.built();
+        let HemisphereSpec { m, levels, .. } = self.spec;
         let bands = &self.bands[..(levels * m) as usize];
         let mut out: Vec<Vertex> = bands
             .iter()
@@ -301,8 +301,6 @@ impl Hemisphere {
         out.extend((cols..2 * cols).map(|c| self.vertex(&bands[0], c)));
         let fill = &self.bands[self.fill(levels - 1) as usize];
         out.push(self.vertex(fill, 2 * cols));
-        debug_assert_eq!(out.len(), (levels * m + 1) as usize * cols + 1);
-        let _ = n;
         out
     }
 }
