@@ -96,7 +96,7 @@ pub struct HemisphereSpec {
 
 impl Default for HemisphereSpec {
     /// 256 steps around, 32 rings per level, 26 levels (the finest ring ≈ 0.3 m on Earth): the
-    /// hemisphere of a picture up to about 135 pixels high at a 60° field of view.
+    /// hemisphere of a picture up to about 170 pixels high at a 60° field of view.
     fn default() -> Self {
         Self {
             n: 256,
@@ -474,10 +474,11 @@ mod tests {
     fn a_bigger_or_narrower_picture_gets_proportionally_more_steps() {
         let fov = 60f64.to_radians();
         assert_eq!(
-            HemisphereSpec::for_picture(135, fov),
+            HemisphereSpec::for_picture(170, fov),
             HemisphereSpec::default()
         );
         assert_eq!(HemisphereSpec::for_picture(90, fov).n, 256);
+        assert_eq!(HemisphereSpec::for_picture(172, fov).n, 512);
         assert_eq!(HemisphereSpec::for_picture(270, fov).n, 512);
         assert_eq!(HemisphereSpec::for_picture(540, fov).n, 1024);
         let big = HemisphereSpec::for_picture(1080, fov);
