@@ -379,7 +379,7 @@ fn children(i: i64, j: i64, s: i64) -> [(i64, i64, i64); 4] {
     [(a, b, s), (a + s, b, s), (a, b + s, s), (a + s, b + s, -s)]
 }
 
-fn angle(a: DVec3, b: DVec3) -> f64 {
+pub(super) fn angle(a: DVec3, b: DVec3) -> f64 {
     // atan2 of |a × b| and a·b: exact for tiny angles
     a.cross(b).length().atan2(a.dot(b))
 }

@@ -20,7 +20,7 @@ use std::ops::Range;
 
 use glam::DVec3;
 
-use super::cdlod::frustum_planes;
+use super::cdlod::{angle, frustum_planes};
 use super::{Drawn, GeometryCounts, GeometryFrame, GeometryInput, GeometryPlanner};
 use sc_view_space::camera::Camera;
 use sc_view_space::transform::{LEVELS, Viewer, level_outer};
@@ -460,10 +460,6 @@ impl Cull {
             far - self.eye.dot(plane) >= -1e-9 * r.1
         })
     }
-}
-
-fn angle(a: DVec3, b: DVec3) -> f64 {
-    a.cross(b).length().atan2(a.dot(b))
 }
 
 #[cfg(test)]
