@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use crate::util::{bin, run, s, sample, text};
+use crate::util::{bin, ok, one_line_failure, run, s, sample, sample_planet, text};
 
 /// A colour-only store of the Blue Marble at level 1.
 fn color_store(dir: &Path) -> PathBuf {
@@ -188,6 +188,8 @@ fn the_window_shows_the_planet_and_the_panel() {
     assert!(o.status.success(), "{}", text(&o.stderr));
     let out = text(&o.stdout);
     assert!(out.contains("4 frames on"), "{out}");
+    // where the window's camera ended: where it started, as the summary says
+    assert!(out.contains("camera at 0.000000, 20.000000"), "{out}");
     let img = image::open(&shot).expect("a PNG").to_rgba8();
     assert_eq!(img.dimensions(), (480, 360));
     // the planet right of the panel: not the dark-blue space
@@ -831,5 +833,60 @@ fn tiles_made_on_the_render_thread_give_the_picture_of_the_worker_threads() {
             threads == caller,
             "camera {camera}: the render thread's tiles give another picture\n{said}\n{said0}"
         );
+    }
+}
+
+/// The camera `render` reports: latitude and longitude.
+fn camera_at(out: &str) -> (f64, f64) {
+    let rest = out
+        .split("camera at ")
+        .nth(1)
+        .unwrap_or_else(|| panic!("no camera in {out}"));
+    let v: Vec<f64> = rest
+        .split(',')
+        .take(2)
+        .map(|x| x.trim().parse().expect("a number"))
+        .collect();
+    (v[0], v[1])
+}
+
+#[test]
+fn goto_finds_places_by_name_and_coordinates() {
+    let store = sample_planet();
+    let dir = tempfile::tempdir().expect("tmp");
+    let out = dir.path().join("goto.png");
+    // Zermatt in the gazetteer: 46.01998 N, 7.74863 E
+    let metres = |(a, b): (f64, f64), (c, d): (f64, f64)| {
+        let (p, q) = (a.to_radians(), c.to_radians());
+        let cos = p.sin() * q.sin() + p.cos() * q.cos() * (b - d).to_radians().cos();
+        cos.clamp(-1.0, 1.0).acos() * 6_371_000.0
+    };
+    for (place, want) in [
+        ("Zermatt", (46.01998, 7.74863)),
+        ("zermat", (46.01998, 7.74863)),
+        ("45°58′N 7°39′E", (45.0 + 58.0 / 60.0, 7.65)),
+    ] {
+        let o = run(&[
+            "render",
+            s(&store),
+            "--goto",
+            place,
+            "--camera",
+            "0,0,20000,0,-90",
+            "--size",
+            "32x18",
+            "--out",
+            s(&out),
+        ]);
+        ok(&o);
+        let got = camera_at(&text(&o.stdout));
+        assert!(metres(got, want) < 100.0, "{place}: {got:?} vs {want:?}");
+    }
+    // a place nobody has heard of, and coordinates out of range: one line, exit 1
+    for (place, want) in [("Qxzvbnm", "no place called"), ("95, 10", "latitude")] {
+        let o = run(&["render", s(&store), "--goto", place, "--out", s(&out)]);
+        assert_eq!(o.status.code(), Some(1), "{place}");
+        let e = one_line_failure(&o, place);
+        assert!(e.contains(want), "{place}: {e}");
     }
 }

@@ -22,6 +22,29 @@ pub struct Cli {
     pub verbose: u8,
 }
 
+/// The command line's grammar: the derived one, with the viewer's keys and mouse after
+/// `view --help`.
+pub fn command() -> clap::Command {
+    let keys: String = sc_view_window::controls::KEYS
+        .iter()
+        .map(|(k, what)| format!("  {k:<18} {what}\n"))
+        .collect();
+    <Cli as clap::CommandFactory>::command().mut_subcommand("view", |c| {
+        c.after_help(format!("Keys and mouse in the window:\n{keys}"))
+    })
+}
+
+/// Parses a command line with [`command`]'s grammar.
+pub fn parse_from<I, T>(args: I) -> Result<Cli, clap::Error>
+where
+    I: IntoIterator<Item = T>,
+    T: Into<std::ffi::OsString> + Clone,
+{
+    let mut cmd = command();
+    let matches = cmd.try_get_matches_from_mut(args)?;
+    <Cli as clap::FromArgMatches>::from_arg_matches(&matches).map_err(|e| e.format(&mut cmd))
+}
+
 /// Subcommands.
 #[derive(Debug, Subcommand)]
 pub enum Command {
@@ -312,9 +335,15 @@ pub struct InspectArgs {
 pub struct RenderArgs {
     /// The store folder, or its URL (http://…/planet.zarr) (its height layer shapes the planet).
     pub store: sc_store::Location,
-    /// LAT,LON,ALT[,HEADING,PITCH,FOV]: degrees, metres above the ground, degrees.
-    #[arg(long, allow_hyphen_values = true, required_unless_present = "flight", value_parser = camera_arg)]
+    /// LAT,LON,ALT[,HEADING,PITCH,FOV]: degrees, metres above the ground, degrees (with --goto
+    /// the place's latitude and longitude replace LAT,LON; default there 0,0,20000,0,-90).
+    #[arg(long, allow_hyphen_values = true, required_unless_present_any = ["flight", "goto"], value_parser = camera_arg)]
     pub camera: Option<Camera>,
+    /// Put the camera above a place: a name from the gazetteer the binary carries (GeoNames'
+    /// places of 5000 people or more; forgiving of case, accents and a letter off; `NAME,
+    /// COUNTRY` narrows it) or a latitude and longitude (`45°58′N 7°39′E`, `-17, 179.9`…).
+    #[arg(long, value_name = "PLACE|LAT,LON", conflicts_with = "flight")]
+    pub goto: Option<String>,
     /// Image size WxH.
     #[arg(long, default_value = "1280x720", value_parser = size_arg)]
     pub size: Size,
@@ -438,6 +467,10 @@ pub struct ViewArgs {
     /// Start at LAT,LON,ALT[,HEADING,PITCH,FOV]: degrees, metres above the ground, degrees.
     #[arg(long, allow_hyphen_values = true, default_value = "30,10,12000000", value_parser = camera_arg)]
     pub camera: Camera,
+    /// Start above a place (a name or a latitude and longitude, as `render --goto`), at
+    /// --camera's altitude, heading, pitch and field of view.
+    #[arg(long, value_name = "PLACE|LAT,LON")]
+    pub goto: Option<String>,
     /// Window size WxH.
     #[arg(long, default_value = "1280x720", value_parser = size_arg)]
     pub size: Size,

@@ -17,7 +17,6 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{Context, Result};
-use clap::Parser;
 
 /// mimalloc keeps the pages it has faulted in for its threads' next tiles, where glibc's arenas
 /// trimmed them and faulted them in again (a tenth of colour ingest's wall time). Built without
@@ -32,7 +31,7 @@ pub const GDAL_EXE: &str = "sphereclip-gdal";
 /// Both executables' `main`: parses the command line, sets up output and logging, runs the
 /// command with `run` and prints its error, if any, as one line.
 pub fn main(run: fn(cli::Cli) -> Result<ExitCode>) -> ExitCode {
-    let cli = match cli::Cli::try_parse_from(args()) {
+    let cli = match cli::parse_from(args()) {
         Ok(cli) => cli,
         Err(e) if !e.use_stderr() => e.exit(), // --help, --version
         Err(e) if e.kind() == clap::error::ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand => {

@@ -91,7 +91,7 @@ pub const OPEN_SOUTH: u32 = 4;
 
 /// The highest ground the planner allows for when it works out what a camera can see over the
 /// horizon, metres (above Everest).
-const MAX_GROUND_M: f64 = 9000.0;
+pub const MAX_GROUND_M: f64 = 9000.0;
 
 /// How long a level newly drawn takes to fade in over the coarser one (no pop when detail
 /// arrives): a time, not a count of frames, so that a slow renderer (a CPU rasteriser at a

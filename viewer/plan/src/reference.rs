@@ -13,8 +13,9 @@ use glam::DVec3;
 
 use sc_view_data::clipmap::{HeightSource, LevelWindow, StoreColors, StoreHeights};
 use sc_view_space::camera::Camera;
+pub use sc_view_space::camera::ViewFrame;
+use sc_view_space::camera::hit_sphere;
 use sc_view_space::sun::unit_of;
-use sc_view_space::transform::{LocalAxes, view_axes};
 
 /// A clipmap texel finer than any stored level: the store's finest level with data serves.
 const FINEST: LevelWindow = LevelWindow {
@@ -41,55 +42,120 @@ fn finest_height(heights: &mut dyn HeightSource, p: DVec3, exaggeration: f64) ->
     f64::from(heights.height(p.y.atan2(p.x), colat, FINEST)) * exaggeration
 }
 
-/// The nearer positive distance along the unit ray `d` from `o` to the sphere of radius `r`.
-fn hit_sphere(o: DVec3, d: DVec3, r: f64) -> Option<f64> {
-    let b = o.dot(d);
-    let c = o.dot(o) - r * r;
-    let disc = b * b - c;
-    if disc < 0.0 {
-        return None;
-    }
-    let q = disc.sqrt();
-    // the stable form of the nearer root
-    let t = if b < 0.0 { c / (-b + q) } else { -b - q };
-    (t > 0.0).then_some(t)
+/// The finest stored ground of a store (or the sea-level sphere without heights), as the
+/// controller and the cursor's readout need it: the height at a point, and where a pixel's ray
+/// meets the ground ([`sc_view_space::camera::ground_hit`]). The renderers converge to these
+/// heights once their finest levels arrive.
+#[derive(Debug)]
+pub struct FinestGround {
+    heights: Option<StoreHeights>,
+    radius: f64,
+    exaggeration: f64,
 }
 
-/// A camera's eye and axes in the planet's frame (metres; unit vectors), as
-/// [`crate::frame::view_projection`] places it in the viewer's local frame.
-#[derive(Debug, Clone, Copy)]
-pub struct ViewFrame {
-    /// The eye, metres from the planet's centre.
-    pub eye: DVec3,
-    /// The direction through the picture's centre.
-    pub forward: DVec3,
-    /// The picture's right.
-    pub right: DVec3,
-    /// The picture's up.
-    pub up: DVec3,
+/// What lies under a picture point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pointed {
+    /// The point, planet frame, metres.
+    pub point: DVec3,
+    /// Latitude and longitude, degrees.
+    pub lat_deg: f64,
+    /// See `lat_deg`.
+    pub lon_deg: f64,
+    /// Height above the sphere, metres (exaggerated as drawn).
+    pub height: f64,
+    /// From the eye, metres.
+    pub distance: f64,
 }
 
-impl ViewFrame {
-    /// For `camera` over ground at `ground_radius` metres from the centre.
-    pub fn new(camera: &Camera, ground_radius: f64) -> Self {
-        let eye = DVec3::from_array(unit_of(camera.lat_deg, camera.lon_deg))
-            * (ground_radius + camera.alt);
-        let local = LocalAxes::at(camera.lat_deg, camera.lon_deg);
-        let axes = view_axes(
-            local.north,
-            local.east,
-            local.up,
-            camera.heading.to_radians(),
-            camera.pitch.to_radians(),
-        );
-        let (forward, screen_up) = (axes.forward, axes.screen_up);
-        let right = forward.cross(screen_up).normalize();
+/// The ground between two points ([`FinestGround::profile`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Profile {
+    /// The great-circle distance on the sphere, metres.
+    pub great_circle_m: f64,
+    /// The distance along the ground (over hill and dale), metres.
+    pub along_ground_m: f64,
+    /// Heights at evenly spaced points from the first to the second, metres.
+    pub heights: Vec<f64>,
+}
+
+impl FinestGround {
+    /// Over `heights` (none: a smooth sphere), scaled by `exaggeration`, on a sphere of `radius`.
+    pub fn new(heights: Option<StoreHeights>, radius: f64, exaggeration: f64) -> Self {
         Self {
-            eye,
-            forward,
-            right,
-            up: right.cross(forward),
+            heights,
+            radius,
+            exaggeration,
         }
+    }
+
+    /// The sphere's radius, metres.
+    pub fn radius(&self) -> f64 {
+        self.radius
+    }
+
+    /// The height at `lat`, `lon` (degrees), metres, exaggerated; 0 where the store has none.
+    pub fn height(&mut self, lat_deg: f64, lon_deg: f64) -> f64 {
+        let h = match self.heights.as_mut() {
+            Some(h) => finest_height(h, DVec3::from_array(unit_of(lat_deg, lon_deg)), 1.0),
+            None => 0.0,
+        };
+        if h.is_finite() {
+            h * self.exaggeration
+        } else {
+            0.0
+        }
+    }
+
+    /// The ground between two points (latitude, longitude in degrees) along the great circle,
+    /// `n` + 1 samples: the arc on the sphere and the length along the ground through the
+    /// samples (heights as [`FinestGround::height`] gives them), metres.
+    pub fn profile(&mut self, a: (f64, f64), b: (f64, f64), n: usize) -> Profile {
+        let (pa, pb) = (
+            DVec3::from_array(unit_of(a.0, a.1)),
+            DVec3::from_array(unit_of(b.0, b.1)),
+        );
+        let angle = pa.cross(pb).length().atan2(pa.dot(pb));
+        let axis = pa.cross(pb).try_normalize().unwrap_or(DVec3::Z);
+        let n = n.max(1);
+        let mut heights = Vec::with_capacity(n + 1);
+        let mut along = 0.0;
+        let mut prev: Option<DVec3> = None;
+        for i in 0..=n {
+            let u = glam::DQuat::from_axis_angle(axis, angle * i as f64 / n as f64) * pa;
+            let (lat, lon) = sc_view_space::camera::lat_lon_of(u, a.1);
+            let h = self.height(lat, lon);
+            let p = u * (self.radius + h);
+            along += prev.map_or(0.0, |q| (p - q).length());
+            prev = Some(p);
+            heights.push(h);
+        }
+        Profile {
+            great_circle_m: angle * self.radius,
+            along_ground_m: along,
+            heights,
+        }
+    }
+
+    /// What the picture point `at` (pixels from the top left) of a `size` picture from
+    /// `camera` shows: the first ground its ray meets; `None` for the sky.
+    pub fn point(&mut self, camera: &Camera, size: (u32, u32), at: (f64, f64)) -> Option<Pointed> {
+        let ground = self.height(camera.lat_deg, camera.lon_deg);
+        let f = ViewFrame::new(camera, self.radius + ground);
+        let d = f.ray(camera.fov, size, at);
+        let top = crate::frame::MAX_GROUND_M * self.exaggeration.max(1.0);
+        let radius = self.radius;
+        let p = sc_view_space::camera::ground_hit(f.eye, d, radius, top, &mut |la, lo| {
+            self.height(la, lo)
+        })?;
+        let (lat, lon) = sc_view_space::camera::lat_lon_of(p, camera.lon_deg);
+        Some(Pointed {
+            point: p,
+            lat_deg: lat,
+            lon_deg: lon,
+            height: p.length() - radius,
+            distance: (p - f.eye).length(),
+        })
     }
 }
 

@@ -6,6 +6,7 @@
 pub mod atmosphere;
 pub mod camera;
 pub mod flight;
+pub mod places;
 pub mod sun;
 pub mod transform;
 

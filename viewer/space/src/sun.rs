@@ -171,6 +171,29 @@ pub fn parse_utc(s: &str) -> Result<f64, ViewError> {
     Ok(days as f64 * 86_400.0 + (h * 3600 + min * 60) as f64 + sec)
 }
 
+/// Seconds since the Unix epoch as `YYYY-MM-DDTHH:MM:SSZ` (the inverse of [`parse_utc`] to the
+/// second).
+pub fn format_utc(t: f64) -> String {
+    let secs = t.floor() as i64;
+    let (days, rem) = (secs.div_euclid(86_400), secs.rem_euclid(86_400));
+    // the civil date from days (Howard Hinnant's algorithm)
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = yoe + era * 400 + i64::from(m <= 2);
+    format!(
+        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}Z",
+        rem / 3600,
+        rem / 60 % 60,
+        rem % 60
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -181,6 +204,14 @@ mod tests {
         assert_eq!(parse_utc("1970-01-01T00:00:00Z"), Ok(0.0));
         assert_eq!(parse_utc("2000-01-01T12:00Z"), Ok(946_728_000.0));
         assert_eq!(parse_utc("2024-02-29 06:30:15"), Ok(1_709_188_215.0));
+        for t in [
+            "1970-01-01T00:00:00Z",
+            "2024-02-29T06:30:15Z",
+            "1969-12-31T23:59:59Z",
+            "2100-03-01T12:00:00Z",
+        ] {
+            assert_eq!(format_utc(parse_utc(t).expect("time")), t);
+        }
         for bad in [
             "2023-02-29T00:00Z",
             "2026-13-01T00:00Z",

@@ -1,12 +1,15 @@
 //! The windowed viewer: winit window, wgpu surface, the clipmap pass of `sc_view_gpu`, camera
-//! control (`sc_view_space::camera`) and an egui panel with frame statistics and debug toggles.
-//!
-//! Keys: W/A/S/D move, Q/E down/up, Shift ×5, 1/2/3 orbit/fly/walk, F wireframe, L level
-//! colours, Esc quits; drag with the left button; the wheel zooms (orbit) or sets speed (fly).
+//! control (`sc_view_space::camera`: the grabbed ground stays under the cursor, the wheel zooms
+//! towards it, flights to a place), the readout of what is under the cursor (the finest stored
+//! ground, `sc_view_plan::reference::FinestGround`), place search, measuring, the time of day,
+//! and an egui panel with instruments and honest frame times. The keys and mouse are the table
+//! [`controls::KEYS`].
 
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
+
+use glam::DVec3;
 
 use winit::application::ApplicationHandler;
 use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
@@ -21,12 +24,21 @@ use sc_view_gpu::render::{
     ClipmapPass, ImageReadback, RenderError, background, begin_pass, depth_target, device_for,
 };
 use sc_view_plan::frame::{DrawOptions, FrameClock, FrameStats};
-use sc_view_space::camera::{Camera, CameraScript, Controller, Input, Mode};
+use sc_view_plan::reference::{FinestGround, Pointed};
+use sc_view_space::camera::{Camera, CameraScript, Controller, FlyTo, Input, Mode};
+use sc_view_space::places::{Gazetteer, Place};
+use sc_view_space::sun::Sun;
 
+pub mod controls;
+mod overlay;
 mod panel;
 
+use controls::{Action, FrameTimer};
 use panel::PanelFacts;
 use sc_view_gpu::edits::Edited;
+
+/// Two clicks this close in time and place are a double-click.
+const DOUBLE_CLICK: (std::time::Duration, f64) = (std::time::Duration::from_millis(400), 5.0);
 
 /// How long a frame may spend updating clipmap levels before it draws what it has (Alg. 1).
 const UPDATE_BUDGET: std::time::Duration = std::time::Duration::from_millis(12);
@@ -52,6 +64,12 @@ pub struct ViewOptions {
     pub script: Option<CameraScript>,
     /// Shading, vertical scale and the sun at the start (the panel changes them).
     pub draw: DrawOptions,
+    /// The finest stored ground: what is under the cursor, where the camera stands.
+    pub ground: FinestGround,
+    /// Places to search by name.
+    pub places: Gazetteer,
+    /// The UTC time the sun stands at (seconds since the Unix epoch), when `--time` set it.
+    pub time: Option<f64>,
 }
 
 impl std::fmt::Debug for ViewOptions {
@@ -66,6 +84,8 @@ impl std::fmt::Debug for ViewOptions {
             .field("detail", &self.detail)
             .field("script", &self.script.is_some())
             .field("draw", &self.draw)
+            .field("places", &self.places.len())
+            .field("time", &self.time)
             .finish()
     }
 }
@@ -111,12 +131,42 @@ struct InputState {
     cursor: Option<(f64, f64)>,
     drag: (f64, f64),
     scroll: f64,
+    /// The ground grabbed by the left button (orbit), planet frame.
+    grab: Option<DVec3>,
+    /// The last left press: when and where (double-clicks).
+    last_press: Option<(Instant, (f64, f64))>,
+    /// A double-click to act on this frame, where.
+    double_click: Option<(f64, f64)>,
+    /// A single click to act on this frame (measuring), where.
+    click: Option<(f64, f64)>,
+    ctrl: bool,
+    shift: bool,
 }
 
 impl InputState {
     fn axis(&self, plus: KeyCode, minus: KeyCode) -> f64 {
         f64::from(u8::from(self.keys.contains(&plus)))
             - f64::from(u8::from(self.keys.contains(&minus)))
+    }
+
+    /// Whether anything moved the camera this frame (a flight gives way to it).
+    fn busy(&self) -> bool {
+        const MOVE: [KeyCode; 10] = [
+            KeyCode::KeyW,
+            KeyCode::KeyA,
+            KeyCode::KeyS,
+            KeyCode::KeyD,
+            KeyCode::KeyQ,
+            KeyCode::KeyE,
+            KeyCode::ArrowUp,
+            KeyCode::ArrowDown,
+            KeyCode::ArrowLeft,
+            KeyCode::ArrowRight,
+        ];
+        self.drag != (0.0, 0.0)
+            || self.scroll != 0.0
+            || self.dragging
+            || MOVE.iter().any(|k| self.keys.contains(k))
     }
 
     /// This frame's input; drag and scroll start again from zero.
@@ -139,6 +189,42 @@ impl InputState {
     }
 }
 
+/// What the window shows besides the planet, and what the user is doing with it.
+#[derive(Debug, Default)]
+pub(crate) struct UiState {
+    /// The help overlay is up.
+    pub help: bool,
+    /// The panel is hidden.
+    pub panel_hidden: bool,
+    /// The search box's text.
+    pub query: String,
+    /// The search box should take the keyboard.
+    pub focus_search: bool,
+    /// The last search's places.
+    pub results: Vec<Place>,
+    /// Why the last search found nothing.
+    pub search_error: Option<String>,
+    /// A place picked from the results, to fly to.
+    pub go: Option<Place>,
+    /// Measuring: the points clicked (0, 1 or 2), and the profile between two.
+    pub measure: Option<Measure>,
+    /// The time of day: UTC seconds the sun stands at (None: placed by angles).
+    pub time: Option<f64>,
+    /// The time plays, this many seconds a second.
+    pub playing: Option<f64>,
+    /// The time as being typed.
+    pub time_text: String,
+}
+
+/// Two points clicked on the ground and the ground between them.
+#[derive(Debug, Default, Clone)]
+pub(crate) struct Measure {
+    /// The points, latitude and longitude in degrees.
+    pub points: Vec<(f64, f64)>,
+    /// The ground between the first two.
+    pub profile: Option<sc_view_plan::reference::Profile>,
+}
+
 struct App<'a> {
     streamer: &'a Streamer,
     sources: StreamSources,
@@ -147,11 +233,19 @@ struct App<'a> {
     controller: Controller,
     gpu: Option<Gpu>,
     input: InputState,
-    last_frame: Option<Instant>,
-    fps: f64,
+    timer: FrameTimer,
     cpu_avg: f64,
     report: ViewReport,
     error: Option<RenderError>,
+    /// Where the view started (Home, R).
+    start: Camera,
+    /// A flight under way (double-click, search, Home).
+    flight: Option<FlyTo>,
+    /// What is under the cursor.
+    pointed: Option<Pointed>,
+    ui: UiState,
+    /// The next presented frame is saved here (F12).
+    shot: Option<PathBuf>,
 }
 
 /// Opens a window on the planet whose tiles `streamer` makes (`sources`: which of its sources are
@@ -172,14 +266,21 @@ pub fn view(
         sources,
         radius,
         controller: Controller::new(opts.camera, radius),
+        start: opts.camera,
+        ui: UiState {
+            time: opts.time,
+            ..UiState::default()
+        },
         opts,
         gpu: None,
         input: InputState::default(),
-        last_frame: None,
-        fps: 0.0,
+        timer: FrameTimer::default(),
         cpu_avg: 0.0,
         report: ViewReport::default(),
         error: None,
+        flight: None,
+        pointed: None,
+        shot: None,
     };
     event_loop
         .run_app(&mut app)
@@ -189,6 +290,44 @@ pub fn view(
     }
     app.report.camera = Some(app.controller.camera);
     Ok(app.report)
+}
+
+/// The PNG the screenshot key writes: named with the camera.
+pub fn screenshot_name(c: &Camera) -> String {
+    format!(
+        "sphereclip_{:.5}_{:.5}_{:.0}m_h{:.0}_p{:.0}.png",
+        c.lat_deg, c.lon_deg, c.alt, c.heading, c.pitch
+    )
+}
+
+/// The camera a flight to `place` ends at: above it at the current height (between 2 km and
+/// 20 000 km), looking down as it does now in orbit, else looking 35° down at it from the south
+/// (heading north).
+pub fn camera_for(place: &Place, now: &Camera, mode: Mode, radius: f64) -> Camera {
+    let alt = now.alt.clamp(2000.0, 2.0e7);
+    if mode == Mode::Orbit {
+        return Camera {
+            lat_deg: place.lat_deg,
+            lon_deg: place.lon_deg,
+            alt,
+            heading: 0.0,
+            pitch: -90.0,
+            fov: now.fov,
+        };
+    }
+    let mut c = Camera {
+        lat_deg: place.lat_deg,
+        lon_deg: place.lon_deg,
+        alt,
+        heading: 180.0,
+        pitch: -35.0,
+        fov: now.fov,
+    };
+    // step back (south) so that the place is at the centre of the view
+    let back = alt / 35f64.to_radians().tan();
+    sc_view_space::camera::move_along(&mut c, 180.0, back, radius);
+    c.heading = (c.heading + 180.0).rem_euclid(360.0);
+    c
 }
 
 /// The view as the panel edits it.
@@ -290,22 +429,111 @@ impl App<'_> {
         Ok(())
     }
 
-    fn frame(&mut self, event_loop: &ActiveEventLoop) -> Result<(), RenderError> {
-        let dt = self.tick();
-        let input = self.input.take(dt);
-        self.controller.update(&input);
-        let mut script_over = false;
+    /// Moves the camera for this frame: a flight, a script, or the user's keys and mouse (the
+    /// ground grabbed and zoomed towards stays under the cursor). True when a script is over.
+    fn steer(&mut self, dt: f64, size: (u32, u32)) -> bool {
+        let busy = self.input.busy();
+        let mut input = self.input.take(dt);
+        if busy {
+            self.flight = None;
+        }
+        let ground = &mut self.opts.ground;
+        let c = &mut self.controller;
+        let cursor = self.input.cursor;
+        if let (Some(p), Some(at), true) = (self.input.grab, cursor, self.input.dragging)
+            && c.mode == Mode::Orbit
+        {
+            if input.drag != (0.0, 0.0) {
+                c.drag_to(p, size, at, &mut |la, lo| ground.height(la, lo));
+            }
+            input.drag = (0.0, 0.0);
+        }
+        if input.scroll != 0.0 && c.mode != Mode::Walk {
+            let at = cursor.unwrap_or((f64::from(size.0) / 2.0, f64::from(size.1) / 2.0));
+            let target = ground.point(&c.camera, size, at).map(|p| p.point);
+            c.zoom_at(input.scroll, target, size, at, &mut |la, lo| {
+                ground.height(la, lo)
+            });
+        }
+        input.scroll = 0.0;
+        if let Some(at) = self.input.double_click.take()
+            && let Some(p) = ground.point(&c.camera, size, at)
+        {
+            let place = Place {
+                label: String::new(),
+                lat_deg: p.lat_deg,
+                lon_deg: p.lon_deg,
+            };
+            // a third of the way down
+            let closer = Camera {
+                alt: (c.camera.alt / 3.0).max(20.0),
+                ..c.camera
+            };
+            let to = camera_for(&place, &closer, c.mode, self.radius);
+            self.flight = Some(FlyTo::new(c.camera, to, self.radius));
+        }
+        if let Some(place) = self.ui.go.take() {
+            let to = camera_for(&place, &c.camera, c.mode, self.radius);
+            self.flight = Some(FlyTo::new(c.camera, to, self.radius));
+        }
+        c.update(&input);
+        if let Some(f) = self.flight.as_mut() {
+            c.camera = f.advance(dt);
+            if f.done() {
+                self.flight = None;
+            }
+        }
         if let Some(script) = self.opts.script.as_mut() {
             match script(dt) {
-                Some(c) => self.controller.camera = c,
-                None => script_over = true,
+                Some(cam) => c.camera = cam,
+                None => return true,
             }
+        }
+        false
+    }
+
+    /// What is under the cursor, and a click while measuring.
+    fn point(&mut self, size: (u32, u32)) {
+        let camera = self.controller.camera;
+        self.pointed = self
+            .input
+            .cursor
+            .and_then(|at| self.opts.ground.point(&camera, size, at));
+        if let (Some(at), Some(m)) = (self.input.click.take(), self.ui.measure.as_mut())
+            && let Some(p) = self.opts.ground.point(&camera, size, at)
+        {
+            if m.points.len() >= 2 {
+                m.points.clear();
+                m.profile = None;
+            }
+            m.points.push((p.lat_deg, p.lon_deg));
+            if let [a, b] = m.points[..] {
+                m.profile = Some(self.opts.ground.profile(a, b, 256));
+            }
+        }
+    }
+
+    fn frame(&mut self, event_loop: &ActiveEventLoop) -> Result<(), RenderError> {
+        let now = Instant::now();
+        let dt = self.timer.tick(now);
+        if self.report.frames > 0 {
+            self.report.frame_ms.push(dt * 1e3);
+        }
+        let Some((w, h)) = self.gpu.as_ref().map(|g| (g.config.width, g.config.height)) else {
+            return Ok(());
+        };
+        let script_over = self.steer(dt, (w, h));
+        self.point((w, h));
+        if let (Some(t), Some(rate)) = (self.ui.time.as_mut(), self.ui.playing) {
+            *t += dt * rate;
         }
         let Some(gpu) = self.gpu.as_mut() else {
             return Ok(());
         };
+        if let Some(t) = self.ui.time {
+            gpu.pass.options.sun = Sun::at_unix_time(t);
+        }
         let cpu_start = Instant::now();
-        let (w, h) = (gpu.config.width, gpu.config.height);
         let camera = self.controller.camera;
         gpu.pass.space = background(&gpu.pass.options);
         let (_, stats) = gpu.pass.prepare_streamed(
@@ -325,19 +553,24 @@ impl App<'_> {
         self.report.finest_frames += u64::from(stats.level_hi == stats.level_wanted);
         let raw = gpu.egui_state.take_egui_input(&gpu.window);
         let facts = PanelFacts {
-            fps: self.fps,
+            fps: self.timer.fps(),
             cpu_avg: self.cpu_avg,
+            frame_ms: self.timer.history.iter().copied().collect(),
             adapter: self.report.adapter.clone(),
             stats,
             camera,
             memory_mb: gpu.pass.clipmap_bytes() as f64 / (1u64 << 20) as f64,
             cache_mb: self.streamer.cache().bytes() as f64 / (1u64 << 20) as f64,
             tiles: self.streamer.cache().len(),
+            pending: self.streamer.pending(),
             errors: self.streamer.errors(),
             has_wire: gpu.pass.has_wireframe(),
             // the atmosphere's model stays that of the view's start; the panel only switches it
             air_model: self.opts.draw.atmosphere.unwrap_or_default(),
             detail_available: self.opts.detail.is_some(),
+            pointed: self.pointed,
+            size: (w, h),
+            flying: self.flight.is_some(),
         };
         let mut edits = edited(
             &mut self.controller,
@@ -347,10 +580,19 @@ impl App<'_> {
             &self.opts,
         )
         .edits();
-        let out = gpu.egui_ctx.run_ui(raw, |ui| {
-            egui::Window::new("sphereclip")
-                .default_pos((10.0, 10.0))
-                .show(ui.ctx(), |ui| panel::show(ui, &mut edits, &facts));
+        let ui = &mut self.ui;
+        let places = &self.opts.places;
+        let out = gpu.egui_ctx.run_ui(raw, |root| {
+            let ctx = root.ctx();
+            if !ui.panel_hidden {
+                egui::Window::new("sphereclip")
+                    .default_pos((10.0, 10.0))
+                    .show(ctx, |p| panel::show(p, &mut edits, &facts, ui, places));
+            }
+            overlay::instruments(ctx, &facts);
+            if ui.help {
+                overlay::help(ctx, &mut ui.help);
+            }
         });
         edited(
             &mut self.controller,
@@ -361,29 +603,6 @@ impl App<'_> {
         )
         .apply(edits);
         self.present(out, (w, h), cpu_start, script_over, event_loop)
-    }
-
-    /// The time since the last frame, seconds (at most a quarter second); keeps the frame rate.
-    fn tick(&mut self) -> f64 {
-        let now = Instant::now();
-        let dt = self
-            .last_frame
-            .map_or(0.0, |t| now.duration_since(t).as_secs_f64())
-            .min(0.25);
-        if let Some(t) = self.last_frame {
-            self.report
-                .frame_ms
-                .push(now.duration_since(t).as_secs_f64() * 1e3);
-        }
-        self.last_frame = Some(now);
-        if dt > 0.0 {
-            self.fps = if self.fps == 0.0 {
-                1.0 / dt
-            } else {
-                0.9 * self.fps + 0.1 / dt
-            };
-        }
-        dt
     }
 
     /// Draws the prepared frame and the panel's output `out` to the window, saves the
@@ -444,19 +663,23 @@ impl App<'_> {
                 .opts
                 .frames
                 .is_some_and(|n| self.report.frames + 1 >= n);
-        let shot = match (&self.opts.screenshot, last) {
-            (Some(path), true) => {
+        let wanted = match (&self.opts.screenshot, last) {
+            (Some(path), true) => Some(path.clone()),
+            _ => self.shot.take(),
+        };
+        let shot = match wanted {
+            Some(path) => {
                 if !gpu.can_read_back {
                     return Err(RenderError::Usage(
-                        "this adapter cannot read the window back for --screenshot".into(),
+                        "this adapter cannot read the window back for a screenshot".into(),
                     ));
                 }
                 Some((
-                    path.clone(),
+                    path,
                     ImageReadback::record(&gpu.device, &mut enc, &frame.texture, (w, h)),
                 ))
             }
-            _ => None,
+            None => None,
         };
         gpu.queue.submit(extra.into_iter().chain([enc.finish()]));
         let cpu = cpu_start.elapsed().as_secs_f64() * 1e3;
@@ -492,6 +715,11 @@ impl App<'_> {
     }
 
     fn key(&mut self, code: KeyCode, pressed: bool, event_loop: &ActiveEventLoop) {
+        match code {
+            KeyCode::ControlLeft | KeyCode::ControlRight => self.input.ctrl = pressed,
+            KeyCode::ShiftLeft | KeyCode::ShiftRight => self.input.shift = pressed,
+            _ => {}
+        }
         if pressed {
             self.input.keys.insert(code);
         } else {
@@ -500,24 +728,109 @@ impl App<'_> {
         if !pressed {
             return;
         }
-        match code {
-            KeyCode::Escape => event_loop.exit(),
-            KeyCode::Digit1 => self.controller.set_mode(Mode::Orbit),
-            KeyCode::Digit2 => self.controller.set_mode(Mode::Fly),
-            KeyCode::Digit3 => self.controller.set_mode(Mode::Walk),
-            KeyCode::KeyF => {
+        let Some(action) = controls::action_for(code, self.input.ctrl, self.input.shift) else {
+            return;
+        };
+        match action {
+            Action::Mode(m) => self.controller.set_mode(m),
+            Action::NorthUp => {
+                self.flight = None;
+                self.controller.north_up();
+            }
+            Action::Reset => {
+                self.controller.mode = Controller::new(self.start, self.radius).mode;
+                self.flight = Some(FlyTo::new(self.controller.camera, self.start, self.radius));
+            }
+            Action::Search => self.ui.focus_search = true,
+            Action::Help => self.ui.help ^= true,
+            Action::Panel => self.ui.panel_hidden ^= true,
+            Action::Measure => {
+                self.ui.measure = match self.ui.measure {
+                    Some(_) => None,
+                    None => Some(Measure::default()),
+                };
+            }
+            Action::PlayTime => {
+                self.ui.playing = match self.ui.playing {
+                    Some(_) => None,
+                    None => {
+                        if self.ui.time.is_none() {
+                            self.ui.time = Some(now_utc());
+                        }
+                        Some(3600.0)
+                    }
+                };
+            }
+            Action::Screenshot => {
+                self.shot = Some(PathBuf::from(screenshot_name(&self.controller.camera)));
+            }
+            Action::Wireframe => {
                 if let Some(g) = self.gpu.as_mut() {
                     g.pass.options.wireframe ^= true;
                 }
             }
-            KeyCode::KeyL => {
+            Action::LevelColors => {
                 if let Some(g) = self.gpu.as_mut() {
                     g.pass.options.level_colors ^= true;
                 }
             }
-            _ => {}
+            Action::Escape => {
+                if self.ui.help {
+                    self.ui.help = false;
+                } else if self.ui.measure.is_some() {
+                    self.ui.measure = None;
+                } else if !self.ui.query.is_empty() {
+                    self.ui.query.clear();
+                    self.ui.results.clear();
+                    self.ui.search_error = None;
+                } else {
+                    event_loop.exit();
+                }
+            }
         }
     }
+
+    /// The left button went down or up at the cursor (not on the panel).
+    fn press(&mut self, down: bool) {
+        self.input.dragging = down;
+        if !down {
+            self.input.grab = None;
+            return;
+        }
+        let Some(at) = self.input.cursor else {
+            return;
+        };
+        let now = Instant::now();
+        let double = self.input.last_press.is_some_and(|(t, p)| {
+            now.duration_since(t) < DOUBLE_CLICK.0
+                && (p.0 - at.0).hypot(p.1 - at.1) < DOUBLE_CLICK.1
+        });
+        self.input.last_press = Some((now, at));
+        if double && self.ui.measure.is_none() {
+            self.input.double_click = Some(at);
+            self.input.last_press = None;
+        }
+        if self.ui.measure.is_some() {
+            self.input.click = Some(at);
+        }
+        if self.controller.mode == Mode::Orbit
+            && let Some(g) = self.gpu.as_ref()
+        {
+            let size = (g.config.width, g.config.height);
+            self.input.grab = self
+                .opts
+                .ground
+                .point(&self.controller.camera, size, at)
+                .map(|p| p.point);
+        }
+    }
+}
+
+/// The time now, UTC seconds since the Unix epoch.
+fn now_utc() -> f64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64())
 }
 
 impl ApplicationHandler for App<'_> {
@@ -568,7 +881,7 @@ impl ApplicationHandler for App<'_> {
                 state,
                 button: MouseButton::Left,
                 ..
-            } => self.input.dragging = state == ElementState::Pressed && !consumed,
+            } => self.press(state == ElementState::Pressed && !consumed),
             WindowEvent::CursorMoved { position, .. } => {
                 let p = (position.x, position.y);
                 if let (true, Some(c)) = (self.input.dragging, self.input.cursor) {

@@ -1,16 +1,22 @@
-//! The viewer's panel: what it shows of the view (frame rate, levels, memory, tile errors, the
-//! camera) and what it lets a user change (camera mode and speed, geometry, shading, detail,
-//! exaggeration, the sun, the graph's colour filters).
+//! The viewer's panel: what it shows of the view (frame rate and a graph of frame times, what
+//! is still arriving, levels, memory, tile errors, the camera, the ground under the cursor, a
+//! measurement) and what it lets a user change (a place to go to, camera mode and speed,
+//! geometry, shading, detail, exaggeration, the sun and the time of day, the graph's colour
+//! filters).
 
 use sc_view_data::graph::FilterParams;
 use sc_view_gpu::edits::Edits;
 use sc_view_plan::frame::FrameStats;
+use sc_view_plan::reference::Pointed;
 use sc_view_plan::terrain::Geometry;
 use sc_view_plan::terrain::cdlod::CdlodSpec;
 use sc_view_plan::terrain::warp::WarpSpec;
 use sc_view_space::atmosphere::Atmosphere;
 use sc_view_space::camera::{Camera, Mode};
-use sc_view_space::sun::Sun;
+use sc_view_space::places::Gazetteer;
+use sc_view_space::sun::{Sun, format_utc, parse_utc};
+
+use crate::UiState;
 
 /// What the panel shows of the frame and the viewer.
 pub(crate) struct PanelFacts {
@@ -18,6 +24,16 @@ pub(crate) struct PanelFacts {
     pub fps: f64,
     /// CPU milliseconds a frame, smoothed.
     pub cpu_avg: f64,
+    /// The last frames' times, milliseconds, oldest first.
+    pub frame_ms: Vec<f64>,
+    /// Tiles asked for and not made yet.
+    pub pending: usize,
+    /// The ground under the cursor.
+    pub pointed: Option<Pointed>,
+    /// The picture's size, pixels.
+    pub size: (u32, u32),
+    /// A flight is under way.
+    pub flying: bool,
     /// The adapter, in words.
     pub adapter: String,
     /// What the frame drew.
@@ -40,11 +56,24 @@ pub(crate) struct PanelFacts {
     pub detail_available: bool,
 }
 
-/// Draws the panel's contents into `ui`, editing `e`.
-pub(crate) fn show(ui: &mut egui::Ui, e: &mut Edits, f: &PanelFacts) {
+/// Draws the panel's contents into `ui`, editing `e` and the window's state `s`; searches
+/// `places`.
+pub(crate) fn show(
+    ui: &mut egui::Ui,
+    e: &mut Edits,
+    f: &PanelFacts,
+    s: &mut UiState,
+    places: &Gazetteer,
+) {
+    search(ui, s, places);
     let PanelFacts {
         fps,
         cpu_avg,
+        frame_ms,
+        pending,
+        pointed,
+        size: _,
+        flying,
         adapter,
         stats,
         camera,
@@ -63,7 +92,30 @@ pub(crate) fn show(ui: &mut egui::Ui, e: &mut Edits, f: &PanelFacts) {
         detail,
         filters,
     } = e;
-    ui.label(format!("{fps:.1} fps · CPU {cpu_avg:.1} ms/frame"));
+    ui.label(format!("{fps:.2} fps · CPU {cpu_avg:.1} ms/frame"));
+    frame_graph(ui, frame_ms);
+    if stats.level_hi < stats.level_wanted || *pending > 0 || stats.fading {
+        ui.colored_label(
+            egui::Color32::YELLOW,
+            format!(
+                "finer levels arriving: level {} of {} drawn, {pending} tiles pending",
+                stats.level_hi, stats.level_wanted
+            ),
+        );
+    }
+    if *flying {
+        ui.label("flying there… (any key or drag stops)");
+    }
+    match pointed {
+        Some(p) => ui.label(format!(
+            "cursor: {} · {:.1} m · {} away",
+            lat_lon_text(p.lat_deg, p.lon_deg),
+            p.height,
+            distance_text(p.distance)
+        )),
+        None => ui.label("cursor: sky"),
+    };
+    measure(ui, s);
     ui.label(format!(
         "levels {}..{} of {}..{} · {} triangles",
         stats.level_lo, stats.level_hi, stats.level_lo, stats.level_wanted, stats.triangles
@@ -162,7 +214,10 @@ pub(crate) fn show(ui: &mut egui::Ui, e: &mut Edits, f: &PanelFacts) {
     ui.add(egui::Slider::new(&mut el, -90.0..=90.0).text("sun elevation °"));
     if az != az0 || el != el0 {
         options.sun = Sun::from_az_el(camera.lat_deg, camera.lon_deg, az, el);
+        s.time = None;
+        s.playing = None;
     }
+    time_of_day(ui, s);
     for (name, p) in filters.iter_mut() {
         ui.collapsing(name.as_str(), |ui| {
             ui.add(egui::Slider::new(&mut p.brightness, -1.0..=1.0).text("brightness"));
@@ -179,4 +234,203 @@ pub(crate) fn show(ui: &mut egui::Ui, e: &mut Edits, f: &PanelFacts) {
         });
     }
     ui.small(adapter.as_str());
+}
+
+/// Latitude and longitude as people read them: `46.01998° N, 7.74863° E`.
+pub(crate) fn lat_lon_text(lat: f64, lon: f64) -> String {
+    format!(
+        "{:.5}° {}, {:.5}° {}",
+        lat.abs(),
+        if lat < 0.0 { 'S' } else { 'N' },
+        lon.abs(),
+        if lon < 0.0 { 'W' } else { 'E' }
+    )
+}
+
+/// A distance in m or km.
+pub(crate) fn distance_text(m: f64) -> String {
+    if m < 10_000.0 {
+        format!("{m:.0} m")
+    } else {
+        format!("{:.1} km", m / 1000.0)
+    }
+}
+
+/// The search box: `/` or Ctrl+F focuses it; Enter looks the text up (coordinates, else names);
+/// a result flies the camera there.
+fn search(ui: &mut egui::Ui, s: &mut UiState, places: &Gazetteer) {
+    let field = ui.add(
+        egui::TextEdit::singleline(&mut s.query)
+            .hint_text("find a place or lat, lon  (/ or Ctrl+F)")
+            .desired_width(280.0),
+    );
+    if std::mem::take(&mut s.focus_search) {
+        field.request_focus();
+    }
+    if field.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter)) {
+        (s.results, s.search_error) = match sc_view_space::places::parse_lat_lon(&s.query) {
+            Ok(Some(p)) => (vec![p], None),
+            Err(e) => (Vec::new(), Some(e.to_string())),
+            Ok(None) => {
+                let found = places.search(&s.query, 8);
+                let none = found
+                    .is_empty()
+                    .then(|| format!("no place called `{}`", s.query.trim()));
+                (found, none)
+            }
+        };
+        s.go = s.results.first().cloned();
+    }
+    for p in s.results.iter().skip(1) {
+        if ui.small_button(&p.label).clicked() {
+            s.go = Some(p.clone());
+        }
+    }
+    if let Some(e) = &s.search_error {
+        ui.colored_label(egui::Color32::LIGHT_RED, e);
+    }
+}
+
+/// A graph of the last frames' times (the line at 33 ms is 30 fps).
+fn frame_graph(ui: &mut egui::Ui, ms: &[f64]) {
+    let (rect, _) = ui.allocate_exact_size(egui::vec2(240.0, 40.0), egui::Sense::hover());
+    let p = ui.painter_at(rect);
+    p.rect_filled(rect, 0.0, egui::Color32::from_black_alpha(120));
+    let top = ms.iter().copied().fold(50.0f64, f64::max);
+    let y = |v: f64| rect.bottom() - (v / top) as f32 * rect.height();
+    p.hline(
+        rect.x_range(),
+        y(1000.0 / 30.0),
+        egui::Stroke::new(1.0, egui::Color32::DARK_GREEN),
+    );
+    let n = crate::controls::HISTORY as f32;
+    let points: Vec<egui::Pos2> = ms
+        .iter()
+        .enumerate()
+        .map(|(i, &v)| egui::pos2(rect.left() + i as f32 / n * rect.width(), y(v)))
+        .collect();
+    p.add(egui::Shape::line(
+        points,
+        egui::Stroke::new(1.0, egui::Color32::LIGHT_GREEN),
+    ));
+    p.text(
+        rect.left_top(),
+        egui::Align2::LEFT_TOP,
+        format!("{top:.0} ms"),
+        egui::FontId::monospace(10.0),
+        egui::Color32::GRAY,
+    );
+}
+
+/// The measurement (M, then click two points): distances and the height profile.
+fn measure(ui: &mut egui::Ui, s: &mut UiState) {
+    let Some(m) = &s.measure else {
+        return;
+    };
+    match (&m.points[..], &m.profile) {
+        ([a, b], Some(p)) => {
+            ui.label(format!(
+                "measured {} → {}",
+                lat_lon_text(a.0, a.1),
+                lat_lon_text(b.0, b.1)
+            ));
+            ui.label(format!(
+                "great circle {} · along the ground {}",
+                distance_text(p.great_circle_m),
+                distance_text(p.along_ground_m)
+            ));
+            let (rect, _) = ui.allocate_exact_size(egui::vec2(240.0, 60.0), egui::Sense::hover());
+            let painter = ui.painter_at(rect);
+            painter.rect_filled(rect, 0.0, egui::Color32::from_black_alpha(120));
+            let lo = p.heights.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = p.heights.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            let span = (hi - lo).max(1.0);
+            let n = (p.heights.len().max(2) - 1) as f32;
+            let points: Vec<egui::Pos2> = p
+                .heights
+                .iter()
+                .enumerate()
+                .map(|(i, &h)| {
+                    egui::pos2(
+                        rect.left() + i as f32 / n * rect.width(),
+                        rect.bottom() - ((h - lo) / span) as f32 * rect.height(),
+                    )
+                })
+                .collect();
+            painter.add(egui::Shape::line(
+                points,
+                egui::Stroke::new(1.0, egui::Color32::from_rgb(230, 190, 120)),
+            ));
+            painter.text(
+                rect.left_top(),
+                egui::Align2::LEFT_TOP,
+                format!("{hi:.0} m"),
+                egui::FontId::monospace(10.0),
+                egui::Color32::GRAY,
+            );
+            painter.text(
+                rect.left_bottom(),
+                egui::Align2::LEFT_BOTTOM,
+                format!("{lo:.0} m"),
+                egui::FontId::monospace(10.0),
+                egui::Color32::GRAY,
+            );
+        }
+        (pts, _) => {
+            ui.label(format!(
+                "measuring: click point {} of 2 (M or Esc ends)",
+                pts.len() + 1
+            ));
+        }
+    }
+}
+
+/// The date and time the sun stands at, and play (T).
+fn time_of_day(ui: &mut egui::Ui, s: &mut UiState) {
+    ui.horizontal(|ui| {
+        let field = ui.add(
+            egui::TextEdit::singleline(&mut s.time_text)
+                .hint_text("UTC time, e.g. 2026-06-21T12:00:00Z")
+                .desired_width(170.0),
+        );
+        if field.changed()
+            && let Ok(t) = parse_utc(&s.time_text)
+        {
+            s.time = Some(t);
+        }
+        if !field.has_focus() {
+            s.time_text = s.time.map(format_utc).unwrap_or_default();
+        }
+        let label = if s.playing.is_some() {
+            "stop (T)"
+        } else {
+            "play (T)"
+        };
+        if ui.button(label).clicked() {
+            s.playing = match s.playing {
+                Some(_) => None,
+                None => {
+                    s.time.get_or_insert_with(crate::now_utc);
+                    Some(3600.0)
+                }
+            };
+        }
+    });
+    if let Some(t) = s.time.as_mut() {
+        let day = (*t / 86_400.0).floor() * 86_400.0;
+        let mut hour = (*t - day) / 3600.0;
+        if ui
+            .add(egui::Slider::new(&mut hour, 0.0..=24.0).text("hour (UTC)"))
+            .changed()
+        {
+            *t = day + hour * 3600.0;
+        }
+    }
+    if let Some(rate) = s.playing.as_mut() {
+        ui.add(
+            egui::Slider::new(rate, 60.0..=86_400.0)
+                .logarithmic(true)
+                .text("seconds a second"),
+        );
+    }
 }

@@ -7,6 +7,7 @@ mod flight;
 mod info;
 mod ingest;
 mod inspect;
+mod places;
 mod plan;
 mod render;
 mod serve;
@@ -47,7 +48,7 @@ pub fn run_without_gdal(cli: Cli) -> Result<ExitCode> {
         Command::Web(a) => serve::web(&a),
         Command::Upgrade(a) => upgrade::run(&a),
         Command::Completions(a) => {
-            let mut cmd = <Cli as clap::CommandFactory>::command();
+            let mut cmd = crate::cli::command();
             let mut out = Vec::new();
             clap_complete::generate(a.shell, &mut cmd, "sphereclip", &mut out);
             crate::outln!("{}", String::from_utf8_lossy(&out).trim_end());

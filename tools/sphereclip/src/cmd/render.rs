@@ -30,10 +30,19 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
         crate::outln!("stats: {}", stats.display());
         return Ok(ExitCode::SUCCESS);
     }
-    let (Some(camera), Some(out)) = (&a.camera, &a.out) else {
+    let Some(out) = &a.out else {
         bail!("render needs --camera and --out (or --flight and --stats)");
     };
-    let camera = *camera;
+    let camera = match (&a.goto, a.camera) {
+        (Some(place), c) => {
+            let default = Camera::parse("0,0,20000,0,-90").map_err(anyhow::Error::msg)?;
+            let (c, label) = super::places::goto(c.unwrap_or(default), place)?;
+            crate::outln!("going to {label}");
+            c
+        }
+        (None, Some(c)) => c,
+        (None, None) => bail!("render needs --camera and --out (or --flight and --stats)"),
+    };
     super::check_output_file(out, "--out")?;
     if !(1..=10_000).contains(&a.frames) {
         bail!("--frames must be 1..10000, found {}", a.frames);
@@ -119,6 +128,14 @@ pub fn run(a: &RenderArgs) -> Result<ExitCode> {
         stats.level_hi,
         stats.triangles,
         r.ground,
+    );
+    crate::outln!(
+        "camera at {:.6}, {:.6}, {:.1} m above the ground, heading {:.1}°, pitch {:.1}°",
+        camera.lat_deg,
+        camera.lon_deg,
+        camera.alt,
+        camera.heading,
+        camera.pitch
     );
     crate::outln!(
         "GPU memory: clipmaps {:.1} MiB, geometry {:.2} MiB",

@@ -14,7 +14,10 @@ use crate::cli::ViewArgs;
 
 /// Runs `view`.
 pub fn run(a: &ViewArgs) -> Result<ExitCode> {
-    let camera = a.camera;
+    let camera = match &a.goto {
+        Some(place) => super::places::goto(a.camera, place)?.0,
+        None => a.camera,
+    };
     let size = (a.size.width, a.size.height);
     if let Some(n) = a.frames
         && !(1..=1_000_000).contains(&n)
@@ -62,8 +65,21 @@ pub fn run(a: &ViewArgs) -> Result<ExitCode> {
             detail,
             script: flight.map(|f| flight::script(f, radius)),
             draw,
+            ground: ground(&a.store, radius, a.look.exaggeration),
+            places: super::places::gazetteer()?.clone(),
+            time: a.look.time,
         },
     )?;
+    if let Some(c) = report.camera {
+        crate::outln!(
+            "camera at {:.6}, {:.6}, {:.1} m above the ground, heading {:.1}°, pitch {:.1}°",
+            c.lat_deg,
+            c.lon_deg,
+            c.alt,
+            c.heading,
+            c.pitch
+        );
+    }
     if a.frames.is_some() || a.flight.is_some() {
         let c = report.cpu_ms.get(1..).unwrap_or_default();
         crate::outln!(
@@ -84,4 +100,17 @@ pub fn run(a: &ViewArgs) -> Result<ExitCode> {
         }
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The store's finest heights for the cursor's readout and the camera's grip on the ground (a
+/// smooth sphere when the store has no heights or cannot be read again).
+fn ground(
+    store: &sc_store::Location,
+    radius: f64,
+    exaggeration: f64,
+) -> sc_view_plan::reference::FinestGround {
+    let heights = sc_store::StoreReader::open_at(store)
+        .ok()
+        .and_then(sc_view_data::clipmap::StoreHeights::new);
+    sc_view_plan::reference::FinestGround::new(heights, radius, exaggeration)
 }

@@ -261,6 +261,19 @@ impl Streamer {
         s.mailbox.is_none() && s.pending.is_empty() && s.in_flight.is_empty()
     }
 
+    /// Tiles asked for and not yet made: queued, in a list not yet taken up, or being made.
+    pub fn pending(&self) -> usize {
+        let s = self.shared.state();
+        let queued = match &s.mailbox {
+            Some(list) => list
+                .iter()
+                .filter(|t| !self.shared.cache.contains(&t.key))
+                .count(),
+            None => s.pending.len(),
+        };
+        queued + s.in_flight.len()
+    }
+
     /// Blocks until `key` is made or failed, or `timeout` passes; the tile if made. Without
     /// worker threads the tiles are made here meanwhile.
     pub fn wait_for(&self, key: &TileKey, timeout: Duration) -> Option<Tile> {
