@@ -97,6 +97,27 @@ impl DepthFrame {
         })
     }
 
+    /// The world point (metres from the centre, planet frame) drawn at the centre of pixel
+    /// `(x, y)`; `None` where the sky is.
+    pub fn point(&self, x: u32, y: u32) -> Option<DVec3> {
+        let d = *self
+            .depth
+            .get((y as usize) * (self.size.0 as usize) + x as usize)?;
+        (d > 0.0).then(|| {
+            self.world(self.unproject(f64::from(x) + 0.5, f64::from(y) + 0.5, f64::from(d)))
+        })
+    }
+
+    /// Where the world point `p` (planet frame, metres) shows, pixels from the top left.
+    pub fn screen(&self, p: DVec3) -> Option<(f64, f64)> {
+        self.project(p)
+    }
+
+    /// The height of the ground under the camera as drawn, metres.
+    pub fn ground(&self, camera: &Camera) -> f64 {
+        f64::from(self.uniform.cam_height) - camera.alt
+    }
+
     fn view_proj(&self) -> DMat4 {
         DMat4::from_cols_array_2d(&self.uniform.view_proj.map(|c| c.map(f64::from)))
     }

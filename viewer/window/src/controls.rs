@@ -248,4 +248,17 @@ mod tests {
             );
         }
     }
+
+    #[test]
+    fn the_readme_shows_this_table_of_keys() {
+        let readme = include_str!("../../../README.md");
+        let rows: Vec<&str> = readme
+            .lines()
+            .skip_while(|l| *l != "| keys and mouse | what they do |")
+            .skip(2)
+            .take_while(|l| l.starts_with('|'))
+            .collect();
+        let want: Vec<String> = KEYS.iter().map(|(k, w)| format!("| {k} | {w} |")).collect();
+        assert_eq!(rows, want, "README's keys table is not controls::KEYS");
+    }
 }

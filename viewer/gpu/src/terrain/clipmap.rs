@@ -35,6 +35,8 @@ pub struct HemisphereRenderer {
     hemi: Hemisphere,
     /// What the frame last taken draws.
     draws: Vec<LevelDraw>,
+    /// Rings of the fill disc the frame last taken draws.
+    fill_rings: u32,
     /// The spec the hemisphere was built from.
     spec: HemisphereSpec,
 }
@@ -115,6 +117,7 @@ impl HemisphereRenderer {
             indices,
             hemi,
             draws: Vec::new(),
+            fill_rings: u32::MAX,
             spec: setup.hemisphere,
         }
     }
@@ -133,6 +136,7 @@ impl TerrainRenderer for HemisphereRenderer {
             [self.columns, self.bands, self.indices] = buffers(device, &self.hemi);
         }
         self.draws.clone_from(&f.draws);
+        self.fill_rings = f.fill_rings;
         true
     }
 
@@ -144,10 +148,9 @@ impl TerrainRenderer for HemisphereRenderer {
         pass.set_vertex_buffer(1, self.bands.slice(..));
         pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
         // nearest first: the fill disc, then the rings from the finest level outwards
-        let fill = hemi.fill(hi);
-        pass.draw_indexed(hemi.fan(), 0, fill..fill + 1);
+        let all = hemi.cells(&(0..hemi.spec.n));
+        pass.draw_indexed(all.clone(), 0, hemi.fill(hi, self.fill_rings));
         if self.draws.is_empty() {
-            let all = hemi.cells(&(0..hemi.spec.n));
             pass.draw_indexed(all, 0, hemi.level_bands(hi).start..hemi.level_bands(lo).end);
             return;
         }

@@ -5,7 +5,9 @@
 //! ψ (the paper's φ̃) is split into `n` steps; θ̃ (angular distance from the viewer) into levels:
 //! level i spans θ̃ from `π/2 · 2^−i` inwards to `π/2 · 2^−(i+1)` in `m` rings
 //! `θ̃_{i,j} = θ̃_{i,0} · 2^(−j/m)`; the innermost level drawn ends in a fill disc around the
-//! viewer. Two triangles per cell. ψ = ±π points to the world's north pole (see
+//! viewer, in rings evenly spaced in θ̃ about [`STEP_PX`] apart on screen (its ground would
+//! otherwise be one chord from its rim to the viewer: from 8000 km that drew the middle of the
+//! view 21 km below the sphere). Two triangles per cell. ψ = ±π points to the world's north pole (see
 //! [`sc_view_space::transform`]): the vertices on that meridian exist twice, once flagged −1
 //! (ψ = −π) and once +1 (ψ = +π), so that map coordinates beyond the pole interpolate without a
 //! seam (§4.4).
@@ -79,7 +81,7 @@ pub struct Ring {
 pub struct Band {
     /// The outer ring.
     pub outer: Ring,
-    /// The inner ring (the viewer's own point for a fill disc).
+    /// The inner ring (the viewer's own point for a fill disc's innermost band).
     pub inner: Ring,
 }
 
@@ -142,12 +144,12 @@ impl HemisphereSpec {
         }
     }
 
-    /// Triangles of levels `lo..=hi` drawn whole and the fill disc of `hi` in the hemisphere of
-    /// this spec (two a cell of each level's rings, one a step of the fill disc).
+    /// Triangles of levels `lo..=hi` drawn whole and the fill disc of `hi` in its most rings in
+    /// the hemisphere of this spec (two a cell).
     pub fn triangles(&self, lo: u32, hi: u32) -> u32 {
         let (n, m, levels) = self.built();
         let hi = hi.min(levels - 1);
-        (lo..=hi).count() as u32 * 2 * m * n + n
+        ((lo..=hi).count() as u32 * m + fill_rings_max(n)) * 2 * n
     }
 
     /// The steps, rings a level and levels its hemisphere is built with: at least [`SECTORS`]
@@ -158,19 +160,28 @@ impl HemisphereSpec {
     }
 }
 
+/// The most rings a fill disc is drawn in for `n` steps around: its rim lies less than n/2π
+/// pixels from the viewer's point when the finest level drawn is the one whose cells are a pixel
+/// ([`sc_view_space::transform::visible_levels`]), n/(2π·[`STEP_PX`]) rings; a power of two.
+pub fn fill_rings_max(n: u32) -> u32 {
+    (n / 16).max(1).next_power_of_two()
+}
+
 /// The static geometry: one band's columns and cells, and the band's instances.
 #[derive(Debug, Clone)]
 pub struct Hemisphere {
     /// The parameters, as built.
     pub spec: HemisphereSpec,
     /// The band's vertices: n + 1 columns on the outer ring (ψ = −π … +π, the seam column
-    /// twice), the same on the inner ring, then the viewer's own point.
+    /// twice), the same on the inner ring.
     pub columns: Vec<Column>,
-    /// The band's cells (6 indices a column, from ψ = −π), then the fill disc's fan (3 a column).
+    /// The band's cells (6 indices a column, from ψ = −π).
     pub indices: Vec<u32>,
     /// The instances: every level's bands from the innermost band of the finest level outwards
     /// (so that drawing the finest levels first runs front to back, and the depth test spares
-    /// the far ground's fragments that nearer ground hides), then each level's fill disc.
+    /// the far ground's fragments that nearer ground hides), then per level its fill disc in 1,
+    /// 2, 4 … [`fill_rings_max`] rings evenly spaced in θ̃ (the last band's inner ring the
+    /// viewer's point).
     pub bands: Vec<Band>,
 }
 
@@ -197,21 +208,11 @@ impl Hemisphere {
                 });
             }
         }
-        columns.push(Column {
-            cos_psi: 1.0,
-            sin_psi: 0.0,
-            seam: 0.0,
-            inner: 1.0,
-        });
         let cols = n + 1;
-        let mut indices = Vec::with_capacity(9 * n as usize);
+        let mut indices = Vec::with_capacity(6 * n as usize);
         for c in 0..n {
             let (a, d) = (c, c + cols);
             indices.extend_from_slice(&[a, d, a + 1, a + 1, d, d + 1]);
-        }
-        let centre = 2 * cols;
-        for c in 0..n {
-            indices.extend_from_slice(&[c, centre, c + 1]);
         }
         // rings from outside in: m a level, then the innermost level's inner edge
         let mut rings: Vec<Ring> = (0..levels * m)
@@ -224,7 +225,6 @@ impl Hemisphere {
             })
             .collect();
         rings.push(ring(level_outer(levels), levels - 1));
-        let viewer = ring(0.0, levels - 1);
         let mut bands: Vec<Band> = (0..levels * m)
             .rev()
             .map(|b| Band {
@@ -232,10 +232,25 @@ impl Hemisphere {
                 inner: rings[b as usize + 1],
             })
             .collect();
-        bands.extend((0..levels).map(|i| Band {
-            outer: rings[((i + 1) * m) as usize],
-            inner: viewer,
-        }));
+        let most = fill_rings_max(n);
+        for i in 0..levels {
+            // the disc inside level i: its heights are level i's own (every ring flagged with
+            // the next finer level, deep in it, which the vertex stage reads as level i's)
+            let rim = rings[((i + 1) * m) as usize];
+            let at = |theta: f64| Ring {
+                depth: 1.0,
+                ..ring(theta, rim.level)
+            };
+            let mut k = 1;
+            while k <= most {
+                let theta = |j: u32| rim.theta * f64::from(k - j) / f64::from(k);
+                bands.extend((0..k).map(|j| Band {
+                    outer: if j == 0 { rim } else { at(theta(j)) },
+                    inner: at(theta(j + 1)),
+                }));
+                k *= 2;
+            }
+        }
         Self {
             spec: HemisphereSpec { n, m, levels },
             columns,
@@ -249,11 +264,6 @@ impl Hemisphere {
         6 * cols.start..6 * cols.end
     }
 
-    /// The indices drawing a fill disc.
-    pub fn fan(&self) -> Range<u32> {
-        6 * self.spec.n..9 * self.spec.n
-    }
-
     /// The instances of level `i`'s bands, innermost first.
     pub fn level_bands(&self, i: u32) -> Range<u32> {
         let HemisphereSpec { m, levels, .. } = self.spec;
@@ -261,10 +271,14 @@ impl Hemisphere {
         (levels - 1 - i) * m..(levels - i) * m
     }
 
-    /// The instance of level `i`'s fill disc (from its inner edge to the viewer).
-    pub fn fill(&self, i: u32) -> u32 {
-        let HemisphereSpec { m, levels, .. } = self.spec;
-        levels * m + i.min(levels - 1)
+    /// The instances of level `i`'s fill disc in `rings` rings (from its inner edge to the
+    /// viewer; rounded up to a power of two, at most [`fill_rings_max`]).
+    pub fn fill(&self, i: u32, rings: u32) -> Range<u32> {
+        let HemisphereSpec { n, m, levels } = self.spec;
+        let most = fill_rings_max(n);
+        let k = rings.clamp(1, most).next_power_of_two();
+        let start = levels * m + i.min(levels - 1) * (2 * most - 1) + (k - 1);
+        start..start + k
     }
 
     /// The vertex that column `c` of [`Self::columns`] gives on instance `band`, as the vertex
@@ -287,8 +301,8 @@ impl Hemisphere {
         }
     }
 
-    /// Every vertex the bands and fill discs draw: each band's outer ring, the innermost inner
-    /// ring and the viewer's point (for tests of the transform).
+    /// Every vertex the bands draw: each band's outer ring, the innermost inner ring and the
+    /// viewer's point (for tests of the transform).
     pub fn vertices(&self) -> Vec<Vertex> {
         let cols = self.spec.n as usize + 1;
         let HemisphereSpec { m, levels, .. } = self.spec;
@@ -299,8 +313,8 @@ impl Hemisphere {
             .flat_map(|b| (0..cols).map(move |c| self.vertex(b, c)))
             .collect();
         out.extend((cols..2 * cols).map(|c| self.vertex(&bands[0], c)));
-        let fill = &self.bands[self.fill(levels - 1) as usize];
-        out.push(self.vertex(fill, 2 * cols));
+        let fill = &self.bands[self.fill(levels - 1, 1).start as usize];
+        out.push(self.vertex(fill, cols));
         out
     }
 }
@@ -340,6 +354,9 @@ pub struct HemisphereFrame {
     /// Per level drawn, finest first, its columns. Empty: every column of the levels the
     /// frame draws.
     pub draws: Vec<LevelDraw>,
+    /// Rings of the fill disc: its rim [`STEP_PX`] pixels apart seen from straight above
+    /// ([`Hemisphere::fill`] rounds it up).
+    pub fill_rings: u32,
     /// Triangles drawn.
     pub triangles: u32,
 }
@@ -375,7 +392,14 @@ pub fn plan_hemisphere(spec: HemisphereSpec, input: &GeometryInput<'_>) -> Hemis
     let cull = Cull::new(input.camera, input.size, input.radius, input.cam_height);
     let per = n / SECTORS;
     let mut draws = Vec::new();
-    let mut triangles = n;
+    // the disc's rim seen from straight above, pixels
+    let pixel = input.camera.alt.max(0.01)
+        * (input.camera.fov.to_radians() / f64::from(input.size.1.max(1))).tan();
+    let rim_px = level_outer(hi + 1) * input.radius / pixel;
+    let fill_rings = ((rim_px / STEP_PX).ceil() as u32)
+        .clamp(1, fill_rings_max(n))
+        .next_power_of_two();
+    let mut triangles = 2 * n * fill_rings;
     for i in (lo..=hi).rev() {
         let (t_in, t_out) = (level_outer(i + 1), level_outer(i));
         // a level's bands read its heights and those of the levels either side (the coarser
@@ -408,6 +432,7 @@ pub fn plan_hemisphere(spec: HemisphereSpec, input: &GeometryInput<'_>) -> Hemis
     HemisphereFrame {
         spec,
         draws,
+        fill_rings,
         triangles,
     }
 }
@@ -495,20 +520,19 @@ mod tests {
             levels: 5,
         });
         let (n, cols) = (32usize, 33usize);
-        assert_eq!(h.columns.len(), 2 * cols + 1);
-        assert_eq!(h.bands.len(), 5 * 4 + 5);
-        // the band's cells, then the fan; every cell joins its column on both rings
-        assert_eq!(h.indices.len(), 9 * n);
+        assert_eq!(h.columns.len(), 2 * cols);
+        // the levels' bands, then per level its fill discs in 1 and 2 rings (32 steps: 2 at most)
+        assert_eq!(fill_rings_max(32), 2);
+        assert_eq!(h.bands.len(), 5 * 4 + 5 * 3);
+        // the band's cells; every cell joins its column on both rings
+        assert_eq!(h.indices.len(), 6 * n);
         assert_eq!(h.cells(&(0..32)), 0..6 * 32);
-        assert_eq!(h.fan(), 6 * 32..9 * 32);
         for c in 0..n {
             let cell = &h.indices[6 * c..6 * c + 6];
             assert_eq!(
                 cell,
                 &[c, c + cols, c + 1, c + 1, c + cols, c + cols + 1].map(|k| k as u32)
             );
-            let fan = &h.indices[6 * n + 3 * c..6 * n + 3 * c + 3];
-            assert_eq!(fan, &[c, 2 * cols, c + 1].map(|k| k as u32));
         }
         // the levels' instances tile the bands, finest first, each innermost band first
         let mut at = 0;
@@ -527,10 +551,22 @@ mod tests {
             // its innermost band ends on the next level's outer ring (or the innermost edge)
             assert_eq!(bands[0].inner.depth, if i < 4 { 0.0 } else { 1.0 });
             assert!((bands[3].outer.theta - level_outer(i)).abs() < 1e-15);
-            // its fill disc runs from its inner edge to the viewer
-            let fill = h.bands[h.fill(i) as usize];
-            assert_eq!(fill.outer, bands[0].inner);
-            assert_eq!((fill.inner.theta, fill.inner.sin), (0.0, 0.0));
+            // its fill disc runs from its inner edge to the viewer, in rings evenly spaced
+            for k in [1, 2, 5] {
+                let r = h.fill(i, k);
+                assert_eq!(r.len(), k.min(2) as usize, "level {i}, {k} rings");
+                let disc = &h.bands[r.start as usize..r.end as usize];
+                assert_eq!(disc[0].outer, bands[0].inner);
+                let last = disc[disc.len() - 1].inner;
+                assert_eq!((last.theta, last.sin), (0.0, 0.0));
+                for w in disc.windows(2) {
+                    assert_eq!(w[0].inner, w[1].outer);
+                }
+                for b in disc {
+                    let step = b.outer.theta - b.inner.theta;
+                    assert!((step - disc[0].outer.theta / disc.len() as f64).abs() < 1e-15);
+                }
+            }
         }
         // rings shrink by 2^(1/m)
         let v = h.vertices();
@@ -571,7 +607,7 @@ mod tests {
                 let drawn: usize = (lo..=top)
                     .map(|i| h.level_bands(i).len() * cells)
                     .sum::<usize>()
-                    + h.fan().len() / 3;
+                    + h.fill(top, u32::MAX).len() * cells;
                 assert_eq!(
                     spec.triangles(lo, hi) as usize,
                     drawn,
