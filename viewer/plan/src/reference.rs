@@ -472,4 +472,26 @@ mod tests {
             }
         }
     }
+
+    #[test]
+    fn a_measured_profile_gives_the_great_circle_and_the_ground_between() {
+        // Paris to London on a smooth sphere of 6371 km: 343.5 km by the haversine formula
+        let mut g = FinestGround::new(None, 6_371_000.0, 1.0);
+        let p = g.profile((48.8566, 2.3522), (51.5074, -0.1278), 256);
+        assert!(
+            (p.great_circle_m - 343_556.0).abs() < 100.0,
+            "{}",
+            p.great_circle_m
+        );
+        // chords a 256th of the arc: shorter than the arc by under a metre
+        assert!(p.along_ground_m < p.great_circle_m);
+        assert!(p.great_circle_m - p.along_ground_m < 1.0);
+        assert_eq!(p.heights.len(), 257);
+        assert!(p.heights.iter().all(|&h| h == 0.0));
+        // straight down from 1000 km the middle pixel is the point under the camera, 1000 km away
+        let camera = Camera::parse("10,20,1000000,0,-90,60").expect("camera");
+        let hit = g.point(&camera, (101, 101), (50.5, 50.5)).expect("ground");
+        assert!((hit.lat_deg - 10.0).abs() < 1e-9 && (hit.lon_deg - 20.0).abs() < 1e-9);
+        assert!((hit.distance - 1.0e6).abs() < 1e-3 && hit.height.abs() < 1e-3);
+    }
 }
