@@ -300,12 +300,12 @@ pub fn screenshot_name(c: &Camera) -> String {
     )
 }
 
-/// The camera a flight to `place` ends at: above it at the current height (between 2 km and
-/// 20 000 km), looking down as it does now in orbit, else looking 35° down at it from the south
+/// The camera a flight to `place` ends at: at the current height (between 2 km and 20 000 km),
+/// straight above it in orbit or higher than 100 km, else looking 35° down at it from the south
 /// (heading north).
 pub fn camera_for(place: &Place, now: &Camera, mode: Mode, radius: f64) -> Camera {
     let alt = now.alt.clamp(2000.0, 2.0e7);
-    if mode == Mode::Orbit {
+    if mode == Mode::Orbit || alt > 1.0e5 {
         return Camera {
             lat_deg: place.lat_deg,
             lon_deg: place.lon_deg,
@@ -898,5 +898,50 @@ impl ApplicationHandler for App<'_> {
             }
             _ => {}
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use sc_view_space::camera::{ViewFrame, hit_sphere, lat_lon_of};
+
+    const R: f64 = 6_371_000.0;
+
+    #[test]
+    fn a_found_place_ends_its_flight_in_the_middle_of_the_view() {
+        let zermatt = Place {
+            label: "Zermatt, Switzerland".into(),
+            lat_deg: 46.01998,
+            lon_deg: 7.74863,
+        };
+        for (now, mode) in [
+            ("30,10,8000000", Mode::Orbit),
+            ("30,10,8000000", Mode::Fly),
+            ("30,10,20000,0,-10", Mode::Fly),
+        ] {
+            let now = Camera::parse(now).expect("camera");
+            let c = camera_for(&zermatt, &now, mode, R);
+            // the ray through the middle of the picture meets the (smooth) ground at the place
+            let f = ViewFrame::new(&c, R);
+            let t = hit_sphere(f.eye, f.forward, R).expect("ground ahead");
+            let (lat, lon) = lat_lon_of(f.eye + f.forward * t, 0.0);
+            let d = ground_distance((lat, lon), (zermatt.lat_deg, zermatt.lon_deg));
+            assert!(d < 100.0, "{mode:?}: {d} m from the place ({c:?})");
+            // and a flight gets there
+            let mut fly = FlyTo::new(now, c, R);
+            while !fly.done() {
+                fly.advance(0.1);
+            }
+            assert_eq!(fly.advance(0.1), c);
+        }
+    }
+
+    fn ground_distance(a: (f64, f64), b: (f64, f64)) -> f64 {
+        let (p, q) = (
+            sc_view_space::transform::LocalAxes::at(a.0, a.1).up,
+            sc_view_space::transform::LocalAxes::at(b.0, b.1).up,
+        );
+        p.cross(q).length().atan2(p.dot(q)) * R
     }
 }
