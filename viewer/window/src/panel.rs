@@ -291,34 +291,58 @@ fn search(ui: &mut egui::Ui, s: &mut UiState, places: &Gazetteer) {
     }
 }
 
-/// A graph of the last frames' times (the line at 33 ms is 30 fps).
-fn frame_graph(ui: &mut egui::Ui, ms: &[f64]) {
-    let (rect, _) = ui.allocate_exact_size(egui::vec2(240.0, 40.0), egui::Sense::hover());
+/// A line graph of `values` in a `size` box: `slots` values fill its width, `lo..hi` its
+/// height; `hi` labelled at the top left in `unit`. The painter, to draw more on it.
+fn plot(
+    ui: &mut egui::Ui,
+    size: egui::Vec2,
+    values: &[f64],
+    (slots, lo, hi): (usize, f64, f64),
+    (colour, unit): (egui::Color32, &str),
+) -> egui::Painter {
+    let (rect, _) = ui.allocate_exact_size(size, egui::Sense::hover());
     let p = ui.painter_at(rect);
     p.rect_filled(rect, 0.0, egui::Color32::from_black_alpha(120));
-    let top = ms.iter().copied().fold(50.0f64, f64::max);
-    let y = |v: f64| rect.bottom() - (v / top) as f32 * rect.height();
-    p.hline(
-        rect.x_range(),
-        y(1000.0 / 30.0),
-        egui::Stroke::new(1.0, egui::Color32::DARK_GREEN),
-    );
-    let n = crate::controls::HISTORY as f32;
-    let points: Vec<egui::Pos2> = ms
+    let span = (hi - lo).max(1e-9);
+    let n = slots.max(2) as f32 - 1.0;
+    let points: Vec<egui::Pos2> = values
         .iter()
         .enumerate()
-        .map(|(i, &v)| egui::pos2(rect.left() + i as f32 / n * rect.width(), y(v)))
+        .map(|(i, &v)| {
+            egui::pos2(
+                rect.left() + i as f32 / n * rect.width(),
+                rect.bottom() - ((v - lo) / span) as f32 * rect.height(),
+            )
+        })
         .collect();
-    p.add(egui::Shape::line(
-        points,
-        egui::Stroke::new(1.0, egui::Color32::LIGHT_GREEN),
-    ));
+    p.add(egui::Shape::line(points, egui::Stroke::new(1.0, colour)));
     p.text(
         rect.left_top(),
         egui::Align2::LEFT_TOP,
-        format!("{top:.0} ms"),
+        format!("{hi:.0} {unit}"),
         egui::FontId::monospace(10.0),
         egui::Color32::GRAY,
+    );
+    p
+}
+
+/// A graph of the last frames' times (the line at 33 ms is 30 fps).
+fn frame_graph(ui: &mut egui::Ui, ms: &[f64]) {
+    let top = ms.iter().copied().fold(50.0f64, f64::max);
+    let slots = crate::controls::HISTORY;
+    let p = plot(
+        ui,
+        egui::vec2(240.0, 40.0),
+        ms,
+        (slots, 0.0, top),
+        (egui::Color32::LIGHT_GREEN, "ms"),
+    );
+    let rect = p.clip_rect();
+    let y = rect.bottom() - (1000.0 / 30.0 / top) as f32 * rect.height();
+    p.hline(
+        rect.x_range(),
+        y,
+        egui::Stroke::new(1.0, egui::Color32::DARK_GREEN),
     );
 }
 
@@ -339,37 +363,17 @@ fn measure(ui: &mut egui::Ui, s: &mut UiState) {
                 distance_text(p.great_circle_m),
                 distance_text(p.along_ground_m)
             ));
-            let (rect, _) = ui.allocate_exact_size(egui::vec2(240.0, 60.0), egui::Sense::hover());
-            let painter = ui.painter_at(rect);
-            painter.rect_filled(rect, 0.0, egui::Color32::from_black_alpha(120));
             let lo = p.heights.iter().copied().fold(f64::INFINITY, f64::min);
             let hi = p.heights.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-            let span = (hi - lo).max(1.0);
-            let n = (p.heights.len().max(2) - 1) as f32;
-            let points: Vec<egui::Pos2> = p
-                .heights
-                .iter()
-                .enumerate()
-                .map(|(i, &h)| {
-                    egui::pos2(
-                        rect.left() + i as f32 / n * rect.width(),
-                        rect.bottom() - ((h - lo) / span) as f32 * rect.height(),
-                    )
-                })
-                .collect();
-            painter.add(egui::Shape::line(
-                points,
-                egui::Stroke::new(1.0, egui::Color32::from_rgb(230, 190, 120)),
-            ));
-            painter.text(
-                rect.left_top(),
-                egui::Align2::LEFT_TOP,
-                format!("{hi:.0} m"),
-                egui::FontId::monospace(10.0),
-                egui::Color32::GRAY,
+            let painter = plot(
+                ui,
+                egui::vec2(240.0, 60.0),
+                &p.heights,
+                (p.heights.len(), lo, hi.max(lo + 1.0)),
+                (egui::Color32::from_rgb(230, 190, 120), "m"),
             );
             painter.text(
-                rect.left_bottom(),
+                painter.clip_rect().left_bottom(),
                 egui::Align2::LEFT_BOTTOM,
                 format!("{lo:.0} m"),
                 egui::FontId::monospace(10.0),
