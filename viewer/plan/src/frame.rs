@@ -4,7 +4,7 @@
 //! A GPU backend only uploads and draws what a [`FramePlan`] says, so every decision here is
 //! testable without a device.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, VecDeque};
 use std::f64::consts::PI;
 use std::time::Duration;
 use web_time::Instant;
@@ -200,6 +200,53 @@ pub struct FrameClock {
     pub now: Instant,
     /// No level is updated after this (Alg. 1's update budget); `None`: every ready level is.
     pub deadline: Option<Instant>,
+}
+
+/// Frame times kept for the panel's graph.
+pub const HISTORY: usize = 240;
+
+/// The time between frames, measured: the camera moves by it whatever it is, and the frame rate
+/// shown is its average over about the last half second (a frame of 2 s shows 0.5 fps).
+#[derive(Debug, Clone, Default)]
+pub struct FrameTimer {
+    last: Option<Instant>,
+    /// Seconds per frame, averaged over about half a second.
+    mean_dt: f64,
+    /// The last [`HISTORY`] frame times, milliseconds, oldest first.
+    pub history: VecDeque<f64>,
+}
+
+impl FrameTimer {
+    /// A frame starts at `now`: the seconds since the last one (0 for the first).
+    pub fn tick(&mut self, now: Instant) -> f64 {
+        let dt = self
+            .last
+            .map_or(0.0, |t| now.saturating_duration_since(t).as_secs_f64());
+        if self.last.is_some() {
+            if self.history.len() == HISTORY {
+                self.history.pop_front();
+            }
+            self.history.push_back(dt * 1e3);
+            // weight by the time each frame took: a slow frame counts for its whole length
+            let w = 1.0 - (-dt / 0.5).exp();
+            self.mean_dt = if self.mean_dt == 0.0 {
+                dt
+            } else {
+                self.mean_dt + (dt - self.mean_dt) * w
+            };
+        }
+        self.last = Some(now);
+        dt
+    }
+
+    /// Frames a second lately (0 before the second frame).
+    pub fn fps(&self) -> f64 {
+        if self.mean_dt > 0.0 {
+            1.0 / self.mean_dt
+        } else {
+            0.0
+        }
+    }
 }
 
 /// Most quads prefetched along the path per level (at half-window steps: four windows ahead).

@@ -15,7 +15,7 @@ use sc_view_data::graph::StoreStreamer;
 use sc_view_data::stream::StreamSources;
 use sc_view_gpu::edits::Edited;
 use sc_view_gpu::render::{ClipmapPass, background, begin_pass, depth_target};
-use sc_view_plan::frame::{DrawOptions, FrameClock, FrameStats};
+use sc_view_plan::frame::{DrawOptions, FrameClock, FrameStats, FrameTimer};
 use sc_view_plan::link::{RendererName, ViewLink};
 use sc_view_plan::terrain::Geometry;
 use sc_view_space::camera::{Camera, Controller, Input, Mode};
@@ -133,15 +133,15 @@ struct App {
     sources: StreamSources,
     /// With detail and without, when the graph synthesizes detail.
     detail: Option<(StreamSources, StreamSources)>,
-    /// Frames a second and milliseconds of the page's thread a frame, smoothed.
-    fps: f64,
+    /// The time between frames (measured, never clamped: the camera moves in real time at any
+    /// frame rate) and milliseconds of the page's thread a frame, smoothed.
+    timer: FrameTimer,
     cpu_ms: f64,
     controller: Controller,
     link: ViewLink,
     input: Rc<RefCell<InputState>>,
     adapter: String,
     frames: u64,
-    last: Instant,
     last_link: Instant,
     /// Whether the camera moved since the address was last written.
     link_behind: bool,
@@ -314,7 +314,7 @@ pub async fn start(
         sources: store.sources,
         detail: (store.sources != store.without_detail)
             .then_some((store.sources, store.without_detail)),
-        fps: 0.0,
+        timer: FrameTimer::default(),
         cpu_ms: 0.0,
         store,
         makers,
@@ -322,7 +322,6 @@ pub async fn start(
         input,
         adapter: adapter_name,
         frames: 0,
-        last: now,
         last_link: now,
         link_behind: false,
         stats: FrameStats::default(),
@@ -507,7 +506,7 @@ impl App {
             .collect();
         let mut v = self.status_json();
         let settings = json!({
-            "fps": self.fps,
+            "fps": self.timer.fps(),
             "cpu_ms": self.cpu_ms,
             "lat": c.lat_deg,
             "lon": c.lon_deg,
@@ -656,21 +655,13 @@ impl App {
     /// canvas keeps it) unless `force`.
     fn frame(&mut self, force: bool) -> Result<(), JsValue> {
         let now = Instant::now();
-        let dt = now.duration_since(self.last).as_secs_f64().min(0.25);
-        self.last = now;
+        let dt = self.timer.tick(now);
         let resized = fit_canvas(&self.canvas)?;
         if resized {
             self.config.width = self.canvas.width();
             self.config.height = self.canvas.height();
             self.surface.configure(&self.device, &self.config);
             self.depth = depth_target(&self.device, self.config.width, self.config.height);
-        }
-        if dt > 0.0 {
-            self.fps = if self.fps == 0.0 {
-                1.0 / dt
-            } else {
-                0.9 * self.fps + 0.1 / dt
-            };
         }
         let input = {
             let mut s = self.input.borrow_mut();

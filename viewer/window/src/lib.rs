@@ -23,7 +23,7 @@ use sc_view_data::stream::Streamer;
 use sc_view_gpu::render::{
     ClipmapPass, ImageReadback, RenderError, background, begin_pass, depth_target, device_for,
 };
-use sc_view_plan::frame::{DrawOptions, FrameClock, FrameStats};
+use sc_view_plan::frame::{DrawOptions, FrameClock, FrameStats, FrameTimer};
 use sc_view_plan::reference::{FinestGround, Pointed};
 use sc_view_space::camera::{Camera, CameraScript, Controller, FlyTo, Input, Mode};
 use sc_view_space::places::{Gazetteer, Place};
@@ -33,7 +33,7 @@ pub mod controls;
 mod overlay;
 mod panel;
 
-use controls::{Action, FrameTimer};
+use controls::Action;
 use panel::PanelFacts;
 use sc_view_gpu::edits::Edited;
 

@@ -329,7 +329,7 @@ fn plot(
 /// A graph of the last frames' times (the line at 33 ms is 30 fps).
 fn frame_graph(ui: &mut egui::Ui, ms: &[f64]) {
     let top = ms.iter().copied().fold(50.0f64, f64::max);
-    let slots = crate::controls::HISTORY;
+    let slots = sc_view_plan::frame::HISTORY;
     let p = plot(
         ui,
         egui::vec2(240.0, 40.0),
