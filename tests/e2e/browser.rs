@@ -772,3 +772,127 @@ fn the_panel_edits_the_view_by_the_windows_rules() {
         sum(&bright)
     );
 }
+
+/// The ground the page grabs and zooms towards under canvas point `at` (the sphere raised by
+/// the ground under its camera, as its status reports them), planet frame.
+fn page_ground(status: &Value, size: (u32, u32), at: (f64, f64)) -> glam::DVec3 {
+    use sc_view_space::camera::{ViewFrame, hit_sphere};
+    let c = page_camera(status);
+    let r = sc_core::EARTH_RADIUS_M + status["ground"].as_f64().expect("ground");
+    let f = ViewFrame::new(&c, r);
+    let d = f.ray(c.fov, size, at);
+    let t = hit_sphere(f.eye, d, r).expect("the pointer is on the ground");
+    f.eye + d * t
+}
+
+/// The page's camera, from its status.
+fn page_camera(status: &Value) -> sc_view_space::camera::Camera {
+    let v = |k: &str| {
+        status[k]
+            .as_f64()
+            .unwrap_or_else(|| panic!("{k} in {status}"))
+    };
+    sc_view_space::camera::Camera {
+        lat_deg: v("lat"),
+        lon_deg: v("lon"),
+        alt: v("alt"),
+        heading: v("heading"),
+        pitch: v("pitch"),
+        fov: v("fov"),
+    }
+}
+
+/// Pixels between where the page's camera in `status` (over the ground `ground` it zoomed with)
+/// shows `p` and `at`.
+fn page_off(status: &Value, ground: f64, size: (u32, u32), p: glam::DVec3, at: (f64, f64)) -> f64 {
+    let c = page_camera(status);
+    let f = sc_view_space::camera::ViewFrame::new(&c, sc_core::EARTH_RADIUS_M + ground);
+    let (x, y) = f.project(c.fov, size, p).expect("in front");
+    (x - at.0).hypot(y - at.1)
+}
+
+#[test]
+fn the_pages_wheel_and_drag_keep_the_ground_under_the_pointer() {
+    let store = sample_planet();
+    let server = Served::start(&store);
+    let page = format!("http://{}/#camera=30,10,8000000&shading=none", server.addr);
+    let mut chromium = Chromium::start(WEBGPU);
+    let size = (320, 180);
+    chromium.view(&page, size).expect("the view");
+    let panel = |c: &mut Chromium| -> Value {
+        serde_json::from_str(c.eval("window.sphereclip.panel()").as_str().expect("text"))
+            .expect("JSON")
+    };
+    let before = panel(&mut chromium);
+    // the pixel under the pointer at CSS (200, 70): its centre
+    let at = (200.5, 70.5);
+    let p = page_ground(&before, size, at);
+    let ground = before["ground"].as_f64().expect("ground");
+    let moved = |c: &mut Chromium, from: &Value| -> Value {
+        let alt = from["alt"].clone();
+        let lat = from["lat"].clone();
+        let v = c.eval(&format!(
+            "new Promise((done) => {{ const t0 = performance.now(); const look = () => {{
+                const s = JSON.parse(window.sphereclip.panel());
+                if (s.alt !== {alt} || s.lat !== {lat}) done(s);
+                else if (performance.now() - t0 > 30000) done({{timeout: s}});
+                else setTimeout(look, 20); }}; look(); }})"
+        ));
+        assert!(v.get("timeout").is_none(), "the camera did not move: {v}");
+        v
+    };
+    // three notches in, towards the point under the pointer
+    chromium.call(
+        "Input.dispatchMouseEvent",
+        json!({"type": "mouseWheel", "x": 200, "y": 70, "deltaX": 0, "deltaY": -300}),
+    );
+    let after = moved(&mut chromium, &before);
+    // and the page draws the new view
+    let drawn = chromium.eval(&format!(
+        "new Promise((done) => {{ const t0 = performance.now(); const look = () => {{
+            const s = JSON.parse(window.sphereclip.status());
+            if (s.frames > {}) done(true);
+            else if (performance.now() - t0 > 30000) done(false);
+            else setTimeout(look, 20); }}; look(); }})",
+        after["frames"]
+    ));
+    assert_eq!(drawn, json!(true), "the page did not draw the zoomed view");
+    let off = page_off(&after, ground, size, p, at);
+    assert!(
+        after["alt"].as_f64() < before["alt"].as_f64() && off < 0.5,
+        "the wheel left the point {off} px from the pointer: {after}"
+    );
+    // grab the ground there and drag it 40 px left and 30 px down
+    let ground = after["ground"].as_f64().expect("ground");
+    let p = page_ground(&after, size, at);
+    for (kind, x, y, buttons) in [
+        ("mousePressed", 200, 70, 1),
+        ("mouseMoved", 180, 85, 1),
+        ("mouseMoved", 160, 100, 1),
+    ] {
+        chromium.call(
+            "Input.dispatchMouseEvent",
+            json!({"type": kind, "x": x, "y": y, "button": "left", "buttons": buttons, "clickCount": 1}),
+        );
+    }
+    let dragged = moved(&mut chromium, &after);
+    // the last move may land a frame later: wait for the page to settle
+    chromium.eval("new Promise((done) => setTimeout(done, 500))");
+    let dragged = {
+        let s = panel(&mut chromium);
+        if s["lat"] == dragged["lat"] {
+            dragged
+        } else {
+            s
+        }
+    };
+    chromium.call(
+        "Input.dispatchMouseEvent",
+        json!({"type": "mouseReleased", "x": 160, "y": 100, "button": "left", "buttons": 0, "clickCount": 1}),
+    );
+    let off = page_off(&dragged, ground, size, p, (160.5, 100.5));
+    assert!(
+        off < 0.5,
+        "the drag left the grabbed point {off} px from the pointer: {dragged}"
+    );
+}

@@ -18,7 +18,7 @@ use sc_view_gpu::render::{ClipmapPass, background, begin_pass, depth_target};
 use sc_view_plan::frame::{DrawOptions, FrameClock, FrameStats, FrameTimer};
 use sc_view_plan::link::{RendererName, ViewLink};
 use sc_view_plan::terrain::Geometry;
-use sc_view_space::camera::{Camera, Controller, Input, Mode};
+use sc_view_space::camera::{Camera, Controller, Input, Mode, ViewFrame, hit_sphere};
 use sc_view_space::sun::Sun;
 use serde_json::{Value, json};
 use wasm_bindgen::JsCast;
@@ -89,6 +89,10 @@ struct InputState {
     drag: (f64, f64),
     scroll: f64,
     dragging: bool,
+    /// The pointer on the canvas, canvas pixels (device pixels from its top left).
+    cursor: Option<(f64, f64)>,
+    /// Where the button went down since the last frame (the ground there is grabbed).
+    pressed: Option<(f64, f64)>,
     mode: Option<Mode>,
     /// The level colours switched (L).
     level_colors: bool,
@@ -142,6 +146,11 @@ struct App {
     input: Rc<RefCell<InputState>>,
     adapter: String,
     frames: u64,
+    /// The ground under the camera as last drawn, metres: the page has no heights of its own,
+    /// so the ground grabbed and zoomed towards is the sphere raised by it.
+    ground: f64,
+    /// The ground grabbed by the button (orbit), planet frame.
+    grab: Option<glam::DVec3>,
     last_link: Instant,
     /// Whether the camera moved since the address was last written.
     link_behind: bool,
@@ -322,6 +331,8 @@ pub async fn start(
         input,
         adapter: adapter_name,
         frames: 0,
+        ground: 0.0,
+        grab: None,
         last_link: now,
         link_behind: false,
         stats: FrameStats::default(),
@@ -374,6 +385,16 @@ fn run_frames(app: Rc<RefCell<App>>) -> Result<(), JsValue> {
     Ok(())
 }
 
+/// Where a mouse event is on its canvas, in the canvas's pixels (its offset times the device
+/// pixel ratio, as `fit_canvas` sizes it).
+fn canvas_pixel(e: &web_sys::MouseEvent) -> (f64, f64) {
+    let dpr = web_sys::window().map_or(1.0, |w| w.device_pixel_ratio());
+    (
+        (f64::from(e.offset_x()) + 0.5) * dpr,
+        (f64::from(e.offset_y()) + 0.5) * dpr,
+    )
+}
+
 /// Mouse, wheel and keys on `canvas` into `input`.
 fn listen(
     canvas: &web_sys::HtmlCanvasElement,
@@ -382,7 +403,12 @@ fn listen(
     let target: &web_sys::EventTarget = canvas.as_ref();
     let i = input.clone();
     let down = Closure::<dyn FnMut(web_sys::PointerEvent)>::new(move |e: web_sys::PointerEvent| {
-        i.borrow_mut().dragging = true;
+        {
+            let mut s = i.borrow_mut();
+            s.dragging = true;
+            s.pressed = Some(canvas_pixel(&e));
+            s.cursor = s.pressed;
+        }
         if let Some(t) = e
             .target()
             .and_then(|t| t.dyn_into::<web_sys::Element>().ok())
@@ -407,6 +433,7 @@ fn listen(
                 s.drag.0 += f64::from(e.movement_x());
                 s.drag.1 += f64::from(e.movement_y());
             }
+            s.cursor = Some(canvas_pixel(&e));
         });
     target.add_event_listener_with_callback("pointermove", moved.as_ref().unchecked_ref())?;
     moved.forget();
@@ -419,7 +446,9 @@ fn listen(
             1 => e.delta_y() / 3.0,
             _ => e.delta_y(),
         };
-        i.borrow_mut().scroll -= notches;
+        let mut s = i.borrow_mut();
+        s.scroll -= notches;
+        s.cursor = Some(canvas_pixel(&e));
     });
     let opts = web_sys::AddEventListenerOptions::new();
     opts.set_passive(false);
@@ -512,6 +541,9 @@ impl App {
             "lon": c.lon_deg,
             "alt": c.alt,
             "heading": c.heading,
+            "pitch": c.pitch,
+            "fov": c.fov,
+            "ground": self.ground,
             "cache_mb": self.store.streamer.cache().bytes() as f64 / 1048576.0,
             "mode": match self.controller.mode {
                 Mode::Orbit => 0,
@@ -653,6 +685,49 @@ impl App {
     /// One frame: input, the streamed plan and its uploads, the draw, then tiles until the
     /// frame's budget is spent. A complete view that did not move is not drawn again (the
     /// canvas keeps it) unless `force`.
+    /// The ground under canvas pixel `at`: on the sphere raised by the ground under the camera.
+    fn ground_at(&self, at: (f64, f64)) -> Option<glam::DVec3> {
+        let c = &self.controller;
+        let r = c.radius + self.ground;
+        let f = ViewFrame::new(&c.camera, r);
+        let d = f.ray(c.camera.fov, (self.config.width, self.config.height), at);
+        hit_sphere(f.eye, d, r).map(|t| f.eye + d * t)
+    }
+
+    /// Drag and wheel as Google Earth has them: in orbit the grabbed ground stays under the
+    /// pointer, and the wheel zooms towards the ground under it (orbit, fly); what they did is
+    /// taken out of `input`.
+    fn steer(
+        &mut self,
+        input: &mut Input,
+        cursor: Option<(f64, f64)>,
+        pressed: Option<(f64, f64)>,
+        dragging: bool,
+    ) {
+        let size = (self.config.width, self.config.height);
+        let ground = self.ground;
+        let orbit = self.controller.mode == Mode::Orbit;
+        if let Some(at) = pressed {
+            self.grab = orbit.then(|| self.ground_at(at)).flatten();
+        }
+        if !dragging {
+            self.grab = None;
+        }
+        if let (Some(p), Some(at)) = (self.grab, cursor) {
+            if input.drag != (0.0, 0.0) {
+                self.controller.drag_to(p, size, at, &mut |_, _| ground);
+            }
+            input.drag = (0.0, 0.0);
+        }
+        if input.scroll != 0.0 && self.controller.mode != Mode::Walk {
+            let at = cursor.unwrap_or((f64::from(size.0) / 2.0, f64::from(size.1) / 2.0));
+            let target = self.ground_at(at);
+            self.controller
+                .zoom_at(input.scroll, target, size, at, &mut |_, _| ground);
+            input.scroll = 0.0;
+        }
+    }
+
     fn frame(&mut self, force: bool) -> Result<(), JsValue> {
         let now = Instant::now();
         let dt = self.timer.tick(now);
@@ -663,6 +738,8 @@ impl App {
             self.surface.configure(&self.device, &self.config);
             self.depth = depth_target(&self.device, self.config.width, self.config.height);
         }
+        // what moves the camera this frame: a mode switch, drag and wheel, keys
+        let before: Camera = self.controller.camera;
         let input = {
             let mut s = self.input.borrow_mut();
             if let Some(m) = s.mode.take() {
@@ -673,9 +750,15 @@ impl App {
                 self.complete = false;
                 self.dirty = true;
             }
-            s.take(dt)
+            let pressed = s.pressed.take();
+            let (cursor, dragging) = (s.cursor, s.dragging);
+            (s.take(dt), cursor, pressed, dragging)
         };
-        let before: Camera = self.controller.camera;
+        let input = {
+            let (mut input, cursor, pressed, dragging) = input;
+            self.steer(&mut input, cursor, pressed, dragging);
+            input
+        };
         self.controller.update(&input);
         self.link_behind |= self.controller.camera != before;
         // the address follows the camera, at most every LINK_EVERY (browsers limit rewrites)
@@ -692,7 +775,7 @@ impl App {
         }
         let camera = self.controller.camera;
         let size = (self.config.width, self.config.height);
-        let (_, stats) = self.pass.prepare_streamed(
+        let (ground, stats) = self.pass.prepare_streamed(
             &self.store.streamer,
             self.sources,
             &camera,
@@ -704,6 +787,7 @@ impl App {
             // nothing is waited for: what has not arrived is drawn coarser
             Duration::ZERO,
         );
+        self.ground = ground;
         // the plan's tasks to the idle workers; a worker silent too long is given up
         {
             let mut makers = self.makers.borrow_mut();
