@@ -89,11 +89,6 @@ impl FinestGround {
         }
     }
 
-    /// The sphere's radius, metres.
-    pub fn radius(&self) -> f64 {
-        self.radius
-    }
-
     /// The height at `lat`, `lon` (degrees), metres, exaggerated; 0 where the store has none.
     pub fn height(&mut self, lat_deg: f64, lon_deg: f64) -> f64 {
         let h = match self.heights.as_mut() {
@@ -115,7 +110,7 @@ impl FinestGround {
             DVec3::from_array(unit_of(a.0, a.1)),
             DVec3::from_array(unit_of(b.0, b.1)),
         );
-        let angle = pa.cross(pb).length().atan2(pa.dot(pb));
+        let angle = sc_view_space::transform::angle(pa, pb);
         let axis = pa.cross(pb).try_normalize().unwrap_or(DVec3::Z);
         let n = n.max(1);
         let mut heights = Vec::with_capacity(n + 1);

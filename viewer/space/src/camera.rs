@@ -15,7 +15,7 @@
 use glam::{DQuat, DVec3};
 
 use crate::ViewError;
-use crate::transform::{LocalAxes, view_axes};
+use crate::transform::{LocalAxes, angle, view_axes};
 
 /// Moves the camera instead of the user: given the seconds since the last frame, the camera for
 /// this frame, or `None` when the script is over (a window closes).
@@ -318,7 +318,7 @@ pub fn hit_sphere(o: DVec3, d: DVec3, r: f64) -> Option<f64> {
 pub fn lat_lon_of(p: DVec3, keep_lon: f64) -> (f64, f64) {
     let p = p.normalize();
     let lat = p.z.clamp(-1.0, 1.0).asin().to_degrees();
-    let lon = if p.x.abs() + p.y.abs() < 1e-15 {
+    let lon = if p.x.abs() + p.y.abs() < 1e-12 {
         keep_lon
     } else {
         p.y.atan2(p.x).to_degrees()
@@ -402,9 +402,11 @@ impl FlyTo {
     pub fn new(from: Camera, to: Camera, radius: f64) -> Self {
         let a = LocalAxes::at(from.lat_deg, from.lon_deg).up;
         let b = LocalAxes::at(to.lat_deg, to.lon_deg).up;
-        let arc = a.cross(b).length().atan2(a.dot(b)) * radius;
+        let arc = angle(a, b) * radius;
+        // a third of the way up, at most two radii, never below either end (which may be
+        // higher than two radii: then the flight does not climb)
         let low = from.alt.max(to.alt).max(1.0);
-        let peak = (arc / 3.0).clamp(low, 2.0 * radius).max(low);
+        let peak = (arc / 3.0).min(2.0 * radius).max(low);
         let levels =
             (peak / from.alt.max(1.0)).log2().abs() + (peak / to.alt.max(1.0)).log2().abs();
         let duration = (1.0 + 0.25 * levels).clamp(1.0, 8.0);
@@ -438,11 +440,11 @@ impl FlyTo {
             LocalAxes::at(self.from.lat_deg, self.from.lon_deg).up,
             LocalAxes::at(self.to.lat_deg, self.to.lon_deg).up,
         );
-        let angle = a.cross(b).length().atan2(a.dot(b));
-        let p = if angle < 1e-12 {
+        let arc = angle(a, b);
+        let p = if arc < 1e-12 {
             a
         } else {
-            DQuat::from_axis_angle(a.cross(b).try_normalize().unwrap_or(DVec3::Z), angle * e) * a
+            DQuat::from_axis_angle(a.cross(b).try_normalize().unwrap_or(DVec3::Z), arc * e) * a
         };
         let (lat, lon) = if s >= 1.0 {
             (self.to.lat_deg, self.to.lon_deg)
@@ -575,12 +577,7 @@ pub fn move_along(c: &mut Camera, bearing: f64, dist: f64, radius: f64) {
     let d = dist / radius;
     let p2 = (p * d.cos() + t * d.sin()).normalize();
     let t2 = (t * d.cos() - p * d.sin()).normalize();
-    let lat = p2.z.clamp(-1.0, 1.0).asin().to_degrees();
-    let lon = if p2.x.abs() + p2.y.abs() < 1e-12 {
-        c.lon_deg
-    } else {
-        p2.y.atan2(p2.x).to_degrees()
-    };
+    let (lat, lon) = lat_lon_of(p2, c.lon_deg);
     let (_, n2, e2) = frame(lat, lon);
     let bearing2 = t2.dot(e2).atan2(t2.dot(n2)).to_degrees();
     let turned = bearing2 - bearing;
@@ -609,7 +606,7 @@ mod tests {
     fn distance(a: &Camera, b: &Camera) -> f64 {
         let (p, _, _) = frame(a.lat_deg, a.lon_deg);
         let (q, _, _) = frame(b.lat_deg, b.lon_deg);
-        p.cross(q).length().atan2(p.dot(q)) * R
+        angle(p, q) * R
     }
 
     #[test]
@@ -830,6 +827,12 @@ mod tests {
             highest > 1.0e6,
             "a flight half round the world climbs: {highest}"
         );
+        // from beyond the Moon (higher than the two radii a flight climbs at most) it only comes
+        // down
+        let mut home = FlyTo::new(cam(0.0, 0.0, ALT_RANGE_M.1, 0.0), from, R);
+        assert_eq!(home.peak, ALT_RANGE_M.1);
+        home.advance(home.duration);
+        assert_eq!(home.advance(0.0), from);
         // a short hop stays low
         let hop = FlyTo::new(from, cam(46.01, 7.71, 2000.0, 30.0), R);
         assert!(hop.peak < 3000.0, "{}", hop.peak);

@@ -83,6 +83,12 @@ impl ViewFloat for f64 {
     const STRAIGHT: Self = 1.5;
 }
 
+/// The angle between two directions (radians): atan2 of |a × b| and a·b, exact for tiny angles
+/// (where the arccosine of the dot product loses them).
+pub fn angle(a: glam::DVec3, b: glam::DVec3) -> f64 {
+    a.cross(b).length().atan2(a.dot(b))
+}
+
 /// The camera's axes for `heading` (clockwise from north) and `pitch` (up from the horizon),
 /// radians, from its local `north`, `east` and `up`.
 pub fn view_axes<S, V>(north: V, east: V, up: V, heading: S, pitch: S) -> ViewAxes<V>

@@ -942,6 +942,6 @@ mod tests {
             sc_view_space::transform::LocalAxes::at(a.0, a.1).up,
             sc_view_space::transform::LocalAxes::at(b.0, b.1).up,
         );
-        p.cross(q).length().atan2(p.dot(q)) * R
+        sc_view_space::transform::angle(p, q) * R
     }
 }

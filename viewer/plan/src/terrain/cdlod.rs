@@ -47,7 +47,7 @@ use glam::DVec3;
 
 use super::{Drawn, GeometryCounts, GeometryFrame, GeometryInput, GeometryPlanner};
 use sc_view_space::camera::Camera;
-use sc_view_space::transform::{Viewer, offsets_f64, ring_of};
+use sc_view_space::transform::{Viewer, angle, offsets_f64, ring_of};
 
 /// Faces of the icosahedron.
 pub const FACES: usize = 20;
@@ -377,11 +377,6 @@ fn tables() -> &'static LevelTables {
 fn children(i: i64, j: i64, s: i64) -> [(i64, i64, i64); 4] {
     let (a, b) = (2 * i, 2 * j);
     [(a, b, s), (a + s, b, s), (a, b + s, s), (a + s, b + s, -s)]
-}
-
-pub(super) fn angle(a: DVec3, b: DVec3) -> f64 {
-    // atan2 of |a × b| and a·b: exact for tiny angles
-    a.cross(b).length().atan2(a.dot(b))
 }
 
 /// The largest angular radius of a level-`l` leaf and its longest edge (radians).

@@ -22,10 +22,10 @@ use std::ops::Range;
 
 use glam::DVec3;
 
-use super::cdlod::{angle, frustum_planes};
+use super::cdlod::frustum_planes;
 use super::{Drawn, GeometryCounts, GeometryFrame, GeometryInput, GeometryPlanner};
 use sc_view_space::camera::Camera;
-use sc_view_space::transform::{LEVELS, Viewer, level_outer};
+use sc_view_space::transform::{LEVELS, Viewer, angle, level_outer};
 
 /// One vertex of the hemisphere as the vertex stage computes it from its column and ring
 /// ([`Hemisphere::vertex`]).
