@@ -50,7 +50,8 @@ fn finest_height(heights: &mut dyn HeightSource, p: DVec3, exaggeration: f64) ->
 pub struct FinestGround {
     heights: Option<StoreHeights>,
     radius: f64,
-    exaggeration: f64,
+    /// The vertical scale the heights are drawn at (a viewer's panel changes it).
+    pub exaggeration: f64,
 }
 
 /// What lies under a picture point.

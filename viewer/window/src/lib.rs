@@ -67,7 +67,7 @@ pub struct ViewOptions {
     /// The finest stored ground: what is under the cursor, where the camera stands.
     pub ground: FinestGround,
     /// Places to search by name.
-    pub places: Gazetteer,
+    pub places: Arc<Gazetteer>,
     /// The UTC time the sun stands at (seconds since the Unix epoch), when `--time` set it.
     pub time: Option<f64>,
 }
@@ -139,34 +139,12 @@ struct InputState {
     double_click: Option<(f64, f64)>,
     /// A single click to act on this frame (measuring), where.
     click: Option<(f64, f64)>,
-    ctrl: bool,
-    shift: bool,
 }
 
 impl InputState {
     fn axis(&self, plus: KeyCode, minus: KeyCode) -> f64 {
         f64::from(u8::from(self.keys.contains(&plus)))
             - f64::from(u8::from(self.keys.contains(&minus)))
-    }
-
-    /// Whether anything moved the camera this frame (a flight gives way to it).
-    fn busy(&self) -> bool {
-        const MOVE: [KeyCode; 10] = [
-            KeyCode::KeyW,
-            KeyCode::KeyA,
-            KeyCode::KeyS,
-            KeyCode::KeyD,
-            KeyCode::KeyQ,
-            KeyCode::KeyE,
-            KeyCode::ArrowUp,
-            KeyCode::ArrowDown,
-            KeyCode::ArrowLeft,
-            KeyCode::ArrowRight,
-        ];
-        self.drag != (0.0, 0.0)
-            || self.scroll != 0.0
-            || self.dragging
-            || MOVE.iter().any(|k| self.keys.contains(k))
     }
 
     /// This frame's input; drag and scroll start again from zero.
@@ -216,6 +194,20 @@ pub(crate) struct UiState {
     pub time_text: String,
 }
 
+impl UiState {
+    /// Plays the time of day from where it stands (now, if the sun was placed by angles) at an
+    /// hour a second, or stops it.
+    pub fn play_or_stop(&mut self) {
+        self.playing = match self.playing {
+            Some(_) => None,
+            None => {
+                self.time.get_or_insert_with(now_utc);
+                Some(3600.0)
+            }
+        };
+    }
+}
+
 /// Two points clicked on the ground and the ground between them.
 #[derive(Debug, Default, Clone)]
 pub(crate) struct Measure {
@@ -224,6 +216,10 @@ pub(crate) struct Measure {
     /// The ground between the first two.
     pub profile: Option<sc_view_plan::reference::Profile>,
 }
+
+/// What the readout under the cursor depends on: the camera, the cursor, the picture's size and
+/// the vertical scale.
+type PointedFor = (Camera, (f64, f64), (u32, u32), f64);
 
 struct App<'a> {
     streamer: &'a Streamer,
@@ -237,12 +233,12 @@ struct App<'a> {
     cpu_avg: f64,
     report: ViewReport,
     error: Option<RenderError>,
-    /// Where the view started (Home, R).
-    start: Camera,
     /// A flight under way (double-click, search, Home).
     flight: Option<FlyTo>,
-    /// What is under the cursor.
+    /// What is under the cursor, and for which camera, cursor, picture and vertical scale it was
+    /// found (it is found again only when one of them changes).
     pointed: Option<Pointed>,
+    pointed_for: Option<PointedFor>,
     ui: UiState,
     /// The next presented frame is saved here (F12).
     shot: Option<PathBuf>,
@@ -266,7 +262,6 @@ pub fn view(
         sources,
         radius,
         controller: Controller::new(opts.camera, radius),
-        start: opts.camera,
         ui: UiState {
             time: opts.time,
             ..UiState::default()
@@ -280,6 +275,7 @@ pub fn view(
         error: None,
         flight: None,
         pointed: None,
+        pointed_for: None,
         shot: None,
     };
     event_loop
@@ -432,9 +428,9 @@ impl App<'_> {
     /// Moves the camera for this frame: a flight, a script, or the user's keys and mouse (the
     /// ground grabbed and zoomed towards stays under the cursor). True when a script is over.
     fn steer(&mut self, dt: f64, size: (u32, u32)) -> bool {
-        let busy = self.input.busy();
         let mut input = self.input.take(dt);
-        if busy {
+        let keys = input.forward != 0.0 || input.right != 0.0 || input.up != 0.0;
+        if keys || self.input.dragging || input.drag != (0.0, 0.0) || input.scroll != 0.0 {
             self.flight = None;
         }
         let ground = &mut self.opts.ground;
@@ -495,10 +491,17 @@ impl App<'_> {
     /// What is under the cursor, and a click while measuring.
     fn point(&mut self, size: (u32, u32)) {
         let camera = self.controller.camera;
-        self.pointed = self
+        let key = self
             .input
             .cursor
-            .and_then(|at| self.opts.ground.point(&camera, size, at));
+            .map(|at| (camera, at, size, self.opts.ground.exaggeration));
+        if key != self.pointed_for {
+            self.pointed_for = key;
+            self.pointed = self
+                .input
+                .cursor
+                .and_then(|at| self.opts.ground.point(&camera, size, at));
+        }
         if let (Some(at), Some(m)) = (self.input.click.take(), self.ui.measure.as_mut())
             && let Some(p) = self.opts.ground.point(&camera, size, at)
         {
@@ -522,6 +525,10 @@ impl App<'_> {
         let Some((w, h)) = self.gpu.as_ref().map(|g| (g.config.width, g.config.height)) else {
             return Ok(());
         };
+        // the ground the controller and the readout use is drawn at the panel's vertical scale
+        if let Some(g) = &self.gpu {
+            self.opts.ground.exaggeration = g.pass.options.exaggeration;
+        }
         let script_over = self.steer(dt, (w, h));
         self.point((w, h));
         if let (Some(t), Some(rate)) = (self.ui.time.as_mut(), self.ui.playing) {
@@ -715,11 +722,6 @@ impl App<'_> {
     }
 
     fn key(&mut self, code: KeyCode, pressed: bool, event_loop: &ActiveEventLoop) {
-        match code {
-            KeyCode::ControlLeft | KeyCode::ControlRight => self.input.ctrl = pressed,
-            KeyCode::ShiftLeft | KeyCode::ShiftRight => self.input.shift = pressed,
-            _ => {}
-        }
         if pressed {
             self.input.keys.insert(code);
         } else {
@@ -728,7 +730,10 @@ impl App<'_> {
         if !pressed {
             return;
         }
-        let Some(action) = controls::action_for(code, self.input.ctrl, self.input.shift) else {
+        let held = |a, b| self.input.keys.contains(&a) || self.input.keys.contains(&b);
+        let ctrl = held(KeyCode::ControlLeft, KeyCode::ControlRight);
+        let shift = held(KeyCode::ShiftLeft, KeyCode::ShiftRight);
+        let Some(action) = controls::action_for(code, ctrl, shift) else {
             return;
         };
         match action {
@@ -738,8 +743,9 @@ impl App<'_> {
                 self.controller.north_up();
             }
             Action::Reset => {
-                self.controller.mode = Controller::new(self.start, self.radius).mode;
-                self.flight = Some(FlyTo::new(self.controller.camera, self.start, self.radius));
+                let start = self.opts.camera;
+                self.controller.mode = Controller::new(start, self.radius).mode;
+                self.flight = Some(FlyTo::new(self.controller.camera, start, self.radius));
             }
             Action::Search => self.ui.focus_search = true,
             Action::Help => self.ui.help ^= true,
@@ -750,17 +756,7 @@ impl App<'_> {
                     None => Some(Measure::default()),
                 };
             }
-            Action::PlayTime => {
-                self.ui.playing = match self.ui.playing {
-                    Some(_) => None,
-                    None => {
-                        if self.ui.time.is_none() {
-                            self.ui.time = Some(now_utc());
-                        }
-                        Some(3600.0)
-                    }
-                };
-            }
+            Action::PlayTime => self.ui.play_or_stop(),
             Action::Screenshot => {
                 self.shot = Some(PathBuf::from(screenshot_name(&self.controller.camera)));
             }

@@ -411,13 +411,7 @@ fn time_of_day(ui: &mut egui::Ui, s: &mut UiState) {
             "play (T)"
         };
         if ui.button(label).clicked() {
-            s.playing = match s.playing {
-                Some(_) => None,
-                None => {
-                    s.time.get_or_insert_with(crate::now_utc);
-                    Some(3600.0)
-                }
-            };
+            s.play_or_stop();
         }
     });
     if let Some(t) = s.time.as_mut() {

@@ -2,7 +2,7 @@
 //! or more, 1.5 MB), read once when a command first looks a place up, and `--goto`.
 
 use std::io::Read;
-use std::sync::OnceLock;
+use std::sync::{Arc, OnceLock};
 
 use anyhow::{Context, Result};
 use sc_view_space::camera::Camera;
@@ -10,18 +10,20 @@ use sc_view_space::places::Gazetteer;
 
 static GAZETTEER_GZ: &[u8] = include_bytes!("../../../../samples/gazetteer.tsv.gz");
 
-/// The gazetteer (parsed on first use).
-pub fn gazetteer() -> Result<&'static Gazetteer> {
-    static PLACES: OnceLock<std::result::Result<Gazetteer, String>> = OnceLock::new();
+/// The gazetteer (parsed on first use, shared after).
+pub fn gazetteer() -> Result<Arc<Gazetteer>> {
+    static PLACES: OnceLock<std::result::Result<Arc<Gazetteer>, String>> = OnceLock::new();
     PLACES
         .get_or_init(|| {
             let mut text = String::new();
             flate2::read::GzDecoder::new(GAZETTEER_GZ)
                 .read_to_string(&mut text)
                 .map_err(|e| format!("the gazetteer does not unpack: {e}"))?;
-            Gazetteer::parse(&text).map_err(|e| e.to_string())
+            Gazetteer::parse(&text)
+                .map(Arc::new)
+                .map_err(|e| e.to_string())
         })
-        .as_ref()
+        .clone()
         .map_err(|e| anyhow::anyhow!("{e}"))
 }
 

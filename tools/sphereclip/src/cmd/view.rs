@@ -66,7 +66,7 @@ pub fn run(a: &ViewArgs) -> Result<ExitCode> {
             script: flight.map(|f| flight::script(f, radius)),
             draw,
             ground: ground(&a.store, radius, a.look.exaggeration),
-            places: super::places::gazetteer()?.clone(),
+            places: super::places::gazetteer()?,
             time: a.look.time,
         },
     )?;
