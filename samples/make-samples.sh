@@ -11,4 +11,9 @@ gdal_translate -q -co COMPRESS=DEFLATE -co PREDICTOR=2 "$src/n07_w006_3arc_v2.ti
 for f in bluemarble_5400x2700.jpg landsat7_etm_utm25s.tif aletsch_dhm200_lv95.tif terra_elev_luxembourg.tif etopo20.cdf; do
   cp "$src/$f" .
 done
+# Natural Earth 1:110m countries, as the PyPI wheel pyogrio 0.13.0 ships them for its tests
+#   pip download pyogrio==0.13.0 --no-deps --only-binary :all: -d /tmp/ne
+if [ -n "${NE_WHEEL:-}" ]; then
+  unzip -o -j -q "$NE_WHEEL" 'pyogrio/tests/fixtures/naturalearth_lowres/naturalearth_lowres.*' -d .
+fi
 sha256sum -c SHA256SUMS
