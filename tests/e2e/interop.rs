@@ -8,23 +8,6 @@ use std::time::Duration;
 
 use crate::util::*;
 
-/// The interpreter of the test environment (made on first use).
-fn python() -> PathBuf {
-    let o = run_within(
-        {
-            let mut c = Command::new("bash");
-            c.arg(repo("scripts/pyenv.sh"));
-            c
-        },
-        Duration::from_secs(900),
-    );
-    assert!(
-        o.status.success(),
-        "scripts/pyenv.sh failed: {}",
-        text(&o.stderr)
-    );
-    PathBuf::from(text(&o.stdout).trim())
-}
 
 fn json(path: &Path) -> serde_json::Value {
     serde_json::from_slice(&std::fs::read(path).expect("read")).expect("json")

@@ -24,4 +24,5 @@ mod store_damage;
 mod tidy;
 mod usage;
 mod util;
+mod vector;
 mod view_data;

@@ -466,3 +466,22 @@ pub fn wait_until_paused(point: &str, dir: &Path) {
         std::thread::sleep(Duration::from_millis(20));
     }
 }
+
+/// The Python of scripts/pyenv.sh (made once under target/): zarr-python, xarray, rioxarray,
+/// shapely, pyproj.
+pub fn python() -> PathBuf {
+    let o = run_within(
+        {
+            let mut c = Command::new("bash");
+            c.arg(repo("scripts/pyenv.sh"));
+            c
+        },
+        Duration::from_secs(900),
+    );
+    assert!(
+        o.status.success(),
+        "scripts/pyenv.sh failed: {}",
+        text(&o.stderr)
+    );
+    PathBuf::from(text(&o.stdout).trim())
+}

@@ -110,6 +110,25 @@ fn write_then_rename<T>(out: &Path, write: impl FnOnce(&Path) -> Result<T>) -> R
     result
 }
 
+/// Where an export's tiles come from: a store, or whatever makes tiles on a store's grid (the
+/// viewer's source graph: vector layers, edited heights, overlays).
+pub trait ExportTiles {
+    /// Fills `out` (T² heights, or T² × 4 colour bytes) with tile `id` of `kind`.
+    fn heights(&self, id: TileId, out: &mut [f32]) -> Result<TileRead>;
+    /// Fills `out` with the colour tile `id` (sRGB RGBA8).
+    fn colors(&self, id: TileId, out: &mut [u8]) -> Result<TileRead>;
+}
+
+impl ExportTiles for StoreReader {
+    fn heights(&self, id: TileId, out: &mut [f32]) -> Result<TileRead> {
+        Ok(self.read_tile(id, out)?)
+    }
+
+    fn colors(&self, id: TileId, out: &mut [u8]) -> Result<TileRead> {
+        Ok(self.read_tile(id, out)?)
+    }
+}
+
 /// The part of a level an export writes, and the store levels its overviews come from.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ExportRegion {
@@ -153,7 +172,20 @@ pub fn plan_export(
     with_overviews: bool,
 ) -> Result<ExportRegion> {
     check_level(reader, kind, level)?;
-    let grid = reader.meta().grid;
+    let have = reader.meta().levels(kind);
+    plan_region(reader.meta().grid, level, bounds, with_overviews, &|l| {
+        have.contains(&l)
+    })
+}
+
+/// [`plan_export`] on `grid` with overviews from the coarser levels `has` says are there.
+pub fn plan_region(
+    grid: sc_core::GridSpec,
+    level: LevelId,
+    bounds: Option<[f64; 4]>,
+    with_overviews: bool,
+    has: &dyn Fn(LevelId) -> bool,
+) -> Result<ExportRegion> {
     let (w, h) = (grid.width(level), grid.height(level));
     let (dx, dy) = grid.texel_deg(level);
     let (mut x0, mut x1, mut y0, mut y1) = (0u64, w, 0u64, h);
@@ -177,14 +209,13 @@ pub fn plan_export(
     }
     let mut overviews = Vec::new();
     if with_overviews && level.is_iso() {
-        let have = reader.meta().levels(kind);
         let mut k = 0u32;
         while (x1 - x0).max(y1 - y0) >> k > 256 && k < level.level {
             let coarser = LevelId {
                 level: level.level - k - 1,
                 aniso: 0,
             };
-            if !have.contains(&coarser) {
+            if !has(coarser) {
                 break;
             }
             overviews.push(coarser);
@@ -231,6 +262,19 @@ pub fn export_geotiff(
     on_row: &dyn Fn(u64, u64),
 ) -> Result<ExportSummary> {
     check_level(reader, kind, region.level)?;
+    export_geotiff_from(reader.meta(), reader, kind, region, options, out, on_row)
+}
+
+/// [`export_geotiff`] of the tiles `tiles` makes on the grid of the store `meta` describes.
+pub fn export_geotiff_from(
+    meta: &sc_store::StoreMeta,
+    tiles: &dyn ExportTiles,
+    kind: LayerKind,
+    region: &ExportRegion,
+    options: &[String],
+    out: &Path,
+    on_row: &dyn Fn(u64, u64),
+) -> Result<ExportSummary> {
     for o in options {
         if !o.contains('=') {
             return Err(RasterError::Usage(format!(
@@ -243,7 +287,7 @@ pub fn export_geotiff(
     remove_stale_temps(&out.with_extension("stage.tif"));
     let _guard = TempGuard::new(vec![stage.clone(), tmp_path(out)]);
     let result = (|| {
-        let summary = write_staged(reader, kind, region, &stage, out, on_row)?;
+        let summary = write_staged(meta, tiles, kind, region, &stage, out, on_row)?;
         sc_store::fault::pause("export-staged");
         write_then_rename(out, |tmp| write_cog(&stage, tmp, out, options))?;
         Ok(summary)
@@ -312,7 +356,8 @@ fn gdal_err(out: &Path) -> impl Fn(gdal::errors::GdalError) -> RasterError + '_ 
 /// COG driver then lays out. Uncompressed: a staged file costs disk space of the samples (at most
 /// the export limit without `--force`) but no compression pass (measured: 10–15 % of the export).
 fn write_staged(
-    reader: &StoreReader,
+    meta: &sc_store::StoreMeta,
+    tiles: &dyn ExportTiles,
     kind: LayerKind,
     region: &ExportRegion,
     stage: &Path,
@@ -331,7 +376,6 @@ fn write_staged(
         }),
         None => Ok(()),
     };
-    let meta = reader.meta();
     let grid = meta.grid;
     let mut ds = create_staged(meta, kind, region, stage, out)?;
     let t = u64::from(grid.tile_size());
@@ -376,8 +420,8 @@ fn write_staged(
                     y: ty,
                 };
                 let present = match kind {
-                    LayerKind::Height => reader.read_tile(id, &mut tile_f)?,
-                    LayerKind::Color => reader.read_tile(id, &mut tile_u)?,
+                    LayerKind::Height => tiles.heights(id, &mut tile_f)?,
+                    LayerKind::Color => tiles.colors(id, &mut tile_u)?,
                 };
                 if k == 0 {
                     match present {

@@ -16,7 +16,8 @@ pub use sc_core::color::{linear_to_srgb, srgb_to_linear};
 use std::path::PathBuf;
 
 pub use export::{
-    EXR_MAX_TEXELS, ExportRegion, ExportSummary, export_exr, export_geotiff, plan_export,
+    EXR_MAX_TEXELS, ExportRegion, ExportSummary, ExportTiles, export_exr, export_geotiff,
+    export_geotiff_from, plan_export, plan_region,
     remove_on_signal,
 };
 pub use global::{GLOBAL_MAX_TEXELS, GlobalLevel, read_global_levels};

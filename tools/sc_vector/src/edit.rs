@@ -1,6 +1,8 @@
 //! Planning edits to heights: polygons that set, raise or cap the ground, with an edge feathered
 //! over a distance on the ground.
 
+use std::sync::Arc;
+
 use serde::Deserialize;
 
 use crate::layer::{VectorLayer, Window};
@@ -32,7 +34,7 @@ impl EditRule {
 #[derive(Debug)]
 pub struct HeightEdit {
     /// The polygons.
-    pub layer: VectorLayer,
+    pub layer: Arc<VectorLayer>,
     /// What they do.
     pub rule: EditRule,
     /// Metres.
@@ -41,7 +43,7 @@ pub struct HeightEdit {
 
 impl HeightEdit {
     /// Checks the settings.
-    pub fn new(layer: VectorLayer, rule: EditRule, feather: f64) -> Result<Self, String> {
+    pub fn new(layer: Arc<VectorLayer>, rule: EditRule, feather: f64) -> Result<Self, String> {
         let v = match rule {
             EditRule::Set(v) | EditRule::Add(v) | EditRule::ClampMax(v) => v,
         };
@@ -103,7 +105,7 @@ mod tests {
             properties: BTreeMap::new(),
         };
         let radius = 6_371_000.0;
-        let layer = VectorLayer::new(vec![f], Style::default(), Edges::Lonlat, radius).expect("l");
+        let layer = Arc::new(VectorLayer::new(vec![f], Style::default(), Edges::Lonlat, radius).expect("l"));
         let e = HeightEdit::new(layer, EditRule::Set(1950.0), 10_000.0).expect("edit");
         let d = 0.01f64.to_radians();
         let win = Window {
@@ -123,7 +125,7 @@ mod tests {
         assert!(edge > 500.0 && edge < 1950.0, "{edge}");
         assert!(
             HeightEdit::new(
-                VectorLayer::new(vec![], Style::default(), Edges::Lonlat, radius).expect("l"),
+                Arc::new(VectorLayer::new(vec![], Style::default(), Edges::Lonlat, radius).expect("l")),
                 EditRule::Add(f64::NAN),
                 0.0
             )

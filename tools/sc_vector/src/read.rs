@@ -38,6 +38,7 @@ impl Format {
     }
 }
 
+#[cfg_attr(target_arch = "wasm32", allow(dead_code))]
 fn err(path: &Path, reason: impl std::fmt::Display) -> VectorError {
     VectorError::Read {
         path: path.display().to_string(),
@@ -79,6 +80,7 @@ pub fn read_file(path: &Path) -> Result<Vec<Feature>, VectorError> {
     Ok(features)
 }
 
+#[cfg_attr(target_arch = "wasm32", allow(dead_code))]
 /// A `.prj` must describe longitude and latitude (a GEOGCS), not a projection.
 fn check_geographic_wkt(wkt: &str) -> Result<(), String> {
     let t = wkt.trim_start().to_ascii_uppercase();
@@ -90,6 +92,7 @@ fn check_geographic_wkt(wkt: &str) -> Result<(), String> {
     Ok(())
 }
 
+#[cfg_attr(target_arch = "wasm32", allow(dead_code))]
 /// Every coordinate finite and within ±180° (longitude, with a little slack) and ±90°; not too
 /// many vertices.
 fn check(features: &[Feature]) -> Result<(), String> {

@@ -561,6 +561,13 @@ pub struct ExportArgs {
     /// Write even when the export is larger than the limit (4 GiB of samples before compression).
     #[arg(long)]
     pub force: bool,
+    /// Export what a source of the image-source graph makes (a vector layer, edited heights, an
+    /// overlay) instead of the stored layer; its kind sets the layer.
+    #[arg(long, value_name = "NAME")]
+    pub source: Option<String>,
+    /// The graph file `--source` is in (default: STEM.sources.toml beside the store).
+    #[arg(long, value_name = "FILE", requires = "source")]
+    pub sources: Option<PathBuf>,
 }
 
 /// `sphereclip demo`.

@@ -49,9 +49,38 @@
 //! input = "graded"
 //! heights = "rough"
 //!
+//! [[source]]
+//! name = "borders"          # a vector layer, rasterized per tile as the tiles are asked for
+//! kind = "vector"
+//! path = "countries.shp"    # GeoJSON (.geojson, .json), FlatGeobuf (.fgb) or Shapefile (.shp)
+//! edges = "great_circle"    # or "rhumb", or "lonlat" (straight in longitude and latitude)
+//! fill = "none"             # #rrggbb, #rrggbbaa or none
+//! stroke = "#ffffff"
+//! width = 1.5
+//! unit = "px"               # or "m": metres on the ground
+//! opacity = 1.0
+//! dash = []                 # lengths on and off, in the width's unit
+//! [[source.rule]]           # the first matching rule colours a feature
+//! property = "continent"
+//! equals = "Europe"         # without `equals`: every value its own colour
+//! stroke = "#ffd700"
+//!
+//! [[source]]
+//! name = "painted borders"  # vector layers go over colours through an overlay
+//! kind = "overlay"
+//! inputs = ["painted", "borders"]
+//!
+//! [[source]]
+//! name = "reservoir"        # a vector layer that edits heights: a planning scenario
+//! kind = "vector"
+//! path = "lake.geojson"
+//! input = "rough"           # the heights it edits
+//! set = 1950.0              # or add = -30.0, or clamp_max = 1500.0 (metres)
+//! feather = 200.0           # metres inside the edge over which the edit fades in
+//!
 //! [clipmaps]
-//! height = "rough"          # `--detail off` and the panel switch to the detail's input
-//! color = "painted"
+//! height = "reservoir"      # `--detail off` and the panel switch to the detail's input
+//! color = "painted borders"
 //!
 //! [atmosphere]              # optional: the sky's model (every key optional, Earth's default)
 //! mie_scattering = [2e-5, 2e-5, 2e-5]
@@ -80,6 +109,8 @@ use crate::stream::{
 };
 use sc_view_space::ViewError;
 use sc_view_space::atmosphere::Atmosphere;
+use sc_vector::style::{Rule, Unit};
+use sc_vector::{EditRule, Edges, HeightEdit, Rgba, Style, VectorLayer, Window};
 
 /// The settings of a colour filter.
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
@@ -242,6 +273,131 @@ impl TileSource for Overlay {
     }
 }
 
+/// How a vector layer is shown (the panel edits it; its tiles are made again after).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LayerView {
+    /// Drawn at all.
+    pub shown: bool,
+    /// 0 … 1: how strongly (a colour layer's opacity, a height edit's share).
+    pub opacity: f64,
+}
+
+impl Default for LayerView {
+    fn default() -> Self {
+        Self {
+            shown: true,
+            opacity: 1.0,
+        }
+    }
+}
+
+/// A vector layer of the graph: for the panel (shown, opacity) and the readout (which feature
+/// lies under the cursor).
+#[derive(Debug, Clone)]
+pub struct VectorHandle {
+    /// Its name in the graph.
+    pub name: String,
+    /// Its source index.
+    pub source: u32,
+    /// The layer (a height edit's polygons, for an edit).
+    pub layer: Arc<VectorLayer>,
+    /// Whether it edits heights.
+    pub edits_heights: bool,
+    /// How it is shown.
+    pub view: Arc<RwLock<LayerView>>,
+}
+
+impl VectorHandle {
+    fn view(&self) -> LayerView {
+        *self.view.read().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// The label of the feature drawn at (lon, lat) (radians) within `tolerance_m` metres, if
+    /// the layer is shown and has one there.
+    pub fn label_at(&self, lon: f64, lat: f64, tolerance_m: f64) -> Option<String> {
+        if !self.view().shown {
+            return None;
+        }
+        let f = self.layer.feature_at(lon, lat, tolerance_m)?;
+        Some(self.layer.features()[f].label().unwrap_or_else(|| format!("feature {f}")))
+    }
+}
+
+/// The grid window a tile covers.
+pub fn window_of(key: &TileKey, n: u32) -> Window {
+    let win = key.grid.window(n);
+    let n64 = i64::from(n);
+    Window {
+        lon0: (key.x * n64) as f64 * win.texel_lon - std::f64::consts::PI,
+        colat0: (key.y * n64) as f64 * win.texel_colat,
+        dlon: win.texel_lon,
+        dcolat: win.texel_colat,
+        w: n as usize,
+        h: n as usize,
+    }
+}
+
+/// A vector layer rasterized into colour tiles (transparent where it draws nothing), for an
+/// overlay to lay over colours.
+#[derive(Debug)]
+pub struct VectorColorTiles {
+    layer: Arc<VectorLayer>,
+    view: Arc<RwLock<LayerView>>,
+}
+
+impl TileSource for VectorColorTiles {
+    fn make(&self, key: &TileKey, n: u32, _: &[Tile]) -> Result<TileData, TileError> {
+        let v = *self.view.read().unwrap_or_else(|e| e.into_inner());
+        if !v.shown || v.opacity <= 0.0 {
+            return Ok(TileData::Color(vec![0; (n * n * 4) as usize]));
+        }
+        Ok(TileData::Color(self.layer.render(&window_of(key, n), v.opacity)))
+    }
+}
+
+/// Heights edited by a vector layer's polygons (set, raised or capped, feathered).
+#[derive(Debug)]
+pub struct VectorHeightTiles {
+    input: u32,
+    edit: Arc<HeightEdit>,
+    view: Arc<RwLock<LayerView>>,
+}
+
+impl TileSource for VectorHeightTiles {
+    fn inputs(&self) -> Vec<u32> {
+        vec![self.input]
+    }
+
+    fn make(&self, key: &TileKey, n: u32, inputs: &[Tile]) -> Result<TileData, TileError> {
+        let Some(t) = inputs.first() else {
+            return Err(TileError::Inputs("a height edit needs its heights"));
+        };
+        let Some(h) = t.heights() else {
+            return Err(TileError::Inputs("a height edit needs heights, not colours"));
+        };
+        let v = *self.view.read().unwrap_or_else(|e| e.into_inner());
+        let mut heights = h.to_vec();
+        if v.shown && v.opacity > 0.0 {
+            let win = window_of(key, n);
+            let before = heights.clone();
+            self.edit.apply(&win, &mut heights);
+            if v.opacity < 1.0 {
+                let o = v.opacity as f32;
+                for (h, b) in heights.iter_mut().zip(before) {
+                    *h = b + (*h - b) * o;
+                }
+            }
+        }
+        Ok(match &**t {
+            TileData::ShadedHeight { shade, .. } => TileData::ShadedHeight {
+                heights,
+                shade: shade.clone(),
+            },
+            _ => TileData::Height(heights),
+        })
+    }
+}
+
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct File {
@@ -277,6 +433,7 @@ enum Decl {
         #[serde(default)]
         color: Option<f64>,
     },
+    Vector(Box<VectorDecl>),
     Filter {
         name: String,
         input: String,
@@ -289,6 +446,42 @@ enum Decl {
         #[serde(default)]
         saturation: Option<f32>,
     },
+}
+
+/// A `kind = "vector"` source: a colour layer (style keys), or with `input` a height edit.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct VectorDecl {
+    name: String,
+    path: PathBuf,
+    #[serde(default)]
+    input: Option<String>,
+    #[serde(default)]
+    edges: Option<Edges>,
+    #[serde(default)]
+    fill: Option<Rgba>,
+    #[serde(default)]
+    stroke: Option<Rgba>,
+    #[serde(default)]
+    width: Option<f64>,
+    #[serde(default)]
+    unit: Option<Unit>,
+    #[serde(default)]
+    opacity: Option<f64>,
+    #[serde(default)]
+    dash: Option<Vec<f64>>,
+    #[serde(default)]
+    marker: Option<f64>,
+    #[serde(default, rename = "rule")]
+    rules: Vec<Rule>,
+    #[serde(default)]
+    set: Option<f64>,
+    #[serde(default)]
+    add: Option<f64>,
+    #[serde(default)]
+    clamp_max: Option<f64>,
+    #[serde(default)]
+    feather: Option<f64>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -316,6 +509,8 @@ pub struct Graph {
     pub sources: Vec<Box<dyn TileSource>>,
     /// Their names.
     pub names: Vec<String>,
+    /// What each makes.
+    pub kinds: Vec<LayerKind>,
     /// Which feed the clipmaps.
     pub clipmaps: StreamSources,
     /// Which feed them with detail switched off (the clipmaps' detail sources' inputs; the same
@@ -323,6 +518,8 @@ pub struct Graph {
     pub without_detail: StreamSources,
     /// The filters, for the panel.
     pub filters: Vec<FilterHandle>,
+    /// The vector layers, for the panel and the readout.
+    pub vectors: Vec<VectorHandle>,
     /// The planet's radius (of the first store), metres.
     pub radius: f64,
     /// The `[atmosphere]` table, if the file has one (checked).
@@ -365,6 +562,8 @@ pub struct StoreStreamer {
     pub radius: f64,
     /// The colour filters.
     pub filters: Vec<FilterHandle>,
+    /// The vector layers.
+    pub vectors: Vec<VectorHandle>,
     /// The graph's `[atmosphere]` table, if it has one.
     pub atmosphere: Option<Atmosphere>,
     /// Warnings made while loading (incomplete stores, missing layers).
@@ -400,6 +599,7 @@ impl StoreStreamer {
             without_detail: graph.without_detail,
             radius: graph.radius,
             filters: graph.filters,
+            vectors: graph.vectors,
             atmosphere: graph.atmosphere,
             warnings: graph.warnings,
         }
@@ -431,6 +631,7 @@ impl Graph {
         Graph {
             sources: Vec::new(),
             names: Vec::new(),
+            kinds: Vec::new(),
             clipmaps: StreamSources {
                 height: 0,
                 color: None,
@@ -440,6 +641,7 @@ impl Graph {
                 color: None,
             },
             filters: Vec::new(),
+            vectors: Vec::new(),
             radius,
             atmosphere: None,
             warnings: Vec::new(),
@@ -509,7 +711,45 @@ impl Graph {
                 g.names.push("color detail".into());
             }
         }
+        g.kinds = g
+            .names
+            .iter()
+            .map(|n| {
+                if n.starts_with("color") {
+                    LayerKind::Color
+                } else {
+                    LayerKind::Height
+                }
+            })
+            .collect();
         g
+    }
+
+    /// The source named `name`.
+    pub fn source_named(&self, name: &str) -> Option<u32> {
+        self.names.iter().position(|n| n == name).map(|i| i as u32)
+    }
+
+    /// Makes the tile `key` (`n × n`) here and now, its inputs first (nothing cached): what an
+    /// export of a source asks for, tile by tile.
+    pub fn make_tile(&self, key: TileKey, n: u32) -> Result<TileData, TileError> {
+        self.make_at_depth(key, n, 0)
+    }
+
+    fn make_at_depth(&self, key: TileKey, n: u32, depth: usize) -> Result<TileData, TileError> {
+        let src = self
+            .sources
+            .get(key.source as usize)
+            .ok_or_else(|| TileError::Graph(format!("no source {}", key.source)))?;
+        if depth > MAX_SOURCES {
+            return Err(TileError::Graph("inputs nest too deeply".into()));
+        }
+        let inputs = src
+            .inputs()
+            .into_iter()
+            .map(|i| self.make_at_depth(key.with_source(i), n, depth + 1).map(Arc::new))
+            .collect::<Result<Vec<_>, _>>()?;
+        src.make(&key, n, &inputs)
     }
 
     /// The graph declared in the TOML file `path` (store paths relative to it).
@@ -574,6 +814,7 @@ impl GraphBuilder {
             | Decl::Overlay { name, .. }
             | Decl::Detail { name, .. }
             | Decl::Filter { name, .. } => name.clone(),
+            Decl::Vector(v) => v.name.clone(),
         };
         if self.g.names.contains(&name) {
             return Err(format!("source `{name}` is declared twice"));
@@ -602,6 +843,10 @@ impl GraphBuilder {
             }
             Decl::Overlay { inputs, .. } => {
                 self.overlay(&name, &inputs)?;
+                (None, None)
+            }
+            Decl::Vector(v) => {
+                self.vector(*v, here)?;
                 (None, None)
             }
             Decl::Filter {
@@ -734,6 +979,113 @@ impl GraphBuilder {
         Ok(())
     }
 
+    /// A vector layer: colours, or an edit of the heights `input`.
+    fn vector(&mut self, v: VectorDecl, here: &Path) -> Result<(), String> {
+        let name = v.name.clone();
+        if self.g.radius == 0.0 {
+            return Err(format!(
+                "vector `{name}`: declare a store before it (the layer takes its planet's radius)"
+            ));
+        }
+        let file = here.join(&v.path);
+        let features = read_vector(&file).map_err(|e| format!("vector `{name}`: {e}"))?;
+        let edges = v.edges.unwrap_or_default();
+        let view = Arc::new(RwLock::new(LayerView::default()));
+        let source = self.g.sources.len() as u32;
+        let rule = match (v.set, v.add, v.clamp_max) {
+            (Some(h), None, None) => Some(EditRule::Set(h)),
+            (None, Some(h), None) => Some(EditRule::Add(h)),
+            (None, None, Some(h)) => Some(EditRule::ClampMax(h)),
+            (None, None, None) => None,
+            _ => {
+                return Err(format!(
+                    "vector `{name}`: give one of set, add and clamp_max"
+                ));
+            }
+        };
+        let styled = v.fill.is_some()
+            || v.stroke.is_some()
+            || v.width.is_some()
+            || v.unit.is_some()
+            || v.opacity.is_some()
+            || v.dash.is_some()
+            || v.marker.is_some()
+            || !v.rules.is_empty();
+        let (layer, edits_heights) = match (&v.input, rule) {
+            (Some(input), Some(rule)) => {
+                if styled {
+                    return Err(format!(
+                        "vector `{name}` edits heights: it takes no fill, stroke or other style"
+                    ));
+                }
+                let i = self.find(input, &name)?;
+                if self.kinds[i as usize] != LayerKind::Height {
+                    return Err(format!(
+                        "vector `{name}` edits heights, `{input}` makes colours"
+                    ));
+                }
+                let layer = Arc::new(
+                    VectorLayer::new(features, Style::default(), edges, self.g.radius)
+                        .map_err(|e| format!("vector `{name}`: {e}"))?,
+                );
+                let edit = HeightEdit::new(layer.clone(), rule, v.feather.unwrap_or(0.0))
+                    .map_err(|e| format!("vector `{name}`: {e}"))?;
+                let edit = Arc::new(edit);
+                self.g.sources.push(Box::new(VectorHeightTiles {
+                    input: i,
+                    edit,
+                    view: view.clone(),
+                }));
+                self.kinds.push(LayerKind::Height);
+                (layer, true)
+            }
+            (Some(_), None) => {
+                return Err(format!(
+                    "vector `{name}` takes `input` heights: give set, add or clamp_max"
+                ));
+            }
+            (None, Some(_)) => {
+                return Err(format!(
+                    "vector `{name}`: set, add and clamp_max edit heights; name them with `input`"
+                ));
+            }
+            (None, None) => {
+                if v.feather.is_some() {
+                    return Err(format!("vector `{name}`: feather is for height edits"));
+                }
+                let d = Style::default();
+                let style = Style {
+                    fill: v.fill.unwrap_or(d.fill),
+                    stroke: v.stroke.unwrap_or(d.stroke),
+                    width: v.width.unwrap_or(d.width),
+                    unit: v.unit.unwrap_or(d.unit),
+                    opacity: v.opacity.unwrap_or(d.opacity),
+                    dash: v.dash.unwrap_or_default(),
+                    marker: v.marker,
+                    rules: v.rules,
+                };
+                let layer = Arc::new(
+                    VectorLayer::new(features, style, edges, self.g.radius)
+                        .map_err(|e| format!("vector `{name}`: {e}"))?,
+                );
+                self.g.sources.push(Box::new(VectorColorTiles {
+                    layer: layer.clone(),
+                    view: view.clone(),
+                }));
+                self.kinds.push(LayerKind::Color);
+                (layer, false)
+            }
+        };
+        self.g.vectors.push(VectorHandle {
+            name,
+            source,
+            layer,
+            edits_heights,
+            view,
+        });
+        Ok(())
+    }
+
     /// A colour filter over `input`.
     fn filter(
         &mut self,
@@ -793,6 +1145,7 @@ impl GraphBuilder {
             None => None,
         };
         let mut g = self.g;
+        g.kinds = self.kinds;
         g.clipmaps.height = h;
         g.clipmaps.color = color;
         let off = |s: u32| self.detail_of[s as usize].unwrap_or(s);
@@ -805,6 +1158,18 @@ impl GraphBuilder {
         }
         Ok(g)
     }
+}
+
+/// The features of a vector file (GeoJSON, FlatGeobuf, Shapefile).
+#[cfg(not(target_arch = "wasm32"))]
+fn read_vector(file: &Path) -> Result<Vec<sc_vector::Feature>, String> {
+    sc_vector::read::read_file(file).map_err(|e| e.to_string())
+}
+
+/// A browser reads no files of its own.
+#[cfg(target_arch = "wasm32")]
+fn read_vector(file: &Path) -> Result<Vec<sc_vector::Feature>, String> {
+    Err(format!("cannot read {} in a browser", file.display()))
 }
 
 /// The graph file next to a store folder (`planet.zarr` → `planet.sources.toml`), if there is
