@@ -8,7 +8,6 @@ use std::time::Duration;
 
 use crate::util::*;
 
-
 fn json(path: &Path) -> serde_json::Value {
     serde_json::from_slice(&std::fs::read(path).expect("read")).expect("json")
 }

@@ -29,13 +29,33 @@ fn layers(dir: &Path) -> PathBuf {
     ogr(&["-f", "GeoJSON", s(&dir.join("countries.geojson")), s(&shp)]);
     for c in ["Antarctica", "Fiji"] {
         let w = format!("name='{c}'");
-        ogr(&["-f", "GeoJSON", s(&dir.join(format!("{c}.geojson"))), s(&shp), "-where", &w]);
+        ogr(&[
+            "-f",
+            "GeoJSON",
+            s(&dir.join(format!("{c}.geojson"))),
+            s(&shp),
+            "-where",
+            &w,
+        ]);
     }
     let w = "name='Russia'";
-    ogr(&["-f", "GeoJSON", s(&dir.join("Russia.geojson")), s(&shp), "-where", w]);
     ogr(&[
-        "-f", "FlatGeobuf", "-nlt", "PROMOTE_TO_MULTI",
-        s(&dir.join("Russia.fgb")), s(&shp), "-where", w,
+        "-f",
+        "GeoJSON",
+        s(&dir.join("Russia.geojson")),
+        s(&shp),
+        "-where",
+        w,
+    ]);
+    ogr(&[
+        "-f",
+        "FlatGeobuf",
+        "-nlt",
+        "PROMOTE_TO_MULTI",
+        s(&dir.join("Russia.fgb")),
+        s(&shp),
+        "-where",
+        w,
     ]);
     std::fs::write(
         dir.join("track.geojson"),
@@ -74,7 +94,14 @@ fn layers(dir: &Path) -> PathBuf {
 fn export(graph: &Path, source: &str, level: &str, bounds: Option<&str>, out: &Path) {
     let store = sample_planet();
     let mut args = vec![
-        "export", s(&store), "--sources", s(graph), "--source", source, "--level", level,
+        "export",
+        s(&store),
+        "--sources",
+        s(graph),
+        "--source",
+        source,
+        "--level",
+        level,
     ];
     let b;
     if let Some(x) = bounds {
@@ -108,17 +135,33 @@ fn polygons_cover_each_texel_as_shapely_and_the_sphere_as_their_geodesic_area() 
         ("countries", "great_circle", "6", Some("5,44,17,49")),
         ("countries", "great_circle", "6", Some("177,-20,180,-15")),
         ("countries", "great_circle", "6", Some("-180,-90,-150,-80")),
-        ("countries", "great_circle", "9", Some("179.5,-16.9,180,-16.5")),
-        ("countries", "great_circle", "9", Some("-180,-16.9,-179.5,-16.5")),
+        (
+            "countries",
+            "great_circle",
+            "9",
+            Some("179.5,-16.9,180,-16.5"),
+        ),
+        (
+            "countries",
+            "great_circle",
+            "9",
+            Some("-180,-16.9,-179.5,-16.5"),
+        ),
     ];
     for (i, (source, edges, level, bounds)) in cases.iter().enumerate() {
         let tif = d.join(format!("c{i}.tif"));
         export(&graph, source, level, *bounds, &tif);
         let r = reference(&["coverage", s(&countries), s(&tif), edges]);
         eprintln!("{source} level {level} {bounds:?}: {r}");
-        let (max, mean) = (r["max"].as_f64().expect("max"), r["mean"].as_f64().expect("mean"));
+        let (max, mean) = (
+            r["max"].as_f64().expect("max"),
+            r["mean"].as_f64().expect("mean"),
+        );
         assert!(r["edge_texels"].as_u64().expect("n") > 50, "{r}");
-        assert!(max <= 0.02 && mean <= 0.005, "{source} level {level} {bounds:?}: {r}");
+        assert!(
+            max <= 0.02 && mean <= 0.005,
+            "{source} level {level} {bounds:?}: {r}"
+        );
         // no streak, no inverted fill: what is covered in all is the reference's, to a texel
         let (a, b) = (
             r["covered_export"].as_f64().expect("c"),
@@ -184,8 +227,16 @@ fn a_track_follows_its_great_circle_and_a_height_edit_reads_its_height() {
     let png = d.join("lake.png");
     let store = sample_planet();
     let o = run(&[
-        "render", s(&store), "--sources", s(&graph), "--goto", "46.3,8.0", "--size", "160x90",
-        "--out", s(&png),
+        "render",
+        s(&store),
+        "--sources",
+        s(&graph),
+        "--goto",
+        "46.3,8.0",
+        "--size",
+        "160x90",
+        "--out",
+        s(&png),
     ]);
     ok(&o);
     assert!(

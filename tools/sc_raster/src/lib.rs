@@ -17,8 +17,7 @@ use std::path::PathBuf;
 
 pub use export::{
     EXR_MAX_TEXELS, ExportRegion, ExportSummary, ExportTiles, export_exr, export_geotiff,
-    export_geotiff_from, plan_export, plan_region,
-    remove_on_signal,
+    export_geotiff_from, plan_export, plan_region, remove_on_signal,
 };
 pub use global::{GLOBAL_MAX_TEXELS, GlobalLevel, read_global_levels};
 pub use source::{

@@ -133,9 +133,9 @@ impl Accumulator {
     }
 
     /// The coverage, 0 … 1 per texel (row-major), the magnitude of the signed coverage clamped
-    /// at 1 (rings of either orientation, overlapping parts counted once), into `out`.
+    /// at 1 (rings of either orientation, overlapping parts counted once), into the rows of
+    /// `out` that edges touched ([`Self::rows`]; the others are left as they are).
     pub fn coverage_into(&self, out: &mut [f32]) {
-        out.fill(0.0);
         let Some((a, b)) = self.rows else { return };
         for r in a..=b {
             let row = &self.acc[r * (self.w + 2)..(r + 1) * (self.w + 2)];

@@ -105,7 +105,9 @@ mod tests {
             properties: BTreeMap::new(),
         };
         let radius = 6_371_000.0;
-        let layer = Arc::new(VectorLayer::new(vec![f], Style::default(), Edges::Lonlat, radius).expect("l"));
+        let layer = Arc::new(
+            VectorLayer::new(vec![f], Style::default(), Edges::Lonlat, radius).expect("l"),
+        );
         let e = HeightEdit::new(layer, EditRule::Set(1950.0), 10_000.0).expect("edit");
         let d = 0.01f64.to_radians();
         let win = Window {
@@ -125,7 +127,9 @@ mod tests {
         assert!(edge > 500.0 && edge < 1950.0, "{edge}");
         assert!(
             HeightEdit::new(
-                Arc::new(VectorLayer::new(vec![], Style::default(), Edges::Lonlat, radius).expect("l")),
+                Arc::new(
+                    VectorLayer::new(vec![], Style::default(), Edges::Lonlat, radius).expect("l")
+                ),
                 EditRule::Add(f64::NAN),
                 0.0
             )

@@ -143,6 +143,10 @@ fn union(a: [f64; 4], b: [f64; 4]) -> [f64; 4] {
     ]
 }
 
+/// A polygon's edges (ring, edge) by latitude: the first bin's latitude, the bins' height, the
+/// bins.
+type LatBins = (f64, f64, Vec<Vec<(u32, u32)>>);
+
 /// A polygon prepared for coverage; its edges binned by latitude.
 #[derive(Debug)]
 struct Poly {
@@ -150,7 +154,7 @@ struct Poly {
     rings: Vec<Vec<[f64; 2]>>,
     bbox: [f64; 4],
     /// Latitude bins of (ring, edge), when the polygon has many edges.
-    bins: Option<(f64, f64, Vec<Vec<(u32, u32)>>)>,
+    bins: Option<LatBins>,
 }
 
 impl Poly {
@@ -564,7 +568,7 @@ impl VectorLayer {
     }
 
     fn render_part(&self, part: &Window, opacity: f64) -> Vec<u8> {
-        let n = part.w * part.h;
+        let (w, n) = (part.w, part.w * part.h);
         let mut rgba = vec![0.0f32; n * 4];
         let texel_m = part.dcolat * self.radius;
         let max_width = self
@@ -572,97 +576,92 @@ impl VectorLayer {
             .iter()
             .map(|l| l.width)
             .fold(self.style.width, f64::max);
-        let marker = self.style.marker.unwrap_or(3.0 * self.style.width);
+        let marker = self.style.marker.unwrap_or(3.0 * max_width);
         let reach = self.metres(max_width.max(2.0 * marker), part) / 2.0 + texel_m;
-        let polys = self.polys_in(part, 0.0);
-        let segs = self.segments_in(part, reach);
-        let marks = self.marker_index.query(
-            part_box(part),
-            reach
-                / self.radius
-                / part_box(part)[1]
-                    .abs()
-                    .max(part_box(part)[3].abs())
-                    .min(1.5)
-                    .cos(),
-        );
-        // features in order, each its fill, then its stroke, then its markers
-        let mut feats: Vec<u32> = polys
-            .iter()
-            .map(|&p| self.polys[p as usize].feature)
+        let b = part_box(part);
+        let cos_max = b[1].abs().max(b[3].abs()).min(1.5).cos();
+        // what each feature draws here, features ascending
+        let mut polys: Vec<(u32, u32)> = self
+            .polys_in(part, 0.0)
+            .into_iter()
+            .map(|p| (self.polys[p as usize].feature, p))
             .collect();
-        let by_feature = group_by_feature(&self.strokes, &self.segments, segs);
-        feats.extend(by_feature.iter().map(|(f, _)| *f));
-        feats.extend(marks.iter().map(|&m| self.markers[m as usize].0));
+        polys.sort_unstable();
+        let strokes =
+            group_by_feature(&self.strokes, &self.segments, self.segments_in(part, reach));
+        let mut marks: Vec<(u32, [f64; 2])> = self
+            .marker_index
+            .query(b, reach / self.radius / cos_max)
+            .into_iter()
+            .map(|m| self.markers[m as usize])
+            .collect();
+        marks.sort_by_key(|m| m.0);
+        let mut feats: Vec<u32> = polys.iter().map(|p| p.0).collect();
+        feats.extend(strokes.iter().map(|(f, _)| *f));
+        feats.extend(marks.iter().map(|m| m.0));
         feats.sort_unstable();
         feats.dedup();
         let mut acc = Accumulator::new(part.w, part.h);
         let mut cover = vec![0.0f32; n];
-        let composite = |rgba: &mut [f32], cover: &[f32], c: [u8; 4]| {
-            let a = f64::from(c[3]) / 255.0 * opacity;
-            if a <= 0.0 {
-                return;
-            }
-            let col = [c[0], c[1], c[2]].map(|v| f32::from(v) / 255.0);
-            for (px, &cv) in rgba.chunks_exact_mut(4).zip(cover) {
-                if cv <= 0.0 {
-                    continue;
-                }
-                let al = cv * a as f32;
-                for k in 0..3 {
-                    px[k] = col[k] * al + px[k] * (1.0 - al);
-                }
-                px[3] = al + px[3] * (1.0 - al);
-            }
-        };
+        let dash = self.dash_metres(part);
+        let (mut pi, mut si, mut mi) = (0usize, 0usize, 0usize);
         for f in feats {
             let look = self.looks[f as usize];
-            if look.fill.0[3] > 0 {
+            let start = pi;
+            while pi < polys.len() && polys[pi].0 == f {
+                pi += 1;
+            }
+            if look.fill.0[3] > 0 && pi > start {
                 acc.clear();
-                let mut any = false;
-                for &pi in polys
-                    .iter()
-                    .filter(|&&p| self.polys[p as usize].feature == f)
-                {
-                    self.accumulate_poly(&mut acc, part, pi);
-                    any = true;
+                for &(_, p) in &polys[start..pi] {
+                    self.accumulate_poly(&mut acc, part, p);
                 }
-                if any {
+                if let Some((r0, r1)) = acc.rows() {
                     acc.coverage_into(&mut cover);
-                    composite(&mut rgba, &cover, look.fill.0);
+                    let rect = Rect {
+                        r0,
+                        r1: r1 + 1,
+                        c0: 0,
+                        c1: w,
+                    };
+                    composite(&mut rgba, &mut cover, w, rect, look.fill.0, opacity);
                 }
             }
-            if look.stroke.0[3] > 0 && look.width > 0.0 {
-                if let Some((_, list)) = by_feature.iter().find(|(g, _)| *g == f) {
-                    cover.fill(0.0);
-                    let half = self.metres(look.width, part) / 2.0;
-                    let dash = self.dash_metres(part);
-                    self.stroke_pass(part, list, half + texel_m, |i, d, s| {
-                        let mut c = band(d, half, texel_m);
-                        if let Some((on, period)) = &dash {
-                            c *= dash_share(s, on, *period, texel_m);
-                        }
-                        cover[i] = cover[i].max(c as f32);
-                    });
-                    composite(&mut rgba, &cover, look.stroke.0);
-                }
+            let mut list: &[(u32, u32)] = &[];
+            if si < strokes.len() && strokes[si].0 == f {
+                list = &strokes[si].1;
+                si += 1;
+            }
+            let start = mi;
+            while mi < marks.len() && marks[mi].0 == f {
+                mi += 1;
+            }
+            if look.stroke.0[3] == 0 || look.width <= 0.0 {
+                continue;
+            }
+            if !list.is_empty() {
+                let half = self.metres(look.width, part) / 2.0;
+                let mut rect = Rect::EMPTY;
+                self.stroke_pass(part, list, half + texel_m, |i, d, s| {
+                    let mut c = band(d, half, texel_m);
+                    if let Some((on, period)) = &dash {
+                        c *= dash_share(s, on, *period, texel_m);
+                    }
+                    rect.add(i / w, i % w);
+                    cover[i] = cover[i].max(c as f32);
+                });
+                composite(&mut rgba, &mut cover, w, rect, look.stroke.0, opacity);
+            }
+            if mi > start {
                 let radius = self.metres(self.style.marker.unwrap_or(3.0 * look.width), part);
-                let mine: Vec<[f64; 2]> = marks
-                    .iter()
-                    .map(|&m| self.markers[m as usize])
-                    .filter(|(g, _)| *g == f)
-                    .map(|(_, p)| p)
-                    .collect();
-                if !mine.is_empty() {
-                    cover.fill(0.0);
-                    self.marker_pass(part, &mine, radius, texel_m, &mut cover);
-                    let c = if look.fill.0[3] > 0 {
-                        look.fill
-                    } else {
-                        look.stroke
-                    };
-                    composite(&mut rgba, &cover, c.0);
-                }
+                let at: Vec<[f64; 2]> = marks[start..mi].iter().map(|m| m.1).collect();
+                let rect = self.marker_pass(part, &at, radius, texel_m, &mut cover);
+                let c = if look.fill.0[3] > 0 {
+                    look.fill
+                } else {
+                    look.stroke
+                };
+                composite(&mut rgba, &mut cover, w, rect, c.0, opacity);
             }
         }
         rgba.chunks_exact(4)
@@ -703,7 +702,8 @@ impl VectorLayer {
         radius: f64,
         texel_m: f64,
         cover: &mut [f32],
-    ) {
+    ) -> Rect {
+        let mut rect = Rect::EMPTY;
         let lon1 = part.lon0 + part.w as f64 * part.dlon;
         let reach = radius + texel_m;
         for p in at {
@@ -730,9 +730,57 @@ impl VectorLayer {
                         let v = band(dist, radius, texel_m) as f32;
                         let i = r * part.w + c;
                         cover[i] = cover[i].max(v);
+                        rect.add(r, c);
                     }
                 }
             }
+        }
+        rect
+    }
+}
+
+/// The texels a feature touched: rows r0..r1, columns c0..c1.
+#[derive(Debug, Clone, Copy)]
+struct Rect {
+    r0: usize,
+    r1: usize,
+    c0: usize,
+    c1: usize,
+}
+
+impl Rect {
+    const EMPTY: Rect = Rect {
+        r0: usize::MAX,
+        r1: 0,
+        c0: usize::MAX,
+        c1: 0,
+    };
+
+    fn add(&mut self, r: usize, c: usize) {
+        self.r0 = self.r0.min(r);
+        self.r1 = self.r1.max(r + 1);
+        self.c0 = self.c0.min(c);
+        self.c1 = self.c1.max(c + 1);
+    }
+}
+
+/// Lays colour `c` (sRGB, its alpha times `opacity`) over premultiplied `rgba` by `cover`
+/// within `rect`, and clears `cover` there for the next feature.
+fn composite(rgba: &mut [f32], cover: &mut [f32], w: usize, rect: Rect, c: [u8; 4], opacity: f64) {
+    let a = (f64::from(c[3]) / 255.0 * opacity) as f32;
+    let col = [c[0], c[1], c[2]].map(|v| f32::from(v) / 255.0);
+    for r in rect.r0..rect.r1 {
+        for i in r * w + rect.c0..r * w + rect.c1 {
+            let cv = std::mem::take(&mut cover[i]);
+            if cv <= 0.0 || a <= 0.0 {
+                continue;
+            }
+            let al = cv * a;
+            let px = &mut rgba[i * 4..i * 4 + 4];
+            for k in 0..3 {
+                px[k] = col[k] * al + px[k] * (1.0 - al);
+            }
+            px[3] = al + px[3] * (1.0 - al);
         }
     }
 }

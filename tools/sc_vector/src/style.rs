@@ -196,7 +196,7 @@ impl Style {
             return Err(format!("opacity {} must be 0 … 1", self.opacity));
         }
         if !self.dash.is_empty()
-            && (self.dash.len() % 2 != 0
+            && (!self.dash.len().is_multiple_of(2)
                 || self.dash.iter().any(|&d| !finite_pos(d) || d > 1e7)
                 || self.dash.iter().sum::<f64>() <= 0.0)
         {

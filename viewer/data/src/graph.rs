@@ -107,10 +107,10 @@ use crate::stream::{
     DetailColorTiles, FnHeightTiles, StoreColorTiles, StoreHeightTiles, Streamer, Tile, TileData,
     TileError, TileKey, TileSource,
 };
+use sc_vector::style::{Rule, Unit};
+use sc_vector::{Edges, EditRule, HeightEdit, Rgba, Style, VectorLayer, Window};
 use sc_view_space::ViewError;
 use sc_view_space::atmosphere::Atmosphere;
-use sc_vector::style::{Rule, Unit};
-use sc_vector::{EditRule, Edges, HeightEdit, Rgba, Style, VectorLayer, Window};
 
 /// The settings of a colour filter.
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
@@ -319,7 +319,11 @@ impl VectorHandle {
             return None;
         }
         let f = self.layer.feature_at(lon, lat, tolerance_m)?;
-        Some(self.layer.features()[f].label().unwrap_or_else(|| format!("feature {f}")))
+        Some(
+            self.layer.features()[f]
+                .label()
+                .unwrap_or_else(|| format!("feature {f}")),
+        )
     }
 }
 
@@ -351,7 +355,9 @@ impl TileSource for VectorColorTiles {
         if !v.shown || v.opacity <= 0.0 {
             return Ok(TileData::Color(vec![0; (n * n * 4) as usize]));
         }
-        Ok(TileData::Color(self.layer.render(&window_of(key, n), v.opacity)))
+        Ok(TileData::Color(
+            self.layer.render(&window_of(key, n), v.opacity),
+        ))
     }
 }
 
@@ -373,7 +379,9 @@ impl TileSource for VectorHeightTiles {
             return Err(TileError::Inputs("a height edit needs its heights"));
         };
         let Some(h) = t.heights() else {
-            return Err(TileError::Inputs("a height edit needs heights, not colours"));
+            return Err(TileError::Inputs(
+                "a height edit needs heights, not colours",
+            ));
         };
         let v = *self.view.read().unwrap_or_else(|e| e.into_inner());
         let mut heights = h.to_vec();
@@ -747,7 +755,10 @@ impl Graph {
         let inputs = src
             .inputs()
             .into_iter()
-            .map(|i| self.make_at_depth(key.with_source(i), n, depth + 1).map(Arc::new))
+            .map(|i| {
+                self.make_at_depth(key.with_source(i), n, depth + 1)
+                    .map(Arc::new)
+            })
             .collect::<Result<Vec<_>, _>>()?;
         src.make(&key, n, &inputs)
     }

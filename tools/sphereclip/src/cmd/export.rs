@@ -44,7 +44,11 @@ impl ExportTiles for GraphTiles {
     fn heights(&self, id: TileId, out: &mut [f32]) -> sc_raster::Result<TileRead> {
         match self.make(id)?.heights() {
             Some(h) => out.copy_from_slice(h),
-            None => return Err(sc_raster::RasterError::Usage("the source makes colours".into())),
+            None => {
+                return Err(sc_raster::RasterError::Usage(
+                    "the source makes colours".into(),
+                ));
+            }
         }
         Ok(TileRead::Present)
     }
@@ -52,7 +56,11 @@ impl ExportTiles for GraphTiles {
     fn colors(&self, id: TileId, out: &mut [u8]) -> sc_raster::Result<TileRead> {
         match self.make(id)? {
             TileData::Color(c) => out.copy_from_slice(&c),
-            _ => return Err(sc_raster::RasterError::Usage("the source makes heights".into())),
+            _ => {
+                return Err(sc_raster::RasterError::Usage(
+                    "the source makes heights".into(),
+                ));
+            }
         }
         Ok(TileRead::Present)
     }
@@ -66,9 +74,13 @@ fn run_source(a: &ExportArgs, reader: &StoreReader, name: &str) -> Result<ExitCo
         .or_else(|| sc_view_data::graph::beside(&a.store))
         .context("--source needs the graph: give --sources FILE (none beside the store)")?;
     let graph = Graph::load(&file)?;
-    let source = graph
-        .source_named(name)
-        .with_context(|| format!("{} has no source `{name}` (it has: {})", file.display(), graph.names.join(", ")))?;
+    let source = graph.source_named(name).with_context(|| {
+        format!(
+            "{} has no source `{name}` (it has: {})",
+            file.display(),
+            graph.names.join(", ")
+        )
+    })?;
     let kind = graph.kinds[source as usize];
     if a.out.format != ExportFormat::GeoTiff {
         bail!("export --source writes GeoTIFF (.tif)");
