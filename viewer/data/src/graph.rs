@@ -349,6 +349,13 @@ pub struct VectorColorTiles {
     view: Arc<RwLock<LayerView>>,
 }
 
+impl VectorColorTiles {
+    /// `layer` drawn as `view` says.
+    pub fn new(layer: Arc<VectorLayer>, view: Arc<RwLock<LayerView>>) -> Self {
+        Self { layer, view }
+    }
+}
+
 impl TileSource for VectorColorTiles {
     fn make(&self, key: &TileKey, n: u32, _: &[Tile]) -> Result<TileData, TileError> {
         let v = *self.view.read().unwrap_or_else(|e| e.into_inner());

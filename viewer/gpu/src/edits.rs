@@ -1,11 +1,11 @@
 //! What a viewer's panel edits (the window's egui panel, the web page's HTML panel) and the one
 //! place an edit takes effect: the camera's mode and speed, the drawing options (the atmosphere
 //! only on a lit view), detail on or off (the clipmaps refill from the other sources), and the
-//! graph's colour filters (their tiles, and the tiles derived from them, are made again; only
-//! the visible ones, as the next frames ask for them).
+//! graph's colour filters and vector layers (their tiles, and the tiles derived from them, are
+//! made again; only the visible ones, as the next frames ask for them).
 
 use sc_store::LayerKind;
-use sc_view_data::graph::{FilterHandle, FilterParams};
+use sc_view_data::graph::{FilterHandle, FilterParams, LayerView, VectorHandle};
 use sc_view_data::stream::StreamSources;
 use sc_view_data::stream::Streamer;
 use sc_view_plan::frame::DrawOptions;
@@ -27,6 +27,8 @@ pub struct Edits {
     pub detail: bool,
     /// The graph's colour filters, by name.
     pub filters: Vec<(String, FilterParams)>,
+    /// The graph's vector layers, by name: shown, and how strongly.
+    pub vectors: Vec<(String, LayerView)>,
 }
 
 /// A view that edits apply to.
@@ -44,6 +46,8 @@ pub struct Edited<'a> {
     pub detail: Option<(StreamSources, StreamSources)>,
     /// The graph's colour filters.
     pub filters: &'a [FilterHandle],
+    /// The graph's vector layers.
+    pub vectors: &'a [VectorHandle],
 }
 
 impl Edited<'_> {
@@ -61,6 +65,16 @@ impl Edited<'_> {
                     (
                         f.name.clone(),
                         f.params.read().map(|p| *p).unwrap_or_default(),
+                    )
+                })
+                .collect(),
+            vectors: self
+                .vectors
+                .iter()
+                .map(|v| {
+                    (
+                        v.name.clone(),
+                        v.view.read().map(|p| *p).unwrap_or_default(),
                     )
                 })
                 .collect(),
@@ -96,20 +110,40 @@ impl Edited<'_> {
             if let Ok(mut p) = f.params.write() {
                 *p = *new;
             }
-            let stale = self.streamer.dependents(f.source);
-            self.streamer.cache().invalidate(&stale);
-            let mut layers = Vec::new();
-            if stale.contains(&self.sources.height) {
-                layers.push(LayerKind::Height);
+            dropped.extend(self.remake(f.source));
+        }
+        for (v, (_, new)) in self.vectors.iter().zip(&e.vectors) {
+            let old = v.view.read().map(|p| *p).unwrap_or_default();
+            let new = LayerView {
+                shown: new.shown,
+                opacity: new.opacity.clamp(0.0, 1.0),
+            };
+            if new == old {
+                continue;
             }
-            if self.sources.color.is_some_and(|c| stale.contains(&c)) {
-                layers.push(LayerKind::Color);
+            if let Ok(mut p) = v.view.write() {
+                *p = new;
             }
-            self.pass.invalidate(&layers);
-            dropped.extend(stale);
+            dropped.extend(self.remake(v.source));
         }
         dropped.sort_unstable();
         dropped.dedup();
         dropped
+    }
+
+    /// Drops the tiles of `source` and of what derives from it, and the clipmap layers they
+    /// feed; the sources dropped.
+    fn remake(&mut self, source: u32) -> Vec<u32> {
+        let stale = self.streamer.dependents(source);
+        self.streamer.cache().invalidate(&stale);
+        let mut layers = Vec::new();
+        if stale.contains(&self.sources.height) {
+            layers.push(LayerKind::Height);
+        }
+        if self.sources.color.is_some_and(|c| stale.contains(&c)) {
+            layers.push(LayerKind::Color);
+        }
+        self.pass.invalidate(&layers);
+        stale
     }
 }

@@ -323,10 +323,17 @@ impl<S: TileSource> TileSource for Counting<S> {
 }
 
 fn converge(r: &mut Renderer, s: &Streamer, camera: &Camera) -> image::RgbaImage {
+    converge_with(r, s, camera, SOURCES_FILTERED)
+}
+
+fn converge_with(
+    r: &mut Renderer,
+    s: &Streamer,
+    camera: &Camera,
+    sources: StreamSources,
+) -> image::RgbaImage {
     for _ in 0..60 {
-        let (img, stats, _) = r
-            .render_streamed(s, SOURCES_FILTERED, camera, None)
-            .expect("render");
+        let (img, stats, _) = r.render_streamed(s, sources, camera, None).expect("render");
         if stats.level_hi == stats.level_wanted && !stats.fading && s.idle() {
             return img;
         }
@@ -386,6 +393,7 @@ fn a_filter_edit_remakes_only_the_visible_tiles() {
         sources: &mut sources,
         detail: None,
         filters: &filters,
+        vectors: &[],
     };
     let mut edits = view.edits();
     edits.filters[0].1.brightness = 0.3;
@@ -416,5 +424,99 @@ fn a_filter_edit_remakes_only_the_visible_tiles() {
     assert!(
         mean(&after_edit) > mean(&before_edit) * 1.05,
         "the edit shows"
+    );
+}
+
+#[test]
+fn a_vector_layer_switched_off_in_the_panel_leaves_the_picture() {
+    use sc_vector::{Edges, Feature, Geometry, Rgba, Style, VectorLayer};
+    use sc_view_data::graph::{LayerView, Overlay, VectorColorTiles, VectorHandle};
+    use std::sync::{Arc, RwLock};
+    // a red square round the camera's ground, over the colours
+    let square = vec![
+        [115.0, -35.0],
+        [125.0, -35.0],
+        [125.0, -25.0],
+        [115.0, -25.0],
+        [115.0, -35.0],
+    ];
+    let layer = Arc::new(
+        VectorLayer::new(
+            vec![Feature {
+                geometry: Geometry::Polygons(vec![vec![square]]),
+                properties: [("name".to_string(), sc_vector::Value::Text("square".into()))].into(),
+            }],
+            Style {
+                fill: Rgba([255, 0, 0, 255]),
+                ..Style::default()
+            },
+            Edges::GreatCircle,
+            R,
+        )
+        .expect("layer"),
+    );
+    let view = Arc::new(RwLock::new(LayerView::default()));
+    let streamer = Streamer::new(
+        vec![
+            Box::new(FnHeightTiles(mountains)),
+            Box::new(FnColorTiles(by_longitude)),
+            Box::new(VectorColorTiles::new(layer.clone(), view.clone())),
+            Box::new(Overlay { inputs: vec![1, 2] }),
+        ],
+        CLIPMAP_N,
+        2,
+        1 << 30,
+    );
+    let mut sources = StreamSources {
+        height: 0,
+        color: Some(3),
+    };
+    let mut r = renderer();
+    let b = Camera::parse("-30,120,300,30,-10,60").expect("camera");
+    let red = |img: &image::RgbaImage| {
+        img.pixels()
+            .filter(|p| p.0[0] > 80 && p.0[0] > 2 * p.0[1].max(p.0[2]))
+            .count() as f64
+            / img.pixels().len() as f64
+    };
+    let shown = converge_with(&mut r, &streamer, &b, sources);
+    assert!(red(&shown) > 0.3, "the square is drawn: {}", red(&shown));
+    let vectors = [VectorHandle {
+        name: "square".into(),
+        source: 2,
+        layer: layer.clone(),
+        edits_heights: false,
+        view: view.clone(),
+    }];
+    // the readout names it
+    assert_eq!(
+        vectors[0]
+            .label_at(120f64.to_radians(), (-30f64).to_radians(), 1.0)
+            .as_deref(),
+        Some("square")
+    );
+    let mut controller = sc_view_space::camera::Controller::new(b, R);
+    let mut edited = sc_view_gpu::edits::Edited {
+        controller: &mut controller,
+        pass: r.pass_mut(),
+        streamer: &streamer,
+        sources: &mut sources,
+        detail: None,
+        filters: &[],
+        vectors: &vectors,
+    };
+    let mut e = edited.edits();
+    e.vectors[0].1.shown = false;
+    assert_eq!(
+        edited.apply(e),
+        [2, 3],
+        "the layer's tiles and the overlay's dropped"
+    );
+    let hidden = converge_with(&mut r, &streamer, &b, sources);
+    assert_eq!(red(&hidden), 0.0, "switched off, it is gone");
+    assert!(
+        vectors[0]
+            .label_at(120f64.to_radians(), (-30f64).to_radians(), 1.0)
+            .is_none()
     );
 }

@@ -515,6 +515,7 @@ impl App {
             sources: &mut self.sources,
             detail: self.detail,
             filters: &self.store.filters,
+            vectors: &self.store.vectors,
         }
     }
 

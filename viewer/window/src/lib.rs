@@ -17,7 +17,7 @@ use winit::event_loop::{ActiveEventLoop, EventLoop};
 use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::{Window, WindowId};
 
-use sc_view_data::graph::FilterHandle;
+use sc_view_data::graph::{FilterHandle, VectorHandle};
 use sc_view_data::stream::StreamSources;
 use sc_view_data::stream::Streamer;
 use sc_view_gpu::render::{
@@ -57,6 +57,9 @@ pub struct ViewOptions {
     pub title: String,
     /// The graph's colour filters, edited live from the panel.
     pub filters: Vec<FilterHandle>,
+    /// The graph's vector layers: shown or not and their opacity from the panel, their features
+    /// named under the cursor.
+    pub vectors: Vec<VectorHandle>,
     /// The clipmaps' sources with detail and without, when the graph synthesizes detail (the
     /// panel switches between them).
     pub detail: Option<(StreamSources, StreamSources)>,
@@ -81,6 +84,7 @@ impl std::fmt::Debug for ViewOptions {
             .field("screenshot", &self.screenshot)
             .field("title", &self.title)
             .field("filters", &self.filters.len())
+            .field("vectors", &self.vectors.len())
             .field("detail", &self.detail)
             .field("script", &self.script.is_some())
             .field("draw", &self.draw)
@@ -238,6 +242,8 @@ struct App<'a> {
     /// What is under the cursor, and for which camera, cursor, picture and vertical scale it was
     /// found (it is found again only when one of them changes).
     pointed: Option<Pointed>,
+    /// The vector features drawn there: "layer: feature".
+    pointed_features: Vec<String>,
     pointed_for: Option<PointedFor>,
     ui: UiState,
     /// The next presented frame is saved here (F12).
@@ -275,6 +281,7 @@ pub fn view(
         error: None,
         flight: None,
         pointed: None,
+        pointed_features: Vec::new(),
         pointed_for: None,
         shot: None,
     };
@@ -327,6 +334,29 @@ pub fn camera_for(place: &Place, now: &Camera, mode: Mode, radius: f64) -> Camer
 }
 
 /// The view as the panel edits it.
+/// The vector features drawn at `p` (within three pixels' ground), "layer: feature", the
+/// layers in the graph's order.
+fn features_at(
+    vectors: &[VectorHandle],
+    p: &Pointed,
+    camera: &Camera,
+    (_, h): (u32, u32),
+) -> Vec<String> {
+    let pixel = p.distance * camera.fov.to_radians() / f64::from(h.max(1));
+    let (lat, lon) = (p.lat_deg.to_radians(), p.lon_deg.to_radians());
+    vectors
+        .iter()
+        .filter(|v| !v.edits_heights)
+        .filter_map(|v| {
+            Some(format!(
+                "{}: {}",
+                v.name,
+                v.label_at(lon, lat, 3.0 * pixel)?
+            ))
+        })
+        .collect()
+}
+
 fn edited<'a>(
     controller: &'a mut Controller,
     pass: &'a mut ClipmapPass,
@@ -341,6 +371,7 @@ fn edited<'a>(
         sources,
         detail: opts.detail,
         filters: &opts.filters,
+        vectors: &opts.vectors,
     }
 }
 
@@ -501,6 +532,10 @@ impl App<'_> {
                 .input
                 .cursor
                 .and_then(|at| self.opts.ground.point(&camera, size, at));
+            self.pointed_features = self
+                .pointed
+                .map(|p| features_at(&self.opts.vectors, &p, &camera, size))
+                .unwrap_or_default();
         }
         if let (Some(at), Some(m)) = (self.input.click.take(), self.ui.measure.as_mut())
             && let Some(p) = self.opts.ground.point(&camera, size, at)
@@ -576,6 +611,7 @@ impl App<'_> {
             air_model: self.opts.draw.atmosphere.unwrap_or_default(),
             detail_available: self.opts.detail.is_some(),
             pointed: self.pointed,
+            pointed_features: self.pointed_features.clone(),
             size: (w, h),
             flying: self.flight.is_some(),
         };

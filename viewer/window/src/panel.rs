@@ -20,6 +20,8 @@ use crate::UiState;
 
 /// What the panel shows of the frame and the viewer.
 pub(crate) struct PanelFacts {
+    /// The vector features under the cursor, "layer: feature".
+    pub pointed_features: Vec<String>,
     /// Frames a second, smoothed.
     pub fps: f64,
     /// CPU milliseconds a frame, smoothed.
@@ -72,6 +74,7 @@ pub(crate) fn show(
         frame_ms,
         pending,
         pointed,
+        pointed_features,
         size: _,
         flying,
         adapter,
@@ -91,6 +94,7 @@ pub(crate) fn show(
         options,
         detail,
         filters,
+        vectors,
     } = e;
     ui.label(format!("{fps:.2} fps · CPU {cpu_avg:.1} ms/frame"));
     frame_graph(ui, frame_ms);
@@ -115,6 +119,9 @@ pub(crate) fn show(
         )),
         None => ui.label("cursor: sky"),
     };
+    if !pointed_features.is_empty() {
+        ui.label(format!("on {}", pointed_features.join(" · ")));
+    }
     measure(ui, s);
     ui.label(format!(
         "levels {}..{} of {}..{} · {} triangles",
@@ -218,6 +225,18 @@ pub(crate) fn show(
         s.playing = None;
     }
     time_of_day(ui, s);
+    if !vectors.is_empty() {
+        ui.label("vector layers");
+    }
+    for (name, v) in vectors.iter_mut() {
+        ui.horizontal(|ui| {
+            ui.checkbox(&mut v.shown, name.as_str());
+            ui.add_enabled(
+                v.shown,
+                egui::Slider::new(&mut v.opacity, 0.0..=1.0).text("opacity"),
+            );
+        });
+    }
     for (name, p) in filters.iter_mut() {
         ui.collapsing(name.as_str(), |ui| {
             ui.add(egui::Slider::new(&mut p.brightness, -1.0..=1.0).text("brightness"));

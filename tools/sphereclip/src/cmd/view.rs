@@ -36,6 +36,7 @@ pub fn run(a: &ViewArgs) -> Result<ExitCode> {
         without_detail,
         radius,
         filters,
+        vectors,
         atmosphere,
         ..
     } = streamer_for(&a.store, a.sources.as_deref())?;
@@ -62,6 +63,7 @@ pub fn run(a: &ViewArgs) -> Result<ExitCode> {
             screenshot: a.screenshot.clone(),
             title,
             filters,
+            vectors,
             detail,
             script: flight.map(|f| flight::script(f, radius)),
             draw,
