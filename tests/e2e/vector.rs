@@ -245,3 +245,62 @@ fn a_track_follows_its_great_circle_and_a_height_edit_reads_its_height() {
         text(&o.stdout)
     );
 }
+
+#[test]
+fn damaged_projected_or_linked_vector_files_are_one_line_errors() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let store = sample_planet();
+    let shp = std::fs::read(sample("naturalearth_lowres.shp")).expect("read");
+    // (file, bytes, what the error names)
+    let cases: Vec<(&str, Vec<u8>, &str)> = vec![
+        ("garbage.shp", b"not a shapefile, not at all".to_vec(), "garbage.shp"),
+        ("cut.shp", shp[..shp.len() / 3].to_vec(), "cut.shp"),
+        ("garbage.fgb", b"fgb\x03fgb\x00\xff\xff\xff\x7f".to_vec(), "garbage.fgb"),
+        ("broken.geojson", b"{\"type\":\"FeatureCollection\",\"features\":[".to_vec(), "broken.geojson"),
+        (
+            "utm.geojson",
+            br#"{"type":"Feature","properties":{},"geometry":{"type":"Point","coordinates":[500000,5100000]}}"#.to_vec(),
+            "EPSG:4326",
+        ),
+        ("deep.geojson", [b"[".repeat(100_000), b"]".repeat(100_000)].concat(), "deep.geojson"),
+        ("layer.kml", b"<kml/>".to_vec(), "unknown vector format"),
+    ];
+    for (name, bytes, names) in cases {
+        std::fs::write(d.join(name), bytes).expect("write");
+        run_case(d, &store, name, names);
+    }
+    // a symbolic link to a good file is not followed
+    std::os::unix::fs::symlink(sample("naturalearth_lowres.shp"), d.join("link.shp"))
+        .expect("link");
+    run_case(d, &store, "link.shp", "link.shp");
+}
+
+/// `render` with a graph naming `file` fails with one line naming `names`, and writes no picture.
+fn run_case(d: &Path, store: &Path, file: &str, names: &str) {
+    let graph = d.join("bad.sources.toml");
+    std::fs::write(
+        &graph,
+        format!(
+            "[[source]]\nname = \"world\"\nkind = \"store\"\npath = \"{}\"\nlayer = \"height\"\n\n[[source]]\nname = \"v\"\nkind = \"vector\"\npath = \"{file}\"\n\n[clipmaps]\nheight = \"world\"\n",
+            s(store)
+        ),
+    )
+    .expect("write");
+    let png = d.join("never.png");
+    let o = run(&[
+        "render",
+        s(store),
+        "--sources",
+        s(&graph),
+        "--goto",
+        "0,0",
+        "--size",
+        "64x36",
+        "--out",
+        s(&png),
+    ]);
+    let line = one_line_failure(&o, file);
+    assert!(line.contains(names), "{file}: {line}");
+    assert!(!png.exists(), "{file}: a picture was written");
+}
