@@ -113,3 +113,33 @@ fn golden_views_through_the_atmosphere() {
         ),
     ]);
 }
+
+#[test]
+fn golden_views_with_borders_from_a_vector_layer() {
+    // Natural Earth's countries stroked over the colours (the README's pictures, smaller)
+    let dir = tempfile::tempdir().expect("tempdir");
+    let graph = dir.path().join("borders.sources.toml");
+    let store = crate::util::sample_planet();
+    std::fs::write(
+        &graph,
+        format!(
+            "[[source]]\nname = \"heights\"\nkind = \"store\"\npath = \"{0}\"\nlayer = \"height\"\n\n\
+             [[source]]\nname = \"colour\"\nkind = \"store\"\npath = \"{0}\"\nlayer = \"color\"\n\n\
+             [[source]]\nname = \"borders\"\nkind = \"vector\"\npath = \"{1}\"\nstroke = \"#ffe14d\"\nwidth = 1.5\nunit = \"px\"\n\n\
+             [[source]]\nname = \"map\"\nkind = \"overlay\"\ninputs = [\"colour\", \"borders\"]\n\n\
+             [clipmaps]\nheight = \"heights\"\ncolor = \"map\"\n",
+            s(&store),
+            s(&repo("samples/naturalearth_lowres.shp"))
+        ),
+    )
+    .expect("write");
+    let extra = ["--sources", s(&graph)];
+    check_goldens(&[
+        ("vector-borders-alps", "44.0,8.5,400000,0,-50,60", &extra),
+        (
+            "vector-borders-antarctica",
+            "-50,20,6000000,180,-80,60",
+            &extra,
+        ),
+    ]);
+}
