@@ -1140,4 +1140,34 @@ mod tests {
         assert!((dash_share(1.0, &[(0.0, 4.0)], 8.0, 1.0) - 1.0).abs() < 1e-12);
         assert!((dash_share(4.0, &[(0.0, 4.0)], 8.0, 1.0) - 0.5).abs() < 1e-12);
     }
+
+    #[test]
+    fn a_marker_covers_its_disc() {
+        let pt = Feature {
+            geometry: Geometry::Points(vec![[0.0, 0.0]]),
+            properties: BTreeMap::new(),
+        };
+        let radius = 180.0 / PI * 1000.0; // 1 km a degree
+        let style = Style {
+            width: 1.0,
+            unit: Unit::M,
+            marker: Some(6.0),
+            ..Style::default()
+        };
+        let l = VectorLayer::new(vec![pt], style, Edges::GreatCircle, radius).expect("layer");
+        let d = 0.001f64.to_radians(); // 1 m texels
+        let win = Window {
+            lon0: -20.0 * d,
+            colat0: FRAC_PI_2 - 20.0 * d,
+            dlon: d,
+            dcolat: d,
+            w: 40,
+            h: 40,
+        };
+        let px = l.render(&win, 1.0);
+        let area: f64 = px.chunks_exact(4).map(|p| f64::from(p[3]) / 255.0).sum();
+        assert!((area / (PI * 36.0) - 1.0).abs() < 0.03, "{area}");
+        assert_eq!(l.feature_at(0.0, 0.0, 6.0), Some(0));
+        assert_eq!(l.feature_at(0.0, 20.0 * d, 6.0), None);
+    }
 }
