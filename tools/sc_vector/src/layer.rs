@@ -13,6 +13,9 @@ use crate::{Feature, Geometry, VectorError};
 /// texels span about half a pixel half way across their ring.
 pub const TEXELS_PER_PIXEL: f64 = 2.0;
 
+/// Most vertices a layer holds once its edges are densified ([`path::TOLERANCE`]).
+pub const MAX_DENSIFIED: usize = 96_000_000;
+
 /// A window of a grid in longitude and colatitude (radians): texel (c, r) spans longitudes
 /// `lon0 + c·dlon … lon0 + (c+1)·dlon` and colatitudes `colat0 + r·dcolat …`. Rows may lie past a
 /// pole (colatitude below 0 or above π), where the other side of the pole is drawn, as the
@@ -308,6 +311,7 @@ impl VectorLayer {
         let mut polys = Vec::new();
         let mut strokes = Vec::new();
         let mut markers = Vec::new();
+        let (mut total, mut counted) = (0usize, (0usize, 0usize));
         for (fi, f) in features.iter().enumerate() {
             let fi = fi as u32;
             match &f.geometry {
@@ -337,6 +341,18 @@ impl VectorLayer {
                         }
                     }
                 }
+            }
+            // densified, a layer is bounded too (a file of long edges must not fill memory)
+            total += polys[counted.0..]
+                .iter()
+                .map(|p: &Poly| p.rings.iter().map(Vec::len).sum::<usize>())
+                .chain(strokes[counted.1..].iter().map(|s: &Stroke| s.pts.len()))
+                .sum::<usize>();
+            counted = (polys.len(), strokes.len());
+            if total > MAX_DENSIFIED {
+                return Err(VectorError::Invalid(format!(
+                    "more than {MAX_DENSIFIED} vertices once edges follow the sphere; simplify the layer or use edges = \"lonlat\""
+                )));
             }
         }
         let poly_index = Index::build(
