@@ -110,11 +110,37 @@ fn reports_on_the_etopo5_pyramid_and_on_gdal_overviews() {
         let svg = std::fs::read_to_string(out.join(p.as_str().expect("name"))).expect("plot");
         assert!(svg.starts_with("<svg") && svg.contains("<path"), "{p}");
     }
+    let page = std::fs::read_to_string(out.join("index.html")).expect("html");
+    assert!(page.contains("level-0-north.png"));
+    // read as a person reads it: the source in words, the colour bar's unit, axes that end where
+    // the quantity does (|latitude| at 90°, a share at 1), the ratios' axes explained
     assert!(
-        std::fs::read_to_string(out.join("index.html"))
-            .expect("html")
-            .contains("level-0-north.png")
+        !page.contains("Source: <code>{") && page.contains("<b>layer</b>: height"),
+        "{page}"
     );
+    assert!(
+        page.contains(" m</span><div style"),
+        "the colour bar's unit"
+    );
+    for p in [
+        "coverage.svg",
+        "lon-above-nyquist.svg",
+        "top-octave.svg",
+        "effective-resolution.svg",
+    ] {
+        let svg = std::fs::read_to_string(out.join(p)).expect("plot");
+        assert!(
+            svg.contains(">90<") && !svg.contains(">100<"),
+            "{p}: |latitude| past 90°"
+        );
+        if p == "coverage.svg" || p == "lon-above-nyquist.svg" {
+            assert!(
+                !svg.contains(">1.2<") && !svg.contains(">1.5<"),
+                "{p}: a share past 1"
+            );
+        }
+        assert!(!svg.contains(">ratio<"), "{p}: an unexplained ratio");
+    }
 
     // a level compared with itself: no difference
     let o = run(&[

@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 
 use metrics::{BandMetrics, Difference, LevelView, ValueStats};
 use pictures::Samples;
-use plot::Series;
+use plot::{Axes, Series};
 
 /// Version of the report's JSON layout.
 pub const REPORT_FORMAT: &str = "sphereclip-inspect/1";
@@ -350,7 +350,7 @@ fn colour_bar(lo: f64, hi: f64) -> String {
         })
         .collect();
     format!(
-        "<div style=\"display:flex;align-items:center;gap:6px;margin:4px 0\"><span>{lo:.0}</span><div style=\"width:300px;height:14px;border:1px solid #999;background:linear-gradient(to right,{})\"></div><span>{hi:.0}</span><span style=\"margin-left:12px\">magenta: no data</span></div>",
+        "<div style=\"display:flex;align-items:center;gap:6px;margin:4px 0\"><span>{lo:.0} m</span><div style=\"width:300px;height:14px;border:1px solid #999;background:linear-gradient(to right,{})\"></div><span>{hi:.0} m</span><span style=\"margin-left:12px\">magenta: no data</span></div>",
         stops.join(",")
     )
 }
@@ -365,35 +365,43 @@ fn write_plots(
     tables: &[SignalTable],
 ) -> Result<Vec<String>, InspectError> {
     let mut files = Vec::new();
+    // a level without data has nothing to plot (its heading in the page says so)
+    let levels: Vec<(usize, &LevelReport)> = levels
+        .iter()
+        .enumerate()
+        .filter(|(_, l)| has_data(l))
+        .collect();
     let per_level = |f: &dyn Fn(&BandMetrics) -> f64| -> Vec<Series> {
         levels
             .iter()
-            .map(|l| Series {
+            .map(|&(k, l)| Series {
                 name: format!("level {}", l.level),
                 points: l
                     .bands
                     .iter()
                     .map(|b| (mid(b), if b.rows > 0 { f(b) } else { f64::NAN }))
                     .collect(),
+                style: Some((k, 0)),
             })
             .collect()
     };
     let mut plots: Vec<(String, String)> = vec![
         (
             "lon-above-nyquist.svg".into(),
-            plot::svg(
+            plot::svg_on(
                 "Energy above the sphere's Nyquist, along longitude",
                 "|latitude| (°)",
                 "fraction of row variance",
                 &per_level(&|b| b.lon_above_nyquist),
+                Axes::LATITUDE_SHARE,
             ),
         ),
         (
             "top-octave.svg".into(),
-            plot::svg(
+            plot::svg_on(
                 "Top-octave energy: along longitude / along latitude",
                 "|latitude| (°)",
-                "ratio",
+                "lon share ÷ lat share (1: isotropic)",
                 &per_level(&|b| {
                     if b.lat_top_octave > 0.0 {
                         b.lon_top_octave / b.lat_top_octave
@@ -401,17 +409,18 @@ fn write_plots(
                         f64::NAN
                     }
                 }),
+                Axes::LATITUDE,
             ),
         ),
         (
             "effective-resolution.svg".into(),
-            plot::svg(
-                "Effective resolution / nominal spacing (solid: longitude)",
+            plot::svg_on(
+                "Effective resolution / nominal spacing (solid: longitude, dashed: latitude)",
                 "|latitude| (°)",
-                "ratio",
+                "effective ÷ nominal (1: as the level's spacing)",
                 &levels
                     .iter()
-                    .flat_map(|l| {
+                    .flat_map(|&(k, l)| {
                         [
                             Series {
                                 name: format!("{} lon", l.level),
@@ -420,6 +429,7 @@ fn write_plots(
                                     .iter()
                                     .map(|b| (mid(b), b.eff_res_lon_m / b.nominal_m))
                                     .collect(),
+                                style: Some((k, 0)),
                             },
                             Series {
                                 name: format!("{} lat", l.level),
@@ -428,19 +438,22 @@ fn write_plots(
                                     .iter()
                                     .map(|b| (mid(b), b.eff_res_lat_m / b.nominal_m))
                                     .collect(),
+                                style: Some((k, 1)),
                             },
                         ]
                     })
                     .collect::<Vec<_>>(),
+                Axes::LATITUDE,
             ),
         ),
         (
             "coverage.svg".into(),
-            plot::svg(
+            plot::svg_on(
                 "Valid samples",
                 "|latitude| (°)",
                 "fraction",
                 &per_level(&|b| b.valid_fraction),
+                Axes::LATITUDE_FRACTION,
             ),
         ),
     ];
@@ -456,11 +469,18 @@ fn write_plots(
                     .iter()
                     .map(|((a, b), v)| ((a + b.min(90.0)) / 2.0, v[m]))
                     .collect(),
+                style: None,
             })
             .collect();
         plots.push((
             format!("test-signal-{k}.svg"),
-            plot::svg(&t.title, "|latitude| (°)", "RMS / signal RMS", &series),
+            plot::svg_on(
+                &t.title,
+                "|latitude| (°)",
+                "RMS / signal RMS",
+                &series,
+                Axes::LATITUDE,
+            ),
         ));
     }
     for (name, svg) in plots {
@@ -468,6 +488,33 @@ fn write_plots(
         files.push(name);
     }
     Ok(files)
+}
+
+/// Whether a level holds any data.
+fn has_data(l: &LevelReport) -> bool {
+    l.stats.valid_fraction > 0.0
+}
+
+/// What was inspected, as words: `key: value` pairs, text as it is, the rest as compact JSON.
+fn source_html(v: &serde_json::Value) -> String {
+    let esc = |s: &str| {
+        s.replace('&', "&amp;")
+            .replace('<', "&lt;")
+            .replace('>', "&gt;")
+    };
+    let value = |v: &serde_json::Value| match v {
+        serde_json::Value::String(s) => esc(s),
+        other => esc(&other.to_string()),
+    };
+    match v {
+        serde_json::Value::Object(m) => m
+            .iter()
+            .filter(|(_, v)| !v.is_null())
+            .map(|(k, v)| format!("<b>{}</b>: {}", esc(&k.replace('_', " ")), value(v)))
+            .collect::<Vec<_>>()
+            .join(" · "),
+        other => value(other),
+    }
 }
 
 fn pct(v: f64) -> String {
@@ -482,8 +529,8 @@ fn html(r: &Report) -> String {
     let mut s = String::new();
     let _ = write!(
         s,
-        "<!doctype html><html><head><meta charset=\"utf-8\"><title>sphereclip inspect</title><style>body{{font-family:sans-serif;margin:2em;max-width:1400px}}table{{border-collapse:collapse;margin:1em 0}}td,th{{border:1px solid #ccc;padding:2px 6px;text-align:right}}img{{margin:4px;border:1px solid #ccc}}</style></head><body><h1>sphereclip inspect</h1><p>Source: <code>{}</code></p>",
-        r.source
+        "<!doctype html><html><head><meta charset=\"utf-8\"><title>sphereclip inspect</title><style>body{{font-family:sans-serif;margin:2em;max-width:1400px}}table{{border-collapse:collapse;margin:1em 0}}td,th{{border:1px solid #ccc;padding:2px 6px;text-align:right}}img{{margin:4px;border:1px solid #ccc}}</style></head><body><h1>sphereclip inspect</h1><p>{}</p>",
+        source_html(&r.source)
     );
     if !r.test_signal.is_empty() {
         s.push_str("<h2>Analytic signal</h2>");
@@ -546,6 +593,10 @@ fn html(r: &Report) -> String {
             );
         }
         s.push_str("</p>");
+        if !has_data(l) {
+            s.push_str("<p><b>No data at this level</b>: nothing to measure or picture.</p>");
+            continue;
+        }
         if let Some((lo, hi)) = l.ramp.filter(|(lo, hi)| hi > lo) {
             s.push_str(&colour_bar(lo, hi));
         }

@@ -10,6 +10,43 @@ pub struct Series {
     pub name: String,
     /// (x, y) points; non-finite y values break the line.
     pub points: Vec<(f64, f64)>,
+    /// Its colour and dash (indices into the palette and the dash patterns); `None`: by its
+    /// place in the plot.
+    pub style: Option<(usize, usize)>,
+}
+
+/// Where a plot's axes run: `None` for the data's range.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Axes {
+    /// x from … to, and the tick step.
+    pub x: Option<(f64, f64, f64)>,
+    /// y from … to.
+    pub y: Option<(f64, f64)>,
+    /// The most y may reach (a share: 1), when the range is the data's.
+    pub y_cap: Option<f64>,
+}
+
+impl Axes {
+    /// |latitude| from 0 to 90° (ticks every 15°).
+    pub const LATITUDE: Axes = Axes {
+        x: Some((0.0, 90.0, 15.0)),
+        y: None,
+        y_cap: None,
+    };
+
+    /// |latitude| against a share, up to at most 1.
+    pub const LATITUDE_SHARE: Axes = Axes {
+        x: Some((0.0, 90.0, 15.0)),
+        y: None,
+        y_cap: Some(1.0),
+    };
+
+    /// |latitude| against a fraction, 0 … 1.
+    pub const LATITUDE_FRACTION: Axes = Axes {
+        x: Some((0.0, 90.0, 15.0)),
+        y: Some((0.0, 1.0)),
+        y_cap: None,
+    };
 }
 
 /// Dash patterns of the series, one per pass through the palette.
@@ -28,6 +65,11 @@ fn esc(s: &str) -> String {
 /// A plot of `series` with a title and axis labels; y from 0 (or the data's minimum if negative)
 /// to the data's maximum, x over the points' range.
 pub fn svg(title: &str, x_label: &str, y_label: &str, series: &[Series]) -> String {
+    svg_on(title, x_label, y_label, series, Axes::default())
+}
+
+/// [`svg`] with the axes `axes` gives (the data's range where it gives none).
+pub fn svg_on(title: &str, x_label: &str, y_label: &str, series: &[Series], axes: Axes) -> String {
     let (w, h) = (640.0, 360.0);
     let (l, r, t, b) = (70.0, 170.0, 40.0, 50.0);
     let pts = series
@@ -49,11 +91,24 @@ pub fn svg(title: &str, x_label: &str, y_label: &str, series: &[Series]) -> Stri
         y1 = y0 + 1.0;
     }
     // axes on round numbers: ticks at multiples of 1, 2 or 5 × 10^k
-    let (xstep, ystep) = (nice_step(x1 - x0), nice_step((y1 - y0) * 1.05));
+    let (mut xstep, mut ystep) = (nice_step(x1 - x0), nice_step((y1 - y0) * 1.05));
     x0 = (x0 / xstep).floor() * xstep;
     x1 = (x1 / xstep).ceil() * xstep;
     y0 = (y0 / ystep).floor() * ystep;
     y1 = ((y1 + (y1 - y0) * 0.05) / ystep).ceil() * ystep;
+    if let Some((a, b, step)) = axes.x {
+        (x0, x1, xstep) = (a, b, step);
+    }
+    if let Some((a, b)) = axes.y {
+        (y0, y1) = (a, b);
+        ystep = nice_step(b - a);
+    }
+    if let Some(cap) = axes.y_cap
+        && y1 > cap
+    {
+        y1 = cap;
+        ystep = nice_step(y1 - y0);
+    }
     let px = |x: f64| l + (x - x0) / (x1 - x0) * (w - l - r);
     let py = |y: f64| h - b - (y - y0) / (y1 - y0) * (h - t - b);
     let mut s = String::new();
@@ -108,9 +163,10 @@ pub fn svg(title: &str, x_label: &str, y_label: &str, series: &[Series]) -> Stri
         esc(y_label)
     );
     for (k, ser) in series.iter().enumerate() {
-        let colour = PALETTE[k % PALETTE.len()];
         // beyond the palette, lines are told apart by their dashes
-        let dash = DASHES[(k / PALETTE.len()) % DASHES.len()];
+        let (c, d) = ser.style.unwrap_or((k, k / PALETTE.len()));
+        let colour = PALETTE[c % PALETTE.len()];
+        let dash = DASHES[d % DASHES.len()];
         let mut d = String::new();
         let mut pen = false;
         for &(x, y) in &ser.points {
@@ -214,11 +270,29 @@ mod tests {
                 .map(|k| Series {
                     name: format!("s{k}"),
                     points: vec![(0.0, f64::from(k)), (90.0, 1234.5)],
+                    style: None,
                 })
                 .collect::<Vec<_>>(),
         );
         // no exponents on the axes; series past the palette are dashed
         assert!(!svg.contains("e3<") && svg.contains(">1500<"), "{svg}");
         assert!(svg.contains("stroke-dasharray=\"6 3\""));
+        // fixed axes: |latitude| to 90° and a fraction to 1, whatever the data
+        let frac = svg_on(
+            "t",
+            "|latitude| (°)",
+            "fraction",
+            &[Series {
+                name: "a".into(),
+                points: vec![(2.5, 1.0), (87.5, 0.97)],
+                style: None,
+            }],
+            Axes::LATITUDE_FRACTION,
+        );
+        assert!(frac.contains(">90<") && !frac.contains(">100<"), "{frac}");
+        assert!(
+            frac.contains(">1.0<") && !frac.contains(">1.2<") && !frac.contains(">1.5<"),
+            "{frac}"
+        );
     }
 }

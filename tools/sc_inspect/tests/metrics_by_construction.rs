@@ -90,3 +90,39 @@ fn exact_spherical_filtering_scores_zero_and_naive_decimation_scores_high_near_t
         }
     }
 }
+
+#[test]
+fn a_level_without_data_is_said_so_and_left_out_of_the_plots() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let level = |name: &str, w: usize, fill: f32| sc_inspect::LevelInput {
+        name: name.into(),
+        w,
+        h: w / 2,
+        values: (0..w * w / 2)
+            .map(|i| if fill.is_nan() { fill } else { (i % 37) as f32 })
+            .collect(),
+        rgba: None,
+        against: None,
+        range: None,
+    };
+    let out = dir.path().join("report");
+    sc_inspect::write_report(
+        &out,
+        serde_json::json!({"kind": "store", "path": "p.zarr", "against": null}),
+        &[level("1", 128, 0.0), level("2", 256, f32::NAN)],
+        Vec::new(),
+        &sc_inspect::ReportOptions::default(),
+    )
+    .expect("report");
+    let page = std::fs::read_to_string(out.join("index.html")).expect("page");
+    assert!(page.contains("No data at this level"), "{page}");
+    assert!(
+        page.contains("<b>path</b>: p.zarr") && !page.contains("against"),
+        "{page}"
+    );
+    let svg = std::fs::read_to_string(out.join("coverage.svg")).expect("plot");
+    assert!(
+        svg.contains(">level 1<") && !svg.contains(">level 2<"),
+        "{svg}"
+    );
+}
