@@ -1100,6 +1100,19 @@ mod tests {
         }
     }
 
+    /// 40 texels of 1 m (on a sphere of 1 km a degree) across and `h` down, centred on (0, 0).
+    fn metre_texels(h: usize) -> Window {
+        let d = 0.001f64.to_radians();
+        Window {
+            lon0: -20.0 * d,
+            colat0: FRAC_PI_2 - (h / 2) as f64 * d,
+            dlon: d,
+            dcolat: d,
+            w: 40,
+            h,
+        }
+    }
+
     #[test]
     fn a_stroke_is_as_wide_as_asked_and_dashes_cover_their_share() {
         let line = Feature {
@@ -1119,15 +1132,8 @@ mod tests {
             radius,
         )
         .expect("layer");
-        let d = 0.001f64.to_radians(); // 1 m texels
-        let win = Window {
-            lon0: -20.0 * d,
-            colat0: FRAC_PI_2 - 5.0 * d,
-            dlon: d,
-            dcolat: d,
-            w: 40,
-            h: 10,
-        };
+        let d = 0.001f64.to_radians();
+        let win = metre_texels(10);
         let px = l.render(&win, 1.0);
         let row: f64 = (0..40)
             .map(|c| f64::from(px[(5 * 40 + c) * 4 + 3]) / 255.0)
@@ -1171,19 +1177,11 @@ mod tests {
             ..Style::default()
         };
         let l = VectorLayer::new(vec![pt], style, Edges::GreatCircle, radius).expect("layer");
-        let d = 0.001f64.to_radians(); // 1 m texels
-        let win = Window {
-            lon0: -20.0 * d,
-            colat0: FRAC_PI_2 - 20.0 * d,
-            dlon: d,
-            dcolat: d,
-            w: 40,
-            h: 40,
-        };
+        let win = metre_texels(40);
         let px = l.render(&win, 1.0);
         let area: f64 = px.chunks_exact(4).map(|p| f64::from(p[3]) / 255.0).sum();
         assert!((area / (PI * 36.0) - 1.0).abs() < 0.03, "{area}");
         assert_eq!(l.feature_at(0.0, 0.0, 6.0), Some(0));
-        assert_eq!(l.feature_at(0.0, 20.0 * d, 6.0), None);
+        assert_eq!(l.feature_at(0.0, 20f64.to_radians() * 0.001, 6.0), None);
     }
 }
