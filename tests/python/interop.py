@@ -74,6 +74,19 @@ def main() -> None:
             break
     assert everest > 5000.0, everest
 
+    # with dask, as README advises: chunks of a shard (one task a shard; `chunks={}` gives the
+    # 256² inner chunks, millions of tasks at fine levels), a whole level's reduction equal to
+    # numpy's
+    shards = root[f"height/{finest}"]["height"].shards
+    lazy = xr.open_zarr(store, group=f"height/{finest}", chunks=dict(zip(("lat", "lon"), shards)))
+    var = lazy["height"]
+    assert var.chunks is not None and max(var.chunks[0]) == shards[0], var.chunks
+    n_chunks = len(var.chunks[0]) * len(var.chunks[1])
+    h, w = var.shape
+    assert n_chunks == -(-h // shards[0]) * -(-w // shards[1]), (n_chunks, var.chunks)
+    mean = float(var.mean().compute())
+    np.testing.assert_allclose(mean, float(np.nanmean(tree[f"height/{finest}"]["height"].values)), rtol=1e-5)
+
     ours = tree[f"color/{color_level}"].to_dataset()["color"]
     gdal = rioxarray.open_rasterio(export)
     assert gdal.rio.crs.is_geographic
