@@ -80,9 +80,11 @@ impl HeightEdit {
             .collect()
     }
 
-    /// Edits `heights` (row-major over `win`; NaN, no data, stays NaN).
-    pub fn apply(&self, win: &Window, heights: &mut [f32]) {
+    /// Edits `heights` (row-major over `win`; NaN, no data, stays NaN) with `strength` (0 … 1)
+    /// of the edit.
+    pub fn apply(&self, win: &Window, heights: &mut [f32], strength: f32) {
         for (h, w) in heights.iter_mut().zip(self.weights(win)) {
+            let w = w * strength;
             if w > 0.0 && !h.is_nan() {
                 *h += (self.rule.apply(*h) - *h) * w;
             }
@@ -119,7 +121,7 @@ mod tests {
             h: 140,
         };
         let mut h = vec![500.0f32; 140 * 140];
-        e.apply(&win, &mut h);
+        e.apply(&win, &mut h, 1.0);
         // the middle (55 km inside) is 1950, outside is 500, the edge in between
         assert_eq!(h[70 * 140 + 70], 1950.0);
         assert_eq!(h[5 * 140 + 5], 500.0);

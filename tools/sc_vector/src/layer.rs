@@ -276,6 +276,8 @@ struct Stroke {
 pub struct VectorLayer {
     features: Vec<Feature>,
     looks: Vec<Look>,
+    /// The widest stroke of any feature, in the style's unit.
+    max_width: f64,
     style: Style,
     edges: Edges,
     radius: f64,
@@ -307,7 +309,8 @@ impl VectorLayer {
         if !(radius.is_finite() && radius > 0.0) {
             return Err(VectorError::Invalid(format!("radius {radius} must be > 0")));
         }
-        let looks = features.iter().map(|f| style.look(f)).collect();
+        let looks: Vec<Look> = features.iter().map(|f| style.look(f)).collect();
+        let max_width = looks.iter().map(|l| l.width).fold(style.width, f64::max);
         let mut polys = Vec::new();
         let mut strokes = Vec::new();
         let mut markers = Vec::new();
@@ -381,6 +384,7 @@ impl VectorLayer {
         Ok(VectorLayer {
             features,
             looks,
+            max_width,
             style,
             edges,
             radius,
@@ -587,11 +591,7 @@ impl VectorLayer {
         let (w, n) = (part.w, part.w * part.h);
         let mut rgba = vec![0.0f32; n * 4];
         let texel_m = part.dcolat * self.radius;
-        let max_width = self
-            .looks
-            .iter()
-            .map(|l| l.width)
-            .fold(self.style.width, f64::max);
+        let max_width = self.max_width;
         let marker = self.style.marker.unwrap_or(3.0 * max_width);
         let reach = self.metres(max_width.max(2.0 * marker), part) / 2.0 + texel_m;
         let b = part_box(part);
@@ -930,7 +930,7 @@ fn parts(win: &Window) -> Vec<(Window, Rows)> {
             mid.push(r);
         }
     }
-    if let (Some(&f), Some(_)) = (mid.first(), mid.last()) {
+    if let Some(&f) = mid.first() {
         out.push((
             Window {
                 colat0: row_top(f),
@@ -953,9 +953,8 @@ fn parts(win: &Window) -> Vec<(Window, Rows)> {
             rows,
         ));
     }
-    if let Some(&first) = south.first() {
+    if let Some(&last) = south.last() {
         let rows: Vec<usize> = south.iter().rev().copied().collect();
-        let last = *south.last().unwrap_or(&first);
         out.push((
             Window {
                 lon0: win.lon0 + PI,

@@ -393,15 +393,8 @@ impl TileSource for VectorHeightTiles {
         let v = *self.view.read().unwrap_or_else(|e| e.into_inner());
         let mut heights = h.to_vec();
         if v.shown && v.opacity > 0.0 {
-            let win = window_of(key, n);
-            let before = heights.clone();
-            self.edit.apply(&win, &mut heights);
-            if v.opacity < 1.0 {
-                let o = v.opacity as f32;
-                for (h, b) in heights.iter_mut().zip(before) {
-                    *h = b + (*h - b) * o;
-                }
-            }
+            self.edit
+                .apply(&window_of(key, n), &mut heights, v.opacity as f32);
         }
         Ok(match &**t {
             TileData::ShadedHeight { shade, .. } => TileData::ShadedHeight {
@@ -685,24 +678,23 @@ impl Graph {
         if has(LayerKind::Height) {
             let h = StoreHeightTiles::new(reader.clone());
             heights = Some(h.with_detail(Arc::new(Detail::new(DetailParams::default(), radius))));
-            g.sources.push(Box::new(h));
+            g.push("height", LayerKind::Height, Box::new(h));
         } else {
             g.warnings.push(format!(
                 "{store} has no height layer; rendering a smooth sphere"
             ));
-            g.sources
-                .push(Box::new(FnHeightTiles(|_: f64, _: f64| 0.0f32)));
+            let sphere = FnHeightTiles(|_: f64, _: f64| 0.0f32);
+            g.push("height", LayerKind::Height, Box::new(sphere));
         }
-        g.names.push("height".into());
         if has(LayerKind::Color) {
-            g.sources.push(Box::new(StoreColorTiles::new(reader)));
-            g.names.push("color".into());
+            let colours = StoreColorTiles::new(reader);
+            g.push("color", LayerKind::Color, Box::new(colours));
             let params = Arc::new(RwLock::new(FilterParams::default()));
-            g.sources.push(Box::new(ColorFilter {
+            let filter = ColorFilter {
                 input: 1,
                 params: params.clone(),
-            }));
-            g.names.push("color filter".into());
+            };
+            g.push("color filter", LayerKind::Color, Box::new(filter));
             g.filters.push(FilterHandle {
                 name: "color filter".into(),
                 source: 2,
@@ -718,26 +710,20 @@ impl Graph {
                 .color
                 .and_then(|c| DetailColorTiles::new(c, hi, &h).map(|d| (c, d)));
             g.clipmaps.height = hi;
-            g.sources.push(Box::new(h));
-            g.names.push("height detail".into());
+            g.push("height detail", LayerKind::Height, Box::new(h));
             if let Some((_, d)) = colour {
                 g.clipmaps.color = Some(g.sources.len() as u32);
-                g.sources.push(Box::new(d));
-                g.names.push("color detail".into());
+                g.push("color detail", LayerKind::Color, Box::new(d));
             }
         }
-        g.kinds = g
-            .names
-            .iter()
-            .map(|n| {
-                if n.starts_with("color") {
-                    LayerKind::Color
-                } else {
-                    LayerKind::Height
-                }
-            })
-            .collect();
         g
+    }
+
+    /// Adds a source, its name and what it makes.
+    fn push(&mut self, name: &str, kind: LayerKind, source: Box<dyn TileSource>) {
+        self.sources.push(source);
+        self.names.push(name.into());
+        self.kinds.push(kind);
     }
 
     /// The source named `name`.
