@@ -116,7 +116,7 @@ pub struct BandScore {
 /// `values` per band relative to the wave's RMS (1/√2), over texels where the wave's local
 /// frequency `ω·sin∠(p, ±d)` stays at least `2×` the level's Nyquist over a footprint of radius
 /// `reach_rad` (a plane wave is low-frequency near ±d: there it belongs in the pass band). NaN
-/// texels are skipped; pole rows count at the pole.
+/// texels are skipped.
 pub fn stop_band_residual(
     grid: GridSpec,
     level: LevelId,
@@ -146,7 +146,7 @@ pub fn stop_band_residual(
 }
 
 /// Pass-band error: RMS of `values − signal` per band relative to the amplitude RMS of the waves
-/// (√(Σa²/2)); pole rows compare with the signal at the pole.
+/// (√(Σa²/2)), every texel compared with the signal at its centre (the pole rows too).
 pub fn pass_band_error(
     grid: GridSpec,
     level: LevelId,
@@ -182,14 +182,7 @@ fn band_rms(
             if v.is_nan() {
                 continue;
             }
-            let p = if j == 0 {
-                LonLat::new(0.0, 90.0)
-            } else if j + 1 == h {
-                LonLat::new(0.0, -90.0)
-            } else {
-                grid.texel_centre(level, i, j)
-            };
-            if let Some(x) = term(p, v) {
+            if let Some(x) = term(grid.texel_centre(level, i, j), v) {
                 acc[b].0 += x * x;
                 acc[b].1 += 1;
             }

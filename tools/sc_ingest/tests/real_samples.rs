@@ -122,7 +122,7 @@ fn box_stats(
 }
 
 #[test]
-fn etopo5_lands_in_the_right_texels_with_constant_poles_and_a_seamless_antimeridian() {
+fn etopo5_lands_in_the_right_texels_with_its_poles_and_a_seamless_antimeridian() {
     let dir = tempfile::tempdir().expect("tempdir");
     let root = dir.path().join("e.zarr");
     let level = LevelId::iso(3).expect("valid");
@@ -164,20 +164,24 @@ fn etopo5_lands_in_the_right_texels_with_constant_poles_and_a_seamless_antimerid
     let (gx, gy) = texel_of(g, level, -38.5, 72.6);
     let green = img.get(gx, gy);
     assert!((green - 3185.0).abs() < 150.0, "Greenland {green}");
-    // the pole rows hold the value at the pole (a pole is one point): constant, and equal to
-    // ETOPO5's own pole rows (−4290 m north, 2810 m south) up to the kernel's reach
-    for (row, expect) in [(0, -4290.0f32), (h - 1, 2810.0)] {
+    // the pole rows hold the values at their own centres, 0.044° from the pole: within what
+    // ETOPO5 holds within 0.1° of the pole (north −4301…−4094 m, south 2774…2865 m; gdal_translate
+    // -of XYZ of its first and last rows), and not one value: the Arctic floor varies by 200 m
+    // around the first ring of nodes
+    for (row, (lo_data, hi_data)) in [(0, (-4301.0f32, -4094.0)), (h - 1, (2774.0, 2865.0))] {
         let vals: Vec<f32> = (0..w).map(|i| img.get(i, row)).collect();
         let (lo, hi) = vals
             .iter()
             .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| {
                 (a.min(v), b.max(v))
             });
-        assert_eq!(lo.to_bits(), hi.to_bits(), "row {row} varies {lo}..{hi}");
         assert!(
-            (lo - expect).abs() < 40.0,
-            "row {row}: {lo} vs pole {expect}"
+            lo >= lo_data - 10.0 && hi <= hi_data + 10.0,
+            "row {row}: {lo}..{hi} vs data {lo_data}..{hi_data}"
         );
+        if row == 0 {
+            assert!(hi - lo > 10.0, "row {row} is one value: {lo}..{hi}");
+        }
     }
     // antimeridian: the step across it is like any other step between neighbours
     let mut seam = 0.0f64;
