@@ -14,7 +14,8 @@
 //!    its new Nyquist frequency, which is above anything the output keeps.
 //! 2. Every output row is computed at its natural resolution too (`2^a_o·cos(lat) ≤ ½`, so the
 //!    kernel's pass band sits below half the row's Nyquist), then interpolated to the stored width
-//!    with Lanczos3 (error < 1 % in that band). Pole rows are the filtered value at the pole itself.
+//!    with Lanczos3 (error < 1 % in that band). Pole rows too: their centres lie half a row from
+//!    the pole, and the kernel's circle reaches across it.
 //! 3. Between a natural output row and a natural source row the sample spacings differ by a power
 //!    of two, so the weights repeat along the row: one small table per (output row, source row,
 //!    phase), great-circle distances evaluated once per table, not per texel.
@@ -798,17 +799,10 @@ impl LevelFilter {
         // rows of the current reach
         let mut recent: HashMap<(u64, u32), Rc<SourceRow>> = HashMap::new();
         for j in r0..r1 {
-            let pole = j == 0 || j + 1 == h;
-            let lat = if j == 0 {
-                PI / 2.0
-            } else if j + 1 == h {
-                -PI / 2.0
-            } else {
-                row_lat(j, h)
-            };
-            let (n_nat, u) = if pole {
-                (1, w)
-            } else {
+            // every row at its centre, the pole rows too (the kernel's circle reaches across
+            // the pole: a source row's taps span all its longitudes there)
+            let lat = row_lat(j, h);
+            let (n_nat, u) = {
                 let a = output_natural_aniso(lat, max_out);
                 (w >> a, 1u64 << a)
             };
@@ -864,22 +858,14 @@ impl LevelFilter {
                 acc.add(&taps, &win);
             }
             let nat = acc.finish();
-            rows.push(if pole {
-                // one point: the same value in every column, exactly
-                let len = (c1 - c0).max(0) as usize;
-                let mut r = RowWindow::empty(w, c0, len, ch);
-                for k in 0..len {
-                    r.v[k * ch..(k + 1) * ch].copy_from_slice(&nat.v[..ch]);
-                    r.c[k] = nat.c[0];
-                }
-                r.full = nat.full;
-                r
-            } else if u == 1 && nat.first == c0 && nat.len() as i64 == c1 - c0 {
-                // the natural row is the stored one
-                nat
-            } else {
-                upsample(&nat, u, c0, c1)
-            });
+            rows.push(
+                if u == 1 && nat.first == c0 && nat.len() as i64 == c1 - c0 {
+                    // the natural row is the stored one
+                    nat
+                } else {
+                    upsample(&nat, u, c0, c1)
+                },
+            );
         }
         Ok(rows)
     }
@@ -1134,7 +1120,7 @@ mod tests {
     }
 
     #[test]
-    fn pole_rows_are_constant_and_constants_stay_exact() {
+    fn constants_stay_exact_on_every_row_and_level() {
         let g = grid();
         let l = LevelId::iso(3).expect("valid");
         let (w, h) = (g.width(l) as usize, g.height(l) as usize);

@@ -29,9 +29,24 @@ fn cascade(g: GridSpec, finest: u32, values: &[f64], to: u32, k: Kernel) -> MemL
 #[test]
 fn stop_band_waves_vanish_and_pass_band_waves_stay_in_every_band_on_every_stored_level() {
     let g = grid();
-    let (finest, to) = (5, 2);
+    // levels 1–3 built from three levels finer; the default kernel on all, the others on 2
+    for (to, kernels) in [
+        (1, &[Kernel::JincLanczos3][..]),
+        (
+            2,
+            &[Kernel::JincLanczos3, Kernel::JincLanczos2, Kernel::Gauss][..],
+        ),
+        (3, &[Kernel::JincLanczos3][..]),
+    ] {
+        bands_at(g, to + 3, to, kernels);
+    }
+}
+
+/// Every texel of level `to` and its anisotropic levels, built from `finest`, against the
+/// analytic signal at its centre (the pole rows too).
+fn bands_at(g: GridSpec, finest: u32, to: u32, kernels: &[Kernel]) {
     let nyq = nyquist(g, lv(to, 0));
-    for k in [Kernel::JincLanczos3, Kernel::JincLanczos2, Kernel::Gauss] {
+    for &k in kernels {
         // the cascade's footprint: the sum of every step's reach
         let reach = k.support() * std::f64::consts::PI / nyq * 2.0;
         for dir in [[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]] {
@@ -109,7 +124,7 @@ fn one_step_agrees_with_the_exact_reference() {
 }
 
 #[test]
-fn latitude_only_fields_stay_latitude_only_and_pole_rows_constant() {
+fn latitude_only_fields_stay_latitude_only_to_the_pole_rows() {
     let g = grid();
     let l = lv(4, 0);
     let (w, h) = (g.width(l) as usize, g.height(l) as usize);
@@ -133,10 +148,6 @@ fn latitude_only_fields_stay_latitude_only_and_pole_rows_constant() {
                 assert!((x - first).abs() < 1e-6, "{id}: {x} vs {first}");
             }
         }
-        // pole rows exactly constant
-        let last = &v[v.len() - w..];
-        assert!(v[..w].iter().all(|&x| x == v[0]));
-        assert!(last.iter().all(|&x| x == last[0]));
     }
 }
 

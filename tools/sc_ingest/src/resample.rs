@@ -351,9 +351,8 @@ fn resample_texels(
     let mut inside = vec![false; t * t];
     for k in 0..t * t {
         let (x, y) = (map.x[k], map.y[k]);
-        inside[k] = x.is_finite()
-            && (period.is_some() || (0.0..w).contains(&x))
-            && (0.0..h).contains(&y);
+        inside[k] =
+            x.is_finite() && (period.is_some() || (0.0..w).contains(&x)) && (0.0..h).contains(&y);
         if let Some(north) = ring_of(k) {
             inside[k] = true;
             let ring = rings[k / t].get_or_insert_with(|| {
@@ -1775,7 +1774,10 @@ impl Ring {
             // the row's band on the sphere, in radians (one source row = `rad` radians when the
             // pixels are square in degrees; the band's area is what matters, and its ratio
             // between rows)
-            let (top, bot) = ((colat - step / 2.0).max(0.0) * rad, (colat + step / 2.0) * rad);
+            let (top, bot) = (
+                (colat - step / 2.0).max(0.0) * rad,
+                (colat + step / 2.0) * rad,
+            );
             let area = top.cos() - bot.cos();
             let nb = ((16.0 * std::f64::consts::PI * bot.sin() / (sy * rad)).ceil() as usize)
                 .clamp(1, n_period);
@@ -2151,7 +2153,10 @@ mod tests {
                 let holes = v.iter().filter(|v| v.is_nan()).count();
                 assert_eq!(holes, 0, "{kernel:?} level {level}: texels without data");
                 for b in pass_band_error(grid, id, &v, &pass, &QUALITY_BANDS) {
-                    worst.push((b.rms / limit, format!("{kernel:?} L{level} pass band: {b:?}")));
+                    worst.push((
+                        b.rms / limit,
+                        format!("{kernel:?} L{level} pass band: {b:?}"),
+                    ));
                 }
             }
             // one wave at a time at 6× the level's Nyquist, the source 8× finer
