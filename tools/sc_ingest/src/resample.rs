@@ -1654,7 +1654,7 @@ fn separable(
 fn ring_pole(info: &SourceInfo, y: f64, sy: f64, support: f64) -> Option<bool> {
     info.lon_period_px?;
     let reach = support * sy;
-    if !y.is_finite() || !(reach > 0.0) {
+    if !y.is_finite() || reach.is_nan() || reach <= 0.0 {
         return None;
     }
     if let Some(p) = info.north_pole_y
