@@ -2184,6 +2184,14 @@ mod tests {
         }
         // the pole rows were measured
         assert!(worst.iter().any(|(_, w)| w.contains("lat0: 89.5")));
+        worst.sort_by(|a, b| b.0.total_cmp(&a.0));
+        for (r, w) in worst
+            .iter()
+            .filter(|w| !w.1.starts_with("Bilinear"))
+            .take(4)
+        {
+            eprintln!("{r:.2}× the limit: {w}");
+        }
         let (ratio, what) = worst
             .into_iter()
             .fold((0.0, String::new()), |a, b| if b.0 > a.0 { b } else { a });
