@@ -8,13 +8,18 @@ Usage: interop.py STORE COLOR_EXPORT.tif COLOR_LEVEL
 - no zarr warning about objects it does not recognise (our bookkeeping files);
 - the layer groups list their levels with `multiscales`, coarse to fine;
 - Everest is found above 5 km, in the finest level with data there, by `.sel(lat=27.99, lon=86.93, method="nearest")`;
-- the colour level equals the GeoTIFF `sphereclip export` wrote of it (read by rasterio's GDAL).
+- with dask, a whole level's mean equals numpy's, read a shard a chunk and with the default
+  chunking (memory bounded by the chunks in flight);
+- the colour level equals the GeoTIFF `sphereclip export` wrote of it (read by rasterio's GDAL),
+  and written out by rioxarray (band first) it is that GeoTIFF again.
 
 Prints one line of JSON with what it measured; any failed check raises (exit 1).
 """
 
 import json
+import os
 import sys
+import tracemalloc
 import warnings
 
 import numpy as np
@@ -86,6 +91,18 @@ def main() -> None:
     assert n_chunks == -(-h // shards[0]) * -(-w // shards[1]), (n_chunks, var.chunks)
     mean = float(var.mean().compute())
     np.testing.assert_allclose(mean, float(np.nanmean(tree[f"height/{finest}"]["height"].values)), rtol=1e-5)
+    # the default chunking (`chunks={}`: the 256² inner chunks) gives the same mean with memory
+    # bounded by the chunks in flight, not the level (4.6 MB of a 32 MB level on 2 cores)
+    default = xr.open_zarr(store, group=f"height/{finest}", chunks={})["height"]
+    inner = root[f"height/{finest}"]["height"].chunks
+    assert default.chunks is not None and max(default.chunks[0]) == inner[0], default.chunks
+    tracemalloc.start()
+    np.testing.assert_allclose(float(default.mean().compute()), mean, rtol=1e-5)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    chunk_bytes = inner[0] * inner[1] * 4
+    bound = max(h * w * 4 // 4, 2 * ((os.cpu_count() or 2) + 4) * chunk_bytes)
+    assert peak < bound, f"reading with chunks={{}} peaked at {peak} bytes (bound {bound})"
 
     ours = tree[f"color/{color_level}"].to_dataset()["color"]
     gdal = rioxarray.open_rasterio(export)
