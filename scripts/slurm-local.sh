@@ -77,6 +77,8 @@ ReturnToService=2
 MpiDefault=none
 KillWait=5
 SlurmdParameters=config_overrides
+# small, so that a test can exceed it (Slurm's default is 1001): array indices 0..4
+MaxArraySize=5
 NodeName=$host NodeAddr=127.0.0.1 CPUs=$cpus RealMemory=$mem State=UNKNOWN
 PartitionName=test Nodes=$host Default=YES MaxTime=INFINITE State=UP OverSubscribe=YES
 CONF

@@ -393,7 +393,7 @@ impl Drop for Slurm {
 
 #[test]
 fn a_plan_runs_on_slurm_as_array_jobs_and_a_killed_task_resubmitted_gives_the_same_bytes() {
-    let (_, built) = reference();
+    let (ingested, built) = reference();
     let dir = tempfile::tempdir().expect("tmp");
     let Some(slurm) = Slurm::start(&dir.path().join("slurm")) else {
         return;
@@ -466,6 +466,58 @@ fn a_plan_runs_on_slurm_as_array_jobs_and_a_killed_task_resubmitted_gives_the_sa
         &snapshot_with(&built, true),
         &snapshot_with(&store, true),
         "ingest and build on Slurm",
+    );
+
+    // a stage of more tasks than this Slurm's MaxArraySize (5, scripts/slurm-local.sh): one
+    // array job of them is refused; arrays of at most --max-array, side by side, run it
+    let wide_plan = |name: &str, store: &Path, max: &str| {
+        let out = dir.path().join(name);
+        let mut a = vec!["plan", "ingest", s(store)];
+        let args = ingest_args();
+        a.extend(args.iter().map(String::as_str));
+        a.extend([
+            "--tasks",
+            "7",
+            "--out",
+            s(&out),
+            "--cpus-per-task",
+            "1",
+            "--emit",
+            "slurm",
+            "--max-array",
+            max,
+        ]);
+        ok(&run(&a));
+        assert_eq!(task_count(&out), 7);
+        out
+    };
+    let refused = wide_plan("refused.json", &dir.path().join("refused.zarr"), "1000");
+    let o = slurm
+        .command("bash")
+        .arg(refused.with_extension("sbatch.sh"))
+        .output()
+        .expect("bash runs");
+    assert!(
+        !o.status.success() && text(&o.stderr).contains("array"),
+        "seven tasks in one array: {}{}",
+        text(&o.stdout),
+        text(&o.stderr)
+    );
+    let wide = dir.path().join("wide.zarr");
+    let p = wide_plan("wide.json", &wide, "5");
+    let script = std::fs::read_to_string(p.with_extension("sbatch.sh")).expect("script");
+    assert!(
+        script.contains("submit sc-") && script.contains(" 0-4 ") && script.contains(" 0-1 "),
+        "{script}"
+    );
+    let jobs = slurm.submit(&p.with_extension("sbatch.sh"), &[]);
+    assert_eq!(jobs.len(), 3, "two array jobs and the commit: {jobs:?}");
+    slurm.wait_empty("one stage in two array jobs");
+    assert!(sc_store::open_plan(&wide).is_none(), "the commit job ran");
+    same_files(
+        &snapshot_with(&ingested, true),
+        &snapshot_with(&wide, true),
+        "a stage in two array jobs",
     );
 }
 

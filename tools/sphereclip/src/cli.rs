@@ -210,6 +210,11 @@ pub struct PlanOptions {
     /// CPU cores per task on the cluster (default: --threads, or 2).
     #[arg(long)]
     pub cpus_per_task: Option<u32>,
+    /// With --emit slurm: at most this many tasks in one array job, numbered 0 to N−1 in each
+    /// (Slurm refuses indices from its MaxArraySize on: its default, 1001, takes 1000). A larger
+    /// stage is submitted as several array jobs that run side by side.
+    #[arg(long, default_value_t = 1000, value_parser = clap::value_parser!(u32).range(1..=4_000_000))]
+    pub max_array: u32,
     /// With --emit k8s: the container image that has `sphereclip` on its PATH.
     #[arg(long, default_value = "sphereclip:latest")]
     pub image: String,

@@ -501,7 +501,7 @@ pub fn make(a: &PlanArgs) -> Result<ExitCode> {
         let script = script_path(opts, &out, emit)?;
         let exe = crate::user_exe()?;
         let text = match emit {
-            Emit::Slurm => slurm_script(&plan, &out, &exe),
+            Emit::Slurm => slurm_script(&plan, &out, &exe, opts.max_array),
             Emit::K8s => k8s_manifests(&plan, &out, opts)?,
         };
         write_ours(&script, &text, is_script)?;
@@ -1037,11 +1037,13 @@ fn one_line(s: &str) -> String {
         .collect()
 }
 
-/// A bash script that submits the plan: one sbatch array job per stage, each waiting for the
-/// one before (`afterok`; a failed task cancels the rest), then the commit. Submitting it again
-/// resumes: finished tasks find their work done and exit at once. Every value is single-quoted
-/// where the script sets it, and quoted again (`q`) for the `sh` that runs a job's `--wrap`.
-fn slurm_script(plan: &PlanFile, plan_path: &Path, exe: &Path) -> String {
+/// A bash script that submits the plan: each stage as array jobs of at most `max_array` tasks
+/// (indices counted from 0 in each, the task `--stage S --task OFFSET+index`), all of a stage
+/// waiting for every job of the stage before (`afterok`; a failed task cancels the rest), then
+/// the commit. Submitting it again resumes: finished tasks find their work done and exit at once.
+/// Every value is single-quoted where the script sets it, and quoted again (`q`) for the `sh`
+/// that runs a job's `--wrap`.
+fn slurm_script(plan: &PlanFile, plan_path: &Path, exe: &Path, max_array: u32) -> String {
     const HEAD: &str = r#"#!/usr/bin/env bash
 # @MARK@ (Slurm): @KIND@ into @STORE@, @TASKS@ task(s) in @STAGES@ stage(s).
 # Submit from a machine that runs sbatch, with the store, the inputs and the plan on a filesystem
@@ -1054,11 +1056,12 @@ PLAN=@PLAN@
 LOGS=${LOGS:-@LOGS@}
 mkdir -p -- "$LOGS"
 dep=()
+stage_jobs=()
 # VALUE: VALUE single-quoted for the sh that runs a job's --wrap
 q() { local s=${1//\'/\'\\\'\'}; printf "'%s'" "$s"; }
 # Slurm expands % in --output: a literal one is %%
 logs=${LOGS//%/%%}
-# NAME ARRAY COMMAND: submits one job (an array job when ARRAY is set) after the previous one
+# NAME ARRAY COMMAND: submits one job (an array job when ARRAY is set) after the stage before
 submit() {
   local id out="$logs/%x-%j.out"
   [ -n "$2" ] && out="$logs/%x-%A_%a.out"
@@ -1066,10 +1069,21 @@ submit() {
   id=$(sbatch --parsable --job-name="$1" ${2:+--array=$2} --cpus-per-task=@CPUS@ --chdir=@CWD@ \
     --output="$out" --kill-on-invalid-dep=yes "${dep[@]}" ${SBATCH_EXTRA:-} --wrap="$3")
   id=${id%%;*}
-  dep=(--dependency=afterok:"$id")
+  stage_jobs+=("$id")
   echo "$1: job $id"
 }
-task="exec $(q "$SPHERECLIP") run-task $(q "$PLAN") --task \"\$SLURM_ARRAY_TASK_ID\""
+# the next stage waits for every job of this one
+stage_done() {
+  [ "${#stage_jobs[@]}" -gt 0 ] || return 0
+  local IFS=:
+  dep=(--dependency=afterok:"${stage_jobs[*]}")
+  stage_jobs=()
+}
+# STAGE OFFSET: the command of an array job's task: task OFFSET + its index within STAGE
+task() {
+  printf 'exec %s run-task %s --stage %s --task "$((%s + SLURM_ARRAY_TASK_ID))"' \
+    "$(q "$SPHERECLIP")" "$(q "$PLAN")" "$1" "$2"
+}
 commit="exec $(q "$SPHERECLIP") commit $(q "$PLAN")"
 "#;
     let mut s = HEAD
@@ -1087,14 +1101,26 @@ commit="exec $(q "$SPHERECLIP") commit $(q "$PLAN")"
         .replace("@CPUS@", &plan.cpus_per_task.to_string())
         .replace("@CWD@", &sh(&plan.cwd.to_string_lossy()));
     let tag = &plan.hash[..8];
+    let max_array = max_array.max(1);
     for (k, st) in plan.stages.iter().enumerate() {
         let _ = writeln!(
             s,
-            "# stage {k}: {}\nsubmit sc-{tag}-{k} {}-{} \"$task\"",
+            "# stage {k}: {} ({} task(s))",
             one_line(&st.name),
-            st.first_task,
-            st.first_task + st.tasks - 1
+            st.tasks
         );
+        let parts = st.tasks.div_ceil(max_array);
+        for c in 0..parts {
+            let offset = c * max_array;
+            let n = max_array.min(st.tasks - offset);
+            let name = if parts == 1 {
+                format!("sc-{tag}-{k}")
+            } else {
+                format!("sc-{tag}-{k}-{c}")
+            };
+            let _ = writeln!(s, "submit {name} 0-{} \"$(task {k} {offset})\"", n - 1);
+        }
+        let _ = writeln!(s, "stage_done");
     }
     let _ = writeln!(s, r#"submit sc-{tag}-commit "" "$commit""#);
     s
