@@ -1,14 +1,14 @@
 #!/usr/bin/env bash
 # Makes (once) the Python environment the interoperability test reads stores with: zarr-python 3,
 # xarray with dask, rioxarray (with rasterio's own GDAL and pyproj), numcodecs with pcodec and
-# crc32c, and shapely (the vector layers' exact-area reference), from PyPI,
-# under target/pyenv. Prints the interpreter's path. Safe to run again: an environment that
+# crc32c, shapely (the vector layers' exact-area reference) and kubernetes-validate (the
+# Kubernetes API's schemas, offline, for the emitted Jobs), from PyPI, under target/pyenv. Prints the interpreter's path. Safe to run again: an environment that
 # imports everything is reused.
 set -euo pipefail
 here="$(cd "$(dirname "$0")/.." && pwd)"
 env_dir="${SPHERECLIP_PYENV:-$here/target/pyenv}"
 py="$env_dir/bin/python"
-check='import zarr, xarray, rioxarray, numcodecs, pcodec, crc32c, shapely, pyproj, dask'
+check='import zarr, xarray, rioxarray, numcodecs, pcodec, crc32c, shapely, pyproj, dask, kubernetes_validate'
 if [ -x "$py" ] && "$py" -c "$check" 2>/dev/null; then
   echo "$py"
   exit 0
@@ -18,6 +18,7 @@ base=/usr/bin/python3
 rm -rf "$env_dir"
 "$base" -m venv "$env_dir" >&2
 "$py" -m pip install --quiet --disable-pip-version-check \
-  'zarr>=3.1,<4' 'xarray>=2025.1' 'rioxarray>=0.19' 'numcodecs[pcodec,crc32c]>=0.16' 'shapely>=2.0' 'dask[array]' >&2
+  'zarr>=3.1,<4' 'xarray>=2025.1' 'rioxarray>=0.19' 'numcodecs[pcodec,crc32c]>=0.16' 'shapely>=2.0' 'dask[array]' \
+  'kubernetes-validate>=1.33' >&2
 "$py" -c "$check"
 echo "$py"

@@ -238,6 +238,7 @@ fn kubernetes_manifests_are_exactly_the_jobs_whatever_the_claim_image_or_path() 
         "data\n---\napiVersion: v1\nkind: Pod\nmetadata:\n  name: evil\n",
         "img\"x' # {not: a map}\n  evil: true",
     );
+    validate_k8s(&top.path().join("a\n---\nkind: Pod\n#").join("p.k8s.yaml"));
     let mut rng = StdRng::seed_from_u64(5);
     for k in 0..12 {
         let (dir, claim, image) = (
@@ -302,6 +303,168 @@ fn k8s_case(top: &Path, name: &str, claim: &str, image: &str) {
             "{line:?}"
         );
     }
+    let driver = std::fs::read_to_string(plan.with_extension("k8s.sh")).expect("driver");
+    assert!(driver.contains("stage commit "), "{driver}");
+}
+
+/// The manifests against the Kubernetes API's own schema (kubernetes-validate, offline, strict:
+/// an unknown field is an error), for the oldest release with every field they use (1.33, where
+/// `backoffLimitPerIndex` and `podFailurePolicy` are GA) and the newest it knows.
+fn validate_k8s(yaml: &Path) {
+    let exe = python().with_file_name("kubernetes-validate");
+    for version in ["1.33.0", "1.37.0"] {
+        let o = Command::new(&exe)
+            .args(["--strict", "--quiet", "-k", version])
+            .arg(yaml)
+            .output()
+            .expect("kubernetes-validate runs");
+        assert!(
+            o.status.success() && !text(&o.stdout).contains("ERROR"),
+            "Kubernetes {version}: {}{}",
+            text(&o.stdout),
+            text(&o.stderr)
+        );
+    }
+}
+
+/// A stand-in for kubectl: `apply -f F -l sphereclip/stage=S` records the call and finishes the
+/// Job that carries that label at once (Failed when STUB_FAIL names the stage, else Complete);
+/// `get job NAME` prints the conditions it recorded; `delete job NAME` forgets them.
+const STUB_KUBECTL: &str = r#"#!/usr/bin/env bash
+set -u
+echo "$*" >> "$STUB_DIR/calls"
+case "${1:-} ${2:-}" in
+  "get job") cat "$STUB_DIR/job-$3" 2>/dev/null; exit 0 ;;
+  "delete job") rm -f "$STUB_DIR/job-$3"; exit 0 ;;
+esac
+[ "${1:-}" = apply ] || { echo "stub kubectl: $*" >&2; exit 1; }
+stage=${5#sphereclip/stage=}
+name=$(awk -v s="$stage" '/^  name: /{n=$2} /sphereclip\/stage: /{v=$2; gsub("\047","",v); if (v==s) print n}' "$3")
+[ -n "$name" ] || { echo "stub kubectl: no Job of stage $stage" >&2; exit 1; }
+if [ "${STUB_FAIL:-}" = "$stage" ]; then state=Failed; else state=Complete; fi
+echo "$state=True " > "$STUB_DIR/job-$name"
+"#;
+
+/// Runs the driver `plan --emit k8s` wrote with the stub kubectl; returns its output and the
+/// calls' first words after `apply`/`delete` (`apply 0`, `delete NAME`…).
+fn drive(driver: &Path, stub: &Path, fail: Option<&str>) -> (Output, Vec<String>) {
+    std::fs::write(stub.join("kubectl"), STUB_KUBECTL).expect("write");
+    let _ = std::fs::remove_file(stub.join("calls"));
+    let mut c = Command::new("bash");
+    c.arg(driver)
+        .env("KUBECTL", format!("bash {}", s(&stub.join("kubectl"))))
+        .env("STUB_DIR", stub)
+        .env("POLL", "0");
+    if let Some(f) = fail {
+        c.env("STUB_FAIL", f);
+    }
+    let o = c.output().expect("bash runs");
+    let calls = std::fs::read_to_string(stub.join("calls"))
+        .unwrap_or_default()
+        .lines()
+        .filter_map(|l| {
+            let w: Vec<&str> = l.split(' ').collect();
+            match w[0] {
+                "apply" => Some(format!(
+                    "apply {}",
+                    w[4].trim_start_matches("sphereclip/stage=")
+                )),
+                "delete" => Some(format!("delete {}", w[2])),
+                _ => None,
+            }
+        })
+        .collect();
+    (o, calls)
+}
+
+#[test]
+fn the_kubernetes_driver_runs_stages_in_order_and_resumes_only_the_unfinished_ones() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let (_, plan) = plan_build(dir.path(), "s.zarr", &["--emit", "k8s"]);
+    let yaml = plan.with_extension("k8s.yaml");
+    validate_k8s(&yaml);
+    let driver = plan.with_extension("k8s.sh");
+    let v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&plan).expect("plan")).expect("json");
+    let stages = v["stages"].as_array().expect("stages").len();
+    assert!(stages >= 3, "{stages} stages");
+    let all: Vec<String> = (0..stages)
+        .map(|k| format!("apply {k}"))
+        .chain(["apply commit".to_string()])
+        .collect();
+    let stub = dir.path().join("stub");
+    std::fs::create_dir(&stub).expect("mkdir");
+    // every stage once, in order, then the commit
+    let (o, calls) = drive(&driver, &stub, None);
+    ok(&o);
+    assert_eq!(calls, all);
+    // run again: nothing left to apply
+    let (o, calls) = drive(&driver, &stub, None);
+    ok(&o);
+    assert!(calls.is_empty(), "{calls:?}");
+    assert_eq!(
+        text(&o.stdout).matches("complete already").count(),
+        stages + 1
+    );
+    // a stage that fails stops the driver before the next one
+    for f in std::fs::read_dir(&stub).expect("ls").flatten() {
+        if f.file_name().to_string_lossy().starts_with("job-") {
+            std::fs::remove_file(f.path()).expect("rm");
+        }
+    }
+    let (o, calls) = drive(&driver, &stub, Some("1"));
+    let e = one_line_failure(&o, "a failed stage");
+    assert!(e.contains("failed") && e.contains("run this again"), "{e}");
+    assert_eq!(calls, all[..2]);
+    // resumed: stage 0 is left as it is, the failed Job is replaced, the rest run
+    let (o, calls) = drive(&driver, &stub, None);
+    ok(&o);
+    let name1 = format!("{}-stage-1", &v["hash"].as_str().expect("hash")[..8]);
+    let mut want = vec![format!("delete sc-{name1}")];
+    want.extend(all[1..].iter().cloned());
+    assert_eq!(calls, want);
+}
+
+#[test]
+fn a_kubernetes_plan_refuses_a_store_or_input_outside_the_claim_and_touches_nothing() {
+    let top = tempfile::tempdir().expect("tmp");
+    let (inside, outside) = (top.path().join("claim"), top.path().join("elsewhere"));
+    std::fs::create_dir_all(&inside).expect("mkdir");
+    std::fs::create_dir_all(&outside).expect("mkdir");
+    let store = outside.join("s.zarr");
+    copy_dir(&base(), &store);
+    let before = tree(&store);
+    for store_arg in [s(&store).to_string(), "../elsewhere/s.zarr".to_string()] {
+        let o = run_in(
+            &inside,
+            &[
+                "plan", "build", &store_arg, "--tasks", "2", "--out", "p.json", "--emit", "k8s",
+            ],
+        );
+        let e = one_line_failure(&o, "a store outside the claim");
+        assert!(e.contains("outside") && e.contains("store"), "{e}");
+        assert_eq!(tree(&store), before, "the store changed");
+        assert!(!inside.join("p.json").exists() && !inside.join("p.k8s.yaml").exists());
+    }
+    // an input outside it
+    let o = run_in(
+        &inside,
+        &[
+            "plan",
+            "ingest",
+            "new.zarr",
+            s(&sample("etopo20.cdf")),
+            "--tasks",
+            "2",
+            "--out",
+            "p.json",
+            "--emit",
+            "k8s",
+        ],
+    );
+    let e = one_line_failure(&o, "an input outside the claim");
+    assert!(e.contains("outside") && e.contains("input"), "{e}");
+    assert!(!inside.join("new.zarr").exists() && !inside.join("p.json").exists());
 }
 
 /// A copy of the base store with a build plan open on it, in `dir`: (store, plan).

@@ -160,6 +160,40 @@ fn absolute(p: &Path) -> Result<PathBuf> {
     std::path::absolute(p).with_context(|| format!("cannot resolve {}", p.display()))
 }
 
+/// `p` made absolute against `cwd` with `.` and `..` taken out by their names alone (a pod sees
+/// the claim's folders, not where this machine's links lead).
+fn lexical(cwd: &Path, p: &Path) -> PathBuf {
+    let mut out = PathBuf::new();
+    for c in cwd.join(p).components() {
+        match c {
+            std::path::Component::CurDir => {}
+            std::path::Component::ParentDir => {
+                out.pop();
+            }
+            c => out.push(c),
+        }
+    }
+    out
+}
+
+/// With `--emit k8s` every pod mounts the claim at `cwd` and sees nothing else of this machine:
+/// the store, the plan and every input must lie inside it.
+fn within_claim<'a>(
+    cwd: &Path,
+    paths: impl IntoIterator<Item = (&'a str, &'a Path)>,
+) -> Result<()> {
+    for (what, p) in paths {
+        if !lexical(cwd, p).starts_with(cwd) {
+            bail!(
+                "--emit k8s mounts the claim at {} in every pod, and the {what} {} is outside it: make the plan from a folder that holds the store, the plan and the inputs",
+                cwd.display(),
+                p.display()
+            );
+        }
+    }
+    Ok(())
+}
+
 /// Writes `text` to `path` unless a file is there that `is_ours` does not recognise.
 fn write_ours(path: &Path, text: &str, is_ours: fn(&str) -> bool) -> Result<()> {
     check_ours(path, is_ours)?;
@@ -434,12 +468,29 @@ pub fn make(a: &PlanArgs) -> Result<ExitCode> {
     // files that are not ours are refused before the store is touched
     check_ours(&out, is_plan)?;
     if let Some(emit) = opts.emit {
-        check_ours(&script_path(opts, &out, emit)?, is_script)?;
+        let script = script_path(opts, &out, emit)?;
+        check_ours(&script, is_script)?;
+        if emit == Emit::K8s {
+            check_ours(&k8s_driver_path(&script), is_script)?;
+        }
     }
+    let k8s = opts.emit == Some(Emit::K8s);
     let plan = match &a.what {
         PlanWhat::Ingest { ingest, .. } => {
             let store = absolute(&ingest.store)?;
             let p = super::ingest::make_plan(ingest)?;
+            if k8s {
+                within_claim(
+                    &cwd,
+                    [("store", store.as_path()), ("plan", out.as_path())]
+                        .into_iter()
+                        .chain(
+                            p.inputs
+                                .iter()
+                                .map(|i| ("input", Path::new(&i.record.path))),
+                        ),
+                )?;
+            }
             let grid = p.grid;
             let shards: Vec<(ShardId, f64)> = p
                 .shards
@@ -485,6 +536,9 @@ pub fn make(a: &PlanArgs) -> Result<ExitCode> {
         }
         PlanWhat::Build { build, .. } => {
             let store = absolute(&build.store)?;
+            if k8s {
+                within_claim(&cwd, [("store", store.as_path()), ("plan", out.as_path())])?;
+            }
             let p = build_plan(&store, build)?;
             let (stages, tasks) = build_stages(&p.work(&store)?, opts.tasks as usize);
             let plan = new_plan("build", store, cwd, args, &p.hash(), cpus, stages, tasks);
@@ -507,7 +561,15 @@ pub fn make(a: &PlanArgs) -> Result<ExitCode> {
         write_ours(&script, &text, is_script)?;
         how = match emit {
             Emit::Slurm => format!("submit it with `bash {}`", script.display()),
-            Emit::K8s => format!("submit it with `kubectl apply -f {}`", script.display()),
+            Emit::K8s => {
+                let driver = k8s_driver_path(&script);
+                write_ours(&driver, &k8s_driver(&plan, &script), is_script)?;
+                format!(
+                    "run it with `bash {}` (it applies the Jobs of {} stage by stage)",
+                    driver.display(),
+                    script.display()
+                )
+            }
         };
     }
     crate::outln!(
@@ -1126,26 +1188,124 @@ commit="exec $(q "$SPHERECLIP") commit $(q "$PLAN")"
     s
 }
 
-/// Kubernetes manifests: one Indexed Job per stage and one that commits, all applied at once;
-/// each task waits for the earlier stages itself (`run-task --wait`), as Jobs have no
-/// dependencies. Every pod mounts the claim at the folder the plan was made in. Each object is
-/// written by a YAML serializer (no value can add a key or an object).
+/// Retries of one task (one index of a stage's Job) before the Job fails.
+const K8S_RETRIES: u32 = 3;
+
+/// How long a finished Job and its pods stay for `kubectl logs` (a week).
+const K8S_TTL_S: u32 = 7 * 24 * 3600;
+
+/// The name of a stage's Job (`None`: the commit's).
+fn k8s_job_name(plan: &PlanFile, stage: Option<usize>) -> String {
+    let tag = &plan.hash[..8];
+    match stage {
+        Some(k) => format!("sc-{tag}-stage-{k}"),
+        None => format!("sc-{tag}-commit"),
+    }
+}
+
+/// The driver script beside the manifests `yaml`.
+fn k8s_driver_path(yaml: &Path) -> PathBuf {
+    let p = yaml.with_extension("sh");
+    if p == yaml {
+        yaml.with_extension("driver.sh")
+    } else {
+        p
+    }
+}
+
+/// A bash script that runs the manifests' Jobs one stage after the other: it applies a stage's
+/// Job (`kubectl apply -f YAML -l sphereclip/stage=S`), waits for its Complete condition, then
+/// goes on; a Failed one stops it. Run again, it skips the stages whose Job completed and replaces
+/// a failed one (its finished tasks find their work done), so only unfinished stages run.
+fn k8s_driver(plan: &PlanFile, yaml: &Path) -> String {
+    const HEAD: &str = r#"#!/usr/bin/env bash
+# @MARK@ (Kubernetes driver): @KIND@ into @STORE@, @STAGES@ stage(s) then the commit.
+# Applies the Jobs of the manifests one stage after the other, each when the one before has
+# completed. To resume after a failure, run it again: completed stages are skipped, a failed Job is
+# replaced. Environment: KUBECTL (the command, default kubectl; e.g. "kubectl -n batch"), POLL
+# (seconds between looks at a Job, default 10).
+set -euo pipefail
+YAML=@YAML@
+read -r -a kubectl <<< "${KUBECTL:-kubectl}"
+poll=${POLL:-10}
+# NAME: the Job's conditions as " Type=Status …" (nothing while it has none or is not there)
+conditions() {
+  printf ' %s' "$("${kubectl[@]}" get job "$1" --ignore-not-found     -o jsonpath='{range .status.conditions[*]}{.type}={.status} {end}')"
+}
+# STAGE NAME: runs one stage's Job to completion
+stage() {
+  local c
+  c=$(conditions "$2")
+  case $c in *" Complete=True"*) echo "$2: complete already"; return 0 ;; esac
+  case $c in *" Failed=True"*) "${kubectl[@]}" delete job "$2" --wait=true >/dev/null ;; esac
+  "${kubectl[@]}" apply -f "$YAML" -l "sphereclip/stage=$1" >/dev/null
+  echo "$2: applied"
+  while :; do
+    c=$(conditions "$2")
+    case $c in
+      *" Complete=True"*) echo "$2: complete"; return 0 ;;
+      *" Failed=True"*)
+        echo "error: the Job $2 failed (see kubectl describe job $2); run this again to resume" >&2
+        exit 1 ;;
+    esac
+    sleep "$poll"
+  done
+}
+"#;
+    let mut s = HEAD
+        .replace("@MARK@", SCRIPT_MARK)
+        .replace("@KIND@", &plan.kind)
+        .replace("@STORE@", &one_line(&plan.store.to_string_lossy()))
+        .replace("@STAGES@", &plan.stages.len().to_string())
+        .replace("@YAML@", &sh(&yaml.to_string_lossy()));
+    for k in 0..plan.stages.len() {
+        let _ = writeln!(s, "stage {k} {}", k8s_job_name(plan, Some(k)));
+    }
+    let _ = writeln!(s, "stage commit {}", k8s_job_name(plan, None));
+    s
+}
+
+/// Kubernetes manifests: one Indexed Job per stage and one that commits, each labelled with its
+/// stage (`sphereclip/stage`) for the driver ([`k8s_driver`]) to apply one after the other. Every
+/// pod mounts the claim at the folder the plan was made in. A task is retried on its own index
+/// (`backoffLimitPerIndex`), a usage error (exit 2) fails its index at once, an evicted pod does
+/// not count as a failure; finished Jobs go after a week. Each object is written by a YAML
+/// serializer (no value can add a key or an object).
 fn k8s_manifests(plan: &PlanFile, plan_path: &Path, opts: &PlanOptions) -> Result<String> {
     let tag = &plan.hash[..8];
     let cwd = plan.cwd.to_string_lossy().into_owned();
-    let job = |name: String, n: u32, command: Vec<String>| {
+    let job = |name: String, stage: String, n: u32, command: Vec<String>| {
         serde_json::json!({
             "apiVersion": "batch/v1",
             "kind": "Job",
             "metadata": {
                 "name": name,
-                "labels": { "app": "sphereclip", "sphereclip/plan": tag },
+                "labels": {
+                    "app": "sphereclip",
+                    "sphereclip/plan": tag,
+                    "sphereclip/stage": stage,
+                },
             },
             "spec": {
                 "completionMode": "Indexed",
                 "completions": n,
                 "parallelism": n,
-                "backoffLimit": 3 * u64::from(n),
+                "backoffLimitPerIndex": K8S_RETRIES,
+                "podFailurePolicy": { "rules": [
+                    {
+                        "action": "FailIndex",
+                        "onExitCodes": {
+                            "containerName": "sphereclip",
+                            "operator": "In",
+                            "values": [2],
+                        },
+                    },
+                    {
+                        "action": "Ignore",
+                        "onPodConditions": [{ "type": "DisruptionTarget", "status": "True" }],
+                    },
+                ]},
+                "ttlSecondsAfterFinished": K8S_TTL_S,
                 "template": { "spec": {
                     "restartPolicy": "Never",
                     "containers": [{
@@ -1165,11 +1325,11 @@ fn k8s_manifests(plan: &PlanFile, plan_path: &Path, opts: &PlanOptions) -> Resul
         })
     };
     let plan_s = plan_path.to_string_lossy().into_owned();
-    let wait = "86400".to_string();
     let mut jobs = Vec::new();
     for (k, st) in plan.stages.iter().enumerate() {
         jobs.push(job(
-            format!("sc-{tag}-stage-{k}"),
+            k8s_job_name(plan, Some(k)),
+            k.to_string(),
             st.tasks,
             vec![
                 "sphereclip".into(),
@@ -1177,28 +1337,22 @@ fn k8s_manifests(plan: &PlanFile, plan_path: &Path, opts: &PlanOptions) -> Resul
                 plan_s.clone(),
                 "--stage".into(),
                 k.to_string(),
-                "--wait".into(),
-                wait.clone(),
             ],
         ));
     }
     jobs.push(job(
-        format!("sc-{tag}-commit"),
+        k8s_job_name(plan, None),
+        "commit".into(),
         1,
-        vec![
-            "sphereclip".into(),
-            "commit".into(),
-            plan_s.clone(),
-            "--wait".into(),
-            wait,
-        ],
+        vec!["sphereclip".into(), "commit".into(), plan_s.clone()],
     ));
     let mut s = format!(
-        "# {SCRIPT_MARK} (Kubernetes): {} into {}, {} task(s) in {} stage(s).\n# Apply with `kubectl apply -f` this file. Every pod mounts the claim {} at {}, which must hold the\n# inputs, the store and the plan at the paths they had when the plan was made. Each stage's tasks\n# wait for the stage before (up to a day); the last Job commits.\n",
+        "# {SCRIPT_MARK} (Kubernetes): {} into {}, {} task(s) in {} stage(s).\n# Run the driver beside this file (`bash {}`): it applies these Jobs one stage after the other\n# (`-l sphereclip/stage=S`). Every pod mounts the claim {} at {}, which holds the inputs, the\n# store and the plan at the paths they had when the plan was made; the last Job commits.\n",
         plan.kind,
         one_line(&plan.store.to_string_lossy()),
         plan.tasks.len(),
         plan.stages.len(),
+        one_line(&k8s_driver_path(&script_path(opts, plan_path, Emit::K8s)?).to_string_lossy()),
         one_line(&opts.claim),
         one_line(&cwd),
     );
