@@ -290,6 +290,10 @@ fn k8s_case(top: &Path, name: &str, claim: &str, image: &str) {
         assert_eq!(c["workingDir"], cwd);
         assert_eq!(c["volumeMounts"][0]["mountPath"], cwd);
         assert_eq!(c["command"][2], s(&plan), "the plan path, whole");
+        // retried per index; memory asked for and capped at the bound of two threads
+        assert_eq!(j["spec"]["backoffLimitPerIndex"], 3, "{j}");
+        assert_eq!(c["resources"]["requests"]["memory"], "1280Mi", "{j}");
+        assert_eq!(c["resources"]["limits"]["memory"], "1280Mi", "{j}");
         let name = j["metadata"]["name"].as_str().expect("name");
         if k < stages {
             assert!(name.ends_with(&format!("-stage-{k}")), "{name}");

@@ -1194,6 +1194,13 @@ const K8S_RETRIES: u32 = 3;
 /// How long a finished Job and its pods stay for `kubectl logs` (a week).
 const K8S_TTL_S: u32 = 7 * 24 * 3600;
 
+/// The memory a task may take, MiB: ingest's bound (README, "Bounded memory": 1.25 GiB on up to
+/// four worker threads, 64 MiB more per further thread; measured peaks 0.3–0.55 GB), which also
+/// bounds a build (at most 128 MiB of decoded tiles kept; measured 0.16–0.3 GB).
+fn task_memory_mib(threads: u32) -> u32 {
+    1280 + 64 * threads.saturating_sub(4)
+}
+
 /// The name of a stage's Job (`None`: the commit's).
 fn k8s_job_name(plan: &PlanFile, stage: Option<usize>) -> String {
     let tag = &plan.hash[..8];
@@ -1269,11 +1276,13 @@ stage() {
 /// stage (`sphereclip/stage`) for the driver ([`k8s_driver`]) to apply one after the other. Every
 /// pod mounts the claim at the folder the plan was made in. A task is retried on its own index
 /// (`backoffLimitPerIndex`), a usage error (exit 2) fails its index at once, an evicted pod does
-/// not count as a failure; finished Jobs go after a week. Each object is written by a YAML
+/// not count as a failure; finished Jobs go after a week. A pod asks for the task's CPUs and
+/// for the memory bound of its threads ([`task_memory_mib`]) as request and limit. Each object is written by a YAML
 /// serializer (no value can add a key or an object).
 fn k8s_manifests(plan: &PlanFile, plan_path: &Path, opts: &PlanOptions) -> Result<String> {
     let tag = &plan.hash[..8];
     let cwd = plan.cwd.to_string_lossy().into_owned();
+    let memory = format!("{}Mi", task_memory_mib(plan.cpus_per_task));
     let job = |name: String, stage: String, n: u32, command: Vec<String>| {
         serde_json::json!({
             "apiVersion": "batch/v1",
@@ -1313,7 +1322,10 @@ fn k8s_manifests(plan: &PlanFile, plan_path: &Path, opts: &PlanOptions) -> Resul
                         "image": opts.image,
                         "workingDir": cwd,
                         "command": command,
-                        "resources": { "requests": { "cpu": plan.cpus_per_task.to_string() } },
+                        "resources": {
+                            "requests": { "cpu": plan.cpus_per_task.to_string(), "memory": memory },
+                            "limits": { "memory": memory },
+                        },
                         "volumeMounts": [{ "name": "data", "mountPath": cwd }],
                     }],
                     "volumes": [{
