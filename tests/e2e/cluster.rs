@@ -301,6 +301,63 @@ fn wait_for_file(path: &Path) {
     }
 }
 
+#[test]
+fn heights_and_colours_are_built_in_the_same_stages_with_the_bytes_of_one_process() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let ingested = dir.path().join("two.zarr");
+    ok(&run(&[
+        "ingest",
+        s(&ingested),
+        s(&sample("etopo20.cdf")),
+        "--tile-size",
+        "32",
+        "--level",
+        "4",
+    ]));
+    ok(&run(&[
+        "ingest",
+        s(&ingested),
+        s(&sample("bluemarble_5400x2700.jpg")),
+        "--layer",
+        "color",
+        "--level",
+        "4",
+        "--bounds",
+        "-180,-90,180,90",
+    ]));
+    let built = dir.path().join("one.zarr");
+    copy_dir(&ingested, &built);
+    ok(&run(&["build", s(&built)]));
+    let p = plan_with(dir.path(), "build", &ingested, &[], 3, &[]);
+    let v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&p).expect("plan")).expect("json");
+    // the layers' chains side by side: each stage holds both layers' steps of its place
+    let stages = v["stages"].as_array().expect("stages");
+    assert_eq!(stages.len(), 6, "{stages:?}");
+    for st in stages {
+        let name = st["name"].as_str().expect("name");
+        assert!(name.contains("height") && name.contains("color"), "{name}");
+    }
+    // run stage by stage, the last task of each stage first
+    let tasks = v["tasks"].as_array().expect("tasks");
+    for st in stages {
+        let (first, n) = (
+            st["first_task"].as_u64().expect("first") as usize,
+            st["tasks"].as_u64().expect("tasks") as usize,
+        );
+        for i in (first..first + n).rev() {
+            ok(&run_task(&p, i));
+        }
+    }
+    assert!(tasks.len() > stages.len());
+    ok(&run(&["commit", s(&p)]));
+    same_files(
+        &snapshot_with(&built, true),
+        &snapshot_with(&ingested, true),
+        "a two-layer build by tasks",
+    );
+}
+
 /// The local Slurm of `scripts/slurm-local.sh`, stopped when dropped.
 struct Slurm {
     dir: PathBuf,

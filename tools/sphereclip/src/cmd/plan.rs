@@ -110,10 +110,10 @@ fn hex(bytes: &[u8]) -> String {
 /// Splits shards with costs into at most `n` tasks of nearly equal cost: the costliest shard
 /// first, each to the task with the least cost so far (ties: the lower number). Each task's
 /// shards are then in shard order. Deterministic.
-fn balance(mut shards: Vec<(ShardId, f64)>, n: usize) -> Vec<(Vec<ShardId>, f64)> {
+fn balance<T: Ord + Clone>(mut shards: Vec<(T, f64)>, n: usize) -> Vec<(Vec<T>, f64)> {
     let n = n.clamp(1, shards.len().max(1));
     shards.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
-    let mut tasks: Vec<(Vec<ShardId>, f64)> = vec![(Vec::new(), 0.0); n];
+    let mut tasks: Vec<(Vec<T>, f64)> = vec![(Vec::new(), 0.0); n];
     for (s, c) in shards {
         let k = (0..n)
             .min_by(|&i, &j| tasks[i].1.total_cmp(&tasks[j].1).then(i.cmp(&j)))
@@ -662,72 +662,94 @@ fn build_plan(store: &Path, a: &crate::cli::BuildArgs) -> Result<sc_build::Plan>
     Ok(sc_build::plan(&meta, store, super::build::settings(a)?)?)
 }
 
-/// A build's stages: every step with two or more shards is a stage of its own, its shards
-/// split between up to `n` tasks; runs of one-shard steps (the coarse levels) are one stage of
-/// one task that does them in order; steps with no shard to make are left out.
+/// A build's stages. Each layer's steps form a chain, in order: every step with two or more
+/// shards is a unit of its own, its shards split between up to `n` tasks; runs of one-shard
+/// steps (the coarse levels) are one unit of one task that does them in order; steps with no
+/// shard to make are left out. The layers do not read each other, so stage s runs unit s of
+/// every layer side by side (the shards of its wide units balanced together): as many stages as
+/// the longest chain has units, not their sum.
 fn build_stages(work: &[sc_build::StepWork], n: usize) -> (Vec<Stage>, Vec<Task>) {
-    let mut stages: Vec<Stage> = Vec::new();
-    let mut tasks: Vec<Task> = Vec::new();
-    let mut k = 0;
-    while k < work.len() {
-        let w = &work[k];
+    // per layer, its units as lists of step indices
+    let mut chains: Vec<(sc_store::LayerKind, Vec<Vec<usize>>)> = Vec::new();
+    for (k, w) in work.iter().enumerate() {
         if w.shards.is_empty() {
             // nothing can reach this level here (a regional ingest's polar levels)
-            k += 1;
             continue;
         }
+        let at = match chains.iter().position(|c| c.0 == w.layer) {
+            Some(at) => at,
+            None => {
+                chains.push((w.layer, Vec::new()));
+                chains.len() - 1
+            }
+        };
+        let units = &mut chains[at].1;
+        let narrow = |k: usize| work[k].shards.len() < 2;
+        match units.last_mut() {
+            Some(unit) if narrow(k) && narrow(unit[0]) => unit.push(k),
+            _ => units.push(vec![k]),
+        }
+    }
+    let mut stages: Vec<Stage> = Vec::new();
+    let mut tasks: Vec<Task> = Vec::new();
+    let longest = chains.iter().map(|c| c.1.len()).max().unwrap_or(0);
+    for u in 0..longest {
         let stage = stages.len() as u32;
         let first_task = tasks.len() as u32;
-        if w.shards.len() >= 2 {
-            let shards: Vec<(ShardId, f64)> = w
-                .shards
-                .iter()
-                .zip(&w.tiles)
-                .map(|(s, &t)| (*s, t as f64))
-                .collect();
-            for (shards, cost) in balance(shards, n) {
+        let units: Vec<&Vec<usize>> = chains.iter().filter_map(|c| c.1.get(u)).collect();
+        // the wide steps' shards, each with its step, balanced together
+        let wide: Vec<((usize, ShardId), f64)> = units
+            .iter()
+            .filter(|unit| work[unit[0]].shards.len() >= 2)
+            .flat_map(|unit| {
+                let w = &work[unit[0]];
+                w.shards
+                    .iter()
+                    .zip(&w.tiles)
+                    .map(move |(s, &t)| ((unit[0], *s), t as f64))
+            })
+            .collect();
+        if !wide.is_empty() {
+            for (shards, cost) in balance(wide, n) {
+                let mut work_items = Vec::new();
+                // sorted by step, then shard
+                for group in shards.chunk_by(|a, b| a.0 == b.0) {
+                    let k = group[0].0;
+                    let ids: Vec<ShardId> = group.iter().map(|(_, s)| *s).collect();
+                    work_items.extend(group_by_level(work[k].layer.name(), k, &ids));
+                }
                 tasks.push(Task {
                     stage,
                     cost,
-                    work: group_by_level(w.layer.name(), k, &shards),
+                    work: work_items,
                 });
             }
-            stages.push(Stage {
-                name: format!("{} {}", w.layer, w.level),
-                first_task,
-                tasks: tasks.len() as u32 - first_task,
-            });
-            k += 1;
-        } else {
-            let start = k;
+        }
+        // each run of one-shard steps, one task
+        for unit in units.iter().filter(|unit| work[unit[0]].shards.len() < 2) {
             let mut task = Task {
                 stage,
                 cost: 0.0,
                 work: Vec::new(),
             };
-            while k < work.len() && work[k].shards.len() < 2 {
+            for &k in unit.iter() {
                 let w = &work[k];
-                if w.shards.is_empty() {
-                    k += 1;
-                    continue;
-                }
                 task.cost += w.tiles.iter().sum::<u64>() as f64;
                 task.work
                     .extend(group_by_level(w.layer.name(), k, &w.shards));
-                k += 1;
             }
-            let names: Vec<String> = work[start..k]
-                .iter()
-                .filter(|w| !w.shards.is_empty())
-                .map(|w| format!("{} {}", w.layer, w.level))
-                .collect();
             tasks.push(task);
-            stages.push(Stage {
-                name: names.join(", "),
-                first_task,
-                tasks: 1,
-            });
         }
+        let names: Vec<String> = units
+            .iter()
+            .flat_map(|unit| unit.iter())
+            .map(|&k| format!("{} {}", work[k].layer, work[k].level))
+            .collect();
+        stages.push(Stage {
+            name: names.join(", "),
+            first_task,
+            tasks: tasks.len() as u32 - first_task,
+        });
     }
     (stages, tasks)
 }
