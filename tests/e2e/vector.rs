@@ -276,6 +276,66 @@ fn damaged_projected_or_linked_vector_files_are_one_line_errors() {
     run_case(d, &store, "link.shp", "link.shp");
 }
 
+#[test]
+fn export_source_mistakes_are_one_line_errors_that_write_nothing() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let store = sample_planet();
+    std::fs::write(
+        d.join("lake.geojson"),
+        r#"{"type":"Feature","properties":{"name":"r"},"geometry":{"type":"Polygon","coordinates":[[[7.5,46.0],[8.5,46.0],[8.5,46.6],[7.5,46.6],[7.5,46.0]]]}}"#,
+    )
+    .expect("write");
+    let graph = d.join("g.sources.toml");
+    std::fs::write(
+        &graph,
+        format!(
+            "[[source]]\nname = \"world\"\nkind = \"store\"\npath = \"{}\"\nlayer = \"height\"\n\n[[source]]\nname = \"v\"\nkind = \"vector\"\npath = \"lake.geojson\"\nfill = \"#ffffff\"\n\n[clipmaps]\nheight = \"world\"\n",
+            s(&store)
+        ),
+    )
+    .expect("write");
+    // (arguments before the output, output file, what the line says)
+    let cases: [(&[&str], &str, &str); 3] = [
+        (
+            &["--sources", s(&graph), "--source", "nosuch"],
+            "a.tif",
+            "no source `nosuch` (it has: world, v)",
+        ),
+        (
+            &["--sources", s(&graph), "--source", "v"],
+            "b.exr",
+            "writes GeoTIFF",
+        ),
+        (&["--source", "v"], "c.tif", "give --sources FILE"),
+    ];
+    for (args, out, says) in cases {
+        let out = d.join(out);
+        let mut a = vec!["export", s(&store)];
+        a.extend_from_slice(args);
+        a.extend(["--level", "3", "--bounds", "7,45,9,47", s(&out)]);
+        let line = one_line_failure(&run(&a), says);
+        assert!(line.contains(says), "{line}");
+        assert!(!out.exists(), "{}: written", out.display());
+    }
+    // the same export with the graph and a known source writes it
+    let good = d.join("good.tif");
+    ok(&run(&[
+        "export",
+        s(&store),
+        "--sources",
+        s(&graph),
+        "--source",
+        "v",
+        "--level",
+        "3",
+        "--bounds",
+        "7,45,9,47",
+        s(&good),
+    ]));
+    assert!(good.is_file());
+}
+
 /// `render` with a graph naming `file` fails with one line naming `names`, and writes no picture.
 fn run_case(d: &Path, store: &Path, file: &str, names: &str) {
     let graph = d.join("bad.sources.toml");
