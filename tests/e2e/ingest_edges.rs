@@ -624,3 +624,77 @@ fn gzipped_inputs_read_as_the_plain_file_and_damaged_ones_fail_in_one_line() {
         "the failed ingest changed the store"
     );
 }
+
+/// More inputs than the process may hold open files: 240 one-degree squares, each its own
+/// height, ingested on two threads with `ulimit -n 128`. Each worker held every input open (480
+/// handles), so opens failed half-way, each reported as a raster GDAL cannot read; a worker now
+/// opens an input when a tile needs it and keeps within its share of the limit.
+#[test]
+fn more_inputs_than_open_files_allow_ingest_every_one() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let gtiff = gdal::DriverManager::get_driver_by_name("GTiff").expect("GTiff");
+    let wgs84 = gdal::spatial_ref::SpatialRef::from_epsg(4326).expect("EPSG:4326");
+    let mut inputs = Vec::new();
+    for lat in 0..12 {
+        for lon in 0..20 {
+            let path = d.join(format!("sq_{lat}_{lon}.tif"));
+            let mut ds = gtiff
+                .create_with_band_type::<i16, _>(&path, 60, 60, 1)
+                .expect("create");
+            ds.set_geo_transform(&[
+                f64::from(lon),
+                1.0 / 60.0,
+                0.0,
+                f64::from(lat + 1),
+                0.0,
+                -1.0 / 60.0,
+            ])
+            .expect("geotransform");
+            ds.set_spatial_ref(&wgs84).expect("CRS");
+            ds.rasterband(1)
+                .expect("band")
+                .fill(f64::from((lat * 20 + lon) * 10), None)
+                .expect("fill");
+            inputs.push(path.to_string_lossy().into_owned());
+        }
+    }
+    let store = d.join("s.zarr");
+    let o = Command::new("bash")
+        .args(["-c", "ulimit -n 128 && exec \"$@\"", "bash"])
+        .arg(env!("CARGO_BIN_EXE_sphereclip"))
+        .args(["ingest", s(&store)])
+        .args(&inputs)
+        .args(["--level", "6", "--tile-size", "64", "--threads", "2"])
+        .output()
+        .expect("bash runs");
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    assert!(
+        text(&o.stdout).contains("ingested 240 input(s)")
+            && text(&o.stdout).contains("0.0 .. 2390.0"),
+        "{}",
+        text(&o.stdout)
+    );
+    // each square's height in the middle of it
+    let r = StoreReader::open(&store).expect("open");
+    let g = r.meta().grid;
+    let level = LevelId::iso(6).expect("level");
+    for (lat, lon) in [(0, 0), (5, 13), (11, 19)] {
+        let (w, h) = (g.width(level) as f64, g.height(level) as f64);
+        let x = ((f64::from(lon) + 0.5 + 180.0) / 360.0 * w) as u64;
+        let y = ((90.0 - f64::from(lat) - 0.5) / 180.0 * h) as u64;
+        let t = u64::from(g.tile_size());
+        let tile = TileId {
+            level,
+            x: x / t,
+            y: y / t,
+        };
+        let mut buf = vec![0f32; (t * t) as usize];
+        assert_eq!(
+            r.read_tile(tile, &mut buf).expect("read"),
+            TileRead::Present
+        );
+        let v = buf[((y % t) * t + x % t) as usize];
+        assert_eq!(v, ((lat * 20 + lon) * 10) as f32, "square {lat}°N {lon}°E");
+    }
+}

@@ -762,25 +762,25 @@ fn write_shards(
     let tiles = std::sync::atomic::AtomicU64::new(0);
     let lut = Kernels::new(settings.kernel);
     on_shard(done_before, total);
-    // small inputs are decoded once and shared by every worker's handle; handles are pooled so
-    // each input is opened at most once per worker thread (opening a gzipped NetCDF costs seconds)
+    // small inputs are decoded once and shared by every worker's handle; each worker opens an
+    // input when a tile first needs it and keeps it open (opening a gzipped NetCDF costs
+    // seconds), up to its share of the descriptor limit
     let caches: Vec<sc_raster::SampleCache> =
         plan.inputs.iter().map(|_| Default::default()).collect();
-    let open_set = || -> Result<Vec<RasterSource>> {
-        plan.inputs
-            .iter()
-            .zip(&caches)
-            .map(|(p, c)| {
-                RasterSource::reopen(
-                    &p.input.path,
-                    role(settings.layer),
-                    &p.input.options,
-                    c.clone(),
-                )
-                .map_err(IngestError::from)
-            })
-            .collect()
+    let open_input = |i: usize| -> Result<RasterSource> {
+        let p = &plan.inputs[i];
+        RasterSource::reopen(
+            &p.input.path,
+            role(settings.layer),
+            &p.input.options,
+            caches[i].clone(),
+        )
+        .map_err(IngestError::from)
     };
+    let workers = rayon::current_num_threads();
+    let max_open = max_open_inputs(workers);
+    let open_set =
+        || -> Result<Handles<'_>> { Ok(Handles::new(plan.inputs.len(), max_open, &open_input)) };
     // the work is tiles, shard after shard: every worker takes the next tile, so the last
     // shards are not left to one worker while the others wait. A shard is written by the
     // worker that puts its last tile (its bytes do not depend on who put which tile).
@@ -798,7 +798,7 @@ fn write_shards(
     }
     let slots: Vec<std::sync::Mutex<Option<OpenShard<'_>>>> =
         todo.iter().map(|_| Default::default()).collect();
-    let do_item = |sources: &[RasterSource], (k, tile): (usize, Option<TileId>)| -> Result<()> {
+    let do_item = |sources: &mut Handles<'_>, (k, tile): (usize, Option<TileId>)| -> Result<()> {
         let shard = todo[k];
         let lock = |k: usize| slots[k].lock().unwrap_or_else(|e| e.into_inner());
         let shard_tiles = &plan.shards[&shard];
@@ -852,9 +852,7 @@ fn write_shards(
         on_shard(d, total);
         Ok(())
     };
-    // one worker thread per core, each with its own GDAL handles (opened once: opening a gzipped
-    // NetCDF costs seconds)
-    let workers = rayon::current_num_threads();
+    // one worker thread per core, each with its own GDAL handles
     writer.set_threads(workers);
     sc_core::workers::run(items.len(), workers, open_set, |sources, i| {
         do_item(sources, items[i])
@@ -1096,12 +1094,89 @@ impl<'w> OpenShard<'w> {
     }
 }
 
+/// One worker's GDAL handles on the inputs: an input is opened when a tile first needs it and
+/// the least recently used is closed beyond `max` (a planet of 14 000 SRTM squares held open by
+/// every worker ran out of file descriptors, each failed open reported as an unreadable raster).
+struct Handles<'a> {
+    open_input: &'a (dyn Fn(usize) -> Result<RasterSource> + Sync),
+    open: Vec<Option<RasterSource>>,
+    stamp: Vec<u64>,
+    /// Open inputs by their last use.
+    lru: std::collections::BTreeMap<u64, usize>,
+    clock: u64,
+    max: usize,
+}
+
+impl<'a> Handles<'a> {
+    fn new(
+        inputs: usize,
+        max: usize,
+        open_input: &'a (dyn Fn(usize) -> Result<RasterSource> + Sync),
+    ) -> Self {
+        Self {
+            open_input,
+            open: (0..inputs).map(|_| None).collect(),
+            stamp: vec![0; inputs],
+            lru: Default::default(),
+            clock: 0,
+            max: max.max(1),
+        }
+    }
+
+    /// The handle on input `i`, opened if it is not.
+    fn get(&mut self, i: usize) -> Result<&RasterSource> {
+        self.clock += 1;
+        if self.open[i].is_some() {
+            self.lru.remove(&self.stamp[i]);
+        } else {
+            while self.lru.len() >= self.max {
+                let Some((_, j)) = self.lru.pop_first() else {
+                    break;
+                };
+                self.open[j] = None;
+            }
+            self.open[i] = Some((self.open_input)(i)?);
+        }
+        self.stamp[i] = self.clock;
+        self.lru.insert(self.clock, i);
+        self.open[i]
+            .as_ref()
+            .ok_or_else(|| IngestError::Usage(format!("input {i} is not open")))
+    }
+}
+
+/// Inputs one worker keeps open at most: together the workers keep to half the process's file
+/// descriptor limit (GDAL holds one or more per input; shards and the store need the rest), 16
+/// to 1024 each.
+fn max_open_inputs(workers: usize) -> usize {
+    let soft = nofile_limit().unwrap_or(1024);
+    (soft / 2 / workers.max(1) as u64).clamp(16, 1024) as usize
+}
+
+/// The soft limit on open files (`None` where unknown or unlimited).
+#[cfg(unix)]
+#[allow(unsafe_code)]
+fn nofile_limit() -> Option<u64> {
+    let mut r = libc::rlimit {
+        rlim_cur: 0,
+        rlim_max: 0,
+    };
+    // SAFETY: getrlimit writes only the struct it is given
+    let ok = unsafe { libc::getrlimit(libc::RLIMIT_NOFILE, &mut r) } == 0;
+    (ok && r.rlim_cur != libc::RLIM_INFINITY).then_some(r.rlim_cur)
+}
+
+#[cfg(not(unix))]
+fn nofile_limit() -> Option<u64> {
+    None
+}
+
 /// Resamples `tile` from the inputs `idxs` over what `cur` holds (the tile as the store has it),
 /// counting into `st`; returns whether any input changed it.
 fn make_tile(
     plan: &Plan,
     lut: &Kernels,
-    sources: &[RasterSource],
+    sources: &mut Handles<'_>,
     tile: TileId,
     idxs: &[usize],
     cur: &mut TileBuf,
@@ -1110,7 +1185,7 @@ fn make_tile(
     let t = plan.grid.tile_size() as usize;
     let mut changed = false;
     for &i in idxs {
-        let Some(samples) = resample_tile(&sources[i], plan.grid, tile, lut)? else {
+        let Some(samples) = resample_tile(sources.get(i)?, plan.grid, tile, lut)? else {
             continue;
         };
         st.inputs
