@@ -359,28 +359,37 @@ pub fn plan_trusting(
         settings.new_store.shard_tiles,
         settings.new_store.radius_m,
     ));
-    let mut planned = Vec::new();
-    for input in inputs {
+    // every input opened, checked and hashed on the worker threads (a planet is 14 000 files);
+    // the first error in the inputs' order is the one reported
+    let known: std::collections::HashMap<&str, &InputRecord> =
+        known.iter().map(|r| (r.path.as_str(), r)).collect();
+    let one = |input: &Input| -> Result<PlannedInput> {
         let src = RasterSource::open(&input.path, role(settings.layer), &input.options)?;
         let level = match settings.level {
             LevelChoice::Fixed(l) => l,
             LevelChoice::Auto => grid.level_for_spacing_deg(src.centre_spacing_deg()?),
         };
         let bbox = src.lonlat_box()?;
-        planned.push(PlannedInput {
+        let path = input.path.display().to_string();
+        let record = match known.get(path.as_str()) {
+            Some(r) if std::fs::metadata(&input.path).is_ok_and(|m| m.len() == r.bytes) => {
+                (*r).clone()
+            }
+            _ => hash_file(&input.path)?,
+        };
+        Ok(PlannedInput {
             input: input.clone(),
             info: src.info().clone(),
             level,
             bbox,
-            record: match known.iter().find(|r| {
-                r.path == input.path.display().to_string()
-                    && std::fs::metadata(&input.path).is_ok_and(|m| m.len() == r.bytes)
-            }) {
-                Some(r) => r.clone(),
-                None => hash_file(&input.path)?,
-            },
-        });
-    }
+            record,
+        })
+    };
+    let planned: Vec<Result<PlannedInput>> = {
+        use rayon::prelude::*;
+        inputs.par_iter().map(one).collect()
+    };
+    let mut planned = planned.into_iter().collect::<Result<Vec<_>>>()?;
     // overlay order: ascending priority, stable (later inputs win among equals)
     planned.sort_by_key(|p| p.input.priority);
     // the texels the inputs' boxes cover (plus the margin), before any tile is listed: a level
