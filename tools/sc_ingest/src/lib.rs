@@ -1134,23 +1134,25 @@ impl<'a> Handles<'a> {
 
     /// The handle on input `i`, opened if it is not.
     fn get(&mut self, i: usize) -> Result<&RasterSource> {
-        self.clock += 1;
-        if self.open[i].is_some() {
-            self.lru.remove(&self.stamp[i]);
-        } else {
-            while self.lru.len() >= self.max {
-                let Some((_, j)) = self.lru.pop_first() else {
-                    break;
-                };
-                self.open[j] = None;
+        let handle = match self.open[i].take() {
+            Some(h) => {
+                self.lru.remove(&self.stamp[i]);
+                h
             }
-            self.open[i] = Some((self.open_input)(i)?);
-        }
+            None => {
+                while self.lru.len() >= self.max {
+                    let Some((_, j)) = self.lru.pop_first() else {
+                        break;
+                    };
+                    self.open[j] = None;
+                }
+                (self.open_input)(i)?
+            }
+        };
+        self.clock += 1;
         self.stamp[i] = self.clock;
         self.lru.insert(self.clock, i);
-        self.open[i]
-            .as_ref()
-            .ok_or_else(|| IngestError::Usage(format!("input {i} is not open")))
+        Ok(self.open[i].insert(handle))
     }
 }
 

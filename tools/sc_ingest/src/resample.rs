@@ -321,12 +321,9 @@ fn resample_texels(
             Some(f) => f.half_extent(support),
             None => (0.5, 0.5),
         };
-        let hx = reach_x(hx, period, ring_of(k).is_some());
-        let hy = if ring_of(k).is_some() {
-            Ring::reach_y(hy)
-        } else {
-            hy
-        };
+        let ring = ring_of(k).is_some();
+        let hx = reach_x(hx, period, ring);
+        let hy = if ring { Ring::reach_y(hy) } else { hy };
         half.push((hx, hy));
         // skip texels whose whole footprint misses a non-wrapping source
         let wraps_x = period.is_some();
@@ -545,12 +542,9 @@ fn resample_lonlat(
     for j in 0..t {
         let y = axes.y[j];
         let (hx, hy) = axes.foot[j].map_or((0.5, 0.5), |f| f.half_extent(support));
-        let hx = reach_x(hx, period, ring_of(j).is_some());
-        let hy = if ring_of(j).is_some() {
-            Ring::reach_y(hy)
-        } else {
-            hy
-        };
+        let ring = ring_of(j).is_some();
+        let hx = reach_x(hx, period, ring);
+        let hy = if ring { Ring::reach_y(hy) } else { hy };
         half.push((hx, hy));
         if !y.is_finite() || (!reaches_pole && (y + hy < 0.0 || y - hy > h)) {
             continue;
@@ -1779,6 +1773,7 @@ impl Ring {
                 (colat + step / 2.0) * rad,
             );
             let area = top.cos() - bot.cos();
+            // at most one bin a sample: every bin holds one or more
             let nb = ((16.0 * std::f64::consts::PI * bot.sin() / (sy * rad)).ceil() as usize)
                 .clamp(1, n_period);
             let base = q * win.w;
@@ -1795,9 +1790,6 @@ impl Ring {
                     for (sum, plane) in sums.iter_mut().zip(&win.planes) {
                         *sum += f64::from(plane[base + c]);
                     }
-                }
-                if s1 == s0 {
-                    continue;
                 }
                 let xc = win.c0 as f64 + (s0 + s1) as f64 / 2.0 * step;
                 let share = n as f64 / (s1 - s0) as f64;
@@ -1988,7 +1980,6 @@ mod tests {
 
     impl Synthetic {
         fn new(w: usize, h: usize, lon0: f64, lat0: f64, d: f64, nplanes: usize) -> Self {
-            let global = (w as f64 * d - 360.0).abs() < 1e-9 && (h as f64 * d - 180.0).abs() < 1e-9;
             let planes = (0..nplanes)
                 .map(|p| {
                     (0..w * h)
@@ -2006,6 +1997,19 @@ mod tests {
                         .collect()
                 })
                 .collect();
+            Self::with_planes(w, h, lon0, lat0, d, planes)
+        }
+
+        /// A raster of `planes` (`w×h` each) over `[lon0, lon0 + w·d] × [lat0 − h·d, lat0]`.
+        fn with_planes(
+            w: usize,
+            h: usize,
+            lon0: f64,
+            lat0: f64,
+            d: f64,
+            planes: Vec<Vec<f32>>,
+        ) -> Self {
+            let global = (w as f64 * d - 360.0).abs() < 1e-9 && (h as f64 * d - 180.0).abs() < 1e-9;
             let info = SourceInfo {
                 path: PathBuf::from("synthetic"),
                 width: w,
@@ -2013,7 +2017,7 @@ mod tests {
                 geotransform: [lon0, d, 0.0, lat0, 0.0, -d],
                 geographic: true,
                 crs: "EPSG:4326".into(),
-                bands: (1..=nplanes).collect(),
+                bands: (1..=planes.len()).collect(),
                 data_type: "Float32".into(),
                 nodata: None,
                 lon_period_px: global.then_some(w as f64),
@@ -2085,15 +2089,14 @@ mod tests {
     impl Synthetic {
         /// A global lon/lat raster of `w × h` pixels holding `f(pixel centre)`.
         fn global_fn(w: usize, h: usize, f: &(dyn Fn(LonLat) -> f64 + Sync)) -> Self {
-            let mut s = Self::new(w, h, -180.0, 90.0, 360.0 / w as f64, 1);
             let d = 360.0 / w as f64;
-            s.planes[0] = (0..w * h)
+            let plane = (0..w * h)
                 .map(|k| {
                     let (c, r) = ((k % w) as f64, (k / w) as f64);
                     f(LonLat::new(-180.0 + (c + 0.5) * d, 90.0 - (r + 0.5) * d)) as f32
                 })
                 .collect();
-            s
+            Self::with_planes(w, h, -180.0, 90.0, d, vec![plane])
         }
     }
 
