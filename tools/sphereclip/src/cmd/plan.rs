@@ -556,7 +556,7 @@ pub fn make(a: &PlanArgs) -> Result<ExitCode> {
         let exe = crate::user_exe()?;
         let text = match emit {
             Emit::Slurm => slurm_script(&plan, &out, &exe, opts.max_array),
-            Emit::K8s => k8s_manifests(&plan, &out, opts)?,
+            Emit::K8s => k8s_manifests(&plan, &out, opts, &k8s_driver_path(&script))?,
         };
         write_ours(&script, &text, is_script)?;
         how = match emit {
@@ -669,6 +669,8 @@ fn build_plan(store: &Path, a: &crate::cli::BuildArgs) -> Result<sc_build::Plan>
 /// every layer side by side (the shards of its wide units balanced together): as many stages as
 /// the longest chain has units, not their sum.
 fn build_stages(work: &[sc_build::StepWork], n: usize) -> (Vec<Stage>, Vec<Task>) {
+    // a step of one shard; runs of them are one task
+    let narrow = |k: usize| work[k].shards.len() < 2;
     // per layer, its units as lists of step indices
     let mut chains: Vec<(sc_store::LayerKind, Vec<Vec<usize>>)> = Vec::new();
     for (k, w) in work.iter().enumerate() {
@@ -684,7 +686,6 @@ fn build_stages(work: &[sc_build::StepWork], n: usize) -> (Vec<Stage>, Vec<Task>
             }
         };
         let units = &mut chains[at].1;
-        let narrow = |k: usize| work[k].shards.len() < 2;
         match units.last_mut() {
             Some(unit) if narrow(k) && narrow(unit[0]) => unit.push(k),
             _ => units.push(vec![k]),
@@ -700,7 +701,7 @@ fn build_stages(work: &[sc_build::StepWork], n: usize) -> (Vec<Stage>, Vec<Task>
         // the wide steps' shards, each with its step, balanced together
         let wide: Vec<((usize, ShardId), f64)> = units
             .iter()
-            .filter(|unit| work[unit[0]].shards.len() >= 2)
+            .filter(|unit| !narrow(unit[0]))
             .flat_map(|unit| {
                 let w = &work[unit[0]];
                 w.shards
@@ -726,7 +727,7 @@ fn build_stages(work: &[sc_build::StepWork], n: usize) -> (Vec<Stage>, Vec<Task>
             }
         }
         // each run of one-shard steps, one task
-        for unit in units.iter().filter(|unit| work[unit[0]].shards.len() < 2) {
+        for unit in units.iter().filter(|unit| narrow(unit[0])) {
             let mut task = Task {
                 stage,
                 cost: 0.0,
@@ -1121,6 +1122,15 @@ fn one_line(s: &str) -> String {
         .collect()
 }
 
+/// A script's head with what both scripts say of the plan filled in: `@MARK@`, `@KIND@`,
+/// `@STORE@` (on one comment line) and `@STAGES@`.
+fn script_head(head: &str, plan: &PlanFile) -> String {
+    head.replace("@MARK@", SCRIPT_MARK)
+        .replace("@KIND@", &plan.kind)
+        .replace("@STORE@", &one_line(&plan.store.to_string_lossy()))
+        .replace("@STAGES@", &plan.stages.len().to_string())
+}
+
 /// A bash script that submits the plan: each stage as array jobs of at most `max_array` tasks
 /// (indices counted from 0 in each, the task `--stage S --task OFFSET+index`), all of a stage
 /// waiting for every job of the stage before (`afterok`; a failed task cancels the rest), then
@@ -1170,12 +1180,8 @@ task() {
 }
 commit="exec $(q "$SPHERECLIP") commit $(q "$PLAN")"
 "#;
-    let mut s = HEAD
-        .replace("@MARK@", SCRIPT_MARK)
-        .replace("@KIND@", &plan.kind)
-        .replace("@STORE@", &one_line(&plan.store.to_string_lossy()))
+    let mut s = script_head(HEAD, plan)
         .replace("@TASKS@", &plan.tasks.len().to_string())
-        .replace("@STAGES@", &plan.stages.len().to_string())
         .replace("@EXE@", &sh(&exe.to_string_lossy()))
         .replace("@PLAN@", &sh(&plan_path.to_string_lossy()))
         .replace(
@@ -1259,7 +1265,8 @@ read -r -a kubectl <<< "${KUBECTL:-kubectl}"
 poll=${POLL:-10}
 # NAME: the Job's conditions as " Type=Status …" (nothing while it has none or is not there)
 conditions() {
-  printf ' %s' "$("${kubectl[@]}" get job "$1" --ignore-not-found     -o jsonpath='{range .status.conditions[*]}{.type}={.status} {end}')"
+  printf ' %s' "$("${kubectl[@]}" get job "$1" --ignore-not-found \
+    -o jsonpath='{range .status.conditions[*]}{.type}={.status} {end}')"
 }
 # STAGE NAME: runs one stage's Job to completion
 stage() {
@@ -1281,12 +1288,7 @@ stage() {
   done
 }
 "#;
-    let mut s = HEAD
-        .replace("@MARK@", SCRIPT_MARK)
-        .replace("@KIND@", &plan.kind)
-        .replace("@STORE@", &one_line(&plan.store.to_string_lossy()))
-        .replace("@STAGES@", &plan.stages.len().to_string())
-        .replace("@YAML@", &sh(&yaml.to_string_lossy()));
+    let mut s = script_head(HEAD, plan).replace("@YAML@", &sh(&yaml.to_string_lossy()));
     for k in 0..plan.stages.len() {
         let _ = writeln!(s, "stage {k} {}", k8s_job_name(plan, Some(k)));
     }
@@ -1299,9 +1301,15 @@ stage() {
 /// pod mounts the claim at the folder the plan was made in. A task is retried on its own index
 /// (`backoffLimitPerIndex`), a usage error (exit 2) fails its index at once, an evicted pod does
 /// not count as a failure; finished Jobs go after a week. A pod asks for the task's CPUs and
-/// for the memory bound of its threads ([`task_memory_mib`]) as request and limit. Each object is written by a YAML
-/// serializer (no value can add a key or an object).
-fn k8s_manifests(plan: &PlanFile, plan_path: &Path, opts: &PlanOptions) -> Result<String> {
+/// for the memory bound of its threads ([`task_memory_mib`]) as request and limit. The driver
+/// `driver` is named in the head. Each object is written by a YAML serializer (no value can add
+/// a key or an object).
+fn k8s_manifests(
+    plan: &PlanFile,
+    plan_path: &Path,
+    opts: &PlanOptions,
+    driver: &Path,
+) -> Result<String> {
     let tag = &plan.hash[..8];
     let cwd = plan.cwd.to_string_lossy().into_owned();
     let memory = format!("{}Mi", task_memory_mib(plan.cpus_per_task));
@@ -1386,7 +1394,7 @@ fn k8s_manifests(plan: &PlanFile, plan_path: &Path, opts: &PlanOptions) -> Resul
         one_line(&plan.store.to_string_lossy()),
         plan.tasks.len(),
         plan.stages.len(),
-        one_line(&k8s_driver_path(&script_path(opts, plan_path, Emit::K8s)?).to_string_lossy()),
+        one_line(&driver.to_string_lossy()),
         one_line(&opts.claim),
         one_line(&cwd),
     );
