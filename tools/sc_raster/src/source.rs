@@ -895,11 +895,11 @@ impl RasterSource {
         let whole = if direct && own_columns {
             None
         } else {
-            self.decoded()?.filter(|d| d.planes.len() == nplanes)
+            self.decoded()?.filter(|d| d.planes() == nplanes)
         };
         let read;
-        let (raw, rmin, cmin, rw): (&[Vec<f32>], i64, i64, usize) = match &whole {
-            Some(d) => (&d.planes, 0, 0, info.width),
+        let (raw, rmin, cmin, rw): (Pixels<'_>, i64, i64, usize) = match &whole {
+            Some(d) => (Pixels::Whole(d), 0, 0, info.width),
             None => {
                 read = self.read_cached(cmin, rmin, rw, rh)?;
                 if direct && own_columns && read.len() == nplanes {
@@ -916,7 +916,7 @@ impl RasterSource {
                         memory: Some(memory),
                     });
                 }
-                (&read, rmin, cmin, rw)
+                (Pixels::Read(&read), rmin, cmin, rw)
             }
         };
         let mut planes = vec![vec![f32::NAN; w * h]; nplanes];
@@ -938,9 +938,9 @@ impl RasterSource {
                 runs[usize::from(flipped)].get_or_insert_with(|| column_runs(&col_map(flipped)));
             let base = (sr - rmin) as usize * rw;
             for (p, plane) in planes.iter_mut().enumerate() {
-                let (out, src) = (&mut plane[k * w..(k + 1) * w], &raw[p][base..base + rw]);
+                let out = &mut plane[k * w..(k + 1) * w];
                 for run in runs.iter() {
-                    run.copy(out, src);
+                    raw.copy(p, base + run.src, &mut out[run.out..run.out + run.len]);
                 }
             }
         }
@@ -982,14 +982,11 @@ impl RasterSource {
         let Some(all) = self.decoded()? else {
             return self.read_raw(c0, r0, w, h);
         };
-        Ok(all
-            .planes
-            .iter()
-            .map(|plane| {
-                let mut v = Vec::with_capacity(w * h);
-                for r in 0..h {
-                    let s = (r0 as usize + r) * info.width + c0 as usize;
-                    v.extend_from_slice(&plane[s..s + w]);
+        Ok((0..all.planes())
+            .map(|p| {
+                let mut v = vec![0f32; w * h];
+                for (r, out) in v.chunks_exact_mut(w.max(1)).enumerate() {
+                    all.copy(p, (r0 as usize + r) * info.width + c0 as usize, out);
                 }
                 v
             })
@@ -1020,14 +1017,41 @@ impl RasterSource {
         if !fits {
             return Ok(None);
         }
-        let planes = self
-            .read_raw(0, 0, info.width, info.height)
-            .inspect_err(|_| {
-                CACHED_BYTES.fetch_sub(bytes, Ordering::SeqCst);
-            })?;
-        let a = std::sync::Arc::new(Decoded { planes, bytes });
+        // byte colour bands are kept as bytes (a quarter of the memory: faulting in and filling
+        // f32 planes cost more than decoding the file), their planes made as windows are read
+        let read = || -> Result<Samples> {
+            if self.role == SampleRole::Color
+                && let Some(raw) = self.read_byte_bands(0, 0, info.width, info.height)?
+            {
+                return Ok(Samples::Bytes(Box::new(ByteColour::new(
+                    raw,
+                    info.nodata,
+                    &|b, v| self.stretch(b, v),
+                ))));
+            }
+            self.read_raw(0, 0, info.width, info.height)
+                .map(Samples::Float)
+        };
+        let samples = read().inspect_err(|_| {
+            CACHED_BYTES.fetch_sub(bytes, Ordering::SeqCst);
+        })?;
+        let held = match &samples {
+            Samples::Float(_) => bytes,
+            Samples::Bytes(_) => total,
+        };
+        CACHED_BYTES.fetch_sub(bytes - held, Ordering::SeqCst);
+        let a = std::sync::Arc::new(Decoded {
+            samples,
+            bytes: held,
+        });
         *slot = Some(a.clone());
         Ok(Some(a))
+    }
+
+    /// A colour band's value stretched to 0..=255 (the source's stretch of band `b`).
+    fn stretch(&self, b: usize, v: f32) -> f32 {
+        let (a, o) = self.info.stretch.get(b).copied().unwrap_or((1.0, 0.0));
+        ((f64::from(v) * a + o).clamp(0.0, 255.0)) as f32
     }
 
     /// The bands of a rectangle inside the raster as bytes, when every band used is 8-bit
@@ -1208,14 +1232,11 @@ impl RasterSource {
                 Ok(vec![v])
             }
             SampleRole::Color => {
-                let stretch = |b: usize, v: f32| -> f32 {
-                    let (a, o) = info.stretch.get(b).copied().unwrap_or((1.0, 0.0));
-                    ((f64::from(v) * a + o).clamp(0.0, 255.0)) as f32
-                };
+                let stretch = |b: usize, v: f32| self.stretch(b, v);
                 if (ow, oh) == (w, h)
                     && let Some(raw) = self.read_byte_bands(c0, r0, w, h)?
                 {
-                    return Ok(byte_colour_planes(&raw, info.nodata, &stretch));
+                    return Ok(ByteColour::new(raw, info.nodata, &stretch).planes());
                 }
                 let raw: Vec<Vec<f32>> = info
                     .bands
@@ -1275,51 +1296,122 @@ fn colour_bands(n: usize) -> ([usize; 3], Option<usize>) {
     }
 }
 
-/// The colour planes [`RasterSource::read_raw_into`] makes from byte bands: what it computes
-/// per pixel from each band's value (`stretch`, sRGB to linear light), looked up in a table of
-/// the 256 values a byte holds.
-fn byte_colour_planes(
-    raw: &[Vec<u8>],
-    nodata: Option<f64>,
-    stretch: &dyn Fn(usize, f32) -> f32,
-) -> Vec<Vec<f32>> {
-    let (rgb, alpha_band) = colour_bands(raw.len());
-    let linear: Vec<[f32; 256]> = (0..raw.len().min(3))
-        .map(|b| std::array::from_fn(|v| srgb_to_linear(stretch(b, v as f32))))
-        .collect();
-    let alpha: Option<(&[u8], [f32; 256])> =
-        alpha_band.map(|b| (&raw[b][..], std::array::from_fn(|v| stretch(b, v as f32))));
-    let void: [bool; 256] = std::array::from_fn(|v| nodata.is_some_and(|nd| v as f64 == nd));
-    let n = raw[0].len();
-    let mut planes = vec![vec![0f32; n]; 4];
-    for i in 0..n {
-        let a = alpha.map_or(255.0, |(band, table)| table[usize::from(band[i])]);
-        let v0 = usize::from(raw[0][i]);
-        if void[v0] || a <= 0.0 {
-            planes[0][i] = f32::NAN;
-            continue;
+/// Byte colour bands and what each byte value stands for: the colour planes
+/// [`RasterSource::read_raw_into`] makes from byte bands, sample by sample on demand (`stretch`,
+/// sRGB to linear light, looked up in a table of the 256 values a byte holds).
+#[derive(Debug)]
+struct ByteColour {
+    bands: Vec<Vec<u8>>,
+    rgb: [usize; 3],
+    /// Per colour band: linear light of each byte value.
+    linear: Vec<[f32; 256]>,
+    /// The alpha band and its stretched value (0..=255) of each byte value.
+    alpha: Option<(usize, [f32; 256])>,
+    /// Byte values of the first band that are nodata.
+    void: [bool; 256],
+}
+
+impl ByteColour {
+    fn new(bands: Vec<Vec<u8>>, nodata: Option<f64>, stretch: &dyn Fn(usize, f32) -> f32) -> Self {
+        let (rgb, alpha_band) = colour_bands(bands.len());
+        Self {
+            rgb,
+            linear: (0..bands.len().min(3))
+                .map(|b| std::array::from_fn(|v| srgb_to_linear(stretch(b, v as f32))))
+                .collect(),
+            alpha: alpha_band.map(|b| (b, std::array::from_fn(|v| stretch(b, v as f32)))),
+            void: std::array::from_fn(|v| nodata.is_some_and(|nd| v as f64 == nd)),
+            bands,
         }
-        for (p, &b) in rgb.iter().enumerate() {
-            planes[p][i] = linear[b][usize::from(raw[b][i])];
-        }
-        planes[3][i] = a / 255.0;
     }
-    planes
+
+    /// Samples `from..from + out.len()` of plane `p` (red, green, blue, alpha) into `out`: NaN
+    /// red and zero elsewhere where the pixel is nodata or transparent.
+    fn plane_into(&self, p: usize, from: usize, out: &mut [f32]) {
+        let band = |b: usize| &self.bands[b][from..from + out.len()];
+        let (first, alpha) = (band(0), self.alpha.map(|(b, t)| (band(b), t)));
+        let empty = if p == 0 { f32::NAN } else { 0.0 };
+        let colour = (p < 3).then(|| (band(self.rgb[p]), &self.linear[self.rgb[p]]));
+        for (k, o) in out.iter_mut().enumerate() {
+            let a = alpha.map_or(255.0, |(band, table)| table[usize::from(band[k])]);
+            *o = if self.void[usize::from(first[k])] || a <= 0.0 {
+                empty
+            } else {
+                match colour {
+                    Some((band, table)) => table[usize::from(band[k])],
+                    None => a / 255.0,
+                }
+            };
+        }
+    }
+
+    /// Every sample of the four planes.
+    fn planes(&self) -> Vec<Vec<f32>> {
+        let n = self.bands[0].len();
+        (0..4)
+            .map(|p| {
+                let mut v = vec![0f32; n];
+                self.plane_into(p, 0, &mut v);
+                v
+            })
+            .collect()
+    }
 }
 
 /// A whole small source decoded into planes, shared by the handles of every worker thread.
 pub type SampleCache = std::sync::Arc<std::sync::Mutex<Option<std::sync::Arc<Decoded>>>>;
 
-/// A whole source decoded into planes, counted against [`CACHE_BUDGET_BYTES`] while it lives.
+/// A whole source decoded, counted against [`CACHE_BUDGET_BYTES`] while it lives.
 #[derive(Debug)]
 pub struct Decoded {
-    planes: Vec<Vec<f32>>,
+    samples: Samples,
     bytes: u64,
+}
+
+/// What a decoded source holds: its planes, or byte colour bands made into planes on demand.
+#[derive(Debug)]
+enum Samples {
+    Float(Vec<Vec<f32>>),
+    Bytes(Box<ByteColour>),
+}
+
+impl Decoded {
+    /// The planes a window of it has.
+    fn planes(&self) -> usize {
+        match &self.samples {
+            Samples::Float(p) => p.len(),
+            Samples::Bytes(_) => 4,
+        }
+    }
+
+    /// Samples `from..from + out.len()` (row-major over the source) of plane `p` into `out`.
+    fn copy(&self, p: usize, from: usize, out: &mut [f32]) {
+        match &self.samples {
+            Samples::Float(planes) => out.copy_from_slice(&planes[p][from..from + out.len()]),
+            Samples::Bytes(c) => c.plane_into(p, from, out),
+        }
+    }
 }
 
 impl Drop for Decoded {
     fn drop(&mut self) {
         CACHED_BYTES.fetch_sub(self.bytes, Ordering::SeqCst);
+    }
+}
+
+/// The pixels a window is gathered from: a rectangle read from the file, or the whole source.
+enum Pixels<'a> {
+    Read(&'a [Vec<f32>]),
+    Whole(&'a Decoded),
+}
+
+impl Pixels<'_> {
+    /// Samples `from..from + out.len()` of plane `p` into `out`.
+    fn copy(&self, p: usize, from: usize, out: &mut [f32]) {
+        match self {
+            Pixels::Read(planes) => out.copy_from_slice(&planes[p][from..from + out.len()]),
+            Pixels::Whole(d) => d.copy(p, from, out),
+        }
     }
 }
 
@@ -1410,13 +1502,6 @@ struct ColumnRun {
     out: usize,
     src: usize,
     len: usize,
-}
-
-impl ColumnRun {
-    /// Copies the run's source columns of `src` into its window columns of `out`.
-    fn copy<T: Copy>(&self, out: &mut [T], src: &[T]) {
-        out[self.out..self.out + self.len].copy_from_slice(&src[self.src..self.src + self.len]);
-    }
 }
 
 /// The runs of a column map (each window column's source column, or none): consecutive window
@@ -1982,8 +2067,9 @@ mod tests {
         );
         let src: Vec<f32> = (0..10).map(|c| c as f32).collect();
         let mut out = vec![f32::NAN; map.len()];
+        let planes = [src];
         for r in &runs {
-            r.copy(&mut out, &src);
+            Pixels::Read(&planes).copy(0, r.src, &mut out[r.out..r.out + r.len]);
         }
         for (o, m) in out.iter().zip(map) {
             match m {
@@ -1992,5 +2078,51 @@ mod tests {
             }
         }
         assert!(column_runs(&[None, None]).is_empty());
+    }
+
+    /// Byte colour bands kept as bytes give, for any run of samples, the planes of the formula:
+    /// linear light of each colour byte and alpha / 255, and NaN red (zero elsewhere) where the
+    /// first band is nodata or alpha is 0.
+    #[test]
+    fn byte_colour_planes_on_demand_are_the_formula() {
+        let n = 1000;
+        let band = |m: usize| {
+            (0..n)
+                .map(|i| ((i * m + 7) % 256) as u8)
+                .collect::<Vec<u8>>()
+        };
+        let bands = vec![band(3), band(5), band(11), band(13)];
+        let colour = ByteColour::new(bands.clone(), Some(42.0), &|_, v| v);
+        let whole = colour.planes();
+        let mut nodata = 0;
+        for i in 0..n {
+            let (a, void) = (f32::from(bands[3][i]), bands[0][i] == 42);
+            let want = if void || a == 0.0 {
+                nodata += 1;
+                [f32::NAN, 0.0, 0.0, 0.0]
+            } else {
+                let lin = |b: usize| srgb_to_linear(f32::from(bands[b][i]));
+                [lin(0), lin(1), lin(2), a / 255.0]
+            };
+            for (p, w) in want.iter().enumerate() {
+                let got = whole[p][i];
+                assert!(
+                    got.to_bits() == w.to_bits(),
+                    "plane {p} sample {i}: {got} vs {w}"
+                );
+            }
+        }
+        assert!(nodata > 2 && nodata < 20, "{nodata} nodata samples");
+        for (from, len) in [(0, 1), (17, 300), (999, 1), (500, 500)] {
+            for (p, plane) in whole.iter().enumerate() {
+                let mut out = vec![-1f32; len];
+                colour.plane_into(p, from, &mut out);
+                let same = out
+                    .iter()
+                    .zip(&plane[from..from + len])
+                    .all(|(a, b)| a.to_bits() == b.to_bits());
+                assert!(same, "plane {p} from {from}");
+            }
+        }
     }
 }
