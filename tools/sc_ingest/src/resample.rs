@@ -1194,6 +1194,19 @@ mod lanes {
             select(near, beyond, _mm256_cmp_pd::<_CMP_LE_OQ>(d, c(1.0)))
         }
 
+        /// The tent as `KernelLut::weight` evaluates it for `Kernel::Bilinear` (sc_core's
+        /// `Kernel::weight`: 1 − |d| inside the support, 0 from it on).
+        #[target_feature(enable = "avx2")]
+        fn tent(d: __m256d) -> __m256d {
+            let c = _mm256_set1_pd;
+            let d = _mm256_andnot_pd(c(-0.0), d);
+            select(
+                _mm256_sub_pd(c(1.0), d),
+                _mm256_setzero_pd(),
+                _mm256_cmp_pd::<_CMP_LT_OQ>(d, c(1.0)),
+            )
+        }
+
         #[target_feature(enable = "avx2")]
         pub(super) fn texels(
             taps: &Taps<'_>,
@@ -1232,19 +1245,20 @@ mod lanes {
             let span = sums.first().map_or(0, Vec::len);
             // padded taps read the span's last column (and are not added)
             let last = span.checked_sub(1)?;
-            let is_cubic = taps.lut.kernel() == Kernel::Cubic;
+            let kernel = taps.lut.kernel();
             let zero = c(-0.0);
             let (mut wsum, mut wpos) = (zero, zero);
             let mut acc = [zero; 4];
             for k in 0..most {
                 let kf = c(k as f64);
                 let d = _mm256_add_pd(d0, _mm256_mul_pd(kf, inv_su));
-                let w = if is_cubic {
-                    cubic(d)
-                } else {
-                    let d = lanes(d);
-                    let w = d.map(|d| taps.lut.weight(d));
-                    _mm256_set_pd(w[3], w[2], w[1], w[0])
+                let w = match kernel {
+                    Kernel::Cubic => cubic(d),
+                    Kernel::Bilinear => tent(d),
+                    _ => {
+                        let w = lanes(d).map(|d| taps.lut.weight(d));
+                        _mm256_set_pd(w[3], w[2], w[1], w[0])
+                    }
                 };
                 let on = _mm256_cmp_pd::<_CMP_LT_OQ>(kf, n);
                 wsum = select(_mm256_add_pd(wsum, w), wsum, on);

@@ -1329,9 +1329,21 @@ impl ByteColour {
     /// red and zero elsewhere where the pixel is nodata or transparent.
     fn plane_into(&self, p: usize, from: usize, out: &mut [f32]) {
         let band = |b: usize| &self.bands[b][from..from + out.len()];
+        let colour = (p < 3).then(|| (band(self.rgb[p]), &self.linear[self.rgb[p]]));
+        if self.alpha.is_none() && !self.void.contains(&true) {
+            // every pixel is opaque and valid
+            match colour {
+                Some((band, table)) => {
+                    for (o, b) in out.iter_mut().zip(band) {
+                        *o = table[usize::from(*b)];
+                    }
+                }
+                None => out.fill(1.0),
+            }
+            return;
+        }
         let (first, alpha) = (band(0), self.alpha.map(|(b, t)| (band(b), t)));
         let empty = if p == 0 { f32::NAN } else { 0.0 };
-        let colour = (p < 3).then(|| (band(self.rgb[p]), &self.linear[self.rgb[p]]));
         for (k, o) in out.iter_mut().enumerate() {
             let a = alpha.map_or(255.0, |(band, table)| table[usize::from(band[k])]);
             *o = if self.void[usize::from(first[k])] || a <= 0.0 {
@@ -2092,6 +2104,15 @@ mod tests {
                 .collect::<Vec<u8>>()
         };
         let bands = vec![band(3), band(5), band(11), band(13)];
+        // opaque RGB without nodata: every pixel its colour, alpha 1
+        let rgb = ByteColour::new(bands[..3].to_vec(), None, &|_, v| v).planes();
+        for i in 0..n {
+            let lin = |b: usize| srgb_to_linear(f32::from(bands[b][i]));
+            assert_eq!(
+                [lin(0), lin(1), lin(2), 1.0],
+                [0, 1, 2, 3].map(|p| rgb[p][i])
+            );
+        }
         let colour = ByteColour::new(bands.clone(), Some(42.0), &|_, v| v);
         let whole = colour.planes();
         let mut nodata = 0;
