@@ -517,7 +517,8 @@ fn format_version(root: &std::path::Path) -> serde_json::Value {
     json["attributes"]["sphereclip"]["format_version"].clone()
 }
 
-/// New height levels of a format-3 store fix pcodec's delta encoding at order 2; a store of
+/// New height levels of a format-3 store fix pcodec's delta encoding at order 2 and compress at
+/// level 6; a store of
 /// format 2 is written as format 2 (its new levels with pcodec's defaults, which its readers
 /// require) and keeps its version.
 #[test]
@@ -542,6 +543,7 @@ fn new_levels_get_the_pcodec_settings_of_the_store_format() {
     assert_eq!(c["delta_spec"], "try_consecutive");
     assert_eq!(c["delta_encoding_order"], 2);
     assert_eq!(c["mode_spec"], "auto");
+    assert_eq!(c["level"], 6);
     // the same store as format 2 would have it
     set_format_version(&root, "2.0");
     let l3 = TileId {
