@@ -103,7 +103,7 @@ report "build ETOPO5 level 4 → 0" tb tg
 # `cargo install`) against the dev profile (`cargo build`) on the ETOPO5 cubic ingest and the build,
 # interleaved. DEV=0 skips it.
 if [ "${DEV:-1}" != 0 ]; then
-  cargo build --quiet --bin sphereclip -p sphereclip
+  cargo build --locked --quiet --bin sphereclip -p sphereclip
   dev=target/debug/sphereclip
   echo
   echo "| command | release (median) | dev profile (median) | ratio dev/release | per run, lowest–highest |"

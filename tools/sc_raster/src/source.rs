@@ -895,11 +895,11 @@ impl RasterSource {
         let whole = if direct && own_columns {
             None
         } else {
-            self.decoded()?.filter(|d| d.planes() == nplanes)
+            self.decoded()?.filter(|d| d.pixels().planes() == nplanes)
         };
         let read;
         let (raw, rmin, cmin, rw): (Pixels<'_>, i64, i64, usize) = match &whole {
-            Some(d) => (Pixels::Whole(d), 0, 0, info.width),
+            Some(d) => (d.pixels(), 0, 0, info.width),
             None => {
                 read = self.read_cached(cmin, rmin, rw, rh)?;
                 if direct && own_columns && read.len() == nplanes {
@@ -916,7 +916,7 @@ impl RasterSource {
                         memory: Some(memory),
                     });
                 }
-                (Pixels::Read(&read), rmin, cmin, rw)
+                (Pixels::Float(&read), rmin, cmin, rw)
             }
         };
         let mut planes = vec![vec![f32::NAN; w * h]; nplanes];
@@ -982,6 +982,7 @@ impl RasterSource {
         let Some(all) = self.decoded()? else {
             return self.read_raw(c0, r0, w, h);
         };
+        let all = all.pixels();
         Ok((0..all.planes())
             .map(|p| {
                 let mut v = vec![0f32; w * h];
@@ -1309,18 +1310,22 @@ struct ByteColour {
     alpha: Option<(usize, [f32; 256])>,
     /// Byte values of the first band that are nodata.
     void: [bool; 256],
+    /// No alpha band and no nodata value: every pixel is opaque and valid.
+    all_valid: bool,
 }
 
 impl ByteColour {
     fn new(bands: Vec<Vec<u8>>, nodata: Option<f64>, stretch: &dyn Fn(usize, f32) -> f32) -> Self {
         let (rgb, alpha_band) = colour_bands(bands.len());
+        let void: [bool; 256] = std::array::from_fn(|v| nodata.is_some_and(|nd| v as f64 == nd));
         Self {
             rgb,
             linear: (0..bands.len().min(3))
                 .map(|b| std::array::from_fn(|v| srgb_to_linear(stretch(b, v as f32))))
                 .collect(),
             alpha: alpha_band.map(|b| (b, std::array::from_fn(|v| stretch(b, v as f32)))),
-            void: std::array::from_fn(|v| nodata.is_some_and(|nd| v as f64 == nd)),
+            all_valid: alpha_band.is_none() && !void.contains(&true),
+            void,
             bands,
         }
     }
@@ -1330,8 +1335,7 @@ impl ByteColour {
     fn plane_into(&self, p: usize, from: usize, out: &mut [f32]) {
         let band = |b: usize| &self.bands[b][from..from + out.len()];
         let colour = (p < 3).then(|| (band(self.rgb[p]), &self.linear[self.rgb[p]]));
-        if self.alpha.is_none() && !self.void.contains(&true) {
-            // every pixel is opaque and valid
+        if self.all_valid {
             match colour {
                 Some((band, table)) => {
                     for (o, b) in out.iter_mut().zip(band) {
@@ -1388,19 +1392,11 @@ enum Samples {
 }
 
 impl Decoded {
-    /// The planes a window of it has.
-    fn planes(&self) -> usize {
+    /// Its samples, to gather windows from.
+    fn pixels(&self) -> Pixels<'_> {
         match &self.samples {
-            Samples::Float(p) => p.len(),
-            Samples::Bytes(_) => 4,
-        }
-    }
-
-    /// Samples `from..from + out.len()` (row-major over the source) of plane `p` into `out`.
-    fn copy(&self, p: usize, from: usize, out: &mut [f32]) {
-        match &self.samples {
-            Samples::Float(planes) => out.copy_from_slice(&planes[p][from..from + out.len()]),
-            Samples::Bytes(c) => c.plane_into(p, from, out),
+            Samples::Float(planes) => Pixels::Float(planes),
+            Samples::Bytes(c) => Pixels::Bytes(c),
         }
     }
 }
@@ -1411,18 +1407,27 @@ impl Drop for Decoded {
     }
 }
 
-/// The pixels a window is gathered from: a rectangle read from the file, or the whole source.
+/// The pixels a window is gathered from (a rectangle read from the file, or a decoded source):
+/// planes, or byte colour bands made into planes as they are copied.
 enum Pixels<'a> {
-    Read(&'a [Vec<f32>]),
-    Whole(&'a Decoded),
+    Float(&'a [Vec<f32>]),
+    Bytes(&'a ByteColour),
 }
 
 impl Pixels<'_> {
-    /// Samples `from..from + out.len()` of plane `p` into `out`.
+    /// The planes a window of them has.
+    fn planes(&self) -> usize {
+        match self {
+            Pixels::Float(planes) => planes.len(),
+            Pixels::Bytes(_) => 4,
+        }
+    }
+
+    /// Samples `from..from + out.len()` (row-major) of plane `p` into `out`.
     fn copy(&self, p: usize, from: usize, out: &mut [f32]) {
         match self {
-            Pixels::Read(planes) => out.copy_from_slice(&planes[p][from..from + out.len()]),
-            Pixels::Whole(d) => d.copy(p, from, out),
+            Pixels::Float(planes) => out.copy_from_slice(&planes[p][from..from + out.len()]),
+            Pixels::Bytes(c) => c.plane_into(p, from, out),
         }
     }
 }
@@ -2081,7 +2086,7 @@ mod tests {
         let mut out = vec![f32::NAN; map.len()];
         let planes = [src];
         for r in &runs {
-            Pixels::Read(&planes).copy(0, r.src, &mut out[r.out..r.out + r.len]);
+            Pixels::Float(&planes).copy(0, r.src, &mut out[r.out..r.out + r.len]);
         }
         for (o, m) in out.iter().zip(map) {
             match m {
