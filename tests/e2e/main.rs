@@ -15,6 +15,7 @@ mod inspect;
 mod interop;
 mod plan_safety;
 mod render;
+mod s3;
 mod safety;
 mod serve;
 mod shading;

@@ -28,6 +28,8 @@ mod layout;
 mod meta;
 mod paths;
 mod reader;
+#[cfg(not(target_arch = "wasm32"))]
+mod s3;
 mod sample;
 mod shard_index;
 mod source;
@@ -51,6 +53,8 @@ pub use meta::{
     BuildRecord, FORMAT_MAJOR, FORMAT_MINOR, InputRecord, LayerMeta, LevelMeta, StoreMeta, unix_now,
 };
 pub use reader::{StoreReader, TileRead};
+#[cfg(not(target_arch = "wasm32"))]
+pub use s3::{S3Source, parse_s3_url};
 pub use sample::{LayerKind, TileSample, range_union};
 #[cfg(not(target_arch = "wasm32"))]
 pub use source::HttpSource;

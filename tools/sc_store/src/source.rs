@@ -1,5 +1,6 @@
-//! Where a reader's bytes come from: a store folder on this machine, or a store served over
-//! HTTP(S) (by `sphereclip serve` or any static host that answers Range requests). Readers ask for
+//! Where a reader's bytes come from: a store folder on this machine, a store served over
+//! HTTP(S) (by `sphereclip serve` or any static host that answers Range requests), or one on
+//! S3-compatible object storage (`s3://…`, [`crate::S3Source`]). Readers ask for
 //! whole small objects (metadata), a shard's end (its index) and byte ranges (tiles); nothing
 //! else, so any source that can answer those three can hold a planet.
 
@@ -7,13 +8,13 @@ use std::ffi::OsStr;
 use std::io::{self, Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 
-/// Where a store is: a folder, or the URL of one (`http://…` or `https://…`). A local folder
+/// Where a store is: a folder, or the URL of one (`http://…`, `https://…` or `s3://…`). A local folder
 /// whose name begins with `http:` is reached as `./http:…`.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Location {
     /// A store folder on this machine.
     Local(PathBuf),
-    /// A store served over HTTP(S), its URL without a trailing slash.
+    /// A store served over HTTP(S) or on object storage, its URL without a trailing slash.
     Remote(String),
 }
 
@@ -31,6 +32,18 @@ impl Location {
         match self {
             Self::Local(p) => Some(p),
             Self::Remote(_) => None,
+        }
+    }
+
+    /// How a remote store is reached, for messages: "read over HTTP" or "read from object
+    /// storage" (`None` for a folder).
+    pub fn remote_words(&self) -> Option<&'static str> {
+        match self {
+            Self::Local(_) => None,
+            Self::Remote(u) if u.get(..5).is_some_and(|p| p.eq_ignore_ascii_case("s3://")) => {
+                Some("read from object storage")
+            }
+            Self::Remote(_) => Some("read over HTTP"),
         }
     }
 
@@ -58,10 +71,11 @@ impl std::fmt::Display for Location {
     }
 }
 
-/// Whether a command-line argument is an HTTP(S) URL rather than a path.
+/// Whether a command-line argument is a URL (HTTP(S), or an object store's `s3://`) rather than
+/// a path.
 pub fn is_url(s: &str) -> bool {
     let lower = s.get(..8).unwrap_or(s).to_ascii_lowercase();
-    lower.starts_with("http://") || lower.starts_with("https://")
+    lower.starts_with("http://") || lower.starts_with("https://") || lower.starts_with("s3://")
 }
 
 /// The bytes of a store, by key (a `/`-separated path inside the store, e.g. `zarr.json` or
@@ -88,6 +102,10 @@ pub trait StoreSource: Send + Sync + std::fmt::Debug {
 pub fn source_of(location: &Location) -> io::Result<std::sync::Arc<dyn StoreSource>> {
     match location {
         Location::Local(p) => Ok(std::sync::Arc::new(FolderSource::new(p))),
+        #[cfg(not(target_arch = "wasm32"))]
+        Location::Remote(u) if u.get(..5).is_some_and(|p| p.eq_ignore_ascii_case("s3://")) => {
+            Ok(std::sync::Arc::new(crate::S3Source::new(u)?))
+        }
         #[cfg(not(target_arch = "wasm32"))]
         Location::Remote(u) => Ok(std::sync::Arc::new(HttpSource::new(u))),
         #[cfg(target_arch = "wasm32")]

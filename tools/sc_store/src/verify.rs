@@ -79,8 +79,9 @@ impl StoreReader {
     fn folder(&self) -> Result<&Path> {
         self.local_root().ok_or_else(|| {
             crate::StoreError::Usage(format!(
-                "{} is read over HTTP: verification reads the store's files, run it where the store lives",
-                self.location()
+                "{} is {}: verification reads the store's files, run it where the store lives",
+                self.location(),
+                self.location().remote_words().unwrap_or("remote")
             ))
         })
     }

@@ -338,7 +338,8 @@ pub struct InspectArgs {
 /// `sphereclip render`.
 #[derive(Debug, clap::Args)]
 pub struct RenderArgs {
-    /// The store folder, or its URL (http://…/planet.zarr) (its height layer shapes the planet).
+    /// The store folder, or its URL (http://…/planet.zarr, s3://BUCKET/…/planet.zarr) (its
+    /// height layer shapes the planet).
     pub store: sc_store::Location,
     /// LAT,LON,ALT[,HEADING,PITCH,FOV]: degrees, metres above the ground, degrees (with --goto
     /// the place's latitude and longitude replace LAT,LON; default there 0,0,20000,0,-90).
@@ -466,8 +467,8 @@ pub enum Shading {
 /// `sphereclip view`.
 #[derive(Debug, clap::Args)]
 pub struct ViewArgs {
-    /// The store folder, or its URL (http://…/planet.zarr) (its height layer shapes the planet,
-    /// its colour layer paints it).
+    /// The store folder, or its URL (http://…/planet.zarr, s3://BUCKET/…/planet.zarr) (its
+    /// height layer shapes the planet, its colour layer paints it).
     pub store: sc_store::Location,
     /// Start at LAT,LON,ALT[,HEADING,PITCH,FOV]: degrees, metres above the ground, degrees.
     #[arg(long, allow_hyphen_values = true, default_value = "30,10,12000000", value_parser = camera_arg)]
@@ -500,7 +501,7 @@ pub struct ViewArgs {
 /// `sphereclip info`.
 #[derive(Debug, clap::Args)]
 pub struct InfoArgs {
-    /// The store folder, or its URL (http://…/planet.zarr).
+    /// The store folder, or its URL (http://…/planet.zarr, s3://BUCKET/…/planet.zarr).
     pub store: sc_store::Location,
     /// Read every shard and tile and check its crc32c; exit 1 naming each bad shard/tile.
     #[arg(long)]
@@ -542,7 +543,7 @@ pub struct ServeArgs {
 /// `sphereclip export`.
 #[derive(Debug, clap::Args)]
 pub struct ExportArgs {
-    /// The store folder, or its URL (http://…/planet.zarr).
+    /// The store folder, or its URL (http://…/planet.zarr, s3://BUCKET/…/planet.zarr).
     pub store: sc_store::Location,
     /// Layer to export.
     #[arg(long, value_enum, default_value_t = LayerArg::Height)]

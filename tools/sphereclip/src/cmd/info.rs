@@ -65,8 +65,9 @@ pub fn run(a: &InfoArgs) -> Result<ExitCode> {
     let report = if a.verify {
         let Some(root) = local else {
             bail!(
-                "{} is read over HTTP: --verify reads the store's files, run it where the store lives",
-                a.store
+                "{} is {}: --verify reads the store's files, run it where the store lives",
+                a.store,
+                a.store.remote_words().unwrap_or("remote")
             );
         };
         if let Some(e) = written() {
@@ -162,7 +163,11 @@ fn print_text(
         if reader.local_root().is_some() {
             format!("{} on disk", human_bytes(total))
         } else {
-            "read over HTTP".to_string()
+            reader
+                .location()
+                .remote_words()
+                .unwrap_or("remote")
+                .to_string()
         }
     );
     crate::outln!(

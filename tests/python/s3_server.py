@@ -1,0 +1,64 @@
+"""An S3-compatible server on loopback for the tests: moto's standalone server (PyPI `moto[server]`,
+an in-memory S3 that answers SigV4-signed requests, ranges and conditional writes as S3 does).
+
+Prints `ready PORT` once it listens on 127.0.0.1:PORT (a free port), then reads commands on stdin,
+one per line, answering each with one line:
+  put BUCKET PREFIX FOLDER   every file under FOLDER as PREFIX/relative/path (the bucket made if
+                             missing) -> `done N`
+  write BUCKET KEY TEXT      one object holding TEXT -> `done 1`
+  delete BUCKET KEY          -> `done 1`
+The server stops when stdin closes (the test ends, or dies).
+"""
+
+import os
+import sys
+
+import boto3
+from moto.moto_server.threaded_moto_server import ThreadedMotoServer
+
+
+def main() -> None:
+    server = ThreadedMotoServer(ip_address="127.0.0.1", port=0, verbose=False)
+    server.start()
+    port = server.get_host_and_port()[1]
+    s3 = boto3.client(
+        "s3",
+        endpoint_url=f"http://127.0.0.1:{port}",
+        aws_access_key_id="sphereclip-test",
+        aws_secret_access_key="sphereclip-test-secret",
+        region_name="us-east-1",
+    )
+    print(f"ready {port}", flush=True)
+    for line in sys.stdin:
+        words = line.rstrip("\n").split(" ", 3)
+        try:
+            if words[0] == "put":
+                bucket, prefix, folder = words[1:4]
+                made = {b["Name"] for b in s3.list_buckets().get("Buckets", [])}
+                if bucket not in made:
+                    s3.create_bucket(Bucket=bucket)
+                n = 0
+                for root, _dirs, files in os.walk(folder):
+                    for f in sorted(files):
+                        path = os.path.join(root, f)
+                        key = f"{prefix}/{os.path.relpath(path, folder)}"
+                        s3.upload_file(path, bucket, key)
+                        n += 1
+                print(f"done {n}", flush=True)
+            elif words[0] == "write":
+                bucket, key, body = words[1:4]
+                s3.put_object(Bucket=bucket, Key=key, Body=body.encode())
+                print("done 1", flush=True)
+            elif words[0] == "delete":
+                bucket, key = words[1:3]
+                s3.delete_object(Bucket=bucket, Key=key)
+                print("done 1", flush=True)
+            else:
+                print(f"error unknown command {words[0]!r}", flush=True)
+        except Exception as e:  # noqa: BLE001 - the test reads the line
+            print(f"error {type(e).__name__}: {e}".replace("\n", " "), flush=True)
+    server.stop()
+
+
+if __name__ == "__main__":
+    main()
