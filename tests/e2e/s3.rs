@@ -210,3 +210,77 @@ fn a_store_on_s3_reads_as_its_folder_and_failures_are_one_line() {
     let line = one_line_failure(&run_within(c, Duration::from_secs(120)), "server gone");
     assert!(line.contains(url) && line.contains("127.0.0.1:9"), "{line}");
 }
+
+#[test]
+fn inputs_on_s3_and_over_http_ingest_as_the_same_file_here_does() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let d = dir.path();
+    // a Cloud Optimized GeoTIFF, as Copernicus DEM and Landsat publish theirs
+    let cog = d.join("n07_w006.tif");
+    let o = Command::new("gdal_translate")
+        .args(["-q", "-of", "COG", "-co", "COMPRESS=DEFLATE"])
+        .arg(sample("n07_w006_3arc_v2.tif"))
+        .arg(&cog)
+        .output()
+        .expect("gdal_translate runs");
+    ok(&o);
+    let inputs = d.join("inputs");
+    std::fs::create_dir(&inputs).expect("mkdir");
+    std::fs::copy(&cog, inputs.join("n07_w006.tif")).expect("copy");
+    let mut server = S3Server::start();
+    server.put("planets", "dem", &inputs);
+    server.ask("public planets dem/n07_w006.tif");
+    let local = d.join("local.zarr");
+    ok(&server.run(&["ingest", s(&local), s(&cog), "-q"]));
+    let want = snapshot(&local.join("height"));
+    assert!(want.len() > 3, "{} files", want.len());
+    let over_http = format!("{}/planets/dem/n07_w006.tif", server.endpoint);
+    for input in ["s3://planets/dem/n07_w006.tif", over_http.as_str()] {
+        let store = d.join("remote.zarr");
+        let _ = std::fs::remove_dir_all(&store);
+        let o = server.run(&["ingest", s(&store), input]);
+        ok(&o);
+        same_files(&want, &snapshot(&store.join("height")), input);
+        let meta = std::fs::read_to_string(store.join("zarr.json")).expect("zarr.json");
+        assert!(
+            meta.contains(input) && meta.contains("etag "),
+            "{input}: the store records the input by its version: {meta}"
+        );
+    }
+    // a plan records the input's version; a new upload of it is refused, not mixed in
+    let work = d.join("plan");
+    std::fs::create_dir(&work).expect("mkdir");
+    let mut c = bin();
+    server.env(&mut c).current_dir(&work).args([
+        "plan",
+        "ingest",
+        "st.zarr",
+        "s3://planets/dem/n07_w006.tif",
+        "--tasks",
+        "2",
+        "--out",
+        "p",
+    ]);
+    ok(&run_within(c, Duration::from_secs(120)));
+    server.ask("write planets dem/n07_w006.tif not the raster the plan was made from");
+    let mut c = bin();
+    server
+        .env(&mut c)
+        .current_dir(&work)
+        .args(["run-task", "p", "--task", "0"]);
+    let line = one_line_failure(&run_within(c, Duration::from_secs(120)), "changed input");
+    assert!(line.contains("changed since the plan was made"), "{line}");
+    // what is not there, and what is not a raster
+    for (input, says) in [
+        ("s3://planets/dem/none.tif", "no such file"),
+        ("s3://planets/dem/n07_w006.tif", "not a raster"),
+        ("s3://planets", "names a bucket"),
+    ] {
+        let line = one_line_failure(&server.run(&["ingest", s(&d.join("x.zarr")), input]), input);
+        assert!(
+            line.contains(says) && line.contains("s3://planets"),
+            "{input}: {line}"
+        );
+    }
+    assert!(!d.join("x.zarr").exists(), "a failed ingest made a store");
+}

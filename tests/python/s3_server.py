@@ -7,6 +7,7 @@ one per line, answering each with one line:
                              missing) -> `done N`
   write BUCKET KEY TEXT      one object holding TEXT -> `done 1`
   delete BUCKET KEY          -> `done 1`
+  public BUCKET KEY          the object readable by anyone (plain HTTP GET) -> `done 1`
 The server stops when stdin closes (the test ends, or dies).
 """
 
@@ -48,6 +49,10 @@ def main() -> None:
             elif words[0] == "write":
                 bucket, key, body = words[1:4]
                 s3.put_object(Bucket=bucket, Key=key, Body=body.encode())
+                print("done 1", flush=True)
+            elif words[0] == "public":
+                bucket, key = words[1:3]
+                s3.put_object_acl(Bucket=bucket, Key=key, ACL="public-read")
                 print("done 1", flush=True)
             elif words[0] == "delete":
                 bucket, key = words[1:3]

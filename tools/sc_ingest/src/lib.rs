@@ -290,11 +290,22 @@ pub struct InputSummary {
     pub data_bbox: Option<[f64; 4]>,
 }
 
+/// What an input is known by: its size and the SHA-256 of its bytes; for a file on a web server
+/// or on object storage, its size and version (`etag …` or `modified …`, one HEAD request: the
+/// file is not downloaded for it) in place of the hash.
 fn hash_file(path: &Path) -> Result<InputRecord> {
     let io = |source| IngestError::Io {
         source,
         path: path.to_path_buf(),
     };
+    if let Some(url) = path.to_str().filter(|s| sc_store::is_url(s)) {
+        let (bytes, version) = sc_store::remote_version(url).map_err(io)?;
+        return Ok(InputRecord {
+            path: url.to_string(),
+            bytes,
+            sha256: version,
+        });
+    }
     let mut f = std::fs::File::open(path).map_err(io)?;
     let mut h = Sha256::new();
     let mut buf = vec![0u8; 1 << 20];

@@ -364,15 +364,27 @@ impl RasterSource {
         if let Some(b) = opts.bounds {
             validate_bounds(b)?;
         }
-        check_file(path)?;
+        let remote = remote_gdal_path(path)?;
+        if remote.is_none() {
+            check_file(path)?;
+        }
         let is_exr = path
             .extension()
             .and_then(|e| e.to_str())
             .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
         if is_exr {
+            if remote.is_some() {
+                return Err(usage(
+                    path,
+                    "an OpenEXR input is read from this machine: copy it here first",
+                ));
+            }
             return Self::open_exr(path, role, opts);
         }
-        let ds = open_gdal(path)?;
+        let ds = match &remote {
+            Some(vsi) => open_remote(path, vsi)?,
+            None => open_gdal(path)?,
+        };
         let (w, h) = ds.raster_size();
         check_size(path, w as u64, h as u64)?;
         let count = ds.raster_count();
@@ -1555,6 +1567,85 @@ fn serialized<T>(serial: bool, f: impl FnOnce() -> T) -> T {
 
 fn is_serial(ds: &Dataset) -> bool {
     SERIAL_DRIVERS.contains(&ds.driver().short_name().as_str())
+}
+
+/// The path GDAL reads an input on a web server or on object storage by (`/vsicurl/URL`,
+/// `/vsis3/BUCKET/KEY`: range requests, only what the driver asks for); `None` for a file on
+/// this machine.
+fn remote_gdal_path(path: &Path) -> Result<Option<PathBuf>> {
+    let Some(s) = path.to_str().filter(|s| sc_store::is_url(s)) else {
+        return Ok(None);
+    };
+    configure_gdal_remote();
+    if sc_store::is_s3_url(s) {
+        let (bucket, key) = sc_store::parse_s3_url(s).map_err(|e| usage(path, e))?;
+        if key.is_empty() {
+            return Err(usage(path, "names a bucket, not a file in it"));
+        }
+        Ok(Some(PathBuf::from(format!("/vsis3/{bucket}/{key}"))))
+    } else {
+        Ok(Some(PathBuf::from(format!("/vsicurl/{s}"))))
+    }
+}
+
+/// GDAL's settings for remote inputs, from the variables the store's S3 reader takes (GDAL's
+/// own, where set, win): the endpoint of an S3-compatible server (`AWS_ENDPOINT_URL`, in path
+/// style, plain HTTP when written `http://`), unsigned reads (`AWS_SKIP_SIGNATURE`), and
+/// bounded requests with retries as the store's readers have. Once per process.
+fn configure_gdal_remote() {
+    static DONE: std::sync::OnceLock<()> = std::sync::OnceLock::new();
+    DONE.get_or_init(|| {
+        let env = |k: &str| std::env::var(k).ok().filter(|v| !v.is_empty());
+        let set = |k: &str, v: &str| {
+            let given = env(k).is_some()
+                || gdal::config::get_config_option(k, "").is_ok_and(|v| !v.is_empty());
+            if !given {
+                let _ = gdal::config::set_config_option(k, v);
+            }
+        };
+        if let Some(ep) = env("AWS_ENDPOINT_URL_S3").or_else(|| env("AWS_ENDPOINT_URL")) {
+            let lower = ep.to_ascii_lowercase();
+            let (https, host) = if lower.starts_with("http://") {
+                (false, &ep[7..])
+            } else if lower.starts_with("https://") {
+                (true, &ep[8..])
+            } else {
+                (true, ep.as_str())
+            };
+            set("AWS_S3_ENDPOINT", host.trim_end_matches('/'));
+            set("AWS_HTTPS", if https { "YES" } else { "NO" });
+            set("AWS_VIRTUAL_HOSTING", "FALSE");
+        }
+        if env("AWS_SKIP_SIGNATURE").is_some_and(|v| v.eq_ignore_ascii_case("true")) {
+            set("AWS_NO_SIGN_REQUEST", "YES");
+        }
+        if env("AWS_REGION").is_none() && env("AWS_DEFAULT_REGION").is_none() {
+            set("AWS_REGION", "us-east-1");
+        }
+        set("GDAL_HTTP_TIMEOUT", "30");
+        set("GDAL_HTTP_CONNECTTIMEOUT", "5");
+        set("GDAL_HTTP_MAX_RETRY", "4");
+        set("GDAL_HTTP_RETRY_DELAY", "0.5");
+        // opening a file does not list its folder (a bucket of 10^5 tiles)
+        set("GDAL_DISABLE_READDIR_ON_OPEN", "EMPTY_DIR");
+    });
+}
+
+/// Opens a remote input through its GDAL path `vsi`; when GDAL cannot, says whether the file is
+/// there at all (one HEAD request) before blaming its format.
+fn open_remote(path: &Path, vsi: &Path) -> Result<Dataset> {
+    open_gdal(vsi).map_err(
+        |e| match sc_store::remote_version(&path.to_string_lossy()) {
+            // the message names the file as the user gave it
+            Err(why) => RasterError::Usage(format!("input cannot be read: {why}")),
+            Ok(_) => match e {
+                RasterError::Usage(m) => RasterError::Usage(
+                    m.replace(&vsi.display().to_string(), &path.display().to_string()),
+                ),
+                other => other,
+            },
+        },
+    )
 }
 
 /// Opens a file with GDAL; a `.gz` or `.zip` GDAL cannot open directly is read through

@@ -25,6 +25,7 @@ pub mod fault;
 pub mod files;
 pub mod geozarr;
 mod layout;
+mod locate;
 mod meta;
 mod paths;
 mod reader;
@@ -49,6 +50,8 @@ use std::path::PathBuf;
 pub(crate) const MAX_SHARD_BYTES: u64 = (layout::MAX_SHARD_SAMPLES * 4) + (64 << 20);
 
 pub use codec::HeightCodec;
+#[cfg(not(target_arch = "wasm32"))]
+pub use locate::remote_version;
 pub use meta::{
     BuildRecord, FORMAT_MAJOR, FORMAT_MINOR, InputRecord, LayerMeta, LevelMeta, StoreMeta, unix_now,
 };
@@ -58,7 +61,7 @@ pub use s3::{S3Source, parse_s3_url};
 pub use sample::{LayerKind, TileSample, range_union};
 #[cfg(not(target_arch = "wasm32"))]
 pub use source::HttpSource;
-pub use source::{FolderSource, Location, StoreSource, is_url};
+pub use source::{FolderSource, Location, StoreSource, is_s3_url, is_url};
 #[cfg(not(target_arch = "wasm32"))]
 pub use upgrade::{UpgradeReport, upgrade};
 #[cfg(not(target_arch = "wasm32"))]

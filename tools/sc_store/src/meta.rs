@@ -133,7 +133,8 @@ pub struct InputRecord {
     pub path: String,
     /// Size in bytes.
     pub bytes: u64,
-    /// Hex SHA-256 of the contents.
+    /// Hex SHA-256 of the contents; for a file on a web server or on object storage its version
+    /// instead (`etag …`, or `modified …` where there is no ETag), which a new upload changes.
     pub sha256: String,
 }
 

@@ -155,7 +155,7 @@ impl StoreReader {
 
     /// Opens a store folder or a store served over HTTP(S) for reading.
     pub fn open_at(location: &Location) -> Result<Self> {
-        let source = crate::source::source_of(location).map_err(|e| StoreError::Io {
+        let source = crate::locate::source_of(location).map_err(|e| StoreError::Io {
             source: e,
             path: location.as_path(),
         })?;

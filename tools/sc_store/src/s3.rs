@@ -16,7 +16,7 @@ use std::time::Duration;
 
 use object_store::aws::{AmazonS3Builder, AmazonS3ConfigKey};
 use object_store::{
-    BackoffConfig, ClientConfigKey, GetOptions, GetRange, ObjectStore, RetryConfig,
+    BackoffConfig, ClientConfigKey, GetOptions, GetRange, ObjectStore, ObjectStoreExt, RetryConfig,
 };
 
 /// How long one request may take, start to end (a shard's index, a tile, a metadata object).
@@ -26,11 +26,6 @@ const CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
 /// Retries of one request after a transient failure, and the time they may take together.
 const RETRIES: usize = 4;
 const RETRY_TIMEOUT: Duration = Duration::from_secs(20);
-
-/// Whether `s` names an object store location (`s3://…`).
-pub fn is_s3_url(s: &str) -> bool {
-    s.get(..5).is_some_and(|p| p.eq_ignore_ascii_case("s3://"))
-}
 
 /// `s3://bucket/prefix` split into the bucket and the prefix (no slashes at its ends; may be
 /// empty). Refuses what is not one.
@@ -44,7 +39,7 @@ pub fn parse_s3_url(url: &str) -> io::Result<(String, String)> {
             ),
         )
     };
-    if !is_s3_url(url) {
+    if !crate::is_s3_url(url) {
         return Err(bad("it does not begin with s3://"));
     }
     let rest = &url[5..];
@@ -156,6 +151,25 @@ impl S3Source {
         } else {
             object_store::path::Path::from(format!("{}/{key}", self.prefix))
         }
+    }
+
+    /// The size and version of object `key` (its ETag, else its modification time), from one
+    /// HEAD request; `None` when there is none. A new upload of the object changes the version.
+    pub fn version(&self, key: &str) -> io::Result<Option<(u64, String)>> {
+        let path = self.path(key);
+        let url = self.url_of(key);
+        self.rt.block_on(async {
+            match self.store.head(&path).await {
+                Ok(m) => Ok(Some((
+                    m.size,
+                    m.e_tag
+                        .map(|e| format!("etag {}", e.trim_matches('"')))
+                        .unwrap_or_else(|| format!("modified {}", m.last_modified.to_rfc3339())),
+                ))),
+                Err(object_store::Error::NotFound { .. }) => Ok(None),
+                Err(e) => Err(one_line(&url, &e)),
+            }
+        })
     }
 
     fn url_of(&self, key: &str) -> String {

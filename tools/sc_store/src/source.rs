@@ -40,9 +40,7 @@ impl Location {
     pub fn remote_words(&self) -> Option<&'static str> {
         match self {
             Self::Local(_) => None,
-            Self::Remote(u) if u.get(..5).is_some_and(|p| p.eq_ignore_ascii_case("s3://")) => {
-                Some("read from object storage")
-            }
+            Self::Remote(u) if is_s3_url(u) => Some("read from object storage"),
             Self::Remote(_) => Some("read over HTTP"),
         }
     }
@@ -78,6 +76,11 @@ pub fn is_url(s: &str) -> bool {
     lower.starts_with("http://") || lower.starts_with("https://") || lower.starts_with("s3://")
 }
 
+/// Whether `s` names an object store location (`s3://…`).
+pub fn is_s3_url(s: &str) -> bool {
+    s.get(..5).is_some_and(|p| p.eq_ignore_ascii_case("s3://"))
+}
+
 /// The bytes of a store, by key (a `/`-separated path inside the store, e.g. `zarr.json` or
 /// `height/8/data/c/0/1`). Every answer is bounded: a key is never read past what was asked.
 pub trait StoreSource: Send + Sync + std::fmt::Debug {
@@ -94,25 +97,6 @@ pub trait StoreSource: Send + Sync + std::fmt::Debug {
     /// remote store does not publish).
     fn local_root(&self) -> Option<&Path> {
         None
-    }
-}
-
-/// The source of [`Location`]. In a browser (wasm32) a URL's bytes come from the page's own
-/// source ([`crate::StoreReader::open_source`]), not from here.
-pub fn source_of(location: &Location) -> io::Result<std::sync::Arc<dyn StoreSource>> {
-    match location {
-        Location::Local(p) => Ok(std::sync::Arc::new(FolderSource::new(p))),
-        #[cfg(not(target_arch = "wasm32"))]
-        Location::Remote(u) if u.get(..5).is_some_and(|p| p.eq_ignore_ascii_case("s3://")) => {
-            Ok(std::sync::Arc::new(crate::S3Source::new(u)?))
-        }
-        #[cfg(not(target_arch = "wasm32"))]
-        Location::Remote(u) => Ok(std::sync::Arc::new(HttpSource::new(u))),
-        #[cfg(target_arch = "wasm32")]
-        Location::Remote(u) => Err(io::Error::new(
-            io::ErrorKind::Unsupported,
-            format!("{u}: give the page's fetching source"),
-        )),
     }
 }
 
@@ -234,6 +218,44 @@ mod http {
 
         fn url(&self, key: &str) -> String {
             format!("{}/{}", self.base, key.trim_start_matches('/'))
+        }
+
+        /// The size and version of `key` (its ETag, else its Last-Modified) from one HEAD
+        /// request; `None` when the server has no such object.
+        pub fn version(&self, key: &str) -> io::Result<Option<(u64, String)>> {
+            let url = self.url(key);
+            let resp = self
+                .agent
+                .head(&url)
+                .call()
+                .map_err(|e| http_error(&url, &e.to_string()))?;
+            let status = resp.status().as_u16();
+            if status == 404 || status == 410 {
+                return Ok(None);
+            }
+            if !(200..300).contains(&status) {
+                return Err(http_error(&url, &format!("HTTP {status}")));
+            }
+            let header = |name: &str| {
+                resp.headers()
+                    .get(name)
+                    .and_then(|v| v.to_str().ok())
+                    .map(str::to_string)
+            };
+            let size = header("content-length")
+                .and_then(|v| v.trim().parse().ok())
+                .ok_or_else(|| http_error(&url, "the server gives no size (Content-Length)"))?;
+            let version = match (header("etag"), header("last-modified")) {
+                (Some(e), _) => format!("etag {}", e.trim_matches('"')),
+                (None, Some(m)) => format!("modified {m}"),
+                (None, None) => {
+                    return Err(http_error(
+                        &url,
+                        "the server gives no version of the file (no ETag or Last-Modified): a change to it could not be seen",
+                    ));
+                }
+            };
+            Ok(Some((size, version)))
         }
 
         /// One GET (with a Range header when given), retried on transient failures; `None` when

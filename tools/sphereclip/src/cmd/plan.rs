@@ -811,8 +811,12 @@ fn remake(plan: &PlanFile, threads: Option<usize>, inputs: Inputs) -> Result<Ste
     Ok(step)
 }
 
-/// An input's modification time, nanoseconds since the epoch (0 where the file system has none).
+/// An input's modification time, nanoseconds since the epoch (0 where the file system has none,
+/// and for a remote input, whose version its record holds).
 fn modified_ns(path: &Path) -> Result<u64> {
+    if path.to_str().is_some_and(sc_store::is_url) {
+        return Ok(0);
+    }
     let m = std::fs::metadata(path).with_context(|| format!("cannot read {}", path.display()))?;
     Ok(m.modified()
         .ok()
@@ -828,6 +832,18 @@ fn check_stamps(plan: &PlanFile) -> Result<()> {
     }
     for (r, &ns) in plan.inputs.iter().zip(&plan.input_modified_ns) {
         let path = Path::new(&r.path);
+        if sc_store::is_url(&r.path) {
+            // a file on a web server or object storage: its size and version, one HEAD request
+            let (len, version) = sc_store::remote_version(&r.path)
+                .with_context(|| format!("cannot read the input {}", r.path))?;
+            if len != r.bytes || version != r.sha256 {
+                bail!(
+                    "the input {} changed since the plan was made: abandon it (`sphereclip commit PLAN --abandon`) and make the plan again",
+                    r.path
+                );
+            }
+            continue;
+        }
         let len = std::fs::metadata(path)
             .with_context(|| format!("cannot read the input {}", path.display()))?
             .len();
