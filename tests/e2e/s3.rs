@@ -284,3 +284,116 @@ fn inputs_on_s3_and_over_http_ingest_as_the_same_file_here_does() {
     }
     assert!(!d.join("x.zarr").exists(), "a failed ingest made a store");
 }
+
+#[test]
+fn push_puts_a_store_on_s3_as_a_commit_resumable_at_every_step_and_one_writer_at_a_time() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let d = dir.path();
+    let store = d.join("planet.zarr");
+    copy_dir(&sample_planet(), &store);
+    let mut server = S3Server::start();
+    let url = "s3://planets/pushed/planet.zarr";
+    let line = one_line_failure(&server.run(&["push", s(&store), url]), "no bucket");
+    assert!(line.contains("NoSuchBucket"), "{line}");
+    server.ask("bucket planets");
+    let o = server.run(&["push", s(&store), url]);
+    ok(&o);
+    assert!(text(&o.stdout).contains("uploaded"), "{}", text(&o.stdout));
+    server.ask(&format!("compare planets pushed/planet.zarr {}", s(&store)));
+    let info = |server: &S3Server| text(&server.run(&["info", url]).stdout);
+    assert!(info(&server).contains(", complete,"), "{}", info(&server));
+    // pushed again unchanged: nothing written
+    let o = server.run(&["push", s(&store), url]);
+    ok(&o);
+    assert!(
+        text(&o.stdout).contains(": 0 object(s) uploaded"),
+        "{}",
+        text(&o.stdout)
+    );
+
+    // the store changes (a regional ingest and its pyramid); from the old store on S3, its push
+    // killed after each of its durable steps in turn (a fresh start each time), then run again:
+    // the old store stays complete until the new root is marked INCOMPLETE, a rerun takes over
+    // the dead push's lock and ends with the new store, object by object
+    let old = d.join("old.zarr");
+    copy_dir(&store, &old);
+    ok(&run(&[
+        "ingest",
+        s(&store),
+        s(&sample("n07_w006_3arc_v2.tif")),
+        "--level",
+        "3",
+        "-q",
+    ]));
+    ok(&run(&["build", s(&store), "-q"]));
+    let mut killed = 0;
+    for n in 1.. {
+        ok(&server.run(&["push", s(&old), url]));
+        let mut c = bin();
+        server
+            .env(&mut c)
+            .env("SPHERECLIP_FAULT_AFTER", n.to_string())
+            .args(["push", s(&store), url]);
+        let o = run_within(c, Duration::from_secs(120));
+        if o.status.success() {
+            break;
+        }
+        assert_eq!(
+            o.status.code(),
+            Some(sc_store::fault::FAULT_EXIT),
+            "step {n}: {}",
+            text(&o.stderr)
+        );
+        killed += 1;
+        let first = info(&server).lines().next().unwrap_or("").to_string();
+        match n {
+            1 => assert!(first.contains(", complete,"), "after the lock: {first}"),
+            2 => assert!(first.contains("INCOMPLETE"), "after the root: {first}"),
+            _ => assert!(
+                first.contains(", complete,") || first.contains("INCOMPLETE"),
+                "after step {n}: {first}"
+            ),
+        }
+        ok(&server.run(&["push", s(&store), url]));
+        server.ask(&format!("compare planets pushed/planet.zarr {}", s(&store)));
+        assert!(n < 300, "the push never ends");
+    }
+    assert!(killed >= 5, "only {killed} durable steps");
+    assert!(info(&server).contains(", complete,"), "{}", info(&server));
+
+    // one push at a time: a second one meets the first's lock and changes nothing
+    let other = d.join("other.zarr");
+    copy_dir(&sample_planet(), &other);
+    let mut c = bin();
+    server.env(&mut c).args(["push", s(&other), url]);
+    let go = pause_at(&mut c, "push-locked", d);
+    let first = std::thread::spawn(move || run_within(c, Duration::from_secs(300)));
+    wait_until_paused("push-locked", d);
+    let line = one_line_failure(&server.run(&["push", s(&store), url]), "second push");
+    assert!(line.contains("another push holds the store"), "{line}");
+    std::fs::write(&go, b"").expect("go");
+    ok(&first.join().expect("first push"));
+    server.ask(&format!("compare planets pushed/planet.zarr {}", s(&other)));
+    // a lock another machine left is broken only when asked
+    server.ask("write planets pushed/planet.zarr/.sphereclip/push.lock {\"host\": \"elsewhere\", \"pid\": 7}");
+    let line = one_line_failure(&server.run(&["push", s(&store), url]), "foreign lock");
+    assert!(
+        line.contains("host elsewhere") && line.contains("--break-lock"),
+        "{line}"
+    );
+    ok(&server.run(&["push", s(&store), url, "--break-lock"]));
+    server.ask(&format!("compare planets pushed/planet.zarr {}", s(&store)));
+
+    // what push refuses: a location holding other objects, an incomplete store, not S3
+    server.ask("write planets mixed/notes.txt not a store");
+    let line = one_line_failure(
+        &server.run(&["push", s(&store), "s3://planets/mixed"]),
+        "mixed",
+    );
+    assert!(
+        line.contains("no store: push to an empty location"),
+        "{line}"
+    );
+    let line = one_line_failure(&server.run(&["push", s(&store), "/tmp/x"]), "not s3");
+    assert!(line.contains("s3://BUCKET/PREFIX"), "{line}");
+}

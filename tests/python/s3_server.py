@@ -5,9 +5,13 @@ Prints `ready PORT` once it listens on 127.0.0.1:PORT (a free port), then reads 
 one per line, answering each with one line:
   put BUCKET PREFIX FOLDER   every file under FOLDER as PREFIX/relative/path (the bucket made if
                              missing) -> `done N`
+  bucket NAME                a bucket -> `done 1`
   write BUCKET KEY TEXT      one object holding TEXT -> `done 1`
   delete BUCKET KEY          -> `done 1`
   public BUCKET KEY          the object readable by anyone (plain HTTP GET) -> `done 1`
+  compare BUCKET PREFIX FOLDER  whether the objects under PREFIX/ are exactly FOLDER's files
+                             (names beginning with `.` left out), byte for byte -> `done N`, or
+                             `error` and what differs
 The server stops when stdin closes (the test ends, or dies).
 """
 
@@ -46,6 +50,9 @@ def main() -> None:
                         s3.upload_file(path, bucket, key)
                         n += 1
                 print(f"done {n}", flush=True)
+            elif words[0] == "bucket":
+                s3.create_bucket(Bucket=words[1])
+                print("done 1", flush=True)
             elif words[0] == "write":
                 bucket, key, body = words[1:4]
                 s3.put_object(Bucket=bucket, Key=key, Body=body.encode())
@@ -54,6 +61,29 @@ def main() -> None:
                 bucket, key = words[1:3]
                 s3.put_object_acl(Bucket=bucket, Key=key, ACL="public-read")
                 print("done 1", flush=True)
+            elif words[0] == "compare":
+                bucket, prefix, folder = words[1:4]
+                local = {}
+                for root, dirs, files in os.walk(folder):
+                    dirs[:] = [d for d in dirs if not d.startswith(".")]
+                    for f in files:
+                        if not f.startswith("."):
+                            path = os.path.join(root, f)
+                            local[os.path.relpath(path, folder)] = path
+                remote = []
+                pages = s3.get_paginator("list_objects_v2")
+                for page in pages.paginate(Bucket=bucket, Prefix=prefix + "/"):
+                    remote += [o["Key"][len(prefix) + 1 :] for o in page.get("Contents", [])]
+                differ = sorted(set(remote) ^ set(local))
+                for key in sorted(set(remote) & set(local)):
+                    body = s3.get_object(Bucket=bucket, Key=f"{prefix}/{key}")["Body"].read()
+                    with open(local[key], "rb") as f:
+                        if f.read() != body:
+                            differ.append(key)
+                if differ:
+                    print(f"error differ: {' '.join(differ[:10])}", flush=True)
+                else:
+                    print(f"done {len(local)}", flush=True)
             elif words[0] == "delete":
                 bucket, key = words[1:3]
                 s3.delete_object(Bucket=bucket, Key=key)

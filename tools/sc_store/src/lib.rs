@@ -28,6 +28,8 @@ mod layout;
 mod locate;
 mod meta;
 mod paths;
+#[cfg(not(target_arch = "wasm32"))]
+mod push;
 mod reader;
 #[cfg(not(target_arch = "wasm32"))]
 mod s3;
@@ -55,9 +57,11 @@ pub use locate::remote_version;
 pub use meta::{
     BuildRecord, FORMAT_MAJOR, FORMAT_MINOR, InputRecord, LayerMeta, LevelMeta, StoreMeta, unix_now,
 };
+#[cfg(not(target_arch = "wasm32"))]
+pub use push::{PushSummary, push};
 pub use reader::{StoreReader, TileRead};
 #[cfg(not(target_arch = "wasm32"))]
-pub use s3::{S3Source, parse_s3_url};
+pub use s3::{PutWhen, S3Source, Tag, parse_s3_url};
 pub use sample::{LayerKind, TileSample, range_union};
 #[cfg(not(target_arch = "wasm32"))]
 pub use source::HttpSource;

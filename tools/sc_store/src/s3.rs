@@ -64,6 +64,26 @@ pub fn parse_s3_url(url: &str) -> io::Result<(String, String)> {
     Ok((bucket.to_string(), prefix.to_string()))
 }
 
+/// The version of an object a conditional write names.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Tag {
+    /// Its ETag.
+    pub e_tag: Option<String>,
+    /// Its version id, where the bucket keeps versions.
+    pub version: Option<String>,
+}
+
+/// When a write may happen.
+#[derive(Debug, Clone)]
+pub enum PutWhen {
+    /// Whatever is there.
+    Always,
+    /// Only where there is no object (`If-None-Match: *`).
+    Absent,
+    /// Only over the object as it was when read (`If-Match`).
+    Unchanged(Tag),
+}
+
 /// What one GET gave: the object's size, the byte range sent, its bytes.
 type Got = (u64, Range<u64>, Vec<u8>);
 
@@ -172,6 +192,128 @@ impl S3Source {
         })
     }
 
+    /// Object `key` whole with its ETag; `None` when there is none.
+    pub fn get_tagged(&self, key: &str, limit: u64) -> io::Result<Option<(Vec<u8>, Tag)>> {
+        let path = self.path(key);
+        let url = self.url_of(key);
+        self.rt.block_on(async {
+            let got = match self.store.get_opts(&path, GetOptions::default()).await {
+                Ok(g) => g,
+                Err(object_store::Error::NotFound { .. }) => return Ok(None),
+                Err(e) => return Err(one_line(&url, &e)),
+            };
+            if got.meta.size > limit {
+                return Err(io::Error::new(
+                    io::ErrorKind::InvalidData,
+                    format!(
+                        "{url}: {} bytes, more than the {limit} expected",
+                        got.meta.size
+                    ),
+                ));
+            }
+            let tag = Tag {
+                e_tag: got.meta.e_tag.clone(),
+                version: got.meta.version.clone(),
+            };
+            let bytes = got.bytes().await.map_err(|e| one_line(&url, &e))?;
+            Ok(Some((bytes.to_vec(), tag)))
+        })
+    }
+
+    /// The size and ETag (without quotes) of object `key`; `None` when there is none.
+    pub fn head(&self, key: &str) -> io::Result<Option<(u64, Option<String>)>> {
+        let path = self.path(key);
+        let url = self.url_of(key);
+        self.rt.block_on(async {
+            match self.store.head(&path).await {
+                Ok(m) => Ok(Some((
+                    m.size,
+                    m.e_tag.map(|e| e.trim_matches('"').to_string()),
+                ))),
+                Err(object_store::Error::NotFound { .. }) => Ok(None),
+                Err(e) => Err(one_line(&url, &e)),
+            }
+        })
+    }
+
+    /// Writes object `key` as `when` allows; `Ok(None)` when the condition did not hold (another
+    /// writer's object is there), else its new tag.
+    pub fn put(&self, key: &str, bytes: Vec<u8>, when: PutWhen) -> io::Result<Option<Tag>> {
+        let path = self.path(key);
+        let url = self.url_of(key);
+        let mode = match when {
+            PutWhen::Always => object_store::PutMode::Overwrite,
+            PutWhen::Absent => object_store::PutMode::Create,
+            PutWhen::Unchanged(t) => object_store::PutMode::Update(object_store::UpdateVersion {
+                e_tag: t.e_tag,
+                version: t.version,
+            }),
+        };
+        self.rt.block_on(async {
+            match self.store.put_opts(&path, bytes.into(), mode.into()).await {
+                Ok(r) => Ok(Some(Tag {
+                    e_tag: r.e_tag,
+                    version: r.version,
+                })),
+                Err(
+                    object_store::Error::Precondition { .. }
+                    | object_store::Error::AlreadyExists { .. },
+                ) => Ok(None),
+                Err(e) => Err(one_line(&url, &e)),
+            }
+        })
+    }
+
+    /// Removes object `key` (none there is fine).
+    pub fn delete(&self, key: &str) -> io::Result<()> {
+        let path = self.path(key);
+        let url = self.url_of(key);
+        self.rt.block_on(async {
+            match self.store.delete(&path).await {
+                Ok(()) | Err(object_store::Error::NotFound { .. }) => Ok(()),
+                Err(e) => Err(one_line(&url, &e)),
+            }
+        })
+    }
+
+    /// Every object under this location: its key (relative to the location), size and ETag
+    /// (without quotes).
+    pub fn list(&self) -> io::Result<Vec<(String, u64, Option<String>)>> {
+        use futures_util::TryStreamExt;
+        let prefix =
+            (!self.prefix.is_empty()).then(|| object_store::path::Path::from(self.prefix.as_str()));
+        let strip = if self.prefix.is_empty() {
+            String::new()
+        } else {
+            format!("{}/", self.prefix)
+        };
+        self.rt.block_on(async {
+            let all: Vec<object_store::ObjectMeta> = self
+                .store
+                .list(prefix.as_ref())
+                .try_collect()
+                .await
+                .map_err(|e| one_line(&self.url, &e))?;
+            Ok(all
+                .into_iter()
+                .filter_map(|m| {
+                    let k = m
+                        .location
+                        .as_ref()
+                        .strip_prefix(strip.as_str())?
+                        .to_string();
+                    let tag = m.e_tag.map(|e| e.trim_matches('"').to_string());
+                    Some((k, m.size, tag))
+                })
+                .collect())
+        })
+    }
+
+    /// The location, `s3://bucket/prefix`.
+    pub fn url(&self) -> &str {
+        &self.url
+    }
+
     fn url_of(&self, key: &str) -> String {
         format!("{}/{}", self.url, key.trim_start_matches('/'))
     }
@@ -216,10 +358,19 @@ fn install_crypto() {
     let _ = rustls::crypto::ring::default_provider().install_default();
 }
 
-/// An object store error as one line naming the object.
+/// An object store error as one line naming the object (an S3 error document as its code and
+/// message).
 fn one_line(url: &str, e: &dyn std::fmt::Display) -> io::Error {
-    let text: String = e
-        .to_string()
+    let full = e.to_string();
+    let tag = |t: &str| {
+        let (a, b) = (format!("<{t}>"), format!("</{t}>"));
+        let i = full.find(&a)? + a.len();
+        Some(full[i..].split(&b).next()?.to_string())
+    };
+    if let (Some(code), Some(message)) = (tag("Code"), tag("Message")) {
+        return io::Error::other(format!("{url}: {code}: {message}"));
+    }
+    let text: String = full
         .split(['\n', '\r'])
         .map(str::trim)
         .filter(|l| !l.is_empty())

@@ -71,6 +71,11 @@ pub enum Command {
     Web(WebArgs),
     /// Write one level of a store as a GeoTIFF (EPSG:4326) or an f32 OpenEXR heightmap.
     Export(ExportArgs),
+    /// Put a complete store on S3-compatible object storage (s3://bucket/prefix) as a commit.
+    ///
+    /// Readers see it complete or marked INCOMPLETE; a killed push is finished by running it
+    /// again; only what changed is uploaded.
+    Push(PushArgs),
     /// Run the demo on the bundled samples (what exists so far).
     Demo(DemoArgs),
     /// Convert a store of an older format to the current one, in place (resumable).
@@ -92,6 +97,18 @@ pub struct CompletionsArgs {
     /// The shell.
     #[arg(value_enum)]
     pub shell: clap_complete::Shell,
+}
+
+/// `sphereclip push`.
+#[derive(Debug, clap::Args)]
+pub struct PushArgs {
+    /// The store folder (complete).
+    pub store: PathBuf,
+    /// Where to: s3://BUCKET/PREFIX (an empty location, or a store a push put there).
+    pub to: String,
+    /// Take over the lock another push left (only when that push is gone for good).
+    #[arg(long)]
+    pub break_lock: bool,
 }
 
 /// `sphereclip upgrade`.

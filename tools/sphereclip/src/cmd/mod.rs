@@ -9,6 +9,7 @@ mod ingest;
 mod inspect;
 mod places;
 mod plan;
+mod push;
 mod render;
 mod serve;
 mod upgrade;
@@ -47,6 +48,7 @@ pub fn run_without_gdal(cli: Cli) -> Result<ExitCode> {
         Command::Serve(a) => serve::run(&a),
         Command::Web(a) => serve::web(&a),
         Command::Upgrade(a) => upgrade::run(&a),
+        Command::Push(a) => push::run(&a),
         Command::Completions(a) => {
             let mut cmd = crate::cli::command();
             let mut out = Vec::new();

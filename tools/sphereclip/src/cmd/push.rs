@@ -1,0 +1,37 @@
+//! `sphereclip push`.
+
+use std::process::ExitCode;
+
+use anyhow::Result;
+
+use crate::cli::PushArgs;
+use crate::progress::Progress;
+
+/// Runs `push`.
+pub fn run(a: &PushArgs) -> Result<ExitCode> {
+    if !sc_store::is_s3_url(&a.to) {
+        anyhow::bail!(
+            "{}: push writes to S3-compatible object storage, s3://BUCKET/PREFIX",
+            a.to.escape_debug()
+        );
+    }
+    let start = std::time::Instant::now();
+    let progress = Progress::new("push", 0);
+    let summary = sc_store::push(&a.store, &a.to, a.break_lock, &|done, total| {
+        progress.set_total(total);
+        progress.set(done);
+    })
+    .map_err(|e| anyhow::anyhow!("push of {} stopped: {e}", a.store.display()))?;
+    progress.finish();
+    crate::outln!(
+        "pushed {} to {}: {} object(s) uploaded ({}), {} already there, {} removed, {:.1} s",
+        a.store.display(),
+        a.to.trim_end_matches('/'),
+        summary.uploaded,
+        crate::cmd::human_bytes(summary.bytes),
+        summary.unchanged,
+        summary.removed,
+        start.elapsed().as_secs_f64()
+    );
+    Ok(ExitCode::SUCCESS)
+}
