@@ -397,3 +397,89 @@ fn push_puts_a_store_on_s3_as_a_commit_resumable_at_every_step_and_one_writer_at
     let line = one_line_failure(&server.run(&["push", s(&store), "/tmp/x"]), "not s3");
     assert!(line.contains("s3://BUCKET/PREFIX"), "{line}");
 }
+
+#[test]
+fn a_failing_s3_is_retried_and_a_full_bucket_ends_in_one_line() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let d = dir.path();
+    let store = sample_planet();
+    let mut server = S3Server::start();
+    server.put("planets", "world/planet.zarr", &store);
+    let url = "s3://planets/world/planet.zarr";
+    let camera = "46.5,8,300000,0,-30,60";
+    let render = |server: &S3Server, at: &str, out: &Path| {
+        let o = server.run(&[
+            "render",
+            at,
+            "--camera",
+            camera,
+            "--size",
+            "160x90",
+            "--out",
+            s(out),
+        ]);
+        ok(&o);
+        std::fs::read(out).expect("png")
+    };
+    let want = render(&server, s(&store), &d.join("local.png"));
+    // every fifth request refused (503 SlowDown, S3's throttling), then every fourth a 500:
+    // the reads and a push are retried to the same bytes
+    server.ask("faults every 5 503");
+    assert!(
+        render(&server, url, &d.join("slow.png")) == want,
+        "the render through throttling differs"
+    );
+    server.ask("faults every 4 500");
+    ok(&server.run(&["push", s(&store), "s3://planets/retried/planet.zarr"]));
+    server.ask("faults none");
+    server.ask(&format!(
+        "compare planets retried/planet.zarr {}",
+        s(&store)
+    ));
+    // the server away for two seconds (a restart): waited out
+    server.ask("faults down 2");
+    ok(&server.run(&["info", url]));
+    // a bucket whose quota runs out mid-push: one line; a new store is not there yet (no root),
+    // a store pushed over reads as it was, marked INCOMPLETE; a push once there is room
+    // finishes either
+    let changed = d.join("changed.zarr");
+    copy_dir(&store, &changed);
+    ok(&run(&[
+        "ingest",
+        s(&changed),
+        s(&sample("n07_w006_3arc_v2.tif")),
+        "--level",
+        "3",
+        "-q",
+    ]));
+    ok(&run(&["build", s(&changed), "-q"]));
+    let root = std::fs::metadata(store.join("zarr.json"))
+        .expect("root")
+        .len();
+    let fresh = "s3://planets/full/planet.zarr";
+    for (folder, at, reads) in [(&store, fresh, false), (&changed, url, true)] {
+        server.ask(&format!("faults quota {}", 2 * root + 100_000));
+        let line = one_line_failure(&server.run(&["push", s(folder), at]), "quota");
+        assert!(line.contains("QuotaExceeded"), "{line}");
+        server.ask("faults none");
+        let o = server.run(&["info", at]);
+        if reads {
+            ok(&o);
+            assert!(
+                text(&o.stdout).contains("INCOMPLETE"),
+                "{}",
+                text(&o.stdout)
+            );
+            assert!(
+                render(&server, at, &d.join("incomplete.png")).len() > 100,
+                "an incomplete store renders"
+            );
+        } else {
+            let line = one_line_failure(&o, "a store half pushed");
+            assert!(line.contains("no store there"), "{line}");
+        }
+        ok(&server.run(&["push", s(folder), at]));
+        let prefix = at.trim_start_matches("s3://planets/");
+        server.ask(&format!("compare planets {prefix} {}", s(folder)));
+    }
+}

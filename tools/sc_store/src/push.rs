@@ -1,17 +1,20 @@
 //! A store folder put on S3-compatible object storage (`sphereclip push`) with a commit's
-//! promises: readers see the store complete as it was, or marked INCOMPLETE while objects change,
-//! never a new shard under a root that calls the store complete; a push killed at any point is
+//! promises: readers see the store complete as it was, or marked INCOMPLETE while objects change
+//! (readable, as a folder being written is), never a new shard under a root that calls the store
+//! complete; a push killed at any point is
 //! finished by running it again, with the same objects as one uninterrupted push; two pushes to
 //! one location cannot interleave.
 //!
 //! The protocol, every write conditional where another writer could meet it:
 //! 1. the lock object `.sphereclip/push.lock` is created only where there is none
 //!    (`If-None-Match: *`); a lock left by a killed push of this machine is taken over;
-//! 2. the root `zarr.json` is replaced by the new root marked incomplete, only over the root read
-//!    (`If-Match`), or only where there is none;
+//! 2. the root `zarr.json` there is marked incomplete, only over the root read (`If-Match`): it
+//!    stays readable, as what it names is replaced but not removed until step 4; a new store
+//!    has no root until step 4 (readers find no store, not half of one);
 //! 3. every other object of the folder is uploaded unless the bucket holds it already (same size
-//!    and MD5, S3's ETag of an object put whole); objects the folder no longer has are removed;
-//! 4. the new root is written over the incomplete one (`If-Match`), then the lock removed.
+//!    and MD5, S3's ETag of an object put whole);
+//! 4. the new root is written over the incomplete one (`If-Match`), or only where there is still
+//!    none (`If-None-Match`); then objects the folder no longer has are removed, and the lock.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -95,7 +98,7 @@ fn store_files(root: &Path) -> Result<BTreeMap<String, PathBuf>> {
     Ok(out)
 }
 
-/// The root `bytes` with `complete` set to false.
+/// The root `bytes` (of the store at `root`, for messages) with `complete` set to false.
 fn marked_incomplete(bytes: &[u8], root: &Path) -> Result<Vec<u8>> {
     let bad = |why: &str| StoreError::Format {
         what: format!("the store's zarr.json {why}"),
@@ -126,9 +129,10 @@ fn host_name() -> String {
         .unwrap_or_else(|_| "unknown".into())
 }
 
-/// Takes the push lock of `s3`: creates it, or takes over one a killed push of this machine left
-/// (its process is gone), or any with `break_lock`.
-fn take_lock(s3: &S3Source, root: &Path, break_lock: bool) -> Result<()> {
+/// Takes the push lock of `s3`: creates it (`false`), or takes over one a killed push of this
+/// machine left (its process is gone), or any with `break_lock` (`true`: what is there may be
+/// half a push).
+fn take_lock(s3: &S3Source, root: &Path, break_lock: bool) -> Result<bool> {
     let url = s3.url();
     let me = serde_json::to_vec(&holder(root)).map_err(|e| failed(url, e))?;
     if s3
@@ -137,12 +141,12 @@ fn take_lock(s3: &S3Source, root: &Path, break_lock: bool) -> Result<()> {
         .is_some()
     {
         crate::fault::step("push lock taken", Path::new(LOCK_KEY));
-        return Ok(());
+        return Ok(false);
     }
     let Some((held, tag)) = s3.get_tagged(LOCK_KEY, 1 << 20).map_err(io_at(url))? else {
         // released meanwhile: try once more
         return match s3.put(LOCK_KEY, me, PutWhen::Absent).map_err(io_at(url))? {
-            Some(_) => Ok(()),
+            Some(_) => Ok(false),
             None => Err(failed(url, "another push took the store just now")),
         };
     };
@@ -165,7 +169,7 @@ fn take_lock(s3: &S3Source, root: &Path, break_lock: bool) -> Result<()> {
     {
         Some(_) => {
             crate::fault::step("push lock taken over", Path::new(LOCK_KEY));
-            Ok(())
+            Ok(true)
         }
         None => Err(failed(url, "another push took the store just now")),
     }
@@ -196,7 +200,6 @@ pub fn push(
     let root_path = root.join("zarr.json");
     let new_root =
         crate::files::read_regular(&root_path, MAX_ROOT).map_err(crate::io_err(&root_path))?;
-    let incomplete = marked_incomplete(&new_root, root)?;
     let s3 = S3Source::new(url).map_err(io_at(url))?;
     let url = s3.url().to_string();
     let url = url.as_str();
@@ -206,9 +209,10 @@ pub fn push(
         .into_iter()
         .map(|(k, size, tag)| (k, (size, tag)))
         .collect();
-    take_lock(&s3, root, break_lock)?;
+    let resumed = take_lock(&s3, root, break_lock)?;
     crate::fault::pause("push-locked");
-    // 2: the root read, then replaced by the new one marked incomplete
+    // 2: the root read and marked incomplete (what it lists stays readable: objects it names are
+    // replaced, never removed, before the new root); a new store has no root until the end
     let old = s3.get_tagged("zarr.json", MAX_ROOT).map_err(io_at(url))?;
     let when = match old {
         Some((bytes, tag)) => {
@@ -221,12 +225,24 @@ pub fn push(
                     "holds a zarr.json that is not a sphereclip store's: not overwritten",
                 ));
             }
-            PutWhen::Unchanged(tag)
+            let incomplete = marked_incomplete(&bytes, Path::new(url))?;
+            let Some(marked) = s3
+                .put("zarr.json", incomplete, PutWhen::Unchanged(tag))
+                .map_err(io_at(url))?
+            else {
+                return Err(failed(
+                    url,
+                    "another writer changed the store's root as this push began: nothing was changed",
+                ));
+            };
+            crate::fault::step("root marked incomplete", Path::new("zarr.json"));
+            PutWhen::Unchanged(marked)
         }
         None => {
+            // objects without a root are a store's only when a push left them (its lock)
             if let Some(k) = remote
                 .keys()
-                .find(|k| *k != LOCK_KEY && !k.starts_with(".sphereclip/"))
+                .find(|k| !resumed && *k != LOCK_KEY && !k.starts_with(".sphereclip/"))
             {
                 return Err(failed(
                     url,
@@ -236,13 +252,6 @@ pub fn push(
             PutWhen::Absent
         }
     };
-    let Some(marked) = s3.put("zarr.json", incomplete, when).map_err(io_at(url))? else {
-        return Err(failed(
-            url,
-            "another writer changed the store's root as this push began: nothing was changed",
-        ));
-    };
-    crate::fault::step("root marked incomplete", Path::new("zarr.json"));
     // 3: the objects, those already there skipped; then those the folder no longer has
     let work: Vec<(&String, &PathBuf)> = files.iter().filter(|(k, _)| *k != "zarr.json").collect();
     let total = work.len() as u64;
@@ -282,14 +291,6 @@ pub fn push(
         sc_core::workers::Stopped::Failed(e) => e,
         sc_core::workers::Stopped::Panicked => failed(url, "an upload thread panicked"),
     })?;
-    let mut removed = 0;
-    for key in remote.keys() {
-        if key != "zarr.json" && key != LOCK_KEY && !files.contains_key(key) {
-            s3.delete(key).map_err(io_at(url))?;
-            crate::fault::step("object removed", Path::new(key));
-            removed += 1;
-        }
-    }
     // the folder must not have changed under the push
     let now =
         crate::files::read_regular(&root_path, MAX_ROOT).map_err(crate::io_err(&root_path))?;
@@ -301,7 +302,7 @@ pub fn push(
     }
     // 4: the root, over the one marked incomplete; the lock last
     if s3
-        .put("zarr.json", new_root, PutWhen::Unchanged(marked))
+        .put("zarr.json", new_root, when)
         .map_err(io_at(url))?
         .is_none()
     {
@@ -311,6 +312,15 @@ pub fn push(
         ));
     }
     crate::fault::step("root written", Path::new("zarr.json"));
+    // objects the new root does not name, once no root names them
+    let mut removed = 0;
+    for key in remote.keys() {
+        if key != "zarr.json" && key != LOCK_KEY && !files.contains_key(key) {
+            s3.delete(key).map_err(io_at(url))?;
+            crate::fault::step("object removed", Path::new(key));
+            removed += 1;
+        }
+    }
     s3.delete(LOCK_KEY).map_err(io_at(url))?;
     crate::fault::step("push lock released", Path::new(LOCK_KEY));
     Ok(PushSummary {

@@ -24,8 +24,8 @@ const REQUEST_TIMEOUT: Duration = Duration::from_secs(30);
 /// How long connecting may take.
 const CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
 /// Retries of one request after a transient failure, and the time they may take together.
-const RETRIES: usize = 4;
-const RETRY_TIMEOUT: Duration = Duration::from_secs(20);
+const RETRIES: usize = 10;
+const RETRY_TIMEOUT: Duration = Duration::from_secs(30);
 
 /// `s3://bucket/prefix` split into the bucket and the prefix (no slashes at its ends; may be
 /// empty). Refuses what is not one.
@@ -139,7 +139,7 @@ impl S3Source {
         let store = b
             .with_retry(RetryConfig {
                 backoff: BackoffConfig {
-                    init_backoff: Duration::from_millis(100),
+                    init_backoff: Duration::from_millis(200),
                     max_backoff: Duration::from_secs(5),
                     base: 2.0,
                 },
