@@ -14,6 +14,8 @@ one per line, answering each with one line:
   faults down SECONDS        every request of the program under test answered 503 for SECONDS
   faults quota BYTES         uploads beyond BYTES in all refused (403 QuotaExceeded, not retried)
   faults none                -> `done 1`
+  stats                      requests of the program under test since the last `stats`, by
+                             method, and bytes in and out -> `done GET=n PUT=n … in=B out=B`
   compare BUCKET PREFIX FOLDER  whether the objects under PREFIX/ are exactly FOLDER's files
                              (names beginning with `.` left out), byte for byte -> `done N`, or
                              `error` and what differs
@@ -48,6 +50,16 @@ class Faults:
         self.mode = ("none",)
         self.count = 0
         self.uploaded = 0
+        self.stats = {}
+
+    def take_stats(self):
+        with self.lock:
+            stats, self.stats = self.stats, {}
+        return " ".join(f"{k}={v}" for k, v in sorted(stats.items()))
+
+    def note(self, key, n):
+        with self.lock:
+            self.stats[key] = self.stats.get(key, 0) + n
 
     def set(self, mode):
         with self.lock:
@@ -69,6 +81,16 @@ class Faults:
     def __call__(self, environ, start):
         if CONTROL in environ.get("HTTP_USER_AGENT", ""):
             return self.app(environ, start)
+        self.note(environ["REQUEST_METHOD"], 1)
+        self.note("in", int(environ.get("CONTENT_LENGTH") or 0))
+        inner = start
+
+        def start(status, headers, *rest):
+            for k, v in headers:
+                if k.lower() == "content-length":
+                    self.note("out", int(v))
+            return inner(status, headers, *rest)
+
         with self.lock:
             mode = self.mode
             self.count += 1
@@ -130,6 +152,8 @@ def main() -> None:
                 else:
                     faults.set(("none",))
                 print("done 1", flush=True)
+            elif words[0] == "stats":
+                print(f"done {faults.take_stats()}", flush=True)
             elif words[0] == "bucket":
                 s3.create_bucket(Bucket=words[1])
                 print("done 1", flush=True)
