@@ -77,6 +77,22 @@ impl S3Server {
             .env("XDG_RUNTIME_DIR", xdg())
     }
 
+    /// The PNG of `render AT --camera CAMERA --size 160x90` into `out`.
+    fn render(&self, at: &str, camera: &str, out: &Path) -> Vec<u8> {
+        let o = self.run(&[
+            "render",
+            at,
+            "--camera",
+            camera,
+            "--size",
+            "160x90",
+            "--out",
+            s(out),
+        ]);
+        ok(&o);
+        std::fs::read(out).expect("png")
+    }
+
     /// `sphereclip ARGS` against this server, within two minutes.
     pub(crate) fn run(&self, args: &[&str]) -> std::process::Output {
         let mut c = bin();
@@ -106,26 +122,11 @@ fn a_store_on_s3_reads_as_its_folder_and_failures_are_one_line() {
         .iter()
         .enumerate()
     {
-        let local = dir.path().join(format!("local{i}.png"));
-        let remote = dir.path().join(format!("s3-{i}.png"));
-        let mut said = String::new();
-        for (at, out) in [(s(&store), &local), (url, &remote)] {
-            let o = server.run(&[
-                "render",
-                at,
-                "--camera",
-                camera,
-                "--size",
-                "160x90",
-                "--out",
-                s(out),
-            ]);
-            ok(&o);
-            said += &format!("{at}: {}{}", text(&o.stdout), text(&o.stderr));
-        }
+        let local = server.render(s(&store), camera, &dir.path().join(format!("local{i}.png")));
+        let remote = server.render(url, camera, &dir.path().join(format!("s3-{i}.png")));
         assert!(
-            std::fs::read(&local).expect("png") == std::fs::read(&remote).expect("png"),
-            "camera {camera}: the render from S3 differs from the folder's\n{said}"
+            local == remote,
+            "camera {camera}: the render from S3 differs from the folder's"
         );
     }
     // the same GeoTIFF, colour and heights
@@ -407,20 +408,7 @@ fn a_failing_s3_is_retried_and_a_full_bucket_ends_in_one_line() {
     server.put("planets", "world/planet.zarr", &store);
     let url = "s3://planets/world/planet.zarr";
     let camera = "46.5,8,300000,0,-30,60";
-    let render = |server: &S3Server, at: &str, out: &Path| {
-        let o = server.run(&[
-            "render",
-            at,
-            "--camera",
-            camera,
-            "--size",
-            "160x90",
-            "--out",
-            s(out),
-        ]);
-        ok(&o);
-        std::fs::read(out).expect("png")
-    };
+    let render = |server: &S3Server, at: &str, out: &Path| server.render(at, camera, out);
     let want = render(&server, s(&store), &d.join("local.png"));
     // every fifth request refused (503 SlowDown, S3's throttling), then every fourth a 500:
     // the reads and a push are retried to the same bytes

@@ -203,14 +203,15 @@ pub fn push(
     let s3 = S3Source::new(url).map_err(io_at(url))?;
     let url = s3.url().to_string();
     let url = url.as_str();
+    let resumed = take_lock(&s3, root, break_lock)?;
+    crate::fault::pause("push-locked");
+    // what is there, listed once the lock keeps other pushes out
     let remote: BTreeMap<String, (u64, Option<String>)> = s3
         .list()
         .map_err(io_at(url))?
         .into_iter()
         .map(|(k, size, tag)| (k, (size, tag)))
         .collect();
-    let resumed = take_lock(&s3, root, break_lock)?;
-    crate::fault::pause("push-locked");
     // 2: the root read and marked incomplete (what it lists stays readable: objects it names are
     // replaced, never removed, before the new root); a new store has no root until the end
     let old = s3.get_tagged("zarr.json", MAX_ROOT).map_err(io_at(url))?;

@@ -220,22 +220,6 @@ impl S3Source {
         })
     }
 
-    /// The size and ETag (without quotes) of object `key`; `None` when there is none.
-    pub fn head(&self, key: &str) -> io::Result<Option<(u64, Option<String>)>> {
-        let path = self.path(key);
-        let url = self.url_of(key);
-        self.rt.block_on(async {
-            match self.store.head(&path).await {
-                Ok(m) => Ok(Some((
-                    m.size,
-                    m.e_tag.map(|e| e.trim_matches('"').to_string()),
-                ))),
-                Err(object_store::Error::NotFound { .. }) => Ok(None),
-                Err(e) => Err(one_line(&url, &e)),
-            }
-        })
-    }
-
     /// Writes object `key` as `when` allows; `Ok(None)` when the condition did not hold (another
     /// writer's object is there), else its new tag.
     pub fn put(&self, key: &str, bytes: Vec<u8>, when: PutWhen) -> io::Result<Option<Tag>> {
