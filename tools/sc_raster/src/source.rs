@@ -1603,7 +1603,7 @@ fn configure_gdal_remote() {
                 let _ = gdal::config::set_config_option(k, v);
             }
         };
-        if let Some(ep) = env("AWS_ENDPOINT_URL_S3").or_else(|| env("AWS_ENDPOINT_URL")) {
+        if let Some(ep) = sc_store::endpoint_from_env() {
             let lower = ep.to_ascii_lowercase();
             let (https, host) = if lower.starts_with("http://") {
                 (false, &ep[7..])

@@ -98,19 +98,14 @@ fn store_files(root: &Path) -> Result<BTreeMap<String, PathBuf>> {
     Ok(out)
 }
 
-/// The root `bytes` (of the store at `root`, for messages) with `complete` set to false.
-fn marked_incomplete(bytes: &[u8], root: &Path) -> Result<Vec<u8>> {
-    let bad = |why: &str| StoreError::Format {
-        what: format!("the store's zarr.json {why}"),
-        path: root.join("zarr.json"),
-    };
-    let mut v: serde_json::Value = serde_json::from_slice(bytes).map_err(|_| bad("is not JSON"))?;
-    let meta = v
-        .pointer_mut("/attributes/sphereclip")
-        .and_then(|m| m.as_object_mut())
-        .ok_or_else(|| bad("holds no sphereclip metadata"))?;
-    meta.insert("complete".into(), serde_json::Value::Bool(false));
-    serde_json::to_vec_pretty(&v).map_err(|e| bad(&e.to_string()))
+/// The root `bytes` with `complete` set to false; `None` when they are not a sphereclip store's
+/// root.
+fn marked_incomplete(bytes: &[u8]) -> Option<Vec<u8>> {
+    let mut v: serde_json::Value = serde_json::from_slice(bytes).ok()?;
+    v.pointer_mut("/attributes/sphereclip")?
+        .as_object_mut()?
+        .insert("complete".into(), serde_json::Value::Bool(false));
+    serde_json::to_vec_pretty(&v).ok()
 }
 
 /// This process as a lock's holder: the machine, the process, the folder, since when.
@@ -217,16 +212,12 @@ pub fn push(
     let old = s3.get_tagged("zarr.json", MAX_ROOT).map_err(io_at(url))?;
     let when = match old {
         Some((bytes, tag)) => {
-            let ours = serde_json::from_slice::<serde_json::Value>(&bytes)
-                .ok()
-                .is_some_and(|v| v.pointer("/attributes/sphereclip").is_some());
-            if !ours {
+            let Some(incomplete) = marked_incomplete(&bytes) else {
                 return Err(failed(
                     url,
                     "holds a zarr.json that is not a sphereclip store's: not overwritten",
                 ));
-            }
-            let incomplete = marked_incomplete(&bytes, Path::new(url))?;
+            };
             let Some(marked) = s3
                 .put("zarr.json", incomplete, PutWhen::Unchanged(tag))
                 .map_err(io_at(url))?

@@ -27,6 +27,14 @@ const CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
 const RETRIES: usize = 10;
 const RETRY_TIMEOUT: Duration = Duration::from_secs(30);
 
+/// The S3-compatible server the environment names (`AWS_ENDPOINT_URL_S3`, else
+/// `AWS_ENDPOINT_URL`), as written; `None` for AWS itself. Spoken to in plain HTTP when it begins
+/// with `http://`.
+pub fn endpoint_from_env() -> Option<String> {
+    let env = |k: &str| std::env::var(k).ok().filter(|v| !v.is_empty());
+    env("AWS_ENDPOINT_URL_S3").or_else(|| env("AWS_ENDPOINT_URL"))
+}
+
 /// `s3://bucket/prefix` split into the bucket and the prefix (no slashes at its ends; may be
 /// empty). Refuses what is not one.
 pub fn parse_s3_url(url: &str) -> io::Result<(String, String)> {
@@ -84,8 +92,15 @@ pub enum PutWhen {
     Unchanged(Tag),
 }
 
-/// What one GET gave: the object's size, the byte range sent, its bytes.
-type Got = (u64, Range<u64>, Vec<u8>);
+/// What one GET gave.
+struct Got {
+    /// The object's size.
+    size: u64,
+    /// The byte range sent.
+    range: Range<u64>,
+    bytes: Vec<u8>,
+    tag: Tag,
+}
 
 /// A store on S3-compatible object storage.
 #[derive(Debug)]
@@ -108,7 +123,7 @@ impl S3Source {
                 b = b.with_config(k, v);
             }
         }
-        if let Some(ep) = env("AWS_ENDPOINT_URL_S3").or_else(|| env("AWS_ENDPOINT_URL")) {
+        if let Some(ep) = endpoint_from_env() {
             // an endpoint written with http:// is meant to be spoken to in plain HTTP (a server
             // on this machine or this network)
             b = b
@@ -176,16 +191,22 @@ impl S3Source {
     /// The size and version of object `key` (its ETag, else its modification time), from one
     /// HEAD request; `None` when there is none. A new upload of the object changes the version.
     pub fn version(&self, key: &str) -> io::Result<Option<(u64, String)>> {
+        Ok(self.head(key)?.map(|m| {
+            let version = m
+                .e_tag
+                .map(|e| format!("etag {}", e.trim_matches('"')))
+                .unwrap_or_else(|| format!("modified {}", m.last_modified.to_rfc3339()));
+            (m.size, version)
+        }))
+    }
+
+    /// What one HEAD request says of object `key`; `None` when there is none.
+    fn head(&self, key: &str) -> io::Result<Option<object_store::ObjectMeta>> {
         let path = self.path(key);
         let url = self.url_of(key);
         self.rt.block_on(async {
             match self.store.head(&path).await {
-                Ok(m) => Ok(Some((
-                    m.size,
-                    m.e_tag
-                        .map(|e| format!("etag {}", e.trim_matches('"')))
-                        .unwrap_or_else(|| format!("modified {}", m.last_modified.to_rfc3339())),
-                ))),
+                Ok(m) => Ok(Some(m)),
                 Err(object_store::Error::NotFound { .. }) => Ok(None),
                 Err(e) => Err(one_line(&url, &e)),
             }
@@ -194,30 +215,7 @@ impl S3Source {
 
     /// Object `key` whole with its ETag; `None` when there is none.
     pub fn get_tagged(&self, key: &str, limit: u64) -> io::Result<Option<(Vec<u8>, Tag)>> {
-        let path = self.path(key);
-        let url = self.url_of(key);
-        self.rt.block_on(async {
-            let got = match self.store.get_opts(&path, GetOptions::default()).await {
-                Ok(g) => g,
-                Err(object_store::Error::NotFound { .. }) => return Ok(None),
-                Err(e) => return Err(one_line(&url, &e)),
-            };
-            if got.meta.size > limit {
-                return Err(io::Error::new(
-                    io::ErrorKind::InvalidData,
-                    format!(
-                        "{url}: {} bytes, more than the {limit} expected",
-                        got.meta.size
-                    ),
-                ));
-            }
-            let tag = Tag {
-                e_tag: got.meta.e_tag.clone(),
-                version: got.meta.version.clone(),
-            };
-            let bytes = got.bytes().await.map_err(|e| one_line(&url, &e))?;
-            Ok(Some((bytes.to_vec(), tag)))
-        })
+        Ok(self.fetch(key, None, limit)?.map(|g| (g.bytes, g.tag)))
     }
 
     /// Writes object `key` as `when` allows; `Ok(None)` when the condition did not hold (another
@@ -319,6 +317,10 @@ impl S3Source {
             };
             let size = got.meta.size;
             let range = got.range.clone();
+            let tag = Tag {
+                e_tag: got.meta.e_tag.clone(),
+                version: got.meta.version.clone(),
+            };
             if range.end - range.start > limit {
                 return Err(io::Error::new(
                     io::ErrorKind::InvalidData,
@@ -328,8 +330,13 @@ impl S3Source {
                     ),
                 ));
             }
-            let bytes = got.bytes().await.map_err(|e| one_line(&url, &e))?;
-            Ok(Some((size, range, bytes.to_vec())))
+            let bytes = got.bytes().await.map_err(|e| one_line(&url, &e))?.to_vec();
+            Ok(Some(Got {
+                size,
+                range,
+                bytes,
+                tag,
+            }))
         })
     }
 }
@@ -370,18 +377,16 @@ impl crate::StoreSource for S3Source {
     }
 
     fn get(&self, key: &str, limit: u64) -> io::Result<Option<Vec<u8>>> {
-        Ok(self.fetch(key, None, limit)?.map(|(_, _, b)| b))
+        Ok(self.fetch(key, None, limit)?.map(|g| g.bytes))
     }
 
     fn get_suffix(&self, key: &str, len: u64) -> io::Result<Option<(u64, Vec<u8>)>> {
         if len == 0 {
-            return Ok(self
-                .fetch(key, Some(GetRange::Bounded(0..0)), 0)
-                .or_else(|_| self.fetch(key, None, crate::MAX_SHARD_BYTES))?
-                .map(|(size, _, _)| (size, Vec::new())));
+            // no bytes asked: the size alone
+            return Ok(self.head(key)?.map(|m| (m.size, Vec::new())));
         }
         let got = self.fetch(key, Some(GetRange::Suffix(len)), crate::MAX_SHARD_BYTES)?;
-        Ok(got.map(|(size, _, b)| (size, b)))
+        Ok(got.map(|g| (g.size, g.bytes)))
     }
 
     fn get_range(&self, key: &str, offset: u64, len: u64) -> io::Result<Vec<u8>> {
@@ -408,7 +413,7 @@ impl crate::StoreSource for S3Source {
             Some(GetRange::Bounded(offset..end)),
             crate::MAX_SHARD_BYTES,
         ) {
-            Ok(Some((_, r, b))) if r == (offset..end) && b.len() as u64 == len => Ok(b),
+            Ok(Some(g)) if g.range == (offset..end) && g.bytes.len() as u64 == len => Ok(g.bytes),
             Ok(Some(_)) => Err(short()),
             Ok(None) => Err(io::Error::new(
                 io::ErrorKind::NotFound,
