@@ -44,7 +44,7 @@ impl S3Server {
     }
 
     /// Sends one command of s3_server.py and returns its answer.
-    fn ask(&mut self, command: &str) -> String {
+    pub(crate) fn ask(&mut self, command: &str) -> String {
         let stdin = self.stdin.as_mut().expect("running");
         writeln!(stdin, "{command}").expect("sent");
         stdin.flush().expect("sent");
@@ -470,4 +470,137 @@ fn a_failing_s3_is_retried_and_a_full_bucket_ends_in_one_line() {
         let prefix = at.trim_start_matches("s3://planets/");
         server.ask(&format!("compare planets {prefix} {}", s(folder)));
     }
+}
+
+#[test]
+fn serve_passes_a_store_on_s3_on_as_its_folder_and_never_a_half_written_one() {
+    use crate::serve::{Served, a_shard, get, split_parts};
+    let store = sample_planet();
+    let mut server = S3Server::start();
+    let prefix = "served/planet.zarr";
+    server.put("planets", prefix, &store);
+    let mut c = bin();
+    server.env(&mut c).args([
+        "serve",
+        &format!("s3://planets/{prefix}"),
+        "--addr",
+        "127.0.0.1:0",
+    ]);
+    let served = Served::start_with(c);
+    let a = served.addr;
+    assert!(served.url.ends_with("/planet.zarr"), "{}", served.url);
+    let dir = tempfile::tempdir().expect("tmp");
+
+    // the viewer's reads: the same picture as the folder's
+    let camera = "46.5,8,300000,0,-30,60";
+    let local = server.render(s(&store), camera, &dir.path().join("local.png"));
+    let remote = server.render(&served.url, camera, &dir.path().join("served.png"));
+    assert!(local == remote, "the render through serve s3:// differs");
+
+    // a shard whole, a range, a suffix, two ranges: the folder's bytes, with the object's ETag
+    let key = a_shard(&store);
+    let bytes = std::fs::read(store.join(&key)).expect("shard");
+    let path = format!("/planet.zarr/{key}");
+    let whole = get(a, &path, &[]);
+    assert_eq!(whole.status, 200);
+    assert!(whole.body == bytes, "the whole shard differs");
+    let tag = whole.header("etag").to_string();
+    assert!(tag.starts_with('"') && tag.len() > 2, "{tag}");
+    let r = get(a, &path, &[("Range", "bytes=10-109")]);
+    assert_eq!(r.status, 206);
+    assert_eq!(r.body, bytes[10..110]);
+    assert_eq!(
+        r.header("content-range"),
+        format!("bytes 10-109/{}", bytes.len())
+    );
+    let r = get(a, &path, &[("Range", "bytes=-64")]);
+    assert_eq!(r.body, bytes[bytes.len() - 64..]);
+    let r = get(a, &path, &[("Range", "bytes=0-9,100-199")]);
+    assert_eq!(r.status, 206);
+    let boundary = r
+        .header("content-type")
+        .strip_prefix("multipart/byteranges; boundary=")
+        .expect("multipart")
+        .to_string();
+    let parts = split_parts(&r.body, &boundary);
+    assert_eq!(parts, [&bytes[0..10], &bytes[100..200]]);
+    assert_eq!(
+        get(a, &path, &[("Range", &format!("bytes={}-", bytes.len()))]).status,
+        416
+    );
+    assert_eq!(get(a, &path, &[("If-None-Match", &tag)]).status, 304);
+    // metadata gzipped when asked
+    let z = get(a, "/planet.zarr/zarr.json", &[("Accept-Encoding", "gzip")]);
+    assert_eq!(z.header("content-encoding"), "gzip");
+    let mut json = Vec::new();
+    std::io::Read::read_to_end(&mut flate2::read::GzDecoder::new(&z.body[..]), &mut json)
+        .expect("gzip");
+    assert!(json == std::fs::read(store.join("zarr.json")).expect("json"));
+    // what serve never passes on, on object storage too
+    server.ask(&format!(
+        "write planets {prefix}/.sphereclip/push.lock secret"
+    ));
+    for hidden in [
+        "/planet.zarr/.sphereclip/push.lock",
+        "/planet.zarr/../x",
+        "/planet.zarr/height/no-such",
+    ] {
+        assert_eq!(get(a, hidden, &[]).status, 404, "{hidden}");
+    }
+
+    // an object written again behind the root's back: refused, never mixed in
+    let other = tempfile::NamedTempFile::new().expect("tmp");
+    let mut changed = bytes.clone();
+    changed[0] ^= 1;
+    std::fs::write(other.path(), &changed).expect("write");
+    let r = get(a, &path, &[("Range", "bytes=0-9")]);
+    assert_eq!(r.body, bytes[..10]);
+    server.ask(&format!(
+        "upload planets {prefix}/{key} {}",
+        s(other.path())
+    ));
+    let r = get(a, &path, &[("Range", "bytes=0-9")]);
+    assert_eq!(r.status, 503, "{}", text(&r.body));
+    assert!(text(&r.body).contains("changed while"), "{}", text(&r.body));
+    server.ask(&format!(
+        "upload planets {prefix}/{key} {}",
+        s(&store.join(&key))
+    ));
+
+    // a writer marks the root INCOMPLETE first: the data is refused within a second
+    let mut root: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(store.join("zarr.json")).expect("json"))
+            .expect("json");
+    root["attributes"]["sphereclip"]["complete"] = false.into();
+    server.ask(&format!("write planets {prefix}/zarr.json {root}"));
+    let refused = |p: &str| {
+        (0..50).any(|_| {
+            let r = get(a, p, &[]);
+            if r.status == 503 && text(&r.body).contains("INCOMPLETE") {
+                return true;
+            }
+            std::thread::sleep(Duration::from_millis(100));
+            false
+        })
+    };
+    assert!(
+        refused(&path) && refused("/"),
+        "an INCOMPLETE store was served"
+    );
+    // gone: said so
+    server.ask(&format!("delete planets {prefix}/zarr.json"));
+    let gone = (0..50).any(|_| {
+        let r = get(a, &path, &[]);
+        std::thread::sleep(Duration::from_millis(100));
+        r.status == 404 && text(&r.body).contains("no store here")
+    });
+    assert!(gone, "a store gone from S3 was served");
+    drop(served);
+
+    // nothing to serve: one line
+    let line = one_line_failure(
+        &server.run(&["serve", "s3://planets/none.zarr", "--addr", "127.0.0.1:0"]),
+        "serve a missing store",
+    );
+    assert!(line.contains("s3://planets/none.zarr"), "{line}");
 }

@@ -22,8 +22,14 @@ pub(crate) struct Served {
 
 impl Served {
     pub(crate) fn start(store: &Path) -> Self {
-        let mut child = bin()
-            .args(["serve", s(store), "--addr", "127.0.0.1:0"])
+        let mut c = bin();
+        c.args(["serve", s(store), "--addr", "127.0.0.1:0"]);
+        Self::start_with(c)
+    }
+
+    /// `c`, a `sphereclip serve` command, started.
+    pub(crate) fn start_with(mut c: std::process::Command) -> Self {
+        let mut child = c
             .stdout(Stdio::piped())
             .stderr(Stdio::null())
             .spawn()
@@ -83,20 +89,25 @@ impl Drop for Served {
 }
 
 /// One answer: status, headers (lower-case names), body.
-struct Answer {
-    status: u16,
-    headers: HashMap<String, String>,
-    body: Vec<u8>,
+pub(crate) struct Answer {
+    pub(crate) status: u16,
+    pub(crate) headers: HashMap<String, String>,
+    pub(crate) body: Vec<u8>,
 }
 
 impl Answer {
-    fn header(&self, name: &str) -> &str {
+    pub(crate) fn header(&self, name: &str) -> &str {
         self.headers.get(name).map_or("", String::as_str)
     }
 }
 
 /// A raw HTTP/1.1 request (the path sent exactly as given), `Connection: close`.
-fn request(addr: SocketAddr, method: &str, path: &str, headers: &[(&str, &str)]) -> Answer {
+pub(crate) fn request(
+    addr: SocketAddr,
+    method: &str,
+    path: &str,
+    headers: &[(&str, &str)],
+) -> Answer {
     let mut t = TcpStream::connect(addr).expect("connects");
     t.set_read_timeout(Some(Duration::from_secs(30)))
         .expect("timeout");
@@ -130,12 +141,12 @@ fn request(addr: SocketAddr, method: &str, path: &str, headers: &[(&str, &str)])
     }
 }
 
-fn get(addr: SocketAddr, path: &str, headers: &[(&str, &str)]) -> Answer {
+pub(crate) fn get(addr: SocketAddr, path: &str, headers: &[(&str, &str)]) -> Answer {
     request(addr, "GET", path, headers)
 }
 
 /// The first shard file of the store's finest height level, its key inside the store.
-fn a_shard(store: &Path) -> String {
+pub(crate) fn a_shard(store: &Path) -> String {
     fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
         for e in std::fs::read_dir(dir).expect("read_dir").flatten() {
             let p = e.path();
@@ -291,7 +302,7 @@ fn ranges_and_conditional_requests_answer_as_http_says() {
 }
 
 /// The parts of a `multipart/byteranges` body.
-fn split_parts<'a>(body: &'a [u8], boundary: &str) -> Vec<&'a [u8]> {
+pub(crate) fn split_parts<'a>(body: &'a [u8], boundary: &str) -> Vec<&'a [u8]> {
     let sep = format!("\r\n--{boundary}");
     let mut out = Vec::new();
     let mut rest = body;

@@ -7,6 +7,7 @@ one per line, answering each with one line:
                              missing) -> `done N`
   bucket NAME                a bucket -> `done 1`
   write BUCKET KEY TEXT      one object holding TEXT -> `done 1`
+  upload BUCKET KEY FILE     one object holding FILE's bytes -> `done 1`
   delete BUCKET KEY          -> `done 1`
   public BUCKET KEY          the object readable by anyone (plain HTTP GET) -> `done 1`
   faults every N CODE        from now on every N-th request of the program under test is
@@ -160,6 +161,10 @@ def main() -> None:
             elif words[0] == "write":
                 bucket, key, body = words[1:4]
                 s3.put_object(Bucket=bucket, Key=key, Body=body.encode())
+                print("done 1", flush=True)
+            elif words[0] == "upload":
+                bucket, key, path = words[1:4]
+                s3.upload_file(path, bucket, key)
                 print("done 1", flush=True)
             elif words[0] == "public":
                 bucket, key = words[1:3]

@@ -1,5 +1,6 @@
 //! `sphereclip serve`: a store over HTTP, read-only, for the web viewer, the desktop viewer
-//! (`view http://…`) and any Zarr reader.
+//! (`view http://…`) and any Zarr reader. The store is a folder or on object storage
+//! (`s3://…`, its objects passed on, never two commits' objects mixed in one answer).
 //!
 //! What is served: the store's files under `/<name>/` (its folder's name), with Range requests
 //! (single, open-ended, suffix, several as `multipart/byteranges`; 416 otherwise), ETag and
@@ -101,24 +102,62 @@ fn plain_component(c: &str) -> bool {
             .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-' || b == b'.')
 }
 
-/// Starts serving `store` on `addr` in a thread of its own. The store is opened and checked
-/// first: a missing or damaged store is an error here, not a server that answers 404s.
-/// `on_signal`: stop on SIGINT/SIGTERM (the command line), not only on [`Server::stop`].
-pub fn start(store: &Path, addr: SocketAddr, on_signal: bool) -> Result<Server, ServeError> {
-    let id = std::fs::symlink_metadata(store.join("zarr.json"))
-        .ok()
-        .map(|m| file_id(&m));
-    let first = Health::of(&sc_store::StoreReader::open(store)?);
+/// Starts serving `store` (a folder, or `s3://…` on object storage) on `addr` in a thread of
+/// its own. The store is opened and checked first: a missing or damaged store is an error here,
+/// not a server that answers 404s. `on_signal`: stop on SIGINT/SIGTERM (the command line), not
+/// only on [`Server::stop`].
+pub fn start(
+    store: &sc_store::Location,
+    addr: SocketAddr,
+    on_signal: bool,
+) -> Result<Server, ServeError> {
+    let (backing, seen, name) = match store {
+        sc_store::Location::Local(root) => {
+            let id = std::fs::symlink_metadata(root.join("zarr.json"))
+                .ok()
+                .map(|m| Stamp::File(file_id(&m)));
+            let first = Health::of(&sc_store::StoreReader::open(root)?);
+            (
+                Backing::Folder(root.clone()),
+                id.map(|stamp| Seen::now(stamp, first)),
+                mount_name(root),
+            )
+        }
+        sc_store::Location::Remote(url) if sc_store::is_s3_url(url) => {
+            let io = |e: std::io::Error| {
+                ServeError::Store(sc_store::StoreError::Io {
+                    source: e,
+                    path: store.as_path(),
+                })
+            };
+            let src = Arc::new(sc_store::S3Source::new(url).map_err(io)?);
+            let stamp = Stamp::Object(src.info("zarr.json").map_err(io)?.and_then(|i| i.e_tag));
+            let reader = sc_store::StoreReader::open_source(store.clone(), src.clone(), None)?;
+            (
+                Backing::S3(src),
+                Some(Seen::now(stamp, Health::of(&reader))),
+                mount_name(Path::new(url.rsplit('/').next().unwrap_or_default())),
+            )
+        }
+        sc_store::Location::Remote(url) => {
+            return Err(ServeError::Io(std::io::Error::new(
+                std::io::ErrorKind::Unsupported,
+                format!(
+                    "{url} is already served over HTTP: open it there (serve takes a folder or s3://…)"
+                ),
+            )));
+        }
+    };
     let std_listener =
         std::net::TcpListener::bind(addr).map_err(|source| ServeError::Bind { addr, source })?;
     std_listener.set_nonblocking(true)?;
     let addr = std_listener.local_addr()?;
-    let name = mount_name(store);
     let state = Arc::new(State {
-        root: store.to_path_buf(),
+        backing,
         name: name.clone(),
         // what the check above found, for the first requests
-        seen: Mutex::new(id.map(|id| (id, first))),
+        seen: Mutex::new(seen),
+        objects: Mutex::default(),
         counts: Arc::default(),
     });
     let counts = state.counts.clone();
@@ -178,12 +217,54 @@ async fn signal() {
 
 /// What the server knows of the store between requests.
 struct State {
-    root: PathBuf,
+    backing: Backing,
     name: String,
-    /// The root metadata file's identity when it was last read, and what the store was then.
-    seen: Mutex<Option<(FileId, Health)>>,
+    /// The root metadata's identity when it was last read, and what the store was then.
+    seen: Mutex<Option<Seen>>,
+    /// On object storage: what HEAD requests said of the objects since the root last changed
+    /// (objects are written again only while the root says INCOMPLETE).
+    objects: Mutex<std::collections::HashMap<String, sc_store::ObjectInfo>>,
     counts: Arc<Counts>,
 }
+
+/// Where the served store's bytes are.
+enum Backing {
+    /// A folder on this machine.
+    Folder(PathBuf),
+    /// S3-compatible object storage.
+    S3(Arc<sc_store::S3Source>),
+}
+
+/// The identity of the store's root metadata: a file's, or an object's ETag.
+#[derive(Debug, Clone, PartialEq, Eq)]
+enum Stamp {
+    File(FileId),
+    Object(Option<String>),
+}
+
+/// The store as last read: the root's identity, what the store was, when that was checked.
+struct Seen {
+    stamp: Stamp,
+    health: Health,
+    at: std::time::Instant,
+}
+
+impl Seen {
+    fn now(stamp: Stamp, health: Health) -> Self {
+        Self {
+            stamp,
+            health,
+            at: std::time::Instant::now(),
+        }
+    }
+}
+
+/// How long a store on object storage is taken to be as its root last said, before a page or
+/// a refusal asks again (every answer with data checks the root after reading it).
+const S3_RECHECK: Duration = Duration::from_secs(1);
+
+/// The most objects whose HEAD answers are kept.
+const MAX_KNOWN_OBJECTS: usize = 100_000;
 
 /// Requests answered and body bytes sent (as the answers' lengths say), for the operator and
 /// the benchmarks.
@@ -251,28 +332,132 @@ impl Health {
 }
 
 impl State {
-    /// The store's health now: re-read when its root metadata changed (a stat a request).
+    /// The store's health now: re-read when its root metadata changed (a stat a request for a
+    /// folder; a HEAD at most every [`S3_RECHECK`] on object storage).
     fn health(&self) -> Health {
-        if sc_store::being_written(&self.root) {
-            return Health::Incomplete;
+        match &self.backing {
+            Backing::Folder(root) => {
+                if sc_store::being_written(root) {
+                    return Health::Incomplete;
+                }
+                let stamp = match std::fs::symlink_metadata(root.join("zarr.json")) {
+                    Ok(m) if m.is_file() => Stamp::File(file_id(&m)),
+                    Ok(_) => {
+                        return Health::Broken(
+                            "the store's zarr.json is not a regular file".into(),
+                        );
+                    }
+                    Err(_) => return Health::Broken("there is no store here any more".into()),
+                };
+                self.health_at(stamp, || {
+                    sc_store::StoreReader::open(root).map(|r| Health::of(&r))
+                })
+            }
+            Backing::S3(src) => {
+                if let Some(seen) = self
+                    .seen
+                    .lock()
+                    .unwrap_or_else(PoisonError::into_inner)
+                    .as_ref()
+                    .filter(|s| s.at.elapsed() < S3_RECHECK)
+                {
+                    return seen.health.clone();
+                }
+                match self.root_stamp(src) {
+                    Ok(stamp) => self.health_at(stamp, || {
+                        let at = sc_store::Location::Remote(src.url().to_string());
+                        sc_store::StoreReader::open_source(at, src.clone(), None)
+                            .map(|r| Health::of(&r))
+                    }),
+                    Err(h) => h,
+                }
+            }
         }
-        let id = match std::fs::symlink_metadata(self.root.join("zarr.json")) {
-            Ok(m) if m.is_file() => file_id(&m),
-            Ok(_) => return Health::Broken("the store's zarr.json is not a regular file".into()),
-            Err(_) => return Health::Broken("there is no store here any more".into()),
-        };
+    }
+
+    /// The root object's ETag now, or what the store is when it has none.
+    fn root_stamp(&self, src: &sc_store::S3Source) -> Result<Stamp, Health> {
+        match src.info("zarr.json") {
+            Ok(Some(i)) => Ok(Stamp::Object(i.e_tag)),
+            Ok(None) => Err(Health::Broken("there is no store here any more".into())),
+            Err(e) => Err(Health::Broken(e.to_string())),
+        }
+    }
+
+    /// The health the store had at `stamp`, read again (by `open`) when the root changed.
+    fn health_at(
+        &self,
+        stamp: Stamp,
+        open: impl FnOnce() -> Result<Health, sc_store::StoreError>,
+    ) -> Health {
         let mut seen = self.seen.lock().unwrap_or_else(PoisonError::into_inner);
-        if let Some((known, h)) = seen.as_ref()
-            && *known == id
+        if let Some(s) = seen.as_mut()
+            && s.stamp == stamp
         {
-            return h.clone();
+            s.at = std::time::Instant::now();
+            return s.health.clone();
         }
-        let h = match sc_store::StoreReader::open(&self.root) {
-            Ok(r) => Health::of(&r),
-            Err(e) => Health::Broken(e.to_string()),
-        };
-        *seen = Some((id, h.clone()));
+        let h = open().unwrap_or_else(|e| Health::Broken(e.to_string()));
+        self.objects
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .clear();
+        *seen = Some(Seen::now(stamp, h.clone()));
         h
+    }
+
+    /// The root's identity as last read.
+    fn stamp(&self) -> Option<Stamp> {
+        self.seen
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .as_ref()
+            .map(|s| s.stamp.clone())
+    }
+
+    /// Whether the store on object storage still has the root it had when `before` was read:
+    /// checked after reading an object, so the object read was part of that commit (a writer
+    /// marks the root INCOMPLETE before it writes any object). When not, the store is read again
+    /// at the next request.
+    fn still(&self, src: &sc_store::S3Source, before: &Option<Stamp>) -> bool {
+        let now = self.root_stamp(src).ok();
+        if now.is_some() && now == *before {
+            return true;
+        }
+        if let Some(s) = self
+            .seen
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .as_mut()
+        {
+            s.at = std::time::Instant::now() - S3_RECHECK;
+        }
+        false
+    }
+
+    /// What a HEAD says of object `key` (kept until the root changes); `None` when there is none.
+    fn object_info(
+        &self,
+        src: &sc_store::S3Source,
+        key: &str,
+    ) -> std::io::Result<Option<sc_store::ObjectInfo>> {
+        if let Some(i) = self
+            .objects
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .get(key)
+        {
+            return Ok(Some(i.clone()));
+        }
+        let info = src.info(key)?;
+        if let Some(i) = &info {
+            let mut known = self.objects.lock().unwrap_or_else(PoisonError::into_inner);
+            if known.len() >= MAX_KNOWN_OBJECTS {
+                known.clear();
+            }
+            known.insert(key.to_string(), i.clone());
+        }
+        Ok(info)
     }
 }
 
@@ -358,15 +543,53 @@ async fn answer(state: Arc<State>, method: Method, uri: Uri, headers: HeaderMap)
     if let Some(refused) = health.refusal() {
         return refused;
     }
-    let root = state.root.clone();
-    let file = tokio::task::spawn_blocking(move || open_inside(&root, &key)).await;
-    let (file, meta, json) = match file {
+    let found = match &state.backing {
+        Backing::Folder(root) => {
+            let root = root.clone();
+            tokio::task::spawn_blocking(move || open_inside(&root, &key)).await
+        }
+        Backing::S3(src) => {
+            let (st, src) = (state.clone(), src.clone());
+            tokio::task::spawn_blocking(move || {
+                let before = st.stamp();
+                let json = key.ends_with(".json");
+                Ok(st.object_info(&src, &key)?.map(|info| Found {
+                    len: info.size,
+                    tag: info
+                        .e_tag
+                        .clone()
+                        .unwrap_or_else(|| format!("\"{:x}-{:?}\"", info.size, info.modified)),
+                    modified: info.modified,
+                    json,
+                    data: Data::Object {
+                        src,
+                        key,
+                        e_tag: info.e_tag,
+                        state: st.clone(),
+                        before,
+                    },
+                }))
+            })
+            .await
+            .map(|r: std::io::Result<Option<Found>>| {
+                r.and_then(|f| f.ok_or_else(|| std::io::ErrorKind::NotFound.into()))
+            })
+        }
+    };
+    let found = match found {
         Ok(Ok(found)) => found,
         Ok(Err(e)) if e.kind() == std::io::ErrorKind::NotFound => {
             return page(
                 StatusCode::NOT_FOUND,
                 "Not found",
                 "The store has no such file.",
+            );
+        }
+        Ok(Err(e)) if matches!(state.backing, Backing::S3(_)) => {
+            return page(
+                StatusCode::BAD_GATEWAY,
+                "Object storage failed",
+                &e.to_string(),
             );
         }
         Ok(Err(_)) | Err(_) => {
@@ -377,7 +600,7 @@ async fn answer(state: Arc<State>, method: Method, uri: Uri, headers: HeaderMap)
             );
         }
     };
-    send_file(file, &meta, json, &headers, head).await
+    send_file(found, &headers, head).await
 }
 
 /// The store key of a request path inside the store, or `None` when it is not served.
@@ -395,20 +618,95 @@ fn store_key(rest: &str) -> Option<String> {
 
 /// Opens `key` inside `root` as the readers do: no symlinked folder on the way, the file itself
 /// opened no-follow, regular only.
-fn open_inside(
-    root: &Path,
-    key: &str,
-) -> std::io::Result<(std::fs::File, std::fs::Metadata, bool)> {
+fn open_inside(root: &Path, key: &str) -> std::io::Result<Found> {
     let path = root.join(key);
     sc_store::files::check_inside(root, &path)?;
     let f = sc_store::files::open_regular(&path)?;
     let m = f.metadata()?;
-    Ok((f, m, key.ends_with(".json")))
+    let (len, s, ns, ino) = file_id(&m);
+    Ok(Found {
+        len,
+        tag: format!("\"{len:x}-{s:x}{ns:08x}-{ino:x}\""),
+        modified: m.modified().unwrap_or(SystemTime::UNIX_EPOCH),
+        json: key.ends_with(".json"),
+        data: Data::File(f),
+    })
 }
 
-fn etag(m: &std::fs::Metadata) -> String {
-    let (len, s, ns, ino) = file_id(m);
-    format!("\"{len:x}-{s:x}{ns:08x}-{ino:x}\"")
+/// A file of the store found for an answer: where its bytes are, its length and validators.
+struct Found {
+    data: Data,
+    len: u64,
+    tag: String,
+    modified: SystemTime,
+    json: bool,
+}
+
+/// Where a found file's bytes are.
+enum Data {
+    /// An open file of a store folder.
+    File(std::fs::File),
+    /// An object on object storage, read only while its ETag and the store's root are as they
+    /// were when it was found.
+    Object {
+        src: Arc<sc_store::S3Source>,
+        key: String,
+        e_tag: Option<String>,
+        state: Arc<State>,
+        before: Option<Stamp>,
+    },
+}
+
+/// Why an object's bytes could not be sent.
+enum Unread {
+    /// The store was written again while it was read.
+    Changed,
+    /// Reading failed.
+    Failed(String),
+}
+
+impl Unread {
+    fn page(&self) -> Response {
+        match self {
+            Self::Changed => page(
+                StatusCode::SERVICE_UNAVAILABLE,
+                "The store is being written",
+                "The store on object storage changed while this file was read. Reload in a moment.",
+            ),
+            Self::Failed(why) => page(StatusCode::BAD_GATEWAY, "Read failed", why),
+        }
+    }
+}
+
+/// Byte ranges (inclusive) of an object, read while it and the store's root stay as found.
+async fn read_object(data: Data, ranges: Vec<(u64, u64)>) -> Result<Vec<Vec<u8>>, Unread> {
+    let Data::Object {
+        src,
+        key,
+        e_tag,
+        state,
+        before,
+    } = data
+    else {
+        return Err(Unread::Failed("not an object".into()));
+    };
+    tokio::task::spawn_blocking(move || {
+        let mut out = Vec::with_capacity(ranges.len());
+        for (s, e) in ranges {
+            match src.get_if(&key, s..e + 1, e_tag.as_deref()) {
+                Ok(Some(b)) => out.push(b),
+                Ok(None) => return Err(Unread::Changed),
+                Err(e) => return Err(Unread::Failed(e.to_string())),
+            }
+        }
+        if state.still(&src, &before) {
+            Ok(out)
+        } else {
+            Err(Unread::Changed)
+        }
+    })
+    .await
+    .unwrap_or_else(|_| Err(Unread::Failed("the read failed".into())))
 }
 
 fn cors(r: Result<Response, axum::http::Error>) -> Response {
@@ -438,16 +736,14 @@ fn none_match(list: &str, tag: &str) -> bool {
         .any(|t| t == "*" || t == tag)
 }
 
-async fn send_file(
-    file: std::fs::File,
-    m: &std::fs::Metadata,
-    json: bool,
-    headers: &HeaderMap,
-    head: bool,
-) -> Response {
-    let len = m.len();
-    let tag = etag(m);
-    let modified = m.modified().unwrap_or(SystemTime::UNIX_EPOCH);
+async fn send_file(found: Found, headers: &HeaderMap, head: bool) -> Response {
+    let Found {
+        data,
+        len,
+        tag,
+        modified,
+        json,
+    } = found;
     let last_modified = httpdate::fmt_http_date(modified);
     let content_type = if json {
         "application/json"
@@ -486,8 +782,14 @@ async fn send_file(
             && header_str(headers, header::ACCEPT_ENCODING)
                 .is_some_and(|a| a.split(',').any(|e| e.trim().starts_with("gzip")));
         if gzip {
-            let Ok(Ok(body)) = tokio::task::spawn_blocking(move || gzip_file(file, len)).await
-            else {
+            let raw = match data {
+                Data::File(file) => tokio::task::spawn_blocking(move || read_file(file, len)).await,
+                object => Ok(match read_object(object, whole(len)).await {
+                    Ok(mut parts) => Ok(parts.pop().unwrap_or_default()),
+                    Err(u) => return u.page(),
+                }),
+            };
+            let Ok(Ok(body)) = raw.map(|r| r.and_then(|raw| gzip_bytes(&raw))) else {
                 return page(
                     StatusCode::INTERNAL_SERVER_ERROR,
                     "Read failed",
@@ -507,16 +809,23 @@ async fn send_file(
                     }),
             );
         }
+        let body = if head {
+            Body::empty()
+        } else {
+            match data {
+                Data::File(file) => stream(file, 0, len),
+                object => match read_object(object, whole(len)).await {
+                    Ok(mut parts) => Body::from(parts.pop().unwrap_or_default()),
+                    Err(u) => return u.page(),
+                },
+            }
+        };
         return cors(
             base()
                 .status(StatusCode::OK)
                 .header(header::CONTENT_TYPE, content_type)
                 .header(header::CONTENT_LENGTH, len)
-                .body(if head {
-                    Body::empty()
-                } else {
-                    stream(file, 0, len)
-                }),
+                .body(body),
         );
     };
     let ranges = match ranges_of(range, len) {
@@ -532,35 +841,50 @@ async fn send_file(
         }
     };
     if let [(start, end)] = ranges[..] {
+        let body = if head {
+            Body::empty()
+        } else {
+            match data {
+                Data::File(file) => stream(file, start, end - start + 1),
+                object => match read_object(object, ranges).await {
+                    Ok(mut parts) => Body::from(parts.pop().unwrap_or_default()),
+                    Err(u) => return u.page(),
+                },
+            }
+        };
         return cors(
             base()
                 .status(StatusCode::PARTIAL_CONTENT)
                 .header(header::CONTENT_TYPE, content_type)
                 .header(header::CONTENT_RANGE, format!("bytes {start}-{end}/{len}"))
                 .header(header::CONTENT_LENGTH, end - start + 1)
-                .body(if head {
-                    Body::empty()
-                } else {
-                    stream(file, start, end - start + 1)
-                }),
+                .body(body),
         );
     }
     let boundary = format!(
         "sphereclip-{:016x}",
         len ^ (modified.elapsed().map_or(7, |d| d.as_nanos() as u64))
     );
-    let Ok(Ok(body)) = tokio::task::spawn_blocking({
-        let boundary = boundary.clone();
-        move || multipart(&file, &ranges, len, content_type, &boundary)
-    })
-    .await
-    else {
+    let parts = match data {
+        Data::File(file) => {
+            let ranges = ranges.clone();
+            tokio::task::spawn_blocking(move || read_ranges(&file, &ranges))
+                .await
+                .unwrap_or_else(|e| Err(std::io::Error::other(e)))
+        }
+        object => match read_object(object, ranges.clone()).await {
+            Ok(parts) => Ok(parts),
+            Err(u) => return u.page(),
+        },
+    };
+    let Ok(parts) = parts else {
         return page(
             StatusCode::INTERNAL_SERVER_ERROR,
             "Read failed",
             "The file could not be read.",
         );
     };
+    let body = multipart(&ranges, &parts, len, content_type, &boundary);
     cors(
         base()
             .status(StatusCode::PARTIAL_CONTENT)
@@ -575,6 +899,15 @@ async fn send_file(
                 Body::from(body)
             }),
     )
+}
+
+/// The one range of a whole file of `len` bytes (none when it is empty).
+fn whole(len: u64) -> Vec<(u64, u64)> {
+    if len == 0 {
+        Vec::new()
+    } else {
+        vec![(0, len - 1)]
+    }
 }
 
 /// The byte ranges (inclusive) a `Range` header asks of a file of `len` bytes: single,
@@ -635,39 +968,55 @@ impl tokio::io::AsyncRead for FailedRead {
     }
 }
 
-/// A JSON file gzipped (metadata only; bounded by [`MAX_GZIP_BYTES`]).
-fn gzip_file(file: std::fs::File, len: u64) -> std::io::Result<Vec<u8>> {
-    use std::io::{Read, Write};
-    let mut raw = Vec::with_capacity(len as usize);
+/// A metadata file's bytes (bounded by [`MAX_GZIP_BYTES`]).
+fn read_file(file: std::fs::File, len: u64) -> std::io::Result<Vec<u8>> {
+    use std::io::Read;
+    let mut raw = Vec::with_capacity(len.min(MAX_GZIP_BYTES) as usize);
     file.take(MAX_GZIP_BYTES).read_to_end(&mut raw)?;
+    Ok(raw)
+}
+
+/// Metadata gzipped.
+fn gzip_bytes(raw: &[u8]) -> std::io::Result<Vec<u8>> {
+    use std::io::Write;
     let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::new(6));
-    enc.write_all(&raw)?;
+    enc.write_all(raw)?;
     enc.finish()
 }
 
-/// A `multipart/byteranges` body of `ranges` of `file`.
+/// Byte ranges (inclusive) of `file`.
+fn read_ranges(file: &std::fs::File, ranges: &[(u64, u64)]) -> std::io::Result<Vec<Vec<u8>>> {
+    use std::os::unix::fs::FileExt;
+    ranges
+        .iter()
+        .map(|&(s, e)| {
+            let mut b = vec![0; (e - s + 1) as usize];
+            file.read_exact_at(&mut b, s)?;
+            Ok(b)
+        })
+        .collect()
+}
+
+/// A `multipart/byteranges` body of `ranges` (whose bytes are `parts`) of a file of `len`.
 fn multipart(
-    file: &std::fs::File,
     ranges: &[(u64, u64)],
+    parts: &[Vec<u8>],
     len: u64,
     content_type: &str,
     boundary: &str,
-) -> std::io::Result<Vec<u8>> {
-    use std::os::unix::fs::FileExt;
+) -> Vec<u8> {
     let mut out = Vec::new();
-    for &(s, e) in ranges {
+    for (&(s, e), bytes) in ranges.iter().zip(parts) {
         out.extend_from_slice(
             format!(
                 "\r\n--{boundary}\r\nContent-Type: {content_type}\r\nContent-Range: bytes {s}-{e}/{len}\r\n\r\n"
             )
             .as_bytes(),
         );
-        let at = out.len();
-        out.resize(at + (e - s + 1) as usize, 0);
-        file.read_exact_at(&mut out[at..], s)?;
+        out.extend_from_slice(bytes);
     }
     out.extend_from_slice(format!("\r\n--{boundary}--\r\n").as_bytes());
-    Ok(out)
+    out
 }
 
 fn escape(s: &str) -> String {

@@ -61,7 +61,7 @@ pub use meta::{
 pub use push::{PushSummary, push};
 pub use reader::{StoreReader, TileRead};
 #[cfg(not(target_arch = "wasm32"))]
-pub use s3::{PutWhen, S3Source, Tag, endpoint_from_env, parse_s3_url};
+pub use s3::{ObjectInfo, PutWhen, S3Source, Tag, endpoint_from_env, parse_s3_url};
 pub use sample::{LayerKind, TileSample, range_union};
 #[cfg(not(target_arch = "wasm32"))]
 pub use source::HttpSource;

@@ -92,6 +92,17 @@ pub enum PutWhen {
     Unchanged(Tag),
 }
 
+/// An object as a HEAD request describes it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ObjectInfo {
+    /// Its size in bytes.
+    pub size: u64,
+    /// Its ETag as the server gave it (quoted).
+    pub e_tag: Option<String>,
+    /// When it was written.
+    pub modified: std::time::SystemTime,
+}
+
 /// What one GET gave.
 struct Got {
     /// The object's size.
@@ -210,6 +221,59 @@ impl S3Source {
                 Err(object_store::Error::NotFound { .. }) => Ok(None),
                 Err(e) => Err(one_line(&url, &e)),
             }
+        })
+    }
+
+    /// What one HEAD request says of object `key` (size, ETag, modification time), for a server
+    /// passing the object on; `None` when there is none.
+    pub fn info(&self, key: &str) -> io::Result<Option<ObjectInfo>> {
+        Ok(self.head(key)?.map(|m| ObjectInfo {
+            size: m.size,
+            e_tag: m.e_tag,
+            modified: std::time::SystemTime::from(m.last_modified),
+        }))
+    }
+
+    /// Bytes `range` of object `key` while its ETag is still `e_tag` (`If-Match`); `None` when
+    /// the object is gone or was written again since.
+    pub fn get_if(
+        &self,
+        key: &str,
+        range: Range<u64>,
+        e_tag: Option<&str>,
+    ) -> io::Result<Option<Vec<u8>>> {
+        if range.end - range.start > crate::MAX_SHARD_BYTES {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                format!(
+                    "{}: more bytes asked than a store object may have",
+                    self.url_of(key)
+                ),
+            ));
+        }
+        if range.is_empty() {
+            return Ok(self.head(key)?.map(|_| Vec::new()));
+        }
+        let path = self.path(key);
+        let url = self.url_of(key);
+        self.rt.block_on(async {
+            let opts = GetOptions {
+                range: Some(GetRange::Bounded(range.clone())),
+                if_match: e_tag.map(str::to_string),
+                ..GetOptions::default()
+            };
+            let got = match self.store.get_opts(&path, opts).await {
+                Ok(g) => g,
+                Err(
+                    object_store::Error::NotFound { .. } | object_store::Error::Precondition { .. },
+                ) => return Ok(None),
+                Err(e) => return Err(one_line(&url, &e)),
+            };
+            if got.range != range {
+                return Ok(None);
+            }
+            let bytes = got.bytes().await.map_err(|e| one_line(&url, &e))?;
+            Ok((bytes.len() as u64 == range.end - range.start).then(|| bytes.to_vec()))
         })
     }
 

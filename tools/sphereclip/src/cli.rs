@@ -546,8 +546,8 @@ pub struct WebArgs {
 /// `sphereclip serve`.
 #[derive(Debug, clap::Args)]
 pub struct ServeArgs {
-    /// The store folder.
-    pub store: PathBuf,
+    /// The store folder, or a store on object storage (s3://BUCKET/…/planet.zarr).
+    pub store: sc_store::Location,
     /// Address and port to listen on (port 0: any free port); 0.0.0.0:PORT serves every network
     /// this machine is on.
     #[arg(long, default_value = "127.0.0.1:8080")]

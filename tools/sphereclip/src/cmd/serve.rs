@@ -9,9 +9,9 @@ use crate::cli::{ServeArgs, WebArgs};
 /// Runs `serve` until SIGINT or SIGTERM.
 pub fn run(a: &ServeArgs) -> Result<ExitCode> {
     let server = sc_serve::start(&a.store, a.addr, true)
-        .with_context(|| format!("cannot serve {}", a.store.display()))?;
+        .with_context(|| format!("cannot serve {}", a.store))?;
     let page = format!("http://{}/", server.addr);
-    crate::outln!("serving {} at {}", a.store.display(), server.store_url);
+    crate::outln!("serving {} at {}", a.store, server.store_url);
     if sc_serve::site::has_viewer() {
         crate::outln!("page: {page}  (the web viewer; Ctrl-C stops)");
     } else {
