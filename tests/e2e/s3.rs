@@ -604,3 +604,174 @@ fn serve_passes_a_store_on_s3_on_as_its_folder_and_never_a_half_written_one() {
     );
     assert!(line.contains("s3://planets/none.zarr"), "{line}");
 }
+
+#[test]
+fn ingest_and_build_write_a_store_on_s3_as_its_folder_resumable_at_every_step_and_racing() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let d = dir.path();
+    let mut server = S3Server::start();
+    let url = "s3://planets/made/planet.zarr";
+    // `sphereclip ARGS` on a machine whose working copies are under `machine`
+    let on = |server: &S3Server, machine: &str, args: &[&str]| {
+        let mut c = bin();
+        server
+            .env(&mut c)
+            .env("SPHERECLIP_WORK_DIR", d.join(machine))
+            .args(args);
+        c
+    };
+    let run_on = |server: &S3Server, machine: &str, args: &[&str]| {
+        run_within(on(server, machine, args), Duration::from_secs(300))
+    };
+    let start = d.join("start.zarr");
+    copy_dir(&sample_planet(), &start);
+    let srtm = sample("n07_w006_3arc_v2.tif");
+    let ingest_srtm = ["ingest", url, s(&srtm), "--level", "3", "-q"];
+    // the folder the same commands make
+    let expect = |name: &str, steps: &[&[&str]]| {
+        let f = d.join(name);
+        copy_dir(&start, &f);
+        for args in steps {
+            let args: Vec<&str> = args
+                .iter()
+                .map(|a| if *a == url { s(&f) } else { *a })
+                .collect();
+            ok(&run(&args));
+        }
+        f
+    };
+    let ingested = expect("ingested.zarr", &[&ingest_srtm]);
+    let built = expect("built.zarr", &[&ingest_srtm, &["build", url, "-q"]]);
+
+    // a new location: nothing to pull; then over a store there: pulled, written, committed
+    server.ask("bucket planets");
+    ok(&server.run(&["push", s(&start), url]));
+    let o = run_on(&server, "a", &ingest_srtm);
+    ok(&o);
+    server.ask(&format!(
+        "compare planets made/planet.zarr {}",
+        s(&ingested)
+    ));
+    let o = run_on(&server, "a", &["build", url]);
+    ok(&o);
+    assert!(
+        text(&o.stderr).contains("committed to s3://planets/made/planet.zarr"),
+        "{}",
+        text(&o.stderr)
+    );
+    server.ask(&format!("compare planets made/planet.zarr {}", s(&built)));
+    // another machine: the whole store pulled, the build finds nothing to do, nothing written
+    let o = run_on(&server, "b", &["build", url]);
+    ok(&o);
+    assert!(
+        text(&o.stderr).contains(": 0 object(s) uploaded"),
+        "{}",
+        text(&o.stderr)
+    );
+    server.ask(&format!("compare planets made/planet.zarr {}", s(&built)));
+
+    // killed after a durable step (pull, ingest, push) and run again: the store on S3 is
+    // readable all along and ends as the folder's, object by object. Every step of the pull and
+    // of the push, every sixth of the ingest between (its resumes are the ingest tests')
+    let kill_at = |server: &S3Server, n: u64| -> bool {
+        ok(&server.run(&["push", s(&start), url]));
+        let mut c = on(server, "k", &ingest_srtm);
+        c.env("SPHERECLIP_FAULT_AFTER", n.to_string());
+        let o = run_within(c, Duration::from_secs(300));
+        if o.status.success() {
+            return false;
+        }
+        assert_eq!(
+            o.status.code(),
+            Some(sc_store::fault::FAULT_EXIT),
+            "step {n}: {}",
+            text(&o.stderr)
+        );
+        ok(&server.run(&["info", url]));
+        ok(&run_on(server, "k", &ingest_srtm));
+        true
+    };
+    let (mut n, mut last) = (1, 0);
+    while kill_at(&server, n) {
+        server.ask(&format!(
+            "compare planets made/planet.zarr {}",
+            s(&ingested)
+        ));
+        last = n;
+        n += if n < 12 { 1 } else { 6 };
+        assert!(n < 1000, "the ingest never ends");
+    }
+    for m in last.saturating_sub(12).max(12) + 1..n {
+        if m % 6 != 0 && kill_at(&server, m) {
+            server.ask(&format!(
+                "compare planets made/planet.zarr {}",
+                s(&ingested)
+            ));
+        }
+    }
+    assert!(last >= 30, "only {last} durable steps");
+
+    // two machines racing: the one that commits second finds the other's commit and does its
+    // ingest again over it; both inputs are in the store, as ingested one after the other
+    ok(&server.run(&["push", s(&start), url]));
+    let aletsch = sample("aletsch_dhm200_lv95.tif");
+    let hgt = sample("N57E011.hgt.zip");
+    for m in ["a", "b"] {
+        ok(&run_on(&server, m, &["build", url, "-q"]));
+    }
+    let mut c = on(&server, "a", &["ingest", url, s(&hgt), "--level", "3"]);
+    let go = pause_at(&mut c, "work-done", d);
+    let first = std::thread::spawn(move || run_within(c, Duration::from_secs(300)));
+    wait_until_paused("work-done", d);
+    ok(&run_on(
+        &server,
+        "b",
+        &["ingest", url, s(&aletsch), "--level", "3", "-q"],
+    ));
+    std::fs::write(&go, b"").expect("go");
+    let o = first.join().expect("first ingest");
+    ok(&o);
+    assert!(
+        text(&o.stderr).contains("the ingest is done again over it"),
+        "{}",
+        text(&o.stderr)
+    );
+    let both = expect(
+        "both.zarr",
+        &[
+            &["build", url, "-q"],
+            &["ingest", url, s(&aletsch), "--level", "3", "-q"],
+            &["ingest", url, s(&hgt), "--level", "3", "-q"],
+        ],
+    );
+    server.ask(&format!("compare planets made/planet.zarr {}", s(&both)));
+
+    // what cannot be written: a store over HTTP, a plan's store, a location holding other things
+    for (args, says) in [
+        (
+            vec!["ingest", "http://127.0.0.1:9/planet.zarr", s(&srtm)],
+            "read-only",
+        ),
+        (
+            vec![
+                "plan",
+                "build",
+                url,
+                "--tasks",
+                "2",
+                "--out",
+                s(&d.join("p.json")),
+            ],
+            "a plan's tasks write a store folder",
+        ),
+    ] {
+        let line = one_line_failure(&run_on(&server, "a", &args), says);
+        assert!(line.contains(says), "{line}");
+    }
+    server.ask("write planets other/notes.txt not a store");
+    let line = one_line_failure(
+        &run_on(&server, "a", &["build", "s3://planets/other"]),
+        "other objects",
+    );
+    assert!(line.contains("but no store"), "{line}");
+}

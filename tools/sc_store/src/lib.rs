@@ -43,6 +43,8 @@ mod upgrade;
 #[cfg(not(target_arch = "wasm32"))]
 mod verify;
 #[cfg(not(target_arch = "wasm32"))]
+mod work;
+#[cfg(not(target_arch = "wasm32"))]
 mod writer;
 
 use std::path::PathBuf;
@@ -58,7 +60,7 @@ pub use meta::{
     BuildRecord, FORMAT_MAJOR, FORMAT_MINOR, InputRecord, LayerMeta, LevelMeta, StoreMeta, unix_now,
 };
 #[cfg(not(target_arch = "wasm32"))]
-pub use push::{PushSummary, push};
+pub use push::{Over, PushSummary, Pushed, push};
 pub use reader::{StoreReader, TileRead};
 #[cfg(not(target_arch = "wasm32"))]
 pub use s3::{ObjectInfo, PutWhen, S3Source, Tag, endpoint_from_env, parse_s3_url};
@@ -70,6 +72,8 @@ pub use source::{FolderSource, Location, StoreSource, is_s3_url, is_url};
 pub use upgrade::{UpgradeReport, upgrade};
 #[cfg(not(target_arch = "wasm32"))]
 pub use verify::{LevelStats, Problem, VerifyReport};
+#[cfg(not(target_arch = "wasm32"))]
+pub use work::{PullSummary, WorkingCopy, work_dir};
 #[cfg(not(target_arch = "wasm32"))]
 pub use writer::{
     EncodedTile, LEVEL_MAKERS, ShardWriter, StoreConfig, StoreWriter, being_written,

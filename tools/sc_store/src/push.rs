@@ -32,6 +32,26 @@ const UPLOADS: usize = 8;
 /// The most bytes a root `zarr.json` may have.
 const MAX_ROOT: u64 = 64 << 20;
 
+/// What a push may write over.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Over<'a> {
+    /// Whatever store is there (`sphereclip push`).
+    Anything,
+    /// Only the commit whose root had this ETag (`None`: no store), the one a working copy was
+    /// pulled at; another writer's later commit is never written over.
+    Commit(Option<&'a str>),
+}
+
+/// How a push ended.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Pushed {
+    /// The folder is the store there now.
+    Done(PushSummary),
+    /// Another writer committed over the commit asked for ([`Over::Commit`]): nothing was
+    /// written; what is there now, in words.
+    Moved(String),
+}
+
 /// What a push did.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct PushSummary {
@@ -43,6 +63,8 @@ pub struct PushSummary {
     pub removed: u64,
     /// Bytes written.
     pub bytes: u64,
+    /// The ETag of the store's root there now.
+    pub root_tag: Option<String>,
 }
 
 fn failed(url: &str, what: impl std::fmt::Display) -> StoreError {
@@ -59,7 +81,7 @@ fn io_at(url: &str) -> impl Fn(std::io::Error) -> StoreError + '_ {
 /// The files of the store folder at `root` as object keys (`/`-separated, relative), sorted:
 /// regular files only; names beginning with `.` (the lock, `.sphereclip/`) and temp files of a
 /// writer are not part of a store; a symlink is refused, never followed.
-fn store_files(root: &Path) -> Result<BTreeMap<String, PathBuf>> {
+pub(crate) fn store_files(root: &Path) -> Result<BTreeMap<String, PathBuf>> {
     fn walk(dir: &Path, key: &str, out: &mut BTreeMap<String, PathBuf>) -> Result<()> {
         let entries = std::fs::read_dir(dir).map_err(crate::io_err(dir))?;
         for e in entries {
@@ -108,14 +130,27 @@ fn marked_incomplete(bytes: &[u8]) -> Option<Vec<u8>> {
     serde_json::to_vec_pretty(&v).ok()
 }
 
-/// This process as a lock's holder: the machine, the process, the folder, since when.
-fn holder(root: &Path) -> serde_json::Value {
-    serde_json::json!({
+/// This process as a lock's holder: the machine, the process, the folder, since when, and the
+/// commit it writes over.
+fn holder(root: &Path, over: Over<'_>) -> serde_json::Value {
+    let mut h = serde_json::json!({
         "host": host_name(),
         "pid": std::process::id(),
         "store": root.display().to_string(),
         "since_unix_s": crate::unix_now(),
-    })
+    });
+    if let Over::Commit(base) = over {
+        h["over"] = base.map_or(serde_json::Value::Null, |b| b.into());
+    }
+    h
+}
+
+/// How a lock's holder was taken over.
+enum Lock {
+    /// Created here.
+    New,
+    /// A killed push's, taken over: it wrote over `over` (`None` when it did not say).
+    TakenOver { over: Option<Option<String>> },
 }
 
 fn host_name() -> String {
@@ -127,25 +162,26 @@ fn host_name() -> String {
 /// Takes the push lock of `s3`: creates it (`false`), or takes over one a killed push of this
 /// machine left (its process is gone), or any with `break_lock` (`true`: what is there may be
 /// half a push).
-fn take_lock(s3: &S3Source, root: &Path, break_lock: bool) -> Result<bool> {
+fn take_lock(s3: &S3Source, root: &Path, break_lock: bool, over: Over<'_>) -> Result<Lock> {
     let url = s3.url();
-    let me = serde_json::to_vec(&holder(root)).map_err(|e| failed(url, e))?;
+    let me = serde_json::to_vec(&holder(root, over)).map_err(|e| failed(url, e))?;
     if s3
         .put(LOCK_KEY, me.clone(), PutWhen::Absent)
         .map_err(io_at(url))?
         .is_some()
     {
         crate::fault::step("push lock taken", Path::new(LOCK_KEY));
-        return Ok(false);
+        return Ok(Lock::New);
     }
     let Some((held, tag)) = s3.get_tagged(LOCK_KEY, 1 << 20).map_err(io_at(url))? else {
         // released meanwhile: try once more
         return match s3.put(LOCK_KEY, me, PutWhen::Absent).map_err(io_at(url))? {
-            Some(_) => Ok(false),
+            Some(_) => Ok(Lock::New),
             None => Err(failed(url, "another push took the store just now")),
         };
     };
     let held: serde_json::Value = serde_json::from_slice(&held).unwrap_or_default();
+    let held_over = held.get("over").map(|o| o.as_str().map(str::to_string));
     let host = held["host"].as_str().unwrap_or("?");
     let pid = held["pid"].as_u64().unwrap_or(0);
     let gone = host == host_name() && pid > 0 && !Path::new(&format!("/proc/{pid}")).exists();
@@ -164,20 +200,21 @@ fn take_lock(s3: &S3Source, root: &Path, break_lock: bool) -> Result<bool> {
     {
         Some(_) => {
             crate::fault::step("push lock taken over", Path::new(LOCK_KEY));
-            Ok(true)
+            Ok(Lock::TakenOver { over: held_over })
         }
         None => Err(failed(url, "another push took the store just now")),
     }
 }
 
-/// Puts the complete store folder at `root` at `url` (`s3://bucket/prefix`). `on_object(done,
-/// total)` reports progress. See the module's protocol.
+/// Puts the complete store folder at `root` at `url` (`s3://bucket/prefix`), over what `over`
+/// allows. `on_object(done, total)` reports progress. See the module's protocol.
 pub fn push(
     root: &Path,
     url: &str,
     break_lock: bool,
+    over: Over<'_>,
     on_object: &(dyn Fn(u64, u64) + Sync),
-) -> Result<PushSummary> {
+) -> Result<Pushed> {
     let reader = StoreReader::open(root)?;
     if crate::being_written(root) {
         return Err(StoreError::Usage(format!(
@@ -198,7 +235,8 @@ pub fn push(
     let s3 = S3Source::new(url).map_err(io_at(url))?;
     let url = s3.url().to_string();
     let url = url.as_str();
-    let resumed = take_lock(&s3, root, break_lock)?;
+    let lock = take_lock(&s3, root, break_lock, over)?;
+    let resumed = matches!(lock, Lock::TakenOver { .. });
     crate::fault::pause("push-locked");
     // what is there, listed once the lock keeps other pushes out
     let remote: BTreeMap<String, (u64, Option<String>)> = s3
@@ -207,9 +245,58 @@ pub fn push(
         .into_iter()
         .map(|(k, size, tag)| (k, (size, tag)))
         .collect();
+    let old = s3.get_tagged("zarr.json", MAX_ROOT).map_err(io_at(url))?;
+    // over the commit asked for only: a lock taken over must have been taken for it, a new one
+    // finds it there
+    if let Over::Commit(base) = over {
+        let there = old.as_ref().map(|(_, t)| t.e_tag.as_deref());
+        let moved = match &lock {
+            Lock::TakenOver { over } => over.as_ref().map(Option::as_deref) != Some(base),
+            Lock::New => match (there, base) {
+                (None, None) => false,
+                (Some(tag), Some(b)) => tag != Some(b),
+                _ => true,
+            },
+        };
+        if moved {
+            if matches!(lock, Lock::New) {
+                s3.delete(LOCK_KEY).map_err(io_at(url))?;
+            }
+            return Ok(Pushed::Moved(match there {
+                Some(_) => "another writer committed a store there since".into(),
+                None => "the store there was removed since".into(),
+            }));
+        }
+    }
+    // nothing to write: every object there already, none to remove
+    let same = |k: &String, p: &PathBuf| {
+        remote.get(k).is_some_and(|(size, tag)| {
+            crate::files::read_regular(p, crate::MAX_SHARD_BYTES).is_ok_and(|data| {
+                data.len() as u64 == *size && tag.as_deref() == Some(&hex(&md5::Md5::digest(&data)))
+            })
+        })
+    };
+    if old.is_some()
+        && !resumed
+        && files
+            .get("zarr.json")
+            .is_some_and(|p| same(&"zarr.json".to_string(), p))
+        && remote
+            .keys()
+            .all(|k| k == LOCK_KEY || files.contains_key(k))
+        && files.iter().all(|(k, p)| same(k, p))
+    {
+        s3.delete(LOCK_KEY).map_err(io_at(url))?;
+        crate::fault::step("push lock released", Path::new(LOCK_KEY));
+        on_object(0, 0);
+        return Ok(Pushed::Done(PushSummary {
+            unchanged: files.len() as u64,
+            root_tag: old.and_then(|(_, t)| t.e_tag),
+            ..PushSummary::default()
+        }));
+    }
     // 2: the root read and marked incomplete (what it lists stays readable: objects it names are
     // replaced, never removed, before the new root); a new store has no root until the end
-    let old = s3.get_tagged("zarr.json", MAX_ROOT).map_err(io_at(url))?;
     let when = match old {
         Some((bytes, tag)) => {
             let Some(incomplete) = marked_incomplete(&bytes) else {
@@ -293,16 +380,12 @@ pub fn push(
         )));
     }
     // 4: the root, over the one marked incomplete; the lock last
-    if s3
-        .put("zarr.json", new_root, when)
-        .map_err(io_at(url))?
-        .is_none()
-    {
+    let Some(root_tag) = s3.put("zarr.json", new_root, when).map_err(io_at(url))? else {
         return Err(failed(
             url,
             "another writer changed the store's root during this push: the store is left INCOMPLETE; push again",
         ));
-    }
+    };
     crate::fault::step("root written", Path::new("zarr.json"));
     // objects the new root does not name, once no root names them
     let mut removed = 0;
@@ -315,12 +398,13 @@ pub fn push(
     }
     s3.delete(LOCK_KEY).map_err(io_at(url))?;
     crate::fault::step("push lock released", Path::new(LOCK_KEY));
-    Ok(PushSummary {
+    Ok(Pushed::Done(PushSummary {
         uploaded: uploaded.into_inner(),
         unchanged: unchanged.into_inner(),
         removed,
         bytes: bytes.into_inner(),
-    })
+        root_tag: root_tag.e_tag,
+    }))
 }
 
 fn hex(b: &[u8]) -> String {

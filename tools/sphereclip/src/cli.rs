@@ -119,9 +119,10 @@ pub struct UpgradeArgs {
 }
 
 /// `sphereclip ingest`.
-#[derive(Debug, clap::Args)]
+#[derive(Debug, Clone, clap::Args)]
 pub struct IngestArgs {
-    /// The store folder (created if missing).
+    /// The store folder (created if missing), or a store on object storage
+    /// (s3://BUCKET/…/planet.zarr, written through a working copy here).
     pub store: PathBuf,
     /// Input rasters; later ones win where they overlap (see --list for priorities).
     pub inputs: Vec<PathBuf>,
@@ -288,9 +289,10 @@ pub struct CommitArgs {
 }
 
 /// `sphereclip build`.
-#[derive(Debug, clap::Args)]
+#[derive(Debug, Clone, clap::Args)]
 pub struct BuildArgs {
-    /// The store folder.
+    /// The store folder, or a store on object storage (s3://BUCKET/…/planet.zarr, written
+    /// through a working copy here).
     pub store: PathBuf,
     /// Layer to build.
     #[arg(long, value_enum, default_value_t = BuildLayer::All)]

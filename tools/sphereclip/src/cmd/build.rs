@@ -98,8 +98,14 @@ pub fn settings(a: &BuildArgs) -> Result<Settings> {
     })
 }
 
-/// Runs `build`.
+/// Runs `build` (on a store on object storage, through its working copy).
 pub fn run(a: &BuildArgs) -> Result<ExitCode> {
-    build(&a.store, settings(a)?, a.json)?;
+    let settings = settings(a)?;
+    match crate::cmd::remote::s3_store(&a.store, "build")? {
+        Some(url) => crate::cmd::remote::write_through(&url, "build", |root| {
+            build(root, settings.clone(), a.json)
+        })?,
+        None => build(&a.store, settings, a.json)?,
+    };
     Ok(ExitCode::SUCCESS)
 }

@@ -117,8 +117,21 @@ pub fn make_plan_trusting(
     Ok(plan)
 }
 
-/// Runs `ingest`.
+/// Runs `ingest` (on a store on object storage, through its working copy).
 pub fn run(a: &IngestArgs) -> Result<ExitCode> {
+    match crate::cmd::remote::s3_store(&a.store, "ingest")? {
+        Some(url) => crate::cmd::remote::write_through(&url, "ingest", |root| {
+            run_local(&IngestArgs {
+                store: root.to_path_buf(),
+                ..a.clone()
+            })
+        }),
+        None => run_local(a),
+    }
+}
+
+/// Runs `ingest` into a folder.
+fn run_local(a: &IngestArgs) -> Result<ExitCode> {
     let plan = make_plan(a)?;
     let progress = Progress::new("ingest", plan.shards.len() as u64);
     // the workers are as many as the threads of the rayon pool the run sees

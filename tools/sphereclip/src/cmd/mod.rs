@@ -10,6 +10,7 @@ mod inspect;
 mod places;
 mod plan;
 mod push;
+mod remote;
 mod render;
 mod serve;
 mod upgrade;

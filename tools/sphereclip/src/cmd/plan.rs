@@ -458,6 +458,16 @@ pub fn make(a: &PlanArgs) -> Result<ExitCode> {
         PlanWhat::Ingest { plan, ingest } => (plan, ingest.threads),
         PlanWhat::Build { plan, build } => (plan, build.threads),
     };
+    let store = match &a.what {
+        PlanWhat::Ingest { ingest, .. } => &ingest.store,
+        PlanWhat::Build { build, .. } => &build.store,
+    };
+    if crate::cmd::remote::s3_store(store, "plan")?.is_some() {
+        bail!(
+            "{}: a plan's tasks write a store folder they share; a store on object storage is written by `ingest` and `build` on one machine (through a working copy), or planned on a shared folder and put there with `push`",
+            store.display()
+        );
+    }
     if opts.tasks == 0 {
         bail!("--tasks must be at least 1");
     }

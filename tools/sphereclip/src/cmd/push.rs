@@ -9,6 +9,12 @@ use crate::progress::Progress;
 
 /// Runs `push`.
 pub fn run(a: &PushArgs) -> Result<ExitCode> {
+    if crate::cmd::remote::s3_store(&a.store, "push")?.is_some() {
+        anyhow::bail!(
+            "{}: push puts a store folder of this machine on object storage",
+            a.store.display()
+        );
+    }
     if !sc_store::is_s3_url(&a.to) {
         anyhow::bail!(
             "{}: push writes to S3-compatible object storage, s3://BUCKET/PREFIX",
@@ -17,11 +23,23 @@ pub fn run(a: &PushArgs) -> Result<ExitCode> {
     }
     let start = std::time::Instant::now();
     let progress = Progress::new("push", 0);
-    let summary = sc_store::push(&a.store, &a.to, a.break_lock, &|done, total| {
-        progress.set_total(total);
-        progress.set(done);
-    })
+    let pushed = sc_store::push(
+        &a.store,
+        &a.to,
+        a.break_lock,
+        sc_store::Over::Anything,
+        &|done, total| {
+            progress.set_total(total);
+            progress.set(done);
+        },
+    )
     .map_err(|e| anyhow::anyhow!("push of {} stopped: {e}", a.store.display()))?;
+    let sc_store::Pushed::Done(summary) = pushed else {
+        anyhow::bail!(
+            "push of {} stopped: the store there moved",
+            a.store.display()
+        );
+    };
     progress.finish();
     crate::outln!(
         "pushed {} to {}: {} object(s) uploaded ({}), {} already there, {} removed, {:.1} s",

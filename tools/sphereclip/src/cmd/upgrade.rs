@@ -9,6 +9,9 @@ use crate::progress::Progress;
 
 /// Runs `upgrade`.
 pub fn run(a: &UpgradeArgs) -> Result<ExitCode> {
+    if let Some(url) = crate::cmd::remote::s3_store(&a.store, "upgrade")? {
+        anyhow::bail!("{url}: upgrade a store folder, then push it");
+    }
     let p = Progress::new("upgrade", 0);
     let report = sc_store::upgrade(&a.store, &|done, total| {
         p.set_total(total as u64);
