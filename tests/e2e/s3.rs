@@ -470,6 +470,56 @@ fn a_failing_s3_is_retried_and_a_full_bucket_ends_in_one_line() {
         let prefix = at.trim_start_matches("s3://planets/");
         server.ask(&format!("compare planets {prefix} {}", s(folder)));
     }
+
+    // ingest and build through a working copy: throttled, they finish with the folder's
+    // objects; out of quota, one line and the store readable; once there is room a rerun
+    // finishes
+    let work = d.join("work");
+    let on = |server: &S3Server, args: &[&str]| {
+        let mut c = bin();
+        server
+            .env(&mut c)
+            .env("SPHERECLIP_WORK_DIR", &work)
+            .args(args);
+        run_within(c, Duration::from_secs(300))
+    };
+    let srtm = sample("n07_w006_3arc_v2.tif");
+    for (at, fault) in [
+        (
+            "s3://planets/throttled/planet.zarr",
+            "every 5 503".to_string(),
+        ),
+        (
+            "s3://planets/quota/planet.zarr",
+            format!("quota {}", 2 * root + 100_000),
+        ),
+    ] {
+        ok(&server.run(&["push", s(&store), at]));
+        server.ask(&format!("faults {fault}"));
+        let o = on(&server, &["ingest", at, s(&srtm), "--level", "3", "-q"]);
+        if fault.starts_with("quota") {
+            let line = one_line_failure(&o, "quota during an ingest");
+            assert!(line.contains("QuotaExceeded"), "{line}");
+            server.ask("faults none");
+            let o = server.run(&["info", at]);
+            ok(&o);
+            assert!(
+                text(&o.stdout).contains("INCOMPLETE"),
+                "{}",
+                text(&o.stdout)
+            );
+            ok(&on(
+                &server,
+                &["ingest", at, s(&srtm), "--level", "3", "-q"],
+            ));
+        } else {
+            ok(&o);
+        }
+        ok(&on(&server, &["build", at, "-q"]));
+        server.ask("faults none");
+        let prefix = at.trim_start_matches("s3://planets/");
+        server.ask(&format!("compare planets {prefix} {}", s(&changed)));
+    }
 }
 
 #[test]
