@@ -69,3 +69,21 @@ a=$(now); $sc ingest "$out/s3-in-local.zarr" "$cog" -q; b=$(now)
 row "ingest an SRTM3 COG from this disk" "$(secs "$a" "$b")" "-"
 a=$(now); $sc ingest "$out/s3-in-remote.zarr" "s3://bench/inputs/$(basename "$cog")" -q; b=$(now)
 row "ingest the same COG from S3" "$(secs "$a" "$b")" "$(ask stats)"
+# writing a store there: ingest and build through a working copy, against the same on a folder
+export SPHERECLIP_WORK_DIR="$out/s3-work"
+rm -rf "$SPHERECLIP_WORK_DIR" "$out/s3-w-local.zarr"
+a=$(now); $sc ingest "$out/s3-w-local.zarr" samples/etopo5.cdf.gz --level 4 -q; b=$(now)
+row "ingest ETOPO5 level 4 into a folder" "$(secs "$a" "$b")" "-"
+a=$(now); $sc build "$out/s3-w-local.zarr" -q; b=$(now)
+row "build it in the folder" "$(secs "$a" "$b")" "-"
+ask stats >/dev/null
+a=$(now); $sc ingest s3://bench/written.zarr samples/etopo5.cdf.gz --level 4 -q; b=$(now)
+row "ingest ETOPO5 level 4 into S3 (a new store)" "$(secs "$a" "$b")" "$(ask stats)"
+a=$(now); $sc build s3://bench/written.zarr -q; b=$(now)
+row "build it on S3 (working copy up to date)" "$(secs "$a" "$b")" "$(ask stats)"
+rm -rf "$SPHERECLIP_WORK_DIR"
+a=$(now); $sc ingest s3://bench/written.zarr "$cog" --level 6 -q; b=$(now)
+row "ingest an SRTM3 COG at level 6 into it from another machine (whole store pulled)" "$(secs "$a" "$b")" "$(ask stats)"
+a=$(now); $sc build s3://bench/written.zarr -q; b=$(now)
+row "build that change (working copy up to date)" "$(secs "$a" "$b")" "$(ask stats)"
+ask "compare bench written.zarr $SPHERECLIP_WORK_DIR/$(ls "$SPHERECLIP_WORK_DIR" | grep -v '^lock$' | head -1)/written.zarr" >/dev/null

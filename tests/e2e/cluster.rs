@@ -613,6 +613,55 @@ fn a_regional_build_plans_only_the_shards_its_data_reaches_and_leaves_no_bookkee
 }
 
 #[test]
+fn an_ingest_task_opens_only_the_inputs_its_shards_need() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let d = dir.path();
+    // two inputs 50° apart, one shard each: a task has one shard, which one input reaches
+    let south = d.join("n07_w006.tif");
+    let north = d.join("N57E011.hgt.zip");
+    std::fs::copy(sample("n07_w006_3arc_v2.tif"), &south).expect("copy");
+    std::fs::copy(sample("N57E011.hgt.zip"), &north).expect("copy");
+    let inputs = [s(&south), s(&north), "--tile-size", "32", "--level", "6"].map(String::from);
+    let one = d.join("one.zarr");
+    let a: Vec<&str> = inputs.iter().map(String::as_str).collect();
+    ok(&run(&[&["ingest", s(&one)][..], &a].concat()));
+    let store = d.join("t.zarr");
+    let p = plan_with(d, "ingest", &store, &inputs, 2, &[]);
+    assert_eq!(task_count(&p), 2);
+    // the northern input turned into other bytes of the same size and time: only the task that
+    // needs it reads it (and fails); the other never opens it
+    let bytes = std::fs::read(&north).expect("read");
+    let when = std::fs::metadata(&north)
+        .and_then(|m| m.modified())
+        .expect("mtime");
+    let set = |b: &[u8]| {
+        std::fs::write(&north, b).expect("write");
+        std::fs::File::options()
+            .write(true)
+            .open(&north)
+            .and_then(|f| f.set_modified(when))
+            .expect("mtime");
+    };
+    set(&vec![0; bytes.len()]);
+    let done: Vec<bool> = (0..2).map(|i| run_task(&p, i).status.success()).collect();
+    assert_eq!(
+        done.iter().filter(|d| **d).count(),
+        1,
+        "tasks that ran without the northern input: {done:?}"
+    );
+    set(&bytes);
+    for (i, _) in done.iter().enumerate().filter(|(_, d)| !**d) {
+        ok(&run_task(&p, i));
+    }
+    ok(&run(&["commit", s(&p)]));
+    same_files(
+        &snapshot_with(&one, true),
+        &snapshot_with(&store, true),
+        "an ingest by tasks that open only their inputs",
+    );
+}
+
+#[test]
 fn a_plan_never_replaces_a_file_it_did_not_write_and_then_leaves_the_store_alone() {
     let (ingested, _) = reference();
     let dir = tempfile::tempdir().expect("tmp");

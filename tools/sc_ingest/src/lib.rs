@@ -233,6 +233,18 @@ pub struct PlannedInput {
     pub record: InputRecord,
 }
 
+/// Where an input lies and what it is, as a plan recorded them: its tasks remake the plan from
+/// these instead of opening every input (a task then opens only the inputs its shards need).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Placed {
+    /// What the source is.
+    pub info: SourceInfo,
+    /// The level it goes to.
+    pub level: LevelId,
+    /// The lon/lat box it covers.
+    pub bbox: LonLatBox,
+}
+
 /// Everything [`run`] will do; made by [`plan`] without touching the store.
 #[derive(Debug, Clone)]
 pub struct Plan {
@@ -350,17 +362,19 @@ pub fn plan(
     settings: &Settings,
     store: Option<(GridSpec, u64, f64)>,
 ) -> Result<Plan> {
-    plan_trusting(inputs, settings, store, &[])
+    plan_trusting(inputs, settings, store, &[], &[])
 }
 
 /// [`plan`], taking an input's content hash from `known` (records made by an earlier plan) when
 /// the path and the size match instead of reading the whole file again: the tasks of a plan run
-/// by many processes would otherwise each read every input.
+/// by many processes would otherwise each read every input. Where `placed` (in the order of
+/// `known`) also says where such an input lies, it is not opened at all.
 pub fn plan_trusting(
     inputs: &[Input],
     settings: &Settings,
     store: Option<(GridSpec, u64, f64)>,
     known: &[InputRecord],
+    placed: &[Placed],
 ) -> Result<Plan> {
     if inputs.is_empty() {
         return Err(IngestError::Usage("no input files given".into()));
@@ -372,9 +386,45 @@ pub fn plan_trusting(
     ));
     // every input opened, checked and hashed on the worker threads (a planet is 14 000 files);
     // the first error in the inputs' order is the one reported
+    let placed: std::collections::HashMap<&str, &Placed> = known
+        .iter()
+        .zip(placed)
+        .map(|(r, p)| (r.path.as_str(), p))
+        .collect();
     let known: std::collections::HashMap<&str, &InputRecord> =
         known.iter().map(|r| (r.path.as_str(), r)).collect();
     let one = |input: &Input| -> Result<PlannedInput> {
+        let path = input.path.display().to_string();
+        let trusted = known.get(path.as_str()).filter(|r| {
+            std::fs::metadata(&input.path).is_ok_and(|m| m.len() == r.bytes)
+                || (sc_store::is_url(&path) && r.sha256.starts_with("etag "))
+        });
+        // a plan is untrusted input: a record outside what opening could give is not taken
+        let sane = |p: &&&Placed| {
+            let b = p.bbox;
+            p.level.level <= sc_core::LEVEL_MAX
+                && p.level.aniso == 0
+                && [b.west, b.east, b.south, b.north]
+                    .iter()
+                    .all(|v| v.is_finite())
+                && (-720.0..=720.0).contains(&b.west)
+                && (-720.0..=720.0).contains(&b.east)
+                && (-90.0..=90.0).contains(&b.south)
+                && (-90.0..=90.0).contains(&b.north)
+        };
+        if let (Some(r), Some(p)) = (trusted, placed.get(path.as_str()).filter(sane)) {
+            let level = match settings.level {
+                LevelChoice::Fixed(l) => l,
+                LevelChoice::Auto => p.level,
+            };
+            return Ok(PlannedInput {
+                input: input.clone(),
+                info: p.info.clone(),
+                level,
+                bbox: p.bbox,
+                record: (*r).clone(),
+            });
+        }
         let src = RasterSource::open(&input.path, role(settings.layer), &input.options)?;
         let level = match settings.level {
             LevelChoice::Fixed(l) => l,

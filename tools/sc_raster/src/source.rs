@@ -112,8 +112,9 @@ pub enum SampleRole {
     Color,
 }
 
-/// Where the pixels of a source are and what they hold (after quirk fixes).
-#[derive(Debug, Clone, PartialEq)]
+/// Where the pixels of a source are and what they hold (after quirk fixes). Kept in a plan, so
+/// that its tasks need not open the inputs to remake it.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SourceInfo {
     /// The file.
     pub path: PathBuf,
@@ -147,7 +148,7 @@ pub struct SourceInfo {
 
 /// A lon/lat box (west may exceed east when crossing the antimeridian is not needed: we keep
 /// `west < east`, possibly beyond ±180).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct LonLatBox {
     /// West edge, degrees.
     pub west: f64,

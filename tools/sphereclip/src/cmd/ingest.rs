@@ -52,13 +52,15 @@ fn inputs(a: &IngestArgs, options: &SourceOptions) -> Result<Vec<Input>> {
 /// Checks the inputs and makes the plan of an ingest (the store is not touched); prints each
 /// input's level.
 pub fn make_plan(a: &IngestArgs) -> Result<sc_ingest::Plan> {
-    make_plan_trusting(a, &[])
+    make_plan_trusting(a, &[], &[])
 }
 
-/// [`make_plan`], taking the content hashes of inputs of unchanged size from `known`.
+/// [`make_plan`], taking the content hashes of inputs of unchanged size from `known`, and where
+/// they lie from `placed` (in the order of `known`) without opening them.
 pub fn make_plan_trusting(
     a: &IngestArgs,
     known: &[sc_store::InputRecord],
+    placed: &[sc_ingest::Placed],
 ) -> Result<sc_ingest::Plan> {
     let layer = a.layer.into();
     let kernel = Kernel::from(a.resampling);
@@ -97,7 +99,7 @@ pub fn make_plan_trusting(
         StoreWriter::check_path(&a.store)?;
         None
     };
-    let plan = sc_ingest::plan_trusting(&inputs, &settings, existing, known)?;
+    let plan = sc_ingest::plan_trusting(&inputs, &settings, existing, known, placed)?;
     for p in &plan.inputs {
         for w in &p.info.warnings {
             eprintln!("warning: {}: {w}", p.input.path.display());

@@ -56,6 +56,10 @@ struct PlanFile {
     /// The inputs' modification times then (ns since the epoch), in the order of `inputs`.
     #[serde(default)]
     input_modified_ns: Vec<u64>,
+    /// Where the inputs lie and what they are, in the order of `inputs`: a task remakes the plan
+    /// from these and opens only the inputs its shards need.
+    #[serde(default)]
+    input_places: Vec<sc_ingest::Placed>,
     stages: Vec<Stage>,
     tasks: Vec<Task>,
 }
@@ -539,6 +543,15 @@ pub fn make(a: &PlanArgs) -> Result<ExitCode> {
                 .iter()
                 .map(|r| modified_ns(Path::new(&r.path)))
                 .collect::<Result<_>>()?;
+            plan.input_places = p
+                .inputs
+                .iter()
+                .map(|i| sc_ingest::Placed {
+                    info: i.info.clone(),
+                    level: i.level,
+                    bbox: i.bbox,
+                })
+                .collect();
             p.open(&plan.store, &marker(&plan, &out))
                 .map_err(anyhow::Error::from_boxed)
                 .with_context(|| format!("cannot prepare {}", plan.store.display()))?;
@@ -640,6 +653,7 @@ fn new_plan(
         cpus_per_task: cpus,
         inputs: Vec::new(),
         input_modified_ns: Vec::new(),
+        input_places: Vec::new(),
         stages,
         tasks,
     }
@@ -784,14 +798,19 @@ fn remake(plan: &PlanFile, threads: Option<usize>, inputs: Inputs) -> Result<Ste
     let (kind, step) = match what {
         PlanWhat::Ingest { ingest, .. } => {
             same_store(plan, &ingest.store)?;
-            let known = match inputs {
+            let (known, placed) = match inputs {
                 Inputs::Stamped => {
                     check_stamps(plan)?;
-                    plan.inputs.as_slice()
+                    let placed = if plan.input_places.len() == plan.inputs.len() {
+                        plan.input_places.as_slice()
+                    } else {
+                        &[]
+                    };
+                    (plan.inputs.as_slice(), placed)
                 }
-                Inputs::Hashed => &[],
+                Inputs::Hashed => (&[][..], &[][..]),
             };
-            let p = super::ingest::make_plan_trusting(&ingest, known)?;
+            let p = super::ingest::make_plan_trusting(&ingest, known, placed)?;
             if p.hash != plan.step_hash {
                 bail!(
                     "the inputs or settings changed since the plan was made (what its tasks wrote may come from other bytes): abandon it (`sphereclip commit PLAN --abandon`) and make the plan again: {}",
