@@ -969,6 +969,10 @@ impl Plan {
     pub fn work(&self, root: &Path) -> Result<Vec<StepWork>> {
         let reader = StoreReader::open(root)?;
         let mut exists: HashMap<(LayerKind, ShardId), bool> = HashMap::new();
+        // the shards each level has, listed once (a folder read per row of shards) instead of a
+        // stat of every shard a footprint names (most of a fine level's are absent)
+        let mut on_disk: HashMap<(LayerKind, LevelId), std::collections::HashSet<(u64, u64)>> =
+            HashMap::new();
         let mut out = Vec::new();
         for st in &self.steps {
             let levels = reader.meta().levels(st.layer);
@@ -980,17 +984,19 @@ impl Plan {
                     let known = match exists.get(&(st.layer, d)) {
                         Some(&e) => e,
                         None => {
-                            let e = levels.contains(&d.level)
-                                && reader
-                                    .shard_path(
-                                        st.layer,
-                                        TileId {
-                                            level: d.level,
-                                            x: d.x * self.shard_tiles,
-                                            y: d.y * self.shard_tiles,
-                                        },
-                                    )?
-                                    .exists();
+                            let e = levels.contains(&d.level) && {
+                                let listed = match on_disk.entry((st.layer, d.level)) {
+                                    std::collections::hash_map::Entry::Occupied(o) => o.into_mut(),
+                                    std::collections::hash_map::Entry::Vacant(v) => v.insert(
+                                        reader
+                                            .shards_on_disk(st.layer, d.level)?
+                                            .into_iter()
+                                            .map(|s| (s.x, s.y))
+                                            .collect(),
+                                    ),
+                                };
+                                listed.contains(&(d.x, d.y))
+                            };
                             exists.insert((st.layer, d), e);
                             e
                         }
