@@ -32,13 +32,30 @@ pub fn remote_version(url: &str) -> io::Result<(u64, String)> {
     let missing = || io::Error::new(io::ErrorKind::NotFound, format!("{url}: no such file"));
     if crate::is_s3_url(url) {
         let (bucket, key) = crate::parse_s3_url(url)?;
-        crate::S3Source::new(&format!("s3://{bucket}"))?
-            .version(&key)?
-            .ok_or_else(missing)
+        bucket_source(&bucket)?.version(&key)?.ok_or_else(missing)
     } else {
         let (base, key) = url.rsplit_once('/').unwrap_or((url, ""));
         crate::HttpSource::new(base)
             .version(key)?
             .ok_or_else(missing)
     }
+}
+
+/// One client per bucket for the process (a plan's task asks for the version of each of its
+/// inputs: one HEAD each, not a client and a runtime each).
+#[cfg(not(target_arch = "wasm32"))]
+fn bucket_source(bucket: &str) -> io::Result<std::sync::Arc<crate::S3Source>> {
+    use std::collections::HashMap;
+    use std::sync::{Arc, Mutex, OnceLock, PoisonError};
+    static MADE: OnceLock<Mutex<HashMap<String, Arc<crate::S3Source>>>> = OnceLock::new();
+    let mut made = MADE
+        .get_or_init(Mutex::default)
+        .lock()
+        .unwrap_or_else(PoisonError::into_inner);
+    if let Some(s) = made.get(bucket) {
+        return Ok(s.clone());
+    }
+    let s = Arc::new(crate::S3Source::new(&format!("s3://{bucket}"))?);
+    made.insert(bucket.to_string(), s.clone());
+    Ok(s)
 }
