@@ -86,4 +86,5 @@ a=$(now); $sc ingest s3://bench/written.zarr "$cog" --level 6 -q; b=$(now)
 row "ingest an SRTM3 COG at level 6 into it from another machine (whole store pulled)" "$(secs "$a" "$b")" "$(ask stats)"
 a=$(now); $sc build s3://bench/written.zarr -q; b=$(now)
 row "build that change (working copy up to date)" "$(secs "$a" "$b")" "$(ask stats)"
-ask "compare bench written.zarr $SPHERECLIP_WORK_DIR/$(ls "$SPHERECLIP_WORK_DIR" | grep -v '^lock$' | head -1)/written.zarr" >/dev/null
+same=$(ask "compare bench written.zarr $SPHERECLIP_WORK_DIR/$(ls "$SPHERECLIP_WORK_DIR" | head -1)/written.zarr")
+case "$same" in error*) echo "the store on S3 differs from its working copy: $same" >&2; exit 1 ;; esac
