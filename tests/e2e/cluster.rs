@@ -662,6 +662,89 @@ fn an_ingest_task_opens_only_the_inputs_its_shards_need() {
 }
 
 #[test]
+fn a_plan_killed_while_it_opens_is_made_again_or_abandoned_to_the_store_it_found() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let d = dir.path();
+    let start = d.join("start.zarr");
+    let grid = ["--tile-size", "32", "--level", "4"];
+    ok(&run(&[
+        &["ingest", s(&start), s(&sample("etopo20.cdf"))][..],
+        &grid,
+    ]
+    .concat()));
+    let found = snapshot_with(&start, false);
+    // the plan writes over every shard: an undo entry for each, kept in one durable step
+    let srtm = sample("n07_w006_3arc_v2.tif");
+    let plan_args = |store: &Path, out: &Path| -> Vec<String> {
+        [
+            "plan",
+            "ingest",
+            s(store),
+            s(&sample("etopo20.cdf")),
+            s(&srtm),
+            "--tile-size",
+            "32",
+            "--level",
+            "4",
+            "--tasks",
+            "2",
+            "--out",
+            s(out),
+        ]
+        .map(String::from)
+        .to_vec()
+    };
+    let one = d.join("one.zarr");
+    copy_dir(&start, &one);
+    ok(&run(&[
+        &["ingest", s(&one), s(&sample("etopo20.cdf")), s(&srtm)][..],
+        &grid,
+    ]
+    .concat()));
+    let mut killed = 0;
+    for n in 1.. {
+        let store = d.join(format!("s{n}.zarr"));
+        copy_dir(&start, &store);
+        let out = d.join(format!("p{n}.json"));
+        let args = plan_args(&store, &out);
+        let mut c = bin();
+        c.env("SPHERECLIP_FAULT_AFTER", n.to_string()).args(&args);
+        let o = run_within(c, Duration::from_secs(120));
+        if o.status.success() {
+            break;
+        }
+        assert_eq!(
+            o.status.code(),
+            Some(sc_store::fault::FAULT_EXIT),
+            "step {n}"
+        );
+        killed += 1;
+        // made again, then abandoned: the store as found; made again and run: one process's
+        let a: Vec<&str> = args.iter().map(String::as_str).collect();
+        ok(&run(&a));
+        ok(&run(&["commit", s(&out), "--abandon"]));
+        same_files(
+            &found,
+            &snapshot_with(&store, false),
+            "abandoned after a kill",
+        );
+        ok(&run(&a));
+        for i in 0..task_count(&out) {
+            ok(&run_task(&out, i));
+        }
+        ok(&run(&["commit", s(&out)]));
+        same_files(
+            &snapshot_with(&one, false),
+            &snapshot_with(&store, false),
+            "a plan made again after a kill",
+        );
+        std::fs::remove_dir_all(&store).expect("rm");
+        assert!(n < 200, "the plan never ends");
+    }
+    assert!(killed >= 3, "only {killed} durable steps");
+}
+
+#[test]
 fn a_plan_never_replaces_a_file_it_did_not_write_and_then_leaves_the_store_alone() {
     let (ingested, _) = reference();
     let dir = tempfile::tempdir().expect("tmp");

@@ -611,9 +611,8 @@ impl TaskPlan for Plan {
                     writer.ensure_level(self.settings.layer, l)?;
                 }
                 writer.keep_undo(!again)?;
-                for shard in self.shards.keys() {
-                    writer.keep_undo_of(self.settings.layer, *shard)?;
-                }
+                let shards: Vec<ShardId> = self.shards.keys().copied().collect();
+                writer.keep_undo_of_all(self.settings.layer, &shards)?;
                 Ok(())
             },
         )?;

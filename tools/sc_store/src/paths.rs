@@ -33,6 +33,13 @@ pub(crate) fn upgrade_marker(root: &Path) -> PathBuf {
     root.join(".sphereclip").join("upgrade.json")
 }
 
+/// The store's metadata as a plan's opening found it, kept before the opening marks the store
+/// INCOMPLETE (an opening killed and made again finds the store marked already):
+/// `STORE/.sphereclip/before-plan.json`.
+pub(crate) fn before_plan(root: &Path) -> PathBuf {
+    root.join(".sphereclip").join("before-plan.json")
+}
+
 /// The record of the last plan committed: `STORE/.sphereclip/plan-committed.json`.
 pub(crate) fn committed_marker(root: &Path) -> PathBuf {
     root.join(".sphereclip").join("plan-committed.json")

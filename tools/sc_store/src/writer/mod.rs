@@ -314,6 +314,18 @@ impl StoreWriter {
             let (_, meta) = read_meta(root)?;
             check_writable(root, &meta)?;
             check_no_special_entries(root)?;
+            // what a plan's undo puts back: the store as its opening found it, kept before it is
+            // marked INCOMPLETE; a writer alone starts another history
+            let before = crate::paths::before_plan(root);
+            if access == Access::Planning && open_plan(root).is_none() {
+                if meta.complete {
+                    let bytes =
+                        serde_json::to_vec(&meta).map_err(|e| StoreError::Usage(e.to_string()))?;
+                    crate::fault::write_atomic(&before, &bytes).map_err(io_err(&before))?;
+                }
+            } else if access == Access::Alone && before.exists() {
+                crate::fault::remove_file(&before).map_err(io_err(&before))?;
+            }
             let codec = crate::layout::height_codec_of(&meta);
             let mut w = Self::with_meta(root, meta, codec, lock)?;
             w.access = access;

@@ -72,8 +72,17 @@ impl StoreWriter {
         }
         let meta_copy = dir.join("zarr.json");
         if !meta_copy.exists() {
-            let bytes =
-                serde_json::to_vec(&self.initial).map_err(|e| StoreError::Usage(e.to_string()))?;
+            // the store as the plan's first opening found it, when an opening killed before this
+            // point left it marked INCOMPLETE
+            let found =
+                crate::files::read_regular(&crate::paths::before_plan(&self.root), 64 << 20)
+                    .ok()
+                    .filter(|b| serde_json::from_slice::<StoreMeta>(b).is_ok());
+            let bytes = match found {
+                Some(b) => b,
+                None => serde_json::to_vec(&self.initial)
+                    .map_err(|e| StoreError::Usage(e.to_string()))?,
+            };
             crate::fault::write_atomic(&meta_copy, &bytes).map_err(io_err(&meta_copy))?;
         }
         self.undo.store(true, std::sync::atomic::Ordering::SeqCst);
@@ -179,11 +188,16 @@ impl StoreWriter {
         self.close_plan()
     }
 
-    /// Removes the open-plan marker (after the plan was committed or rolled back).
+    /// Removes the open-plan marker (after the plan was committed or rolled back), and the
+    /// store's metadata as the plan found it.
     pub fn close_plan(&self) -> Result<()> {
         let path = plan_marker(&self.root);
         if path.exists() {
             crate::fault::remove_file(&path).map_err(io_err(&path))?;
+        }
+        let before = crate::paths::before_plan(&self.root);
+        if before.exists() {
+            crate::fault::remove_file(&before).map_err(io_err(&before))?;
         }
         Ok(())
     }
@@ -193,6 +207,45 @@ impl StoreWriter {
     pub fn keep_undo_of(&self, kind: LayerKind, shard: ShardId) -> Result<()> {
         let path = self.shard_file(kind, shard)?;
         self.save_undo(kind, shard, &path)
+    }
+
+    /// [`Self::keep_undo_of`] for many shards as one durable step: every entry made (a hard link,
+    /// or an empty `.absent` file), then each folder holding entries synced once, not twice per
+    /// shard. Folders of entries an earlier, killed run made are synced too, so an entry is
+    /// durable before this returns whoever made it.
+    pub fn keep_undo_of_all(&self, kind: LayerKind, shards: &[ShardId]) -> Result<()> {
+        if !self.undo.load(std::sync::atomic::Ordering::SeqCst) {
+            return Ok(());
+        }
+        let mut folders = std::collections::BTreeSet::new();
+        for &shard in shards {
+            let u = self.undo_path(kind, shard);
+            let absent = u.with_extension(format!("{}.absent", shard.x));
+            let parent = u.parent().unwrap_or(&self.root).to_path_buf();
+            if !(u.exists() || absent.exists()) {
+                fs::create_dir_all(&parent).map_err(io_err(&parent))?;
+                let path = self.shard_file(kind, shard)?;
+                if path.exists() {
+                    fs::hard_link(&path, &u).map_err(io_err(&u))?;
+                } else {
+                    fs::OpenOptions::new()
+                        .write(true)
+                        .create_new(true)
+                        .open(&absent)
+                        .map_err(io_err(&absent))?;
+                }
+            }
+            folders.insert(parent);
+        }
+        for f in &folders {
+            File::open(f)
+                .and_then(|d| d.sync_all())
+                .map_err(io_err(f))?;
+        }
+        if let Some(f) = folders.first() {
+            crate::fault::step("undo kept", f);
+        }
+        Ok(())
     }
 
     pub(super) fn shard_file(&self, kind: LayerKind, shard: ShardId) -> Result<PathBuf> {
