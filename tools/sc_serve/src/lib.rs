@@ -89,17 +89,9 @@ pub fn mount_name(store: &Path) -> String {
     store
         .file_name()
         .and_then(|n| n.to_str())
-        .filter(|n| plain_component(n))
+        .filter(|n| sc_store::plain_name(n))
         .unwrap_or("planet.zarr")
         .to_string()
-}
-
-/// A path component served: ASCII letters, digits, `_`, `-` and `.`, not beginning with `.`.
-fn plain_component(c: &str) -> bool {
-    !c.is_empty()
-        && !c.starts_with('.')
-        && c.bytes()
-            .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-' || b == b'.')
 }
 
 /// Starts serving `store` (a folder, or `s3://…` on object storage) on `addr` in a thread of
@@ -609,7 +601,7 @@ fn store_key(rest: &str) -> Option<String> {
         return Some("zarr.json".into());
     }
     let parts: Vec<&str> = rest.split('/').collect();
-    let ok = parts.iter().all(|c| plain_component(c))
+    let ok = parts.iter().all(|c| sc_store::plain_name(c))
         && !parts
             .last()
             .is_some_and(|n| sc_store::fault::is_temp_name(n));

@@ -73,7 +73,7 @@ pub use upgrade::{UpgradeReport, upgrade};
 #[cfg(not(target_arch = "wasm32"))]
 pub use verify::{LevelStats, Problem, VerifyReport};
 #[cfg(not(target_arch = "wasm32"))]
-pub use work::{PullSummary, WorkingCopy, work_dir};
+pub use work::{PullSummary, WorkingCopy, plain_name, work_dir};
 #[cfg(not(target_arch = "wasm32"))]
 pub use writer::{
     EncodedTile, LEVEL_MAKERS, ShardWriter, StoreConfig, StoreWriter, being_written,

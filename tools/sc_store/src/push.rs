@@ -30,7 +30,7 @@ const LOCK_KEY: &str = ".sphereclip/push.lock";
 /// Objects uploaded side by side.
 const UPLOADS: usize = 8;
 /// The most bytes a root `zarr.json` may have.
-const MAX_ROOT: u64 = 64 << 20;
+pub(crate) const MAX_ROOT: u64 = 64 << 20;
 
 /// What a push may write over.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -71,7 +71,7 @@ fn failed(url: &str, what: impl std::fmt::Display) -> StoreError {
     StoreError::Usage(format!("{url}: {what}"))
 }
 
-fn io_at(url: &str) -> impl Fn(std::io::Error) -> StoreError + '_ {
+pub(crate) fn io_at(url: &str) -> impl Fn(std::io::Error) -> StoreError + '_ {
     move |source| StoreError::Io {
         source,
         path: PathBuf::from(url),
@@ -271,9 +271,8 @@ pub fn push(
     // nothing to write: every object there already, none to remove
     let same = |k: &String, p: &PathBuf| {
         remote.get(k).is_some_and(|(size, tag)| {
-            crate::files::read_regular(p, crate::MAX_SHARD_BYTES).is_ok_and(|data| {
-                data.len() as u64 == *size && tag.as_deref() == Some(&hex(&md5::Md5::digest(&data)))
-            })
+            crate::files::read_regular(p, crate::MAX_SHARD_BYTES)
+                .is_ok_and(|data| holds(*size, tag.as_deref(), &data))
         })
     };
     if old.is_some()
@@ -349,10 +348,9 @@ pub fn push(
             let (key, path) = work[i];
             let data = crate::files::read_regular(path, crate::MAX_SHARD_BYTES)
                 .map_err(crate::io_err(path))?;
-            let md5 = hex(&md5::Md5::digest(&data));
-            let there = remote.get(key).is_some_and(|(size, tag)| {
-                *size == data.len() as u64 && tag.as_deref() == Some(&md5)
-            });
+            let there = remote
+                .get(key)
+                .is_some_and(|(size, tag)| holds(*size, tag.as_deref(), &data));
             if there {
                 unchanged.fetch_add(1, Ordering::Relaxed);
             } else {
@@ -407,6 +405,12 @@ pub fn push(
     }))
 }
 
-fn hex(b: &[u8]) -> String {
-    b.iter().map(|x| format!("{x:02x}")).collect()
+/// Whether an object of `size` bytes and ETag `etag` (without quotes) holds `data`: the same
+/// size and MD5 (S3's ETag of an object put whole).
+pub(crate) fn holds(size: u64, etag: Option<&str>, data: &[u8]) -> bool {
+    let hex: String = md5::Md5::digest(data)
+        .iter()
+        .map(|x| format!("{x:02x}"))
+        .collect();
+    size == data.len() as u64 && etag == Some(hex.as_str())
 }

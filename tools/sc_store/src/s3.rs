@@ -242,39 +242,19 @@ impl S3Source {
         range: Range<u64>,
         e_tag: Option<&str>,
     ) -> io::Result<Option<Vec<u8>>> {
-        if range.end - range.start > crate::MAX_SHARD_BYTES {
-            return Err(io::Error::new(
-                io::ErrorKind::InvalidInput,
-                format!(
-                    "{}: more bytes asked than a store object may have",
-                    self.url_of(key)
-                ),
-            ));
-        }
         if range.is_empty() {
             return Ok(self.head(key)?.map(|_| Vec::new()));
         }
-        let path = self.path(key);
-        let url = self.url_of(key);
-        self.rt.block_on(async {
-            let opts = GetOptions {
-                range: Some(GetRange::Bounded(range.clone())),
-                if_match: e_tag.map(str::to_string),
-                ..GetOptions::default()
-            };
-            let got = match self.store.get_opts(&path, opts).await {
-                Ok(g) => g,
-                Err(
-                    object_store::Error::NotFound { .. } | object_store::Error::Precondition { .. },
-                ) => return Ok(None),
-                Err(e) => return Err(one_line(&url, &e)),
-            };
-            if got.range != range {
-                return Ok(None);
-            }
-            let bytes = got.bytes().await.map_err(|e| one_line(&url, &e))?;
-            Ok((bytes.len() as u64 == range.end - range.start).then(|| bytes.to_vec()))
-        })
+        let len = range.end - range.start;
+        let got = self.fetch_if(
+            key,
+            Some(GetRange::Bounded(range.clone())),
+            crate::MAX_SHARD_BYTES,
+            e_tag,
+        )?;
+        Ok(got
+            .filter(|g| g.range == range && g.bytes.len() as u64 == len)
+            .map(|g| g.bytes))
     }
 
     /// Object `key` whole with its ETag; `None` when there is none.
@@ -367,16 +347,31 @@ impl S3Source {
     /// One GET of `key` (`range` of it when given), its body no longer than `limit`; `None` when
     /// there is no such object. Returns the object's size with the bytes.
     fn fetch(&self, key: &str, range: Option<GetRange>, limit: u64) -> io::Result<Option<Got>> {
+        self.fetch_if(key, range, limit, None)
+    }
+
+    /// [`Self::fetch`] while the object's ETag is `if_match` when given (`None` also when it is
+    /// not).
+    fn fetch_if(
+        &self,
+        key: &str,
+        range: Option<GetRange>,
+        limit: u64,
+        if_match: Option<&str>,
+    ) -> io::Result<Option<Got>> {
         let path = self.path(key);
         let url = self.url_of(key);
         self.rt.block_on(async {
             let opts = GetOptions {
                 range,
+                if_match: if_match.map(str::to_string),
                 ..GetOptions::default()
             };
             let got = match self.store.get_opts(&path, opts).await {
                 Ok(g) => g,
-                Err(object_store::Error::NotFound { .. }) => return Ok(None),
+                Err(
+                    object_store::Error::NotFound { .. } | object_store::Error::Precondition { .. },
+                ) => return Ok(None),
                 Err(e) => return Err(one_line(&url, &e)),
             };
             let size = got.meta.size;

@@ -15,14 +15,10 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use md5::Digest;
-
-use crate::push::{Over, Pushed};
+use crate::push::{MAX_ROOT, Over, Pushed, holds, io_at};
 use crate::s3::S3Source;
 use crate::{Result, StoreError};
 
-/// The most bytes a root `zarr.json` may have.
-const MAX_ROOT: u64 = 64 << 20;
 /// Pulls tried while other writers keep committing.
 const PULLS: usize = 3;
 
@@ -81,11 +77,7 @@ pub fn work_dir(url: &str) -> Result<PathBuf> {
             )
         })?;
     let endpoint = crate::endpoint_from_env().unwrap_or_default();
-    let name = url
-        .rsplit('/')
-        .next()
-        .filter(|n| plain(n))
-        .unwrap_or("store");
+    let name = store_name(url);
     Ok(base.join(format!(
         "{:08x}{:08x}-{name}",
         crc32c::crc32c(url.as_bytes()),
@@ -93,27 +85,22 @@ pub fn work_dir(url: &str) -> Result<PathBuf> {
     )))
 }
 
-/// A name that may become a path component: ASCII letters, digits, `_`, `-`, `.`, not beginning
-/// with `.`.
-fn plain(c: &str) -> bool {
+/// The name of the store folder of a working copy: the location's last component when it is a
+/// plain name, else `store.zarr`.
+fn store_name(url: &str) -> &str {
+    url.rsplit('/')
+        .next()
+        .filter(|n| plain_name(n))
+        .unwrap_or("store.zarr")
+}
+
+/// A name that may become a path component of a store: ASCII letters, digits, `_`, `-`, `.`,
+/// not beginning with `.` (so never `.`, `..`, the lock or `.sphereclip`).
+pub fn plain_name(c: &str) -> bool {
     !c.is_empty()
         && !c.starts_with('.')
         && c.bytes()
             .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-' || b == b'.')
-}
-
-fn io_at(url: &str) -> impl Fn(std::io::Error) -> StoreError + '_ {
-    move |source| StoreError::Io {
-        source,
-        path: PathBuf::from(url),
-    }
-}
-
-fn md5_hex(data: &[u8]) -> String {
-    md5::Md5::digest(data)
-        .iter()
-        .map(|x| format!("{x:02x}"))
-        .collect()
 }
 
 impl WorkingCopy {
@@ -166,13 +153,8 @@ impl WorkingCopy {
                 state.url
             )));
         }
-        let name = url
-            .rsplit('/')
-            .next()
-            .filter(|n| plain(n))
-            .unwrap_or("store.zarr");
         let mut copy = Self {
-            root: dir.join(name),
+            root: dir.join(store_name(&url)),
             dir,
             url,
             state,
@@ -207,11 +189,6 @@ impl WorkingCopy {
     /// The store folder to write.
     pub fn root(&self) -> &Path {
         &self.root
-    }
-
-    /// The folder the copy lives in.
-    pub fn dir(&self) -> &Path {
-        &self.dir
     }
 
     fn save(&self) -> Result<()> {
@@ -278,7 +255,7 @@ impl WorkingCopy {
                 if k == "zarr.json" || k.starts_with(".sphereclip/") {
                     continue;
                 }
-                if !k.split('/').all(plain) || crate::fault::is_temp_name(&k) {
+                if !k.split('/').all(plain_name) || crate::fault::is_temp_name(&k) {
                     return Err(StoreError::Usage(format!(
                         "{url}: an object named {k:?}, which no store has: not pulled"
                     )));
@@ -322,9 +299,7 @@ impl WorkingCopy {
             crate::files::check_inside(&self.root, &path).map_err(crate::io_err(&path))?;
             let held = crate::files::read_regular(&path, crate::MAX_SHARD_BYTES)
                 .ok()
-                .is_some_and(|d| {
-                    d.len() as u64 == *size && etag.as_deref() == Some(md5_hex(&d).as_str())
-                });
+                .is_some_and(|d| holds(*size, etag.as_deref(), &d));
             if held {
                 summary.kept += 1;
             } else {
@@ -352,8 +327,9 @@ impl WorkingCopy {
         Ok(summary)
     }
 
-    /// Pushes the folder as a commit over the one pulled. `Ok(None)`: another writer committed
-    /// since; nothing was written, and the next [`WorkingCopy::open`] pulls that commit.
+    /// Pushes the folder as a commit over the one pulled. `Ok(Err(why))`: another writer
+    /// committed since; nothing was written, and the next [`WorkingCopy::open`] pulls that
+    /// commit.
     pub fn commit(
         &mut self,
         on_object: &(dyn Fn(u64, u64) + Sync),
